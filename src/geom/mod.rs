@@ -1,0 +1,18 @@
+//! Geometry shared by every layer: axis-aligned boxes, axes, and the outward
+//! rounding that keeps a box stored at lower precision conservative.
+//!
+//! `parry.rs` is the only place that imports parry; everything else uses
+//! nalgebra's `Point3<f64>`.
+
+mod aabb;
+mod axis;
+mod round;
+
+pub use aabb::Aabb;
+pub use axis::Axis;
+pub use round::{round_down_f32, round_up_f32};
+
+/// A point in world coordinates, millimetres.
+pub type Point = nalgebra::Point3<f64>;
+/// A vector in world coordinates, millimetres.
+pub type Vector = nalgebra::Vector3<f64>;

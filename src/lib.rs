@@ -1,0 +1,14 @@
+//! # mktree
+//!
+//! A persistent spatial index for very large 3D scenes, after the MKtree
+//! (Multiresolution Kd-tree) of Franquesa-Niubó and Brunet: a binary
+//! bounding-volume hierarchy bulk-loaded by minimum-overlap splits, with
+//! levels of detail at every node, stored in a paged file whose reads are
+//! counted exactly.
+//!
+//! Layers point down: `build` -> `scene` -> `geom`.
+
+#![forbid(unsafe_code)]
+
+pub mod geom;
+pub mod scene;
