@@ -10,5 +10,13 @@
 
 #![forbid(unsafe_code)]
 
+pub use error::Error;
+
+pub mod build;
+pub mod db;
+mod error;
+pub mod fuzzing;
 pub mod geom;
+pub mod query;
 pub mod scene;
+pub mod store;

@@ -7,10 +7,12 @@
 mod aabb;
 mod axis;
 mod round;
+mod triangle_box;
 
 pub use aabb::Aabb;
 pub use axis::Axis;
 pub use round::{round_down_f32, round_up_f32};
+pub use triangle_box::intersects_triangle_box;
 
 /// A point in world coordinates, millimetres.
 pub type Point = nalgebra::Point3<f64>;

@@ -2,9 +2,13 @@
 //! ship-scene generator and scene statistics.
 
 mod export;
+pub mod generate;
+pub mod import;
 mod mesh;
 mod object;
+mod stats;
 
 pub use export::{ObjWriter, write_obj};
 pub use mesh::{Mesh, MeshError};
 pub use object::{Object, ObjectId, Scene};
+pub use stats::{Distribution, SceneInfo};

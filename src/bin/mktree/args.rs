@@ -1,0 +1,189 @@
+//! Command-line arguments (clap), turned into library options here and nowhere else.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand};
+use mktree::build::{BuildParams, LeafRule, LookAhead, Method, TieBreak};
+use mktree::store::format::run;
+
+#[derive(Parser, Debug)]
+#[command(name = "mktree", version, about = "MKtree: a paged spatial index with levels of detail for large 3D scenes")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Generate a ship-outfitting scene as OBJ (tanker1, tanker2, tanker3, ship).
+    Gen {
+        preset: String,
+        /// Number of objects (ship: 100 to 10,000,000).
+        #[arg(long)]
+        objects: Option<u64>,
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        #[arg(short = 'o', long = "output")]
+        output: PathBuf,
+    },
+    /// Print a scene's counts, extent and size distributions.
+    Info {
+        scene: PathBuf,
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        import: ImportArgs,
+    },
+    /// Build in memory (or read a .mkt file) and print the paper's per-level table and totals.
+    Stats {
+        input: PathBuf,
+        #[command(flatten)]
+        build: BuildArgs,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Every node of the tree as JSON.
+    Dump {
+        input: PathBuf,
+        #[command(flatten)]
+        build: BuildArgs,
+        #[arg(long)]
+        json: bool,
+    },
+    /// The grid of the paper's Tables 39-44: MOA and LAA over R and MemPage.
+    Sweep {
+        scene: PathBuf,
+        /// MemPage values (default: 10,20,30 below 1,000 objects, else 100,200,500).
+        #[arg(long, value_delimiter = ',')]
+        pages: Option<Vec<u32>>,
+        /// R values.
+        #[arg(long, value_delimiter = ',', default_values_t = vec![0.01, 0.2, 0.3])]
+        rates: Vec<f64>,
+        /// LAA's look-ahead level in the grid.
+        #[arg(long, default_value = "max")]
+        look_ahead: LookAhead,
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        import: ImportArgs,
+    },
+    /// Bulk-load a scene into an .mkt file in one write transaction.
+    Build {
+        scene: PathBuf,
+        #[arg(short = 'o', long = "output")]
+        output: PathBuf,
+        #[command(flatten)]
+        build: BuildArgs,
+        /// M, the levels of detail each node record carries (new files only).
+        #[arg(long, default_value_t = mktree::db::DEFAULT_LOD_LEVELS)]
+        lods: u8,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Objects whose exact geometry meets a box, with the block reads it took.
+    Query {
+        file: PathBuf,
+        /// x0,y0,z0,x1,y1,z1 in mm.
+        #[arg(long = "box", value_parser = six_numbers, allow_hyphen_values = true)]
+        aabb: [f64; 6],
+        #[arg(long)]
+        json: bool,
+    },
+    /// Verify every checksum and structural rule; exit 1 on any fault.
+    Check {
+        file: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
+    /// The same random box queries against each file: mean block reads, answers and time.
+    BenchQueries {
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        #[arg(long, default_value_t = 100)]
+        queries: usize,
+        /// Box sides as shares of the scene extent.
+        #[arg(long, value_delimiter = ',', default_values_t = vec![0.01, 0.05, 0.2])]
+        shares: Vec<f64>,
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        #[arg(long)]
+        json: bool,
+    },
+    /// The main job on the built-in scene: tanker2 built with MOA and LAA, stats side by side, box queries.
+    Demo {
+        /// Keep the .mkt files here (default: a temporary directory, removed after).
+        #[arg(long)]
+        dir: Option<PathBuf>,
+    },
+}
+
+/// Options for reading scenes.
+#[derive(Args, Debug, Clone)]
+pub struct ImportArgs {
+    /// glTF scale to millimetres (glTF is metres by specification).
+    #[arg(long, default_value_t = 1000.0)]
+    pub gltf_scale: f64,
+}
+
+impl ImportArgs {
+    pub fn options(&self) -> mktree::scene::import::ImportOptions {
+        mktree::scene::import::ImportOptions { gltf_scale: self.gltf_scale }
+    }
+}
+
+/// Every bulk-loading option.
+#[derive(Args, Debug, Clone)]
+pub struct BuildArgs {
+    /// Splitting method: moa, laa, median, hilbert, sah.
+    #[arg(long, default_value = "moa")]
+    pub method: Method,
+    /// R, in [0, 0.5].
+    #[arg(long, default_value_t = 0.2)]
+    pub rate: f64,
+    /// MemPage: at most this many objects per leaf.
+    #[arg(long, conflicts_with = "leaf_bytes")]
+    pub page_objects: Option<u32>,
+    /// Block size in bytes. For `build`, the file's block size; without
+    /// --page-objects, leaves are also cut so their geometry fits one block.
+    #[arg(long)]
+    pub block_size: Option<u32>,
+    /// Leaf capacity in bytes of geometry (in-memory builds only).
+    #[arg(long)]
+    pub leaf_bytes: Option<u64>,
+    /// LAA: look-ahead level, a number or max.
+    #[arg(long, default_value = "2")]
+    pub look_ahead: LookAhead,
+    /// Which of equally good cuts wins: first-found (the paper), widest-gap, most-balanced.
+    #[arg(long, default_value = "first-found")]
+    pub tie_break: TieBreak,
+    #[command(flatten)]
+    pub import: ImportArgs,
+}
+
+impl BuildArgs {
+    /// The block size a file gets: the flag, or the library default.
+    pub fn block_size(&self) -> u32 {
+        self.block_size.unwrap_or(mktree::db::DEFAULT_BLOCK_SIZE)
+    }
+
+    /// The library's parameters. The leaf rule: MemPage objects if given, else
+    /// bytes (explicit, or what the first block of a geometry run holds).
+    pub fn params(&self) -> BuildParams {
+        let leaf = match (self.page_objects, self.leaf_bytes) {
+            (Some(n), _) => LeafRule::Objects(n),
+            (None, Some(b)) => LeafRule::Bytes { capacity: b },
+            (None, None) => LeafRule::Bytes { capacity: run::first_capacity(self.block_size()) },
+        };
+        BuildParams { method: self.method, rate: self.rate, leaf, look_ahead: self.look_ahead, tie_break: self.tie_break }
+    }
+}
+
+/// Six comma-separated finite numbers (a box x0,y0,z0,x1,y1,z1).
+fn six_numbers(s: &str) -> Result<[f64; 6], String> {
+    let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>().map_err(|_| format!("{x:?} is not a number"))).collect::<Result<_, _>>()?;
+    let a: [f64; 6] = v.try_into().map_err(|v: Vec<f64>| format!("six numbers expected, got {}", v.len()))?;
+    if a.iter().any(|x| !x.is_finite()) || a[0] > a[3] || a[1] > a[4] || a[2] > a[5] {
+        return Err("a box is finite, with x0 <= x1, y0 <= y1, z0 <= z1".into());
+    }
+    Ok(a)
+}

@@ -1,0 +1,17 @@
+//! `mktree dump`: every node as JSON (`{"nodes": [...]}`).
+
+use std::path::Path;
+
+use anyhow::{Result, bail};
+
+use super::tree_of;
+use crate::args::BuildArgs;
+use crate::output;
+
+pub fn run(input: &Path, build: &BuildArgs, as_json: bool) -> Result<()> {
+    if !as_json {
+        bail!("dump prints JSON only: add --json");
+    }
+    let (tree, _) = tree_of(input, build)?;
+    output::json(&tree)
+}

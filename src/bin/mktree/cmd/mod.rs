@@ -1,0 +1,76 @@
+//! One file per subcommand; `run` dispatches.
+
+mod bench_queries;
+mod build;
+mod check;
+mod demo;
+mod dump;
+mod gen_info;
+mod query;
+mod stats;
+mod sweep;
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use mktree::build::Hierarchy;
+use mktree::db::{Database, TreeInfo, read_hierarchy};
+use mktree::scene::Scene;
+use mktree::scene::import::{ImportOptions, load};
+
+use crate::args::{BuildArgs, Cli, Command};
+
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Gen { preset, objects, seed, output } => gen_info::generate(&preset, objects, seed, &output),
+        Command::Info { scene, json, import } => gen_info::info(&scene, &import.options(), json),
+        Command::Stats { input, build, json } => stats::run(&input, &build, json),
+        Command::Dump { input, build, json } => dump::run(&input, &build, json),
+        Command::Sweep { scene, pages, rates, look_ahead, json, import } => {
+            sweep::run(&scene, &import.options(), pages, &rates, look_ahead, json)
+        }
+        Command::Build { scene, output, build, lods, json } => build::run(&scene, &output, &build, lods, json),
+        Command::Query { file, aabb, json } => query::run(&file, &aabb, json),
+        Command::Check { file, json } => check::run(&file, json),
+        Command::Demo { dir } => demo::run(dir.as_deref()),
+        Command::BenchQueries { files, queries, shares, seed, json } => bench_queries::run(&files, queries, &shares, seed, json),
+    }
+}
+
+/// Reads a scene, printing the zero-area triangle warning to stderr.
+pub fn read_scene(path: &Path, options: &ImportOptions) -> Result<Scene> {
+    let imported = load(path, options)?;
+    if imported.degenerate_triangles > 0 {
+        eprintln!("mktree: warning: {} zero-area triangles kept", imported.degenerate_triangles);
+    }
+    Ok(imported.scene)
+}
+
+/// True when `path` is an .mkt file (by its magic number).
+pub fn is_mkt(path: &Path) -> bool {
+    let mut magic = [0u8; 8];
+    std::fs::File::open(path).and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic)).is_ok()
+        && magic == mktree::store::format::header::MAGIC
+}
+
+/// The tree of an .mkt file, or of a scene built in memory with `build`,
+/// with the file's info or the build time.
+pub fn tree_of(input: &Path, build: &BuildArgs) -> Result<(Hierarchy, Source)> {
+    if is_mkt(input) {
+        let db = Database::open(input).with_context(|| format!("opening {}", input.display()))?;
+        let r = db.begin_read()?;
+        let info = r.info().context("the file holds no tree")?;
+        Ok((read_hierarchy(&r)?, Source::File(Box::new(info))))
+    } else {
+        let scene = read_scene(input, &build.import.options())?;
+        let started = std::time::Instant::now();
+        let tree = crate::cmd::build::build_in_memory(&scene, build)?;
+        Ok((tree, Source::Memory { seconds: started.elapsed().as_secs_f64() }))
+    }
+}
+
+/// Where a tree came from.
+pub enum Source {
+    File(Box<TreeInfo>),
+    Memory { seconds: f64 },
+}

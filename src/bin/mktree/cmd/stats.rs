@@ -1,0 +1,74 @@
+//! `mktree stats`: the paper's per-level table (Tables 2-38) and totals
+//! (Tables 39-44) of a tree built in memory or stored in a file.
+
+use std::path::Path;
+
+use anyhow::Result;
+use mktree::build::{BuildParams, Report, TreeShape};
+use serde_json::{Value, json};
+
+use super::{Source, tree_of};
+use crate::args::BuildArgs;
+use crate::output::{self, opt};
+
+/// A one-line description of the parameters.
+pub fn describe(p: &BuildParams) -> String {
+    let leaf = match p.leaf {
+        mktree::build::LeafRule::Objects(n) => format!("MemPage {n} objects"),
+        mktree::build::LeafRule::Bytes { capacity } => format!("MemPage {capacity} bytes"),
+    };
+    let la = if p.method == mktree::build::Method::Laa { format!(", look-ahead {}", p.look_ahead) } else { String::new() };
+    format!("method {}, R {}, {leaf}{la}, tie-break {}", p.method, p.rate, p.tie_break)
+}
+
+pub fn run(input: &Path, build: &BuildArgs, as_json: bool) -> Result<()> {
+    let (tree, source) = tree_of(input, build)?;
+    let report = Report::of(&tree);
+    let shape = TreeShape::of(&tree);
+    let (params, seconds, file) = match &source {
+        Source::File(info) => (info.params.clone().unwrap_or_else(|| build.params()), info.build_seconds, Some(info)),
+        Source::Memory { seconds } => (build.params(), *seconds, None),
+    };
+    if as_json {
+        let mut v = serde_json::to_value(&report)?;
+        if let Value::Object(m) = &mut v {
+            m.insert("build_seconds".into(), json!(seconds));
+            m.insert("method".into(), json!(params.method.name()));
+            m.insert("params".into(), json!(describe(&params)));
+            m.insert("shape".into(), serde_json::to_value(&shape)?);
+            if let Some(info) = file {
+                m.insert("file".into(), serde_json::to_value(info)?);
+                m.insert("file_bytes".into(), json!(u64::from(info.file_blocks) * u64::from(info.block_size)));
+            }
+        }
+        return output::json(&v);
+    }
+    println!("{}: {}", input.display(), describe(&params));
+    print_table(&report);
+    println!(
+        "ovAccumulated {:.6}  N_g {}  ovAverage {:.6}  depth {}  leaves {}  objects {}  build {:.3} s",
+        report.ov_accumulated, report.grey_nodes, report.ov_average, report.depth, report.leaves, report.objects, seconds
+    );
+    if let Some(info) = file {
+        println!(
+            "file: {} blocks of {} bytes ({} bytes): {} node, {} geometry; txn {}",
+            info.file_blocks,
+            info.block_size,
+            u64::from(info.file_blocks) * u64::from(info.block_size),
+            info.node_blocks,
+            info.geometry_blocks,
+            info.txn
+        );
+    }
+    Ok(())
+}
+
+/// Tables 2-38.
+pub fn print_table(report: &Report) {
+    let rows: Vec<Vec<String>> = report
+        .levels
+        .iter()
+        .map(|l| vec![l.level.to_string(), l.leaves.to_string(), opt(l.ov_min), opt(l.ov_min_rel), opt(l.ov_max)])
+        .collect();
+    output::table(&["tree level", "N. leaves", "ovMin", "ovMinRel", "ovMax"], &rows);
+}

@@ -1,0 +1,248 @@
+//! `build`: checks the input, then grows the tree top-down with the chosen
+//! method — `generate_tree` and `wDivideList` of MOA1 (§3.1) and LAA1
+//! (§3.2), shared by every method: a node that fits a page is a leaf,
+//! any other is divided in two by the method's [`Splitter`].
+//!
+//! Inside a build, objects are renumbered along the Hilbert curve of their
+//! centres so that a node's objects are close in memory (about a third
+//! less time on random scenes); every tie is still broken by input id, so
+//! the numbering never shows in the tree.
+
+use super::cut::Keys;
+use super::hierarchy::node_id;
+use super::hilbert::{self, Hilbert};
+use super::laa::Laa;
+use super::leaf::Leaf;
+use super::median::Median;
+use super::moa::Moa;
+use super::progress::Meter;
+use super::sah::Sah;
+use super::walk::{Walk, walk};
+use super::{
+    BuildError, BuildParams, BuildProgress, Hierarchy, Method, Node, NodeId, NodeKind, Order, Split,
+};
+use super::{TieBreak, estimate_work};
+use crate::geom::{Aabb, Axis};
+use crate::scene::ObjectId;
+
+/// The most objects a build takes: its fewer than 2 N nodes keep u32 ids.
+const MAX_OBJECTS: usize = 1 << 31;
+
+/// Builds the hierarchy of the objects with boxes `boxes` (object j has id
+/// j), with per-object byte sizes `sizes` for [`LeafRule::Bytes`]
+/// (see [`object_bytes`]).
+///
+/// `progress` is called at the start, then periodically (as leaves are
+/// emitted and as work is done, possibly from several threads at once:
+/// hence `Sync`), and once at the end with every object placed. The tree is the same for
+/// any number of rayon threads; run it in a `ThreadPool::install` to choose
+/// them.
+///
+/// ```
+/// use mktree::build::{BuildParams, LeafRule, Method, build};
+/// use mktree::geom::Aabb;
+///
+/// let boxes: Vec<Aabb> = (0..50)
+///     .map(|i| Aabb::from_array([i as f64, 0.0, 0.0, i as f64 + 0.5, 1.0, 1.0]))
+///     .collect();
+/// let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(10), ..BuildParams::default() };
+/// let tree = build(&boxes, None, &params, &|_| {})?;
+/// tree.validate(&boxes, None, &params)?;
+/// assert!(tree.leaves().all(|(_, objects)| objects.len() <= 10));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// [`LeafRule::Bytes`]: super::LeafRule::Bytes
+/// [`object_bytes`]: super::object_bytes
+pub fn build(
+    boxes: &[Aabb],
+    sizes: Option<&[u64]>,
+    params: &BuildParams,
+    progress: &(dyn Fn(BuildProgress) + Sync),
+) -> Result<Hierarchy, BuildError> {
+    check_input(boxes, sizes, params)?;
+    // Objects are renumbered along the Hilbert curve of their centres, so
+    // that a node's objects sit close together in memory; `ids` maps back.
+    let ids = hilbert::curve_order(boxes);
+    let local_boxes: Vec<Aabb> = ids.iter().map(|&j| boxes[j as usize]).collect();
+    let local_sizes: Option<Vec<u64>> = sizes.map(|s| ids.iter().map(|&j| s[j as usize]).collect());
+    let ctx = Ctx {
+        boxes: &local_boxes,
+        ids: &ids,
+        leaf: Leaf::new(params.leaf, local_sizes.as_deref())?,
+        rate: params.rate,
+        tie: params.tie_break,
+        meter: Meter::new(progress, boxes.len(), estimate_work(boxes.len(), sizes, params)),
+    };
+    let all = (0..boxes.len() as u32).collect::<Vec<u32>>();
+    let nodes = match params.method {
+        Method::Moa | Method::Laa => {
+            let keys = Keys::new(&local_boxes, &ids);
+            let lists = keys.sorted_lists();
+            match params.method {
+                Method::Laa => grow(&ctx, &Laa::new(&ctx, &keys, params.look_ahead), lists),
+                _ => grow(&ctx, &Moa::new(&ctx, &keys), lists),
+            }
+        }
+        Method::Median => grow(&ctx, &Median::new(&ctx), all),
+        // Local numbering is already the curve's order.
+        Method::Hilbert => grow(&ctx, &Hilbert::new(&ctx), all),
+        Method::Sah => grow(&ctx, &Sah::new(&ctx), all),
+    };
+    ctx.meter.finish();
+    Ok(Hierarchy { nodes })
+}
+
+/// Checks options and input together; returns the leaf test.
+pub(crate) fn check_input<'a>(
+    boxes: &[Aabb],
+    sizes: Option<&'a [u64]>,
+    params: &BuildParams,
+) -> Result<Leaf<'a>, BuildError> {
+    params.validate()?;
+    if boxes.is_empty() {
+        return Err(BuildError::EmptyInput);
+    }
+    if boxes.len() > MAX_OBJECTS {
+        return Err(BuildError::TooManyObjects { objects: boxes.len(), max: MAX_OBJECTS });
+    }
+    for (j, b) in boxes.iter().enumerate() {
+        let object = ObjectId(j as u32);
+        if !b.min.iter().chain(b.max.iter()).all(|c| c.is_finite()) {
+            return Err(BuildError::NonFiniteBox { object });
+        }
+        if b.is_empty() {
+            return Err(BuildError::InvertedBox { object });
+        }
+    }
+    if let Some(s) = sizes.filter(|s| s.len() != boxes.len()) {
+        return Err(BuildError::SizesMismatch { boxes: boxes.len(), sizes: s.len() });
+    }
+    Leaf::new(params.leaf, sizes)
+}
+
+/// What every method needs while it builds. Objects are numbered
+/// locally (0..N in Hilbert order): local object j is input object
+/// `ids[j]`, has box `boxes[j]`, and every tie between objects is broken
+/// by input id, so the tree does not depend on the numbering.
+pub(crate) struct Ctx<'a> {
+    pub(crate) boxes: &'a [Aabb],
+    pub(crate) ids: &'a [u32],
+    pub(crate) leaf: Leaf<'a>,
+    /// `rate` (R).
+    pub(crate) rate: f64,
+    pub(crate) tie: TieBreak,
+    pub(crate) meter: Meter<'a>,
+}
+
+impl Ctx<'_> {
+    /// R(S) of the objects: the union of their boxes.
+    pub(crate) fn aabb_of(&self, objects: &[u32]) -> Aabb {
+        objects.iter().fold(Aabb::EMPTY, |b, &j| b.union(&self.boxes[j as usize]))
+    }
+
+    /// The split record of a reference method that divided a node into
+    /// `left` and `right`: the signed intersection of the children's boxes
+    /// on `axis`, or, without an axis, on the axis where it is least (the
+    /// first on ties).
+    pub(crate) fn split_between(&self, left: &[u32], right: &[u32], axis: Option<Axis>) -> Split {
+        let (l, r) = (self.aabb_of(left), self.aabb_of(right));
+        let axes = axis.as_ref().map_or(&Axis::ALL[..], std::slice::from_ref);
+        let (axis, gap) = axes
+            .iter()
+            .map(|&a| (a, signed_intersection(&l, &r, a)))
+            .fold((Axis::X, f64::INFINITY), |best, c| if c.1 < best.1 { c } else { best });
+        Split { axis, order: Order::Center, overlap: if gap > 0.0 { gap } else { 0.0 }, gap }
+    }
+}
+
+/// The length of the intersection of the two boxes' projections on `axis`,
+/// negative by the distance between them when they are apart.
+pub(crate) fn signed_intersection(a: &Aabb, b: &Aabb, axis: Axis) -> f64 {
+    let i = axis.index();
+    a.max[i].min(b.max[i]) - a.min[i].max(b.min[i])
+}
+
+/// How a method divides a node that does not fit a page.
+pub(crate) trait Splitter: Sync {
+    /// The method's view of a node's objects.
+    type Set: Send;
+    /// The objects of `set`, in any order.
+    fn objects<'s>(&self, set: &'s Self::Set) -> &'s [u32];
+    /// R(S_n) of `set`: the union of its objects' boxes.
+    fn aabb(&self, ctx: &Ctx<'_>, set: &Self::Set) -> Aabb {
+        ctx.aabb_of(self.objects(set))
+    }
+    /// Divides `set` (at least two objects) into two non-empty parts,
+    /// first the left; `aabb` is the node's box.
+    fn split(&self, set: Self::Set, aabb: &Aabb) -> (Self::Set, Self::Set, Split);
+}
+
+/// The tree grown by `splitter` from `set`, in preorder.
+fn grow<S: Splitter>(ctx: &Ctx<'_>, splitter: &S, set: S::Set) -> Vec<Node> {
+    walk(&Grower { ctx, splitter }, set, 0)
+}
+
+/// A [`Walk`] that emits the nodes of the real tree.
+struct Grower<'a, S> {
+    ctx: &'a Ctx<'a>,
+    splitter: &'a S,
+}
+
+impl<S: Splitter> Walk for Grower<'_, S> {
+    type Set = S::Set;
+    type Out = Vec<Node>;
+    /// The index of the internal node whose right child is pending.
+    type Mark = usize;
+
+    fn len(&self, set: &S::Set) -> usize {
+        self.splitter.objects(set).len()
+    }
+
+    fn start(&self) -> Vec<Node> {
+        Vec::new()
+    }
+
+    fn visit(&self, set: S::Set, level: u32, out: &mut Vec<Node>) -> Option<(S::Set, S::Set, usize)> {
+        let aabb = self.splitter.aabb(self.ctx, &set);
+        let objects = self.splitter.objects(&set);
+        if self.ctx.leaf.fits(objects) {
+            let mut ids: Vec<ObjectId> =
+                objects.iter().map(|&j| ObjectId(self.ctx.ids[j as usize])).collect();
+            ids.sort_unstable();
+            self.ctx.meter.placed(ids.len());
+            out.push(Node { aabb, level, kind: NodeKind::Leaf { objects: ids } });
+            return None;
+        }
+        self.ctx.meter.worked(objects.len());
+        let (left, right, split) = self.splitter.split(set, &aabb);
+        let me = out.len();
+        // The right child's id is known once the left subtree is out.
+        let children = [node_id(me + 1), NodeId(u32::MAX)];
+        out.push(Node { aabb, level, kind: NodeKind::Internal { children, split } });
+        Some((left, right, me))
+    }
+
+    fn right_begins(&self, out: &mut Vec<Node>, parent: usize) {
+        let right = node_id(out.len());
+        if let NodeKind::Internal { children, .. } = &mut out[parent].kind {
+            children[1] = right;
+        }
+    }
+
+    fn splice(&self, out: &mut Vec<Node>, parent: usize, left: Vec<Node>, right: Vec<Node>) {
+        let base = out.len();
+        let right_base = base + left.len();
+        if let NodeKind::Internal { children, .. } = &mut out[parent].kind {
+            *children = [node_id(base), node_id(right_base)];
+        }
+        for (shift, nodes) in [(base, left), (right_base, right)] {
+            out.extend(nodes.into_iter().map(|mut n| {
+                if let NodeKind::Internal { children, .. } = &mut n.kind {
+                    *children = children.map(|c| node_id(c.index() + shift));
+                }
+                n
+            }));
+        }
+    }
+}

@@ -1,0 +1,57 @@
+//! `BuildError`: why a build (or a hierarchy's validation) refused its
+//! options or its input.
+//!
+//! Rule 5 of the style guide wants every error family to hold a
+//! `Storage(StorageError)`; building is in-memory and the storage layer does
+//! not exist yet, so there is no such variant until a build reads from it.
+
+use crate::scene::ObjectId;
+
+/// Why [`build`](super::build) refused to start.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum BuildError {
+    /// `rate` (R) is not a number in [0, 0.5].
+    #[error("rate R = {rate} is outside [0, 0.5]")]
+    RateOutOfRange {
+        /// The rejected rate.
+        rate: f64,
+    },
+    /// The leaf rule allows no object (`mem_page` = 0) or no byte.
+    #[error("the leaf capacity is zero")]
+    ZeroCapacity,
+    /// No object boxes were given.
+    #[error("there are no objects to build from")]
+    EmptyInput,
+    /// More objects than node ids can number (two nodes per object).
+    #[error("{objects} objects: more than the {max} a hierarchy can index")]
+    TooManyObjects {
+        /// Objects given.
+        objects: usize,
+        /// The most a build accepts.
+        max: usize,
+    },
+    /// A box has a NaN or infinite coordinate.
+    #[error("object {object} has a non-finite box coordinate")]
+    NonFiniteBox {
+        /// The object.
+        object: ObjectId,
+    },
+    /// A box has min > max on some axis (the empty box included).
+    #[error("object {object} has an inverted box (min > max on some axis)")]
+    InvertedBox {
+        /// The object.
+        object: ObjectId,
+    },
+    /// `sizes` does not have one entry per box.
+    #[error("{sizes} object sizes were given for {boxes} boxes")]
+    SizesMismatch {
+        /// Boxes given.
+        boxes: usize,
+        /// Sizes given.
+        sizes: usize,
+    },
+    /// `LeafRule::Bytes` was asked for without the objects' byte sizes.
+    #[error("the byte leaf rule needs every object's size in bytes")]
+    MissingSizes,
+}

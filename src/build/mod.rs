@@ -1,0 +1,33 @@
+//! Bulk loading: the MKtree hierarchy of §3 — MOA (MOA1/MOA2, §3.1), LAA
+//! (LAA1-LAA3, §3.2) and the median, Hilbert and SAH reference methods —
+//! and the paper's reports on it (Tables 2-44).
+//!
+//! The builder works on object boxes (and, for the byte leaf rule, object
+//! sizes), never on meshes. One algorithm per file: `cut.rs` is the step
+//! MOA, LAA and LAA's trials share, `walk.rs` the depth-first engine under
+//! every method, `driver.rs` the entry point.
+
+mod cut;
+mod driver;
+mod error;
+mod hierarchy;
+mod hilbert;
+mod laa;
+mod leaf;
+mod median;
+mod moa;
+mod params;
+mod progress;
+mod report;
+mod sah;
+mod validate;
+mod walk;
+
+pub use driver::build;
+pub use error::BuildError;
+pub use hierarchy::{Hierarchy, Node, NodeId, NodeKind, Order, Split};
+pub use leaf::{LeafRule, object_bytes};
+pub use params::{BuildParams, LookAhead, Method, ParseParamError, TieBreak};
+pub use progress::{BuildProgress, estimate_work};
+pub use report::{LevelRow, Report, TreeShape};
+pub use validate::HierarchyError;

@@ -1,0 +1,247 @@
+//! Build options: the paper's arguments of `generate_tree` (MOA1 §3.1,
+//! LAA1 §3.2) — `mem_page` (MemPage, in [`LeafRule`]), `rate` (R) and
+//! `look_ahead_level` (LookAheadLevel) — plus the method and the rule that
+//! breaks ties between equal-overlap cuts.
+
+use std::fmt;
+use std::str::FromStr;
+
+use super::{BuildError, LeafRule};
+
+/// Every option of a build. `BuildParams::default()` is MOA with R = 0.2,
+/// `mem_page` = 100 objects, look-ahead 2 (for LAA) and the paper's
+/// first-found tie-break.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BuildParams {
+    /// The splitting method.
+    pub method: Method,
+    /// `rate` (R), in [0, 0.5]: a cut leaves at least ⌊R·N⌋ objects on each
+    /// side of a node of N objects (one more on the first side, as in
+    /// MOA1). Higher values give shallower, more balanced trees with larger
+    /// overlaps (§3.1.1). MOA and LAA only.
+    pub rate: f64,
+    /// When a node becomes a leaf: `mem_page` (MemPage) objects or a byte capacity.
+    pub leaf: LeafRule,
+    /// LAA only: how far the trial subtrees look below a node.
+    pub look_ahead: LookAhead,
+    /// MOA and LAA: which of several equally good cuts wins.
+    pub tie_break: TieBreak,
+}
+
+impl Default for BuildParams {
+    fn default() -> BuildParams {
+        BuildParams {
+            method: Method::Moa,
+            rate: 0.2,
+            leaf: LeafRule::Objects(100),
+            look_ahead: LookAhead::Levels(2),
+            tie_break: TieBreak::FirstFound,
+        }
+    }
+}
+
+impl BuildParams {
+    /// Checks the options alone: R in [0, 0.5] and a non-zero capacity.
+    pub fn validate(&self) -> Result<(), BuildError> {
+        if !(0.0..=0.5).contains(&self.rate) {
+            return Err(BuildError::RateOutOfRange { rate: self.rate });
+        }
+        if self.leaf.is_zero() {
+            return Err(BuildError::ZeroCapacity);
+        }
+        Ok(())
+    }
+}
+
+/// How a node's objects are divided in two.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// Minimum Overlap Algorithm (MOA1/MOA2, §3.1): the cut of least overlap
+    /// over six sorted orders.
+    Moa,
+    /// Look Ahead Algorithm (LAA1-LAA3, §3.2): the candidate cut whose
+    /// greedy trial subtrees accumulate the least overlap.
+    Laa,
+    /// Reference: halves at the median box centre along the node's longest axis.
+    Median,
+    /// Reference: halves of the run sorted once by the Hilbert code of box centres.
+    Hilbert,
+    /// Reference: the binned surface-area heuristic.
+    Sah,
+}
+
+impl Method {
+    /// Every method, in declaration order.
+    pub const ALL: [Method; 5] = [Method::Moa, Method::Laa, Method::Median, Method::Hilbert, Method::Sah];
+
+    /// "moa", "laa", "median", "hilbert" or "sah".
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Moa => "moa",
+            Method::Laa => "laa",
+            Method::Median => "median",
+            Method::Hilbert => "hilbert",
+            Method::Sah => "sah",
+        }
+    }
+}
+
+/// How far LAA's trial subtrees look below the node being split.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum LookAhead {
+    /// `look_ahead_level`: trial nodes up to this many levels below the
+    /// node's children are split and their overlaps counted. `Levels(0)`
+    /// counts the candidate's own overlap only: exactly MOA.
+    Levels(u32),
+    /// Trials run down to the leaves.
+    Max,
+}
+
+impl LookAhead {
+    /// The deepest trial level split, counting the candidate's children as
+    /// level 1 (`u32::MAX` for `Max`: deeper than any tree).
+    pub(crate) fn levels(self) -> u32 {
+        match self {
+            LookAhead::Levels(levels) => levels,
+            LookAhead::Max => u32::MAX,
+        }
+    }
+}
+
+/// Which cut wins among cuts of equal overlap. The paper reports overlaps
+/// clamped at zero (the length of the intersection), so every cut with a
+/// gap ties at zero.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum TieBreak {
+    /// The paper's rule (MOA2): the first cut found with a strictly smaller
+    /// clamped overlap, in cut order and then in the six-order.
+    FirstFound,
+    /// The smallest raw value: among gaps, the widest.
+    WidestGap,
+    /// Among equal clamped overlaps, the cut nearest the middle of the node.
+    MostBalanced,
+}
+
+impl TieBreak {
+    /// Every rule, in declaration order.
+    pub const ALL: [TieBreak; 3] = [TieBreak::FirstFound, TieBreak::WidestGap, TieBreak::MostBalanced];
+
+    /// "first-found", "widest-gap" or "most-balanced".
+    pub fn name(self) -> &'static str {
+        match self {
+            TieBreak::FirstFound => "first-found",
+            TieBreak::WidestGap => "widest-gap",
+            TieBreak::MostBalanced => "most-balanced",
+        }
+    }
+}
+
+/// A name that is not one of a parameter's values.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown {what} {value:?}: expected {expected}")]
+pub struct ParseParamError {
+    what: &'static str,
+    value: String,
+    expected: &'static str,
+}
+
+/// The value among `all` whose name is `s`.
+fn parse_named<T: Copy>(
+    s: &str,
+    all: &[T],
+    name: fn(T) -> &'static str,
+    what: &'static str,
+    expected: &'static str,
+) -> Result<T, ParseParamError> {
+    all.iter().copied().find(|&v| name(v) == s).ok_or_else(|| ParseParamError {
+        what,
+        value: s.to_owned(),
+        expected,
+    })
+}
+
+impl FromStr for Method {
+    type Err = ParseParamError;
+    fn from_str(s: &str) -> Result<Method, ParseParamError> {
+        parse_named(s, &Method::ALL, Method::name, "method", "moa, laa, median, hilbert or sah")
+    }
+}
+
+impl FromStr for TieBreak {
+    type Err = ParseParamError;
+    fn from_str(s: &str) -> Result<TieBreak, ParseParamError> {
+        parse_named(
+            s,
+            &TieBreak::ALL,
+            TieBreak::name,
+            "tie-break",
+            "first-found, widest-gap or most-balanced",
+        )
+    }
+}
+
+impl FromStr for LookAhead {
+    type Err = ParseParamError;
+    fn from_str(s: &str) -> Result<LookAhead, ParseParamError> {
+        match s {
+            "max" => Ok(LookAhead::Max),
+            _ => s.parse().map(LookAhead::Levels).map_err(|_| ParseParamError {
+                what: "look-ahead",
+                value: s.to_owned(),
+                expected: "a number of levels or max",
+            }),
+        }
+    }
+}
+
+impl fmt::Display for Method {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl fmt::Display for TieBreak {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl fmt::Display for LookAhead {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LookAhead::Levels(levels) => levels.fmt(f),
+            LookAhead::Max => f.write_str("max"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_parse_back() {
+        for m in Method::ALL {
+            assert_eq!(m.name().parse::<Method>(), Ok(m));
+        }
+        for t in TieBreak::ALL {
+            assert_eq!(t.to_string().parse::<TieBreak>(), Ok(t));
+        }
+        for l in [LookAhead::Levels(0), LookAhead::Levels(7), LookAhead::Max] {
+            assert_eq!(l.to_string().parse::<LookAhead>(), Ok(l));
+        }
+        assert!("rtree".parse::<Method>().is_err());
+        assert!("-1".parse::<LookAhead>().is_err());
+    }
+
+    #[test]
+    fn rates_outside_the_closed_half_interval_are_refused() {
+        for rate in [-0.01, 0.51, f64::NAN, f64::INFINITY] {
+            let p = BuildParams { rate, ..BuildParams::default() };
+            assert!(matches!(p.validate(), Err(BuildError::RateOutOfRange { .. })), "{rate}");
+        }
+        for rate in [0.0, 0.5] {
+            assert_eq!(BuildParams { rate, ..BuildParams::default() }.validate(), Ok(()));
+        }
+    }
+}

@@ -1,0 +1,147 @@
+//! Cost estimate and progress reports, so that a long build (LAA above
+//! all, §3.2: "more expensive in terms of time computing") never runs
+//! silently.
+//!
+//! Work is counted in object visits: dividing a node of n objects, real or
+//! trial, is n units (six order scans and six list partitions of n each).
+//! [`estimate_work`] predicts that count before a build; the build reports
+//! the running count.
+
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
+
+use super::{BuildParams, Method};
+
+/// A snapshot of a running build, passed to the progress callback.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BuildProgress {
+    /// Objects already in finished leaves.
+    pub objects_placed: u64,
+    /// All objects.
+    pub objects_total: u64,
+    /// Object visits so far, trial subtrees included.
+    pub work_done: u64,
+    /// [`estimate_work`] for this build.
+    pub work_estimate: f64,
+    /// LAA: the deepest trial level split so far below a candidate's
+    /// children (the look level actually reached; at most the
+    /// `look_ahead_level` asked for). 0 for the other methods.
+    pub look_level_reached: u32,
+}
+
+/// Estimated object visits of a build of `objects` objects (see the module
+/// doc), for a progress bar or to warn before an expensive LAA.
+///
+/// It assumes balanced halves: D - 1 internal levels with
+/// D = ⌈log2(N / leaf)⌉ + 1, each visiting all N objects; LAA adds, at
+/// each level l, six candidates times min(look_ahead_level, D - 2 - l)
+/// trial levels. A low rate R (which allows lopsided cuts) or a lumpy scene
+/// gives deeper trees and more work; R = 0 can be quadratic in N. `sizes`
+/// serves the byte leaf rule (one object per leaf is assumed without it).
+pub fn estimate_work(objects: usize, sizes: Option<&[u64]>, params: &BuildParams) -> f64 {
+    let n = objects as f64;
+    let per_leaf = params.leaf.objects_per_leaf(sizes);
+    if n <= per_leaf {
+        return 0.0;
+    }
+    let internal_levels = (n / per_leaf).log2().ceil().max(1.0) as u32;
+    let look = match params.method {
+        Method::Laa => params.look_ahead.levels(),
+        _ => 0,
+    };
+    (0..internal_levels).map(|l| n * (1.0 + 6.0 * f64::from(look.min(internal_levels - 1 - l)))).sum()
+}
+
+/// Reports per thousandth of the objects placed or of the estimated work.
+const TICKS: u64 = 1000;
+
+/// The running counts of a build and its throttled reports. The callback
+/// may be called from any of rayon's threads, at most about 2 × [`TICKS`]
+/// times plus once more per thousandth of the estimate that the work
+/// overruns it, and once at the start and at the end.
+pub(crate) struct Meter<'a> {
+    report: &'a (dyn Fn(BuildProgress) + Sync),
+    total: u64,
+    estimate: f64,
+    work_per_tick: u64,
+    placed: AtomicU64,
+    work: AtomicU64,
+    tick: AtomicU64,
+    look: AtomicU32,
+}
+
+impl<'a> Meter<'a> {
+    pub(crate) fn new(report: &'a (dyn Fn(BuildProgress) + Sync), total: usize, estimate: f64) -> Meter<'a> {
+        let meter = Meter {
+            report,
+            total: total as u64,
+            estimate,
+            work_per_tick: ((estimate / TICKS as f64) as u64).max(1),
+            placed: AtomicU64::new(0),
+            work: AtomicU64::new(0),
+            tick: AtomicU64::new(0),
+            look: AtomicU32::new(0),
+        };
+        meter.send();
+        meter
+    }
+
+    /// `n` more objects are in finished leaves.
+    pub(crate) fn placed(&self, n: usize) {
+        self.placed.fetch_add(n as u64, Relaxed);
+        self.maybe_send();
+    }
+
+    /// A node of `n` objects was divided (for real or in a trial).
+    pub(crate) fn worked(&self, n: usize) {
+        self.work.fetch_add(n as u64, Relaxed);
+        self.maybe_send();
+    }
+
+    /// A trial split nodes `levels` levels below a candidate's children.
+    pub(crate) fn reached(&self, levels: u32) {
+        self.look.fetch_max(levels, Relaxed);
+    }
+
+    /// The final report.
+    pub(crate) fn finish(&self) {
+        self.send();
+    }
+
+    fn maybe_send(&self) {
+        let tick = self.placed.load(Relaxed).saturating_mul(TICKS) / self.total.max(1)
+            + self.work.load(Relaxed) / self.work_per_tick;
+        if self.tick.fetch_max(tick, Relaxed) < tick {
+            self.send();
+        }
+    }
+
+    fn send(&self) {
+        (self.report)(BuildProgress {
+            objects_placed: self.placed.load(Relaxed),
+            objects_total: self.total,
+            work_done: self.work.load(Relaxed),
+            work_estimate: self.estimate,
+            look_level_reached: self.look.load(Relaxed),
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::build::{LeafRule, LookAhead};
+
+    #[test]
+    fn the_estimate_grows_with_look_ahead_and_vanishes_for_one_page() {
+        let moa = BuildParams { leaf: LeafRule::Objects(100), ..BuildParams::default() };
+        let laa = |look_ahead| BuildParams { method: Method::Laa, look_ahead, ..moa.clone() };
+        assert_eq!(estimate_work(100, None, &moa), 0.0);
+        let w = |p: &BuildParams| estimate_work(100_000, None, p);
+        // 1000 pages: 10 internal levels of 100 000 visits.
+        assert_eq!(w(&moa), 1.0e6);
+        assert_eq!(w(&laa(LookAhead::Levels(0))), w(&moa));
+        assert!(w(&laa(LookAhead::Levels(2))) > w(&moa));
+        assert!(w(&laa(LookAhead::Max)) > w(&laa(LookAhead::Levels(2))));
+        assert_eq!(w(&laa(LookAhead::Max)), w(&laa(LookAhead::Levels(9))));
+    }
+}

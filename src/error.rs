@@ -1,0 +1,20 @@
+//! The crate's umbrella error: each family converts into it.
+
+use crate::build::BuildError;
+use crate::scene::generate::GenError;
+use crate::scene::import::ImportError;
+use crate::store::StorageError;
+
+/// Any error of the library.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    #[error(transparent)]
+    Storage(#[from] StorageError),
+    #[error(transparent)]
+    Build(#[from] BuildError),
+    #[error(transparent)]
+    Import(#[from] ImportError),
+    #[error(transparent)]
+    Generate(#[from] GenError),
+}

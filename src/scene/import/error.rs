@@ -1,0 +1,120 @@
+//! Why an import failed: one enum for every format, each variant naming the
+//! file and the object, line, facet or glTF node at fault.
+
+use std::fmt;
+use std::io;
+use std::path::PathBuf;
+
+use crate::scene::MeshError;
+
+/// Where in an input file an error was found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Location {
+    /// A 1-based line of an OBJ file.
+    Line(u64),
+    /// A 0-based facet (triangle) of an STL file.
+    Facet(u64),
+    /// A primitive of the mesh that a glTF node instances (all 0-based).
+    Primitive { node: usize, mesh: usize, primitive: usize },
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Location::Line(line) => write!(f, "line {line}"),
+            Location::Facet(facet) => write!(f, "facet {facet}"),
+            Location::Primitive { node, mesh, primitive } => {
+                write!(f, "node {node}, mesh {mesh}, primitive {primitive}")
+            }
+        }
+    }
+}
+
+/// Why a scene could not be imported. Every message starts with the file.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ImportError {
+    /// The file or directory could not be opened or read.
+    #[error("cannot read {}: {source}", file.display())]
+    Io {
+        file: PathBuf,
+        #[source]
+        source: io::Error,
+    },
+    /// A line of an OBJ file is not what the format allows there.
+    #[error("{}: line {line}: expected {expected}, found {found:?}", file.display())]
+    Malformed { file: PathBuf, line: u64, expected: &'static str, found: String },
+    /// A binary STL file ends before the facets its header announces.
+    #[error(
+        "{}: truncated: the header announces {facets} facets ({expected_bytes} bytes), \
+         but the file has {actual_bytes} bytes",
+        file.display()
+    )]
+    Truncated { file: PathBuf, facets: u64, expected_bytes: u64, actual_bytes: u64 },
+    /// A coordinate is NaN or infinite (after the transform, for glTF).
+    #[error("{}: {at}: object {object:?} has a NaN or infinite coordinate", file.display())]
+    NonFiniteCoordinate { file: PathBuf, object: String, at: Location },
+    /// A face refers to a vertex that does not exist. For OBJ, `index` is
+    /// the index as written (1-based, or negative for relative) and
+    /// `vertices` the number defined before that line.
+    #[error(
+        "{}: {at}: object {object:?}: vertex index {index} is out of range ({vertices} vertices)",
+        file.display()
+    )]
+    IndexOutOfRange { file: PathBuf, object: String, at: Location, index: i64, vertices: usize },
+    /// An object has no triangles; `line` is the line of its OBJ `o`.
+    #[error("{}: object {object:?}{} has no triangles", file.display(), at_line(*line))]
+    NoTriangles { file: PathBuf, object: String, line: Option<u64> },
+    /// The file or directory holds no object at all.
+    #[error("{}: the scene is empty: no object has a triangle", file.display())]
+    EmptyScene { file: PathBuf },
+    /// The file name has no extension that `load` knows.
+    #[error("{}: unsupported file type (expected .obj, .stl, .gltf, .glb or a directory)", file.display())]
+    UnsupportedExtension { file: PathBuf },
+    /// The STL decoder refused the file.
+    #[error("{}: STL: {message}", file.display())]
+    Stl { file: PathBuf, message: String },
+    /// The glTF decoder refused the file, or its data is inconsistent.
+    #[error("{}: glTF: {message}", file.display())]
+    Gltf { file: PathBuf, message: String },
+    /// The mesh of an object was refused (for example, too many vertices).
+    #[error("{}: object {object:?}: {source}", file.display())]
+    Mesh {
+        file: PathBuf,
+        object: String,
+        #[source]
+        source: MeshError,
+    },
+}
+
+/// " (line N)" when the line is known.
+fn at_line(line: Option<u64>) -> String {
+    line.map(|l| format!(" (line {l})")).unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_name_the_file_and_the_place() {
+        let e = ImportError::IndexOutOfRange {
+            file: "ship.obj".into(),
+            object: "pipe".into(),
+            at: Location::Line(12),
+            index: -40,
+            vertices: 30,
+        };
+        assert_eq!(
+            e.to_string(),
+            "ship.obj: line 12: object \"pipe\": vertex index -40 is out of range (30 vertices)"
+        );
+        let e = ImportError::NoTriangles { file: "a.obj".into(), object: "x".into(), line: Some(3) };
+        assert_eq!(e.to_string(), "a.obj: object \"x\" (line 3) has no triangles");
+        let e = ImportError::NoTriangles { file: "a.stl".into(), object: "a".into(), line: None };
+        assert_eq!(e.to_string(), "a.stl: object \"a\" has no triangles");
+        let at = Location::Primitive { node: 4, mesh: 1, primitive: 0 };
+        assert_eq!(at.to_string(), "node 4, mesh 1, primitive 0");
+    }
+}

@@ -1,0 +1,383 @@
+//! glTF 2.0 import (`.gltf` with embedded or external buffers, `.glb`)
+//! through the `gltf` crate: one object per mesh instance in the default
+//! scene's node hierarchy (every scene's, in order, when there is no
+//! default), depth first, children in listed order. Each object gets its
+//! node's world transform (parent * child, computed in f64), then the
+//! import scale (glTF is in metres), and all triangle primitives of the mesh
+//! merged; strips and fans become triangles; points and lines are skipped,
+//! and an instance of a mesh without any triangle primitive makes no object.
+//! Objects are named `<mesh name>_node<node index>`, or
+//! `mesh<mesh index>_node<node index>` for an unnamed mesh.
+//!
+//! Guards: the `gltf` crate trusts some input it does not validate (an
+//! accessor's byte range, a GLB header's length, a buffer URI's percent
+//! escapes) and would panic on it, so those are checked here first. Sparse
+//! and quantised (non-f32) position accessors are refused with a message.
+//! A mirroring transform (negative determinant) reverses the winding, as
+//! the glTF specification asks, so faces keep their orientation.
+
+use std::path::Path;
+
+use ::gltf::accessor::{DataType, Dimensions};
+use ::gltf::mesh::Mode;
+use ::gltf::{Accessor, Document, Gltf, Node, Primitive, buffer};
+use nalgebra::Matrix4;
+
+use super::{ImportError, Imported, Location};
+use crate::geom::Point;
+use crate::scene::{Mesh, MeshError, Object, Scene};
+
+/// Reads the glTF or GLB file at `path`; coordinates are multiplied by
+/// `scale` after the node transforms.
+pub(super) fn load(path: &Path, scale: f64) -> Result<Imported, ImportError> {
+    let bytes = std::fs::read(path).map_err(|source| ImportError::Io { file: path.into(), source })?;
+    let gltf_error = |message: String| ImportError::Gltf { file: path.into(), message };
+    check_glb_header(&bytes).map_err(gltf_error)?;
+    let Gltf { document, blob } = Gltf::from_slice(&bytes).map_err(|e| gltf_error(e.to_string()))?;
+    drop(bytes);
+    let buffers = load_buffers(&document, path.parent(), blob).map_err(gltf_error)?;
+
+    let mut scene = Scene::default();
+    let mut degenerate_triangles = 0;
+    for instance in instances(&document, scale).map_err(gltf_error)? {
+        if let Some(object) = instance.object(&buffers, path)? {
+            degenerate_triangles += object.mesh.degenerate_triangles();
+            scene.push(object);
+        }
+    }
+    if scene.is_empty() {
+        return Err(ImportError::EmptyScene { file: path.into() });
+    }
+    Ok(Imported { scene, degenerate_triangles })
+}
+
+/// A GLB file's header must hold its own 12 bytes: `gltf` 1.4 subtracts
+/// them from the declared length before comparing.
+fn check_glb_header(bytes: &[u8]) -> Result<(), String> {
+    if !bytes.starts_with(b"glTF") {
+        return Ok(());
+    }
+    let declared = bytes.get(8..12).and_then(|b| b.try_into().ok()).map(u32::from_le_bytes);
+    match declared {
+        Some(length) if (12..=bytes.len() as u64).contains(&u64::from(length)) => Ok(()),
+        Some(length) => Err(format!("GLB header declares {length} bytes, the file has {}", bytes.len())),
+        None => Err(format!("GLB file of {} bytes is shorter than its 12-byte header", bytes.len())),
+    }
+}
+
+/// Every buffer's bytes: the GLB binary chunk, a `data:` URI or a file
+/// beside the glTF file.
+fn load_buffers(
+    document: &Document,
+    base: Option<&Path>,
+    mut blob: Option<Vec<u8>>,
+) -> Result<Vec<buffer::Data>, String> {
+    let base = Some(base.unwrap_or(Path::new(".")));
+    let mut buffers = Vec::new();
+    for buffer in document.buffers() {
+        let index = buffer.index();
+        if let buffer::Source::Uri(uri) = buffer.source() {
+            // `gltf` unwraps the decoding of a relative URI's %-escapes.
+            if !uri.contains(':') && !percent_decodes_to_utf8(uri) {
+                return Err(format!("buffer {index}: URI {uri:?} does not decode to UTF-8"));
+            }
+        }
+        let data = buffer::Data::from_source_and_blob(buffer.source(), base, &mut blob)
+            .map_err(|e| format!("buffer {index}: {e}"))?;
+        if data.len() < buffer.length() {
+            return Err(format!("buffer {index}: declares {} bytes but has {}", buffer.length(), data.len()));
+        }
+        buffers.push(data);
+    }
+    Ok(buffers)
+}
+
+fn percent_decodes_to_utf8(uri: &str) -> bool {
+    let bytes = uri.as_bytes();
+    let mut decoded = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while let Some(&b) = bytes.get(i) {
+        let escaped = bytes.get(i + 1..i + 3).and_then(|hex| std::str::from_utf8(hex).ok());
+        match escaped.and_then(|hex| u8::from_str_radix(hex, 16).ok()) {
+            Some(byte) if b == b'%' => {
+                decoded.push(byte);
+                i += 3;
+            }
+            _ => {
+                decoded.push(b);
+                i += 1;
+            }
+        }
+    }
+    std::str::from_utf8(&decoded).is_ok()
+}
+
+/// One node that instances a mesh, with its world transform.
+struct Instance<'a> {
+    node: Node<'a>,
+    mesh: ::gltf::Mesh<'a>,
+    /// Import scale * root transform * ... * this node's transform.
+    world: Matrix4<f64>,
+}
+
+/// The mesh instances of the default scene (or of every scene), in depth
+/// first order.
+fn instances(document: &Document, scale: f64) -> Result<Vec<Instance<'_>>, String> {
+    let scenes: Vec<_> = match document.default_scene() {
+        Some(scene) => vec![scene],
+        None => document.scenes().collect(),
+    };
+    let root = Matrix4::new_scaling(scale);
+    let mut instances = Vec::new();
+    for scene in scenes {
+        // The hierarchy must be a forest: a node met twice is shared or in a
+        // cycle, and walking it would repeat objects or never end.
+        let mut seen = vec![false; document.nodes().len()];
+        // An explicit stack: a deep hierarchy must not overflow the call stack.
+        let mut stack: Vec<(Node, Matrix4<f64>)> = scene.nodes().map(|n| (n, root)).collect();
+        stack.reverse();
+        while let Some((node, parent)) = stack.pop() {
+            let seen_before = seen.get_mut(node.index()).map(|s| std::mem::replace(s, true));
+            if seen_before != Some(false) {
+                return Err(format!(
+                    "node {} occurs twice in the hierarchy of scene {}: nodes must form trees",
+                    node.index(),
+                    scene.index()
+                ));
+            }
+            let world = parent * local_transform(&node);
+            let first_child = stack.len();
+            stack.extend(node.children().map(|child| (child, world)));
+            stack[first_child..].reverse();
+            if let Some(mesh) = node.mesh() {
+                instances.push(Instance { node, mesh, world });
+            }
+        }
+    }
+    Ok(instances)
+}
+
+/// A node's transform in f64, composed as the specification says (T * R * S),
+/// so no precision is lost to f32 before the world transform.
+fn local_transform(node: &Node) -> Matrix4<f64> {
+    match node.transform() {
+        ::gltf::scene::Transform::Matrix { matrix } => {
+            Matrix4::from_fn(|row, column| f64::from(matrix[column][row]))
+        }
+        ::gltf::scene::Transform::Decomposed { translation: t, rotation: r, scale: s } => {
+            let [x, y, z, w] = r.map(f64::from);
+            let rotation = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
+            let t = nalgebra::Vector3::from(t.map(f64::from));
+            let s = nalgebra::Vector3::from(s.map(f64::from));
+            Matrix4::new_translation(&t) * rotation.to_homogeneous() * Matrix4::new_nonuniform_scaling(&s)
+        }
+    }
+}
+
+impl Instance<'_> {
+    fn name(&self) -> String {
+        match self.mesh.name() {
+            Some(name) if !name.is_empty() => format!("{name}_node{}", self.node.index()),
+            _ => format!("mesh{}_node{}", self.mesh.index(), self.node.index()),
+        }
+    }
+
+    /// The object of this instance, or `None` when its mesh has no triangle
+    /// primitive (only points or lines).
+    fn object(&self, buffers: &[buffer::Data], path: &Path) -> Result<Option<Object>, ImportError> {
+        let name = self.name();
+        let mirrored = self.world.fixed_view::<3, 3>(0, 0).determinant() < 0.0;
+        let mut points: Vec<Point> = Vec::new();
+        let mut triangles: Vec<[u32; 3]> = Vec::new();
+        let mut any_triangle_primitive = false;
+        for primitive in self.mesh.primitives() {
+            if !matches!(primitive.mode(), Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+                continue;
+            }
+            any_triangle_primitive = true;
+            let at = Location::Primitive {
+                node: self.node.index(),
+                mesh: self.mesh.index(),
+                primitive: primitive.index(),
+            };
+            let gltf_error = |message: String| ImportError::Gltf {
+                file: path.into(),
+                message: format!("{at}: {message}"),
+            };
+            let (positions, corners) = read_primitive(&primitive, buffers).map_err(gltf_error)?;
+            if let Some(&index) = corners.iter().find(|&&i| i as usize >= positions.len()) {
+                return Err(ImportError::IndexOutOfRange {
+                    file: path.into(),
+                    object: name,
+                    at,
+                    index: index.into(),
+                    vertices: positions.len(),
+                });
+            }
+            // Indices are u32: the merged mesh must stay addressable.
+            let vertices = points.len() + positions.len();
+            if u32::try_from(vertices).is_err() {
+                return Err(ImportError::Mesh {
+                    file: path.into(),
+                    object: name,
+                    source: MeshError::TooManyVertices { vertices },
+                });
+            }
+            let base = points.len() as u32;
+            let start = points.len();
+            points
+                .extend(positions.iter().map(|p| self.world.transform_point(&Point::from(p.map(f64::from)))));
+            if !points[start..].iter().all(|p| p.iter().all(|c| c.is_finite())) {
+                return Err(ImportError::NonFiniteCoordinate { file: path.into(), object: name, at });
+            }
+            let assembled = assemble(primitive.mode(), &corners).map_err(gltf_error)?;
+            triangles.extend(assembled.into_iter().map(|t| {
+                let [a, b, c] = t.map(|i| base + i);
+                if mirrored { [a, c, b] } else { [a, b, c] }
+            }));
+        }
+        if !any_triangle_primitive {
+            return Ok(None);
+        }
+        if triangles.is_empty() {
+            return Err(ImportError::NoTriangles { file: path.into(), object: name, line: None });
+        }
+        let mesh = Mesh::from_world(&points, triangles).map_err(|source| ImportError::Mesh {
+            file: path.into(),
+            object: name.clone(),
+            source,
+        })?;
+        Ok(Some(Object::new(name, mesh)))
+    }
+}
+
+/// A primitive's positions and its vertex order (its indices, or 0..n).
+fn read_primitive(
+    primitive: &Primitive,
+    buffers: &[buffer::Data],
+) -> Result<(Vec<[f32; 3]>, Vec<u32>), String> {
+    let positions_accessor = primitive.get(&::gltf::Semantic::Positions).ok_or("no POSITION attribute")?;
+    check_accessor(&positions_accessor, buffers, &[DataType::F32], Dimensions::Vec3)?;
+    let reader = primitive.reader(|b| buffers.get(b.index()).map(|data| data.0.as_slice()));
+    let positions: Vec<[f32; 3]> =
+        reader.read_positions().ok_or("the POSITION accessor could not be read")?.collect();
+    let corners: Vec<u32> = match primitive.indices() {
+        Some(accessor) => {
+            check_accessor(
+                &accessor,
+                buffers,
+                &[DataType::U8, DataType::U16, DataType::U32],
+                Dimensions::Scalar,
+            )?;
+            reader.read_indices().ok_or("the index accessor could not be read")?.into_u32().collect()
+        }
+        None => (0..u32::try_from(positions.len()).map_err(|_| "too many vertices")?).collect(),
+    };
+    Ok((positions, corners))
+}
+
+/// Checks what `gltf`'s accessor reader assumes and does not check: the
+/// element type, and that every element lies inside its view and buffer.
+fn check_accessor(
+    accessor: &Accessor,
+    buffers: &[buffer::Data],
+    types: &[DataType],
+    dimensions: Dimensions,
+) -> Result<(), String> {
+    let index = accessor.index();
+    if !types.contains(&accessor.data_type()) || accessor.dimensions() != dimensions {
+        return Err(format!(
+            "accessor {index} is {:?} {:?}, expected {dimensions:?} of {types:?}",
+            accessor.dimensions(),
+            accessor.data_type()
+        ));
+    }
+    if accessor.sparse().is_some() {
+        return Err(format!("accessor {index} is sparse, which is not supported"));
+    }
+    let view = accessor.view().ok_or_else(|| format!("accessor {index} has no buffer view"))?;
+    let element = accessor.size();
+    let stride = view.stride().unwrap_or(element);
+    let last = accessor.count().checked_sub(1).ok_or_else(|| format!("accessor {index} is empty"))?;
+    let end = stride
+        .checked_mul(last)
+        .and_then(|s| s.checked_add(element))
+        .and_then(|s| s.checked_add(accessor.offset()));
+    let view_end = view.offset().checked_add(view.length());
+    let buffer_length = buffers.get(view.buffer().index()).map(|b| b.len());
+    match (end, view_end, buffer_length) {
+        _ if stride < element => Err(format!("accessor {index}: stride {stride} is smaller than an element")),
+        (Some(end), Some(view_end), Some(buffer_length))
+            if end <= view.length() && view_end <= buffer_length =>
+        {
+            Ok(())
+        }
+        _ => Err(format!("accessor {index} reaches past the end of buffer view {}", view.index())),
+    }
+}
+
+/// Triangles from a primitive's vertex order, as the specification's
+/// section 3.7.2.1 lists them for each mode.
+fn assemble(mode: Mode, v: &[u32]) -> Result<Vec<[u32; 3]>, String> {
+    let n = v.len();
+    Ok(match mode {
+        Mode::Triangles if !n.is_multiple_of(3) => {
+            return Err(format!("{n} vertex indices do not make whole triangles"));
+        }
+        Mode::Triangles => v.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+        Mode::TriangleStrip => v
+            .windows(3)
+            .enumerate()
+            .map(|(i, t)| if i % 2 == 0 { [t[0], t[1], t[2]] } else { [t[0], t[2], t[1]] })
+            .collect(),
+        Mode::TriangleFan => v.get(1..).unwrap_or_default().windows(2).map(|t| [t[0], t[1], v[0]]).collect(),
+        _ => Vec::new(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strips_and_fans_follow_the_specification() {
+        assert_eq!(
+            assemble(Mode::TriangleStrip, &[0, 1, 2, 3, 4]).unwrap(),
+            [[0, 1, 2], [1, 3, 2], [2, 3, 4]]
+        );
+        assert_eq!(assemble(Mode::TriangleFan, &[0, 1, 2, 3]).unwrap(), [[1, 2, 0], [2, 3, 0]]);
+        assert_eq!(assemble(Mode::Triangles, &[5, 6, 7]).unwrap(), [[5, 6, 7]]);
+        assert!(assemble(Mode::Triangles, &[5, 6]).is_err());
+        assert!(assemble(Mode::TriangleStrip, &[5, 6]).unwrap().is_empty());
+        assert!(assemble(Mode::TriangleFan, &[]).unwrap().is_empty());
+        assert!(assemble(Mode::Lines, &[1, 2]).unwrap().is_empty());
+    }
+
+    #[test]
+    fn a_glb_header_shorter_than_itself_is_refused() {
+        let mut bytes = b"glTF\x02\0\0\0\x04\0\0\0".to_vec();
+        assert!(check_glb_header(&bytes).unwrap_err().contains("declares 4 bytes"));
+        bytes.truncate(9);
+        assert!(check_glb_header(&bytes).unwrap_err().contains("shorter than its 12-byte header"));
+        assert!(check_glb_header(b"{\"asset\":{}}").is_ok());
+    }
+
+    #[test]
+    fn percent_escapes_are_checked_for_utf8() {
+        assert!(percent_decodes_to_utf8("buffer%20one.bin"));
+        assert!(percent_decodes_to_utf8("100%.bin"));
+        assert!(percent_decodes_to_utf8("%C3%A9.bin"));
+        assert!(!percent_decodes_to_utf8("%FF.bin"));
+    }
+
+    #[test]
+    fn decomposed_transforms_are_translation_rotation_scale() {
+        let json = r#"{"asset":{"version":"2.0"},"nodes":[{"translation":[1,2,3],"rotation":[0,0,1,0],"scale":[2,2,2]}]}"#;
+        let gltf = Gltf::from_slice(json.as_bytes()).unwrap();
+        let node = gltf.document.nodes().next().unwrap();
+        let m = local_transform(&node);
+        // 180 degrees about z, then doubled, then moved.
+        let p = m.transform_point(&Point::new(1.0, 0.0, 0.0));
+        assert!((p - Point::new(-1.0, 2.0, 3.0)).norm() < 1e-12, "{p}");
+    }
+}

@@ -1,0 +1,146 @@
+//! A device that models a volatile write cache and a crash: writes reach the
+//! durable image only at a sync; a crash at a chosen write or sync stops the
+//! device, and the image after the crash keeps, drops or tears each write that
+//! was not yet synced.
+
+use std::io;
+use std::sync::Mutex;
+
+use super::BlockDevice;
+
+/// What happens to an unsynced write in the image after a crash.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CrashImage {
+    /// Every unsynced write is lost.
+    DropAll,
+    /// Every unsynced write landed.
+    KeepAll,
+    /// Every unsynced write landed except the last, of which only the first half did.
+    TearLast,
+    /// Unsynced writes land or not by the bits of this mask (write i lands when bit i % 64 is set).
+    Mask(u64),
+}
+
+#[derive(Debug, Default)]
+struct State {
+    durable: Vec<u8>,
+    current: Vec<u8>,
+    unsynced: Vec<(u64, Vec<u8>)>,
+    events: u64,
+    crashed: bool,
+}
+
+/// An in-memory device that crashes at its `crash_at`-th write or sync (0-based).
+#[derive(Debug)]
+pub struct CrashDevice {
+    state: Mutex<State>,
+    crash_at: u64,
+}
+
+impl CrashDevice {
+    /// A device starting from `image` (durable), crashing at event `crash_at`
+    /// (`u64::MAX`: never).
+    pub fn new(image: Vec<u8>, crash_at: u64) -> CrashDevice {
+        let state = State { durable: image.clone(), current: image, ..State::default() };
+        CrashDevice { state: Mutex::new(state), crash_at }
+    }
+
+    /// Writes and syncs seen so far (the event that crashed included).
+    pub fn events(&self) -> u64 {
+        self.lock().events
+    }
+
+    /// True once the crash happened.
+    pub fn crashed(&self) -> bool {
+        self.lock().crashed
+    }
+
+    /// The bytes a disk would hold after the crash (or now, if none happened).
+    pub fn image(&self, mode: CrashImage) -> Vec<u8> {
+        let s = self.lock();
+        let mut img = s.durable.clone();
+        let n = s.unsynced.len();
+        for (i, (off, data)) in s.unsynced.iter().enumerate() {
+            let keep: &[u8] = match mode {
+                CrashImage::DropAll => continue,
+                CrashImage::KeepAll => data,
+                CrashImage::TearLast if i + 1 == n => &data[..data.len() / 2],
+                CrashImage::TearLast => data,
+                CrashImage::Mask(m) if m >> (i % 64) & 1 == 1 => data,
+                CrashImage::Mask(_) => continue,
+            };
+            let start = *off as usize;
+            if img.len() < start + keep.len() {
+                img.resize(start + keep.len(), 0);
+            }
+            img[start..start + keep.len()].copy_from_slice(keep);
+        }
+        img
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, State> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Counts one write or sync; fails it (and all later operations) at the crash point.
+    fn event(&self, s: &mut State) -> io::Result<()> {
+        if s.crashed {
+            return Err(io::Error::other("device crashed"));
+        }
+        let e = s.events;
+        s.events += 1;
+        if e == self.crash_at {
+            s.crashed = true;
+            return Err(io::Error::other("device crashed"));
+        }
+        Ok(())
+    }
+}
+
+impl BlockDevice for CrashDevice {
+    fn read_at(&self, offset: u64, buf: &mut [u8]) -> io::Result<()> {
+        let s = self.lock();
+        if s.crashed {
+            return Err(io::Error::other("device crashed"));
+        }
+        let start = offset as usize;
+        let src = s
+            .current
+            .get(start..start + buf.len())
+            .ok_or_else(|| io::Error::from(io::ErrorKind::UnexpectedEof))?;
+        buf.copy_from_slice(src);
+        Ok(())
+    }
+    fn write_at(&self, offset: u64, data: &[u8]) -> io::Result<()> {
+        let mut s = self.lock();
+        self.event(&mut s)?;
+        let start = offset as usize;
+        if s.current.len() < start + data.len() {
+            s.current.resize(start + data.len(), 0);
+        }
+        s.current[start..start + data.len()].copy_from_slice(data);
+        s.unsynced.push((offset, data.to_vec()));
+        Ok(())
+    }
+    fn sync(&self) -> io::Result<()> {
+        let mut s = self.lock();
+        self.event(&mut s)?;
+        s.durable = s.current.clone();
+        s.unsynced.clear();
+        Ok(())
+    }
+    fn len(&self) -> io::Result<u64> {
+        Ok(self.lock().current.len() as u64)
+    }
+    fn set_len(&self, len: u64) -> io::Result<()> {
+        let mut s = self.lock();
+        if s.crashed {
+            return Err(io::Error::other("device crashed"));
+        }
+        // Length changes are applied to both images: the commit protocol only
+        // truncates during recovery, after a sync.
+        s.current.resize(len as usize, 0);
+        s.durable.resize(len as usize, 0);
+        Ok(())
+    }
+}

@@ -1,0 +1,55 @@
+//! The block device: every byte of an `.mkt` file goes through [`BlockDevice`],
+//! so tests can count, fail or crash it, and another backend (a redb table, an
+//! object store) can be added without touching the tree.
+
+mod crash;
+mod counting;
+mod fault;
+mod file;
+mod mem;
+
+use std::io;
+
+pub use counting::{CountingDevice, DeviceCounts};
+pub use crash::{CrashDevice, CrashImage};
+pub use fault::{FaultDevice, FaultOp};
+pub use file::FileDevice;
+pub use mem::MemDevice;
+
+/// Positioned byte storage with a durability barrier. The pager only ever
+/// reads and writes whole blocks (and the header's slots); implementations
+/// need not know the block size.
+pub trait BlockDevice: Send + Sync {
+    /// Fills `buf` from `offset`; reading past the end is `UnexpectedEof`.
+    fn read_at(&self, offset: u64, buf: &mut [u8]) -> io::Result<()>;
+    /// Writes `data` at `offset`, growing the device if needed.
+    fn write_at(&self, offset: u64, data: &[u8]) -> io::Result<()>;
+    /// Makes every write so far durable.
+    fn sync(&self) -> io::Result<()>;
+    /// Current length in bytes.
+    fn len(&self) -> io::Result<u64>;
+    /// Truncates or extends (with zeros) to `len` bytes.
+    fn set_len(&self, len: u64) -> io::Result<()>;
+    /// True when the device has no bytes.
+    fn is_empty(&self) -> io::Result<bool> {
+        Ok(self.len()? == 0)
+    }
+}
+
+impl<D: BlockDevice + ?Sized> BlockDevice for std::sync::Arc<D> {
+    fn read_at(&self, offset: u64, buf: &mut [u8]) -> io::Result<()> {
+        (**self).read_at(offset, buf)
+    }
+    fn write_at(&self, offset: u64, data: &[u8]) -> io::Result<()> {
+        (**self).write_at(offset, data)
+    }
+    fn sync(&self) -> io::Result<()> {
+        (**self).sync()
+    }
+    fn len(&self) -> io::Result<u64> {
+        (**self).len()
+    }
+    fn set_len(&self, len: u64) -> io::Result<()> {
+        (**self).set_len(len)
+    }
+}

@@ -1,0 +1,212 @@
+//! Block 0: the fixed header and the two commit slots (format-spec/header.md).
+
+use zerocopy::byteorder::little_endian::{U32, U64};
+use zerocopy::{FromBytes, FromZeros, Immutable, IntoBytes, KnownLayout, Unaligned};
+
+use super::{FORMAT_VERSION, all_zero, validate_block_size, validate_lod_levels};
+use crate::store::StorageError;
+
+/// `\x89MKT\r\n\x1a\n`.
+pub const MAGIC: [u8; 8] = [0x89, b'M', b'K', b'T', b'\r', b'\n', 0x1a, b'\n'];
+/// Bytes a reader needs to learn the block size and read both slots.
+pub const PREFIX_LEN: usize = 1024;
+/// Offset of slot `i` in block 0.
+pub const fn slot_offset(i: usize) -> usize {
+    512 + 256 * i
+}
+
+/// The fixed region, bytes 0 .. 512 of block 0.
+#[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
+#[repr(C)]
+pub struct FixedHeader {
+    pub magic: [u8; 8],
+    pub format_version: U32,
+    pub block_size: U32,
+    pub lod_levels: u8,
+    pub reserved: [u8; 491],
+    pub header_checksum: U32,
+}
+const _: () = assert!(size_of::<FixedHeader>() == 512);
+
+/// Slot states.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum SlotState {
+    Empty = 0,
+    Pending = 1,
+    Committed = 2,
+}
+
+/// A commit slot (256 bytes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
+#[repr(C)]
+pub struct Slot {
+    pub txn: U64,
+    pub state: u8,
+    pub reserved0: [u8; 3],
+    pub meta_block: U32,
+    pub meta_checksum: U32,
+    pub block_count: U32,
+    pub freelist_block: U32,
+    pub freelist_checksum: U32,
+    pub free_blocks: U32,
+    pub reserved1: [u8; 216],
+    pub slot_checksum: U32,
+}
+const _: () = assert!(size_of::<Slot>() == 256);
+
+/// A slot's contents, decoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Commit {
+    pub txn: u64,
+    pub meta_block: u32,
+    pub meta_checksum: u32,
+    pub block_count: u32,
+    pub freelist_block: u32,
+    pub freelist_checksum: u32,
+    pub free_blocks: u32,
+}
+
+/// A slot as read: empty, pending, committed, or failing its checksum (torn).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SlotRead {
+    Empty,
+    Pending { txn: u64 },
+    Committed(Commit),
+    Invalid,
+}
+
+impl Slot {
+    fn checksum(&self, index: usize) -> u32 {
+        let mut h = crc32fast::Hasher::new();
+        h.update(&self.as_bytes()[..252]);
+        h.update(&(index as u32).to_le_bytes());
+        h.finalize()
+    }
+
+    /// The bytes of slot `index` in state `state` for `commit`.
+    pub fn encode(index: usize, state: SlotState, commit: &Commit) -> [u8; 256] {
+        let mut s = Slot::new_zeroed();
+        if state != SlotState::Empty {
+            s.txn = commit.txn.into();
+            s.state = state as u8;
+            s.meta_block = commit.meta_block.into();
+            s.meta_checksum = commit.meta_checksum.into();
+            s.block_count = commit.block_count.into();
+            s.freelist_block = commit.freelist_block.into();
+            s.freelist_checksum = commit.freelist_checksum.into();
+            s.free_blocks = commit.free_blocks.into();
+            s.slot_checksum = s.checksum(index).into();
+        }
+        let mut out = [0u8; 256];
+        out.copy_from_slice(s.as_bytes());
+        out
+    }
+
+    /// Decodes slot `index` from its 256 bytes.
+    pub fn decode(index: usize, bytes: &[u8]) -> SlotRead {
+        let Ok(s) = Slot::read_from_bytes(bytes) else { return SlotRead::Invalid };
+        if all_zero(bytes) {
+            return SlotRead::Empty;
+        }
+        if s.slot_checksum.get() != s.checksum(index)
+            || !all_zero(&s.reserved0)
+            || !all_zero(&s.reserved1)
+            || s.txn.get() == 0
+        {
+            return SlotRead::Invalid;
+        }
+        match s.state {
+            1 => SlotRead::Pending { txn: s.txn.get() },
+            2 => SlotRead::Committed(Commit {
+                txn: s.txn.get(),
+                meta_block: s.meta_block.get(),
+                meta_checksum: s.meta_checksum.get(),
+                block_count: s.block_count.get(),
+                freelist_block: s.freelist_block.get(),
+                freelist_checksum: s.freelist_checksum.get(),
+                free_blocks: s.free_blocks.get(),
+            }),
+            _ => SlotRead::Invalid,
+        }
+    }
+}
+
+fn header_checksum(block0: &[u8]) -> u32 {
+    let mut h = crc32fast::Hasher::new();
+    h.update(&block0[..508]);
+    h.update(&block0[PREFIX_LEN..]);
+    h.finalize()
+}
+
+/// A new block 0 with empty slots.
+pub fn encode_block0(block_size: u32, lod_levels: u8) -> Vec<u8> {
+    let mut b = vec![0u8; block_size as usize];
+    let mut f = FixedHeader::new_zeroed();
+    f.magic = MAGIC;
+    f.format_version = FORMAT_VERSION.into();
+    f.block_size = block_size.into();
+    f.lod_levels = lod_levels;
+    b[..512].copy_from_slice(f.as_bytes());
+    let sum = header_checksum(&b);
+    b[508..512].copy_from_slice(&sum.to_le_bytes());
+    b
+}
+
+/// Block size and number of levels from the first [`PREFIX_LEN`] bytes.
+pub fn decode_prefix(prefix: &[u8]) -> Result<(u32, u8), StorageError> {
+    let (f, _) = FixedHeader::read_from_prefix(prefix).map_err(|_| StorageError::NotMktree)?;
+    if f.magic != MAGIC {
+        return Err(StorageError::NotMktree);
+    }
+    if f.format_version.get() != FORMAT_VERSION {
+        return Err(StorageError::UnsupportedVersion { found: f.format_version.get(), supported: FORMAT_VERSION });
+    }
+    let block_size = validate_block_size(f.block_size.get().into())?;
+    let lod_levels = validate_lod_levels(f.lod_levels.into())?;
+    Ok((block_size, lod_levels))
+}
+
+/// Checks the whole of block 0's fixed region and tail, then reads both slots.
+pub fn decode_block0(block0: &[u8]) -> Result<(u32, u8, [SlotRead; 2]), StorageError> {
+    let (block_size, lod_levels) = decode_prefix(block0)?;
+    if block0.len() != block_size as usize {
+        return Err(StorageError::corrupt(0, "block_size", "block 0 is shorter than a block"));
+    }
+    let stored = u32::from_le_bytes([block0[508], block0[509], block0[510], block0[511]]);
+    if stored != header_checksum(block0) {
+        return Err(StorageError::corrupt(0, "header_checksum", "the fixed header or block 0's tail is damaged"));
+    }
+    if !all_zero(&block0[17..508]) || !all_zero(&block0[PREFIX_LEN..]) {
+        return Err(StorageError::corrupt(0, "reserved", "reserved bytes of block 0 are not zero"));
+    }
+    let slots = [0, 1].map(|i| Slot::decode(i, &block0[slot_offset(i)..slot_offset(i) + 256]));
+    Ok((block_size, lod_levels, slots))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slots_round_trip_and_know_their_position() {
+        let c = Commit { txn: 9, meta_block: 4, meta_checksum: 77, block_count: 12, ..Commit::default() };
+        let bytes = Slot::encode(1, SlotState::Committed, &c);
+        assert_eq!(Slot::decode(1, &bytes), SlotRead::Committed(c));
+        assert_eq!(Slot::decode(0, &bytes), SlotRead::Invalid, "a slot copied to the other position is caught");
+        assert_eq!(Slot::decode(0, &[0u8; 256]), SlotRead::Empty);
+    }
+
+    #[test]
+    fn block0_round_trips_and_rejects_other_versions() {
+        let b = encode_block0(4096, 4);
+        let (bs, m, slots) = decode_block0(&b).unwrap();
+        assert_eq!((bs, m, slots), (4096, 4, [SlotRead::Empty, SlotRead::Empty]));
+        let mut v2 = b.clone();
+        v2[8] = 2;
+        assert!(matches!(decode_prefix(&v2), Err(StorageError::UnsupportedVersion { found: 2, .. })));
+        let mut bad = b;
+        bad[2000] = 1;
+        assert!(decode_block0(&bad).is_err());
+    }
+}

@@ -1,0 +1,174 @@
+//! The meta block (format-spec/meta.md).
+
+use zerocopy::byteorder::little_endian::{F64, U16, U32, U64};
+use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
+
+use super::all_zero;
+use super::frame::FRAME_LEN;
+use crate::store::StorageError;
+
+/// Levels the LOD table has room for.
+pub const LOD_TABLE_LEN: usize = 16;
+
+#[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
+#[repr(C)]
+pub(crate) struct MetaRecord {
+    pub(crate) root_block: U32,
+    pub(crate) root_checksum: U32,
+    pub(crate) root_slot: U16,
+    pub(crate) reserved0: [u8; 2],
+    pub(crate) object_count: U32,
+    pub(crate) node_count: U32,
+    pub(crate) leaf_count: U32,
+    pub(crate) depth: U32,
+    pub(crate) node_blocks: U32,
+    pub(crate) geometry_blocks: U64,
+    pub(crate) triangle_count: U64,
+    pub(crate) vertex_count: U64,
+    pub(crate) scene_box: [F64; 6],
+    pub(crate) method: u8,
+    pub(crate) tie_break: u8,
+    pub(crate) leaf_rule: u8,
+    pub(crate) reserved1: u8,
+    pub(crate) look_ahead: U32,
+    pub(crate) rate: F64,
+    pub(crate) leaf_capacity: U64,
+    pub(crate) names_block: U32,
+    pub(crate) names_checksum: U32,
+    pub(crate) build_seconds: F64,
+    pub(crate) lod_table: [[F64; 2]; LOD_TABLE_LEN],
+}
+const _: () = assert!(FRAME_LEN + size_of::<MetaRecord>() == 416);
+
+/// How the tree was built, as raw codes (the db layer maps them to `build` types).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BuildCodes {
+    pub method: u8,
+    pub tie_break: u8,
+    pub leaf_rule: u8,
+    /// `u32::MAX` = max.
+    pub look_ahead: u32,
+    pub rate: f64,
+    pub leaf_capacity: u64,
+    pub build_seconds: f64,
+}
+
+/// The meta block, decoded.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Meta {
+    pub root_block: u32,
+    pub root_checksum: u32,
+    pub root_slot: u16,
+    pub object_count: u32,
+    pub node_count: u32,
+    pub leaf_count: u32,
+    pub depth: u32,
+    pub node_blocks: u32,
+    pub geometry_blocks: u64,
+    pub triangle_count: u64,
+    pub vertex_count: u64,
+    pub scene_box: [f64; 6],
+    pub build: BuildCodes,
+    pub names_block: u32,
+    pub names_checksum: u32,
+    /// (eps_k, measured error) for k = 1 .. 16.
+    pub lod_table: [[f64; 2]; LOD_TABLE_LEN],
+}
+
+/// Largest valid method, tie-break and leaf-rule codes.
+pub const MAX_METHOD: u8 = 4;
+pub const MAX_TIE_BREAK: u8 = 2;
+pub const MAX_LEAF_RULE: u8 = 1;
+
+impl Meta {
+    /// Writes the payload into `block` (frame left for `seal`).
+    pub fn encode(&self, block: &mut [u8]) {
+        let f = |x: f64| F64::new(x);
+        let r = MetaRecord {
+            root_block: self.root_block.into(),
+            root_checksum: self.root_checksum.into(),
+            root_slot: self.root_slot.into(),
+            reserved0: [0; 2],
+            object_count: self.object_count.into(),
+            node_count: self.node_count.into(),
+            leaf_count: self.leaf_count.into(),
+            depth: self.depth.into(),
+            node_blocks: self.node_blocks.into(),
+            geometry_blocks: self.geometry_blocks.into(),
+            triangle_count: self.triangle_count.into(),
+            vertex_count: self.vertex_count.into(),
+            scene_box: self.scene_box.map(f),
+            method: self.build.method,
+            tie_break: self.build.tie_break,
+            leaf_rule: self.build.leaf_rule,
+            reserved1: 0,
+            look_ahead: self.build.look_ahead.into(),
+            rate: f(self.build.rate),
+            leaf_capacity: self.build.leaf_capacity.into(),
+            names_block: self.names_block.into(),
+            names_checksum: self.names_checksum.into(),
+            build_seconds: f(self.build.build_seconds),
+            lod_table: self.lod_table.map(|p| p.map(f)),
+        };
+        let end = FRAME_LEN + size_of::<MetaRecord>();
+        block[FRAME_LEN..end].copy_from_slice(r.as_bytes());
+    }
+
+    /// Reads the payload of meta block `id` (checksum already verified).
+    pub fn decode(id: u32, block: &[u8]) -> Result<Meta, StorageError> {
+        let end = FRAME_LEN + size_of::<MetaRecord>();
+        let r = MetaRecord::read_from_bytes(&block[FRAME_LEN..end])
+            .map_err(|_| StorageError::corrupt(id, "meta", "block too small"))?;
+        if r.reserved0 != [0; 2] || r.reserved1 != 0 || !all_zero(&block[end..]) {
+            return Err(StorageError::corrupt(id, "reserved", "reserved bytes are not zero"));
+        }
+        let bad = |field, detail: String| Err(StorageError::corrupt(id, field, detail));
+        if r.method > MAX_METHOD {
+            return bad("method", format!("unknown code {}", r.method));
+        }
+        if r.tie_break > MAX_TIE_BREAK {
+            return bad("tie_break", format!("unknown code {}", r.tie_break));
+        }
+        if r.leaf_rule > MAX_LEAF_RULE {
+            return bad("leaf_rule", format!("unknown code {}", r.leaf_rule));
+        }
+        let rate = r.rate.get();
+        if !(0.0..=0.5).contains(&rate) {
+            return bad("rate", format!("{rate} is outside [0, 0.5]"));
+        }
+        let (objects, nodes, leaves) = (r.object_count.get(), r.node_count.get(), r.leaf_count.get());
+        if objects == 0 || leaves == 0 || u64::from(nodes) != 2 * u64::from(leaves) - 1 || leaves > objects {
+            return bad("node_count", format!("{nodes} nodes, {leaves} leaves, {objects} objects is not a binary tree"));
+        }
+        let scene_box = r.scene_box.map(|x| x.get());
+        if scene_box.iter().any(|x| !x.is_finite()) || (0..3).any(|i| scene_box[i] > scene_box[i + 3]) {
+            return bad("scene_box", format!("{scene_box:?} is not a box"));
+        }
+        Ok(Meta {
+            root_block: r.root_block.get(),
+            root_checksum: r.root_checksum.get(),
+            root_slot: r.root_slot.get(),
+            object_count: objects,
+            node_count: nodes,
+            leaf_count: leaves,
+            depth: r.depth.get(),
+            node_blocks: r.node_blocks.get(),
+            geometry_blocks: r.geometry_blocks.get(),
+            triangle_count: r.triangle_count.get(),
+            vertex_count: r.vertex_count.get(),
+            scene_box,
+            build: BuildCodes {
+                method: r.method,
+                tie_break: r.tie_break,
+                leaf_rule: r.leaf_rule,
+                look_ahead: r.look_ahead.get(),
+                rate,
+                leaf_capacity: r.leaf_capacity.get(),
+                build_seconds: r.build_seconds.get(),
+            },
+            names_block: r.names_block.get(),
+            names_checksum: r.names_checksum.get(),
+            lod_table: r.lod_table.map(|p| p.map(|x| x.get())),
+        })
+    }
+}

@@ -1,0 +1,70 @@
+//! Every method builds a valid hierarchy of random scenes, under both leaf
+//! rules, any rate R and any tie-break: nodes in preorder with consistent
+//! levels, every object in exactly one leaf, every node's box the exact
+//! union of its objects' boxes, leaves within the page, split records
+//! matching the children (all checked by `Hierarchy::validate`).
+
+use mktree::build::{BuildParams, LeafRule, LookAhead, Method, TieBreak, build};
+use mktree::geom::Aabb;
+use proptest::prelude::*;
+
+/// Boxes on a coarse integer grid (many ties, shared faces, identical
+/// boxes) or with continuous coordinates.
+fn scene(max: usize) -> impl Strategy<Value = Vec<Aabb>> {
+    let grid = (prop::array::uniform3(0u8..12), prop::array::uniform3(0u8..4)).prop_map(|(lo, ext)| {
+        let lo = lo.map(f64::from);
+        Aabb::from_array([
+            lo[0],
+            lo[1],
+            lo[2],
+            lo[0] + f64::from(ext[0]),
+            lo[1] + f64::from(ext[1]),
+            lo[2] + f64::from(ext[2]),
+        ])
+    });
+    let free =
+        (prop::array::uniform3(-1e3f64..1e3), prop::array::uniform3(0f64..50.0)).prop_map(|(lo, ext)| {
+            Aabb::from_array([lo[0], lo[1], lo[2], lo[0] + ext[0], lo[1] + ext[1], lo[2] + ext[2]])
+        });
+    prop_oneof![prop::collection::vec(grid, 1..max), prop::collection::vec(free, 1..max)]
+}
+
+fn params() -> impl Strategy<Value = BuildParams> {
+    (
+        prop::sample::select(Method::ALL.to_vec()),
+        prop_oneof![Just(0.0), Just(0.5), 0.0f64..=0.5],
+        prop_oneof![
+            (1u32..12).prop_map(LeafRule::Objects),
+            (1u64..2_000).prop_map(|capacity| LeafRule::Bytes { capacity })
+        ],
+        prop_oneof![(0u32..4).prop_map(LookAhead::Levels), Just(LookAhead::Max)],
+        prop::sample::select(TieBreak::ALL.to_vec()),
+    )
+        .prop_map(|(method, rate, leaf, look_ahead, tie_break)| BuildParams {
+            method,
+            rate,
+            leaf,
+            look_ahead,
+            tie_break,
+        })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(400))]
+
+    #[test]
+    fn every_method_builds_a_valid_hierarchy(
+        boxes in scene(150),
+        params in params(),
+        size_seed in any::<u64>(),
+    ) {
+        // Sizes from 1 to 500 bytes, some over a small capacity.
+        let sizes: Vec<u64> = (0..boxes.len() as u64)
+            .map(|j| 1 + (j.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ size_seed) % 500)
+            .collect();
+        let tree = build(&boxes, Some(&sizes), &params, &|_| {}).unwrap();
+        tree.validate(&boxes, Some(&sizes), &params).unwrap();
+        let placed: usize = tree.leaves().map(|(_, o)| o.len()).sum();
+        prop_assert_eq!(placed, boxes.len());
+    }
+}

@@ -1,0 +1,72 @@
+//! Helpers shared by the integration tests: small random scenes and an
+//! in-memory database built from them.
+#![allow(dead_code)]
+
+use std::sync::Arc;
+
+use mktree::build::BuildParams;
+use mktree::db::{CreateOptions, Database};
+use mktree::geom::Point;
+use mktree::scene::{Mesh, Object, Scene};
+use mktree::store::BlockDevice;
+use mktree::store::device::MemDevice;
+use proptest::prelude::*;
+
+/// A closed box mesh (12 triangles) from `lo` to `hi`.
+pub fn box_mesh(lo: [f64; 3], hi: [f64; 3]) -> Mesh {
+    let p: Vec<Point> = (0..8)
+        .map(|i| Point::new(if i & 1 == 0 { lo[0] } else { hi[0] }, if i & 2 == 0 { lo[1] } else { hi[1] }, if i & 4 == 0 { lo[2] } else { hi[2] }))
+        .collect();
+    let t = vec![
+        [0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+        [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5],
+    ];
+    Mesh::from_world(&p, t).expect("a box is a valid mesh")
+}
+
+/// A single triangle (an open, thin object).
+pub fn triangle(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> Mesh {
+    Mesh::from_world(&[a.into(), b.into(), c.into()], vec![[0, 1, 2]]).expect("valid")
+}
+
+/// Random scenes of boxes and triangles in a 1000 mm cube.
+pub fn arb_scene(max_objects: usize) -> impl Strategy<Value = Scene> {
+    let obj = (prop::array::uniform3(0.0f64..1000.0), prop::array::uniform3(0.0f64..150.0), any::<bool>());
+    prop::collection::vec(obj, 1..max_objects).prop_map(|v| {
+        Scene::new(
+            v.into_iter()
+                .enumerate()
+                .map(|(i, (lo, size, is_box))| {
+                    let hi = [lo[0] + size[0], lo[1] + size[1], lo[2] + size[2]];
+                    let mesh = if is_box { box_mesh(lo, hi) } else { triangle(lo, [hi[0], lo[1], hi[2]], [lo[0], hi[1], hi[2]]) };
+                    Object::new(format!("o{i}"), mesh)
+                })
+                .collect(),
+        )
+    })
+}
+
+/// A deterministic scene of `n` boxes on a jittered grid.
+pub fn grid_scene(n: usize) -> Scene {
+    let side = (n as f64).cbrt().ceil() as usize;
+    Scene::new(
+        (0..n)
+            .map(|i| {
+                let (x, y, z) = ((i % side) as f64, ((i / side) % side) as f64, (i / side / side) as f64);
+                let j = ((i * 7919) % 13) as f64;
+                let lo = [x * 100.0 + j, y * 100.0, z * 100.0 + j / 2.0];
+                Object::new(format!("b{i}"), box_mesh(lo, [lo[0] + 60.0 + j, lo[1] + 40.0, lo[2] + 80.0]))
+            })
+            .collect(),
+    )
+}
+
+/// `scene` bulk-loaded with `params` into a fresh in-memory database.
+pub fn mem_db(scene: &Scene, params: &BuildParams, options: CreateOptions) -> (Database, Arc<MemDevice>) {
+    let dev = Arc::new(MemDevice::new());
+    let db = Database::create_on(dev.clone() as Arc<dyn BlockDevice>, options).expect("create");
+    let mut w = db.begin_write().expect("begin_write");
+    w.bulk_load(scene, params, &|_| {}).expect("bulk_load");
+    w.commit().expect("commit");
+    (db, dev)
+}

@@ -1,0 +1,104 @@
+//! Claim: a crash at any write or sync of a commit, with the unsynced writes
+//! dropped, kept, torn or mixed, reopens at the previous committed tree or at
+//! the new one, never a mix, and `check` passes after reopening.
+
+mod common;
+
+use std::sync::Arc;
+
+use common::grid_scene;
+use mktree::build::{BuildParams, LeafRule, Method};
+use mktree::db::{CreateOptions, Database, check};
+use mktree::geom::Aabb;
+use mktree::scene::Scene;
+use mktree::store::BlockDevice;
+use mktree::store::device::{CrashDevice, CrashImage, MemDevice};
+
+fn load(db: &Database, scene: &Scene, method: Method) -> Result<(), mktree::Error> {
+    let mut w = db.begin_write()?;
+    w.bulk_load(scene, &BuildParams { method, leaf: LeafRule::Objects(6), ..BuildParams::default() }, &|_| {})?;
+    w.commit()?;
+    Ok(())
+}
+
+/// The answer of a query covering everything, as a fingerprint of the tree.
+fn fingerprint(db: &Database) -> Option<(u32, Vec<u32>)> {
+    let r = db.begin_read().unwrap();
+    let info = r.info()?;
+    let q = r.query_box(&Aabb::from_array([0.0, 0.0, 0.0, 450.0, 450.0, 450.0])).unwrap();
+    Some((info.objects, q.objects.iter().map(|o| o.0).collect()))
+}
+
+#[test]
+fn a_crash_anywhere_in_a_commit_reopens_at_one_side_of_it() {
+    let old_scene = grid_scene(120);
+    let new_scene = grid_scene(150);
+    // A committed old tree, as a durable image.
+    let base = Arc::new(MemDevice::new());
+    let db = Database::create_on(base.clone() as Arc<dyn BlockDevice>, CreateOptions { block_size: 1024, lod_levels: 2 }).unwrap();
+    load(&db, &old_scene, Method::Moa).unwrap();
+    let old = fingerprint(&db);
+    drop(db);
+    let image = base.to_bytes();
+    // The new tree, committed without a crash, for its fingerprint and event count.
+    let clean = Arc::new(CrashDevice::new(image.clone(), u64::MAX));
+    let db = Database::open_on(clean.clone() as Arc<dyn BlockDevice>).unwrap();
+    let before = clean.events();
+    load(&db, &new_scene, Method::Median).unwrap();
+    let new = fingerprint(&db);
+    let events = clean.events() - before;
+    assert_ne!(old, new);
+    let modes = [CrashImage::DropAll, CrashImage::KeepAll, CrashImage::TearLast, CrashImage::Mask(0x5555_5555_5555_5555), CrashImage::Mask(0xF0F0_0F0F_3333_CCCC)];
+    let mut outcomes = [0usize; 2];
+    for crash_at in 0..events {
+        let dev = Arc::new(CrashDevice::new(image.clone(), crash_at));
+        let db = Database::open_on(dev.clone() as Arc<dyn BlockDevice>).unwrap();
+        assert!(load(&db, &new_scene, Method::Median).is_err(), "crash at event {crash_at} must fail the commit");
+        drop(db);
+        for mode in modes {
+            let after = Arc::new(MemDevice::from_bytes(dev.image(mode)));
+            let db = Database::open_on(after as Arc<dyn BlockDevice>)
+                .unwrap_or_else(|e| panic!("crash at {crash_at} ({mode:?}): reopen failed: {e}"));
+            let got = fingerprint(&db);
+            assert!(got == old || got == new, "crash at {crash_at} ({mode:?}) gave a mix");
+            outcomes[usize::from(got == new)] += 1;
+            let report = check(&db).unwrap();
+            assert!(report.ok(), "crash at {crash_at} ({mode:?}): check: {:?}", report.faults);
+        }
+    }
+    assert!(outcomes[0] > 0 && outcomes[1] > 0, "both outcomes occur: {outcomes:?}");
+}
+
+#[test]
+fn an_aborted_transaction_leaves_the_file_as_it_was() {
+    let dev = Arc::new(MemDevice::new());
+    let db = Database::create_on(dev.clone() as Arc<dyn BlockDevice>, CreateOptions { block_size: 1024, lod_levels: 1 }).unwrap();
+    load(&db, &grid_scene(50), Method::Moa).unwrap();
+    let before = fingerprint(&db);
+    let mut w = db.begin_write().unwrap();
+    w.bulk_load(&grid_scene(90), &BuildParams::default(), &|_| {}).unwrap();
+    w.abort().unwrap();
+    assert_eq!(fingerprint(&db), before);
+    drop(db);
+    let db = Database::open_on(dev as Arc<dyn BlockDevice>).unwrap();
+    assert!(!db.recovery().interrupted, "an abort clears its pending slot");
+    assert_eq!(fingerprint(&db), before);
+    assert!(check(&db).unwrap().ok());
+}
+
+#[test]
+fn a_reader_keeps_its_snapshot_while_a_writer_replaces_the_tree_twice() {
+    let dev = Arc::new(MemDevice::new());
+    let db = Database::create_on(dev as Arc<dyn BlockDevice>, CreateOptions { block_size: 1024, lod_levels: 1 }).unwrap();
+    load(&db, &grid_scene(60), Method::Moa).unwrap();
+    let reader = db.begin_read().unwrap();
+    let q = Aabb::from_array([0.0, 0.0, 0.0, 1e4, 1e4, 1e4]);
+    let seen = reader.query_box(&q).unwrap().objects;
+    load(&db, &grid_scene(70), Method::Sah).unwrap();
+    load(&db, &grid_scene(80), Method::Hilbert).unwrap();
+    assert_eq!(reader.query_box(&q).unwrap().objects, seen, "the old tree's blocks were not reused");
+    assert_eq!(db.begin_read().unwrap().query_box(&q).unwrap().objects.len(), 80);
+    drop(reader);
+    load(&db, &grid_scene(90), Method::Median).unwrap();
+    assert!(check(&db).unwrap().ok());
+}

@@ -1,0 +1,92 @@
+//! Claim: the writer produces the spec's example file byte for byte
+//! (`tests/golden/tiny-v1.mkt`, shown in `format-spec/example.md`), and a
+//! reader opens it. Set MKTREE_BLESS=1 to rewrite both after a deliberate
+//! format change (with a new version: format-spec/versions.md).
+
+mod common;
+
+use std::sync::Arc;
+
+use common::{box_mesh, triangle};
+use mktree::build::{BuildParams, LeafRule, Method, build};
+use mktree::db::{CreateOptions, Database, check};
+use mktree::scene::{Object, Scene};
+use mktree::store::BlockDevice;
+use mktree::store::device::MemDevice;
+
+const GOLDEN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v1.mkt");
+const EXAMPLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/format-spec/example.md");
+
+/// Three objects, two leaves, 1,024-byte blocks, M = 2.
+fn tiny() -> Vec<u8> {
+    let scene = Scene::new(vec![
+        Object::new("plate", triangle([0.0, 0.0, 0.0], [100.0, 0.0, 0.0], [0.0, 50.0, 0.0])),
+        Object::new("box", box_mesh([10.0, 10.0, 10.0], [20.0, 30.0, 40.0])),
+        Object::new("far", triangle([500.0, 0.0, 0.0], [600.0, 0.0, 0.0], [500.0, 10.0, 5.0])),
+    ]);
+    let params = BuildParams { method: Method::Moa, rate: 0.2, leaf: LeafRule::Objects(2), ..BuildParams::default() };
+    let tree = build(&scene.object_boxes(), None, &params, &|_| {}).unwrap();
+    let dev = Arc::new(MemDevice::new());
+    let db = Database::create_on(dev.clone() as Arc<dyn BlockDevice>, CreateOptions { block_size: 1024, lod_levels: 2 }).unwrap();
+    let mut w = db.begin_write().unwrap();
+    w.write_tree(&scene, &tree, &params, 0.0).unwrap();
+    w.commit().unwrap();
+    assert!(check(&db).unwrap().ok());
+    drop(db);
+    dev.to_bytes()
+}
+
+/// `xxd`-style lines of 16 bytes; runs of all-zero lines collapse to `*`.
+fn hexdump(bytes: &[u8]) -> String {
+    let mut out = String::new();
+    let mut in_zero_run = false;
+    for (i, line) in bytes.chunks(16).enumerate() {
+        let zero = line.iter().all(|&b| b == 0);
+        let last = (i + 1) * 16 >= bytes.len();
+        if zero && !last && i > 0 && bytes[(i - 1) * 16..i * 16].iter().all(|&b| b == 0) {
+            if !in_zero_run {
+                out.push_str("*\n");
+                in_zero_run = true;
+            }
+            continue;
+        }
+        in_zero_run = false;
+        let hex: Vec<String> = line.chunks(2).map(|p| p.iter().map(|b| format!("{b:02x}")).collect()).collect();
+        out.push_str(&format!("{:08x}: {}\n", i * 16, hex.join(" ")));
+    }
+    out
+}
+
+fn fenced_dump(md: &str) -> Option<&str> {
+    let start = md.find("```text\n")? + "```text\n".len();
+    let end = start + md[start..].find("```")?;
+    Some(&md[start..end])
+}
+
+#[test]
+fn the_writer_reproduces_the_golden_file_and_the_spec_shows_it() {
+    let bytes = tiny();
+    if std::env::var_os("MKTREE_BLESS").is_some() {
+        std::fs::write(GOLDEN, &bytes).unwrap();
+        let md = std::fs::read_to_string(EXAMPLE).unwrap();
+        let start = md.find("```text\n").expect("a ```text block") + "```text\n".len();
+        let end = start + md[start..].find("```").expect("its end");
+        std::fs::write(EXAMPLE, format!("{}{}{}", &md[..start], hexdump(&bytes), &md[end..])).unwrap();
+    }
+    let golden = std::fs::read(GOLDEN).expect("tests/golden/tiny-v1.mkt");
+    assert!(bytes == golden, "the writer no longer produces the golden file byte for byte");
+    let md = std::fs::read_to_string(EXAMPLE).unwrap();
+    assert_eq!(fenced_dump(&md).expect("a ```text block in example.md"), hexdump(&golden), "example.md's dump differs from the golden file");
+    let db = Database::open_on(Arc::new(MemDevice::from_bytes(golden)) as Arc<dyn BlockDevice>).unwrap();
+    let r = db.begin_read().unwrap();
+    assert_eq!(r.info().unwrap().objects, 3);
+    assert_eq!(r.names().unwrap(), vec!["plate", "box", "far"]);
+}
+
+#[test]
+fn an_unknown_version_is_refused_not_guessed() {
+    let mut bytes = std::fs::read(GOLDEN).unwrap();
+    bytes[8] = 2;
+    let err = Database::open_on(Arc::new(MemDevice::from_bytes(bytes)) as Arc<dyn BlockDevice>).unwrap_err();
+    assert!(err.to_string().contains("unsupported format version 2"), "{err}");
+}

@@ -1,0 +1,72 @@
+//! Claim: for every node and level, the reads its record predicts for
+//! fetching the level from a cold cache equal the reads done, and the reads
+//! the pager counts are the reads the device sees.
+
+mod common;
+
+use std::sync::Arc;
+
+use common::{arb_scene, grid_scene};
+use mktree::build::{BuildParams, LeafRule, Method};
+use mktree::db::{CreateOptions, Database};
+use mktree::geom::Aabb;
+use mktree::store::device::{CountingDevice, MemDevice};
+use mktree::store::{BlockDevice, ReadStats};
+use proptest::prelude::*;
+
+/// Checks every node of `db`: predicted = actual at level M, and the objects
+/// fetched are exactly the node's subtree count.
+fn check_predictions(db: &Database) {
+    let r = db.begin_read().unwrap();
+    let m = db.lod_levels();
+    let mut nodes = Vec::new();
+    r.walk_nodes(&mut ReadStats::default(), |at, rec| {
+        nodes.push((at, rec.clone()));
+        Ok(())
+    })
+    .unwrap();
+    for (at, rec) in nodes {
+        for objects in [false, true] {
+            let predicted = rec.lods[m as usize - 1][usize::from(objects)].reads();
+            let mut stats = ReadStats::default();
+            let got = r.fetch_level(at, m, objects, &mut stats).unwrap();
+            assert_eq!(stats.total(), predicted, "node {} objects={objects}", rec.node_id);
+            assert_eq!(got.len() as u32, rec.object_count);
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+    #[test]
+    fn predicted_reads_equal_actual_reads(scene in arb_scene(80), cap in 1u32..6, bs in prop::sample::select(vec![1024u32, 1536, 4096])) {
+        let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(cap), ..BuildParams::default() };
+        let (db, _) = common::mem_db(&scene, &params, CreateOptions { block_size: bs, lod_levels: 3 });
+        check_predictions(&db);
+    }
+}
+
+#[test]
+fn multi_block_leaves_and_big_objects_are_predicted_too() {
+    // 20 objects per leaf of 12-triangle boxes (~280 bytes each) overflow 1 KiB blocks.
+    let scene = grid_scene(300);
+    let params = BuildParams { leaf: LeafRule::Objects(20), ..BuildParams::default() };
+    let (db, _) = common::mem_db(&scene, &params, CreateOptions { block_size: 1024, lod_levels: 1 });
+    check_predictions(&db);
+}
+
+#[test]
+fn counted_reads_are_the_device_reads() {
+    let scene = grid_scene(400);
+    let counting = Arc::new(CountingDevice::new(MemDevice::new()));
+    let db = Database::create_on(counting.clone() as Arc<dyn BlockDevice>, CreateOptions { block_size: 2048, lod_levels: 2 }).unwrap();
+    let mut w = db.begin_write().unwrap();
+    w.bulk_load(&scene, &BuildParams { leaf: LeafRule::Objects(8), ..BuildParams::default() }, &|_| {}).unwrap();
+    w.commit().unwrap();
+    let r = db.begin_read().unwrap();
+    for q in [[0.0, 0.0, 0.0, 250.0, 250.0, 250.0], [300.0, 0.0, 0.0, 320.0, 800.0, 10.0], [-9.0, -9.0, -9.0, -8.0, -8.0, -8.0]] {
+        let before = counting.counts().reads;
+        let res = r.query_box(&Aabb::from_array(q)).unwrap();
+        assert_eq!(counting.counts().reads - before, res.stats.reads.total());
+    }
+}

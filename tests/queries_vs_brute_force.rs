@@ -1,0 +1,56 @@
+//! Claim: a box query through the file returns exactly the objects whose
+//! triangles meet the box, the same set as testing every object, for every
+//! bulk-loading method, block size and leaf rule.
+
+mod common;
+
+use common::{arb_scene, grid_scene, mem_db};
+use mktree::build::{BuildParams, LeafRule, LookAhead, Method};
+use mktree::db::CreateOptions;
+use mktree::geom::Aabb;
+use mktree::query::brute_force_box;
+use proptest::prelude::*;
+
+fn methods() -> Vec<BuildParams> {
+    let p = |method, leaf| BuildParams { method, leaf, look_ahead: LookAhead::Levels(2), ..BuildParams::default() };
+    vec![
+        p(Method::Moa, LeafRule::Objects(4)),
+        p(Method::Laa, LeafRule::Objects(3)),
+        p(Method::Median, LeafRule::Bytes { capacity: 1000 }),
+        p(Method::Hilbert, LeafRule::Objects(5)),
+        p(Method::Sah, LeafRule::Objects(2)),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+    #[test]
+    fn box_queries_equal_brute_force(
+        scene in arb_scene(60),
+        q in (prop::array::uniform3(-100.0f64..1100.0), prop::array::uniform3(0.0f64..500.0)),
+        which in 0usize..5,
+        block_size in prop::sample::select(vec![1024u32, 2048, 4096]),
+    ) {
+        let params = &methods()[which];
+        let (db, _) = mem_db(&scene, params, CreateOptions { block_size, lod_levels: 3 });
+        let query = Aabb::from_array([q.0[0], q.0[1], q.0[2], q.0[0] + q.1[0], q.0[1] + q.1[1], q.0[2] + q.1[2]]);
+        let got = db.begin_read().unwrap().query_box(&query).unwrap();
+        prop_assert_eq!(got.objects, brute_force_box(&scene, &query));
+    }
+}
+
+#[test]
+fn a_query_over_everything_returns_everything_and_reads_every_block_once() {
+    let scene = grid_scene(500);
+    let params = BuildParams { leaf: LeafRule::Objects(10), ..BuildParams::default() };
+    let (db, _) = mem_db(&scene, &params, CreateOptions { block_size: 1024, lod_levels: 2 });
+    let r = db.begin_read().unwrap();
+    let info = r.info().unwrap();
+    let all = r.query_box(&scene.aabb().grown(1.0)).unwrap();
+    assert_eq!(all.objects.len(), 500);
+    assert_eq!(all.stats.reads.node, u64::from(info.node_blocks));
+    assert_eq!(all.stats.reads.geometry, info.geometry_blocks);
+    let none = r.query_box(&Aabb::from_array([-500.0, -500.0, -500.0, -400.0, -400.0, -400.0])).unwrap();
+    assert!(none.objects.is_empty());
+    assert_eq!(none.stats.reads.total(), 1, "only the root block is read");
+}
