@@ -32,7 +32,10 @@ pub fn decode_block(data: &[u8]) {
 
 /// Opens arbitrary bytes as a file and, if that works, queries, walks and checks it.
 pub fn open_and_query(data: &[u8]) {
-    let Ok(db) = Database::open_on(Arc::new(MemDevice::from_bytes(data.to_vec())) as Arc<dyn BlockDevice>) else { return };
+    let Ok(db) = Database::open_on(Arc::new(MemDevice::from_bytes(data.to_vec())) as Arc<dyn BlockDevice>)
+    else {
+        return;
+    };
     if let Ok(r) = db.begin_read() {
         let _ = r.query_box(&Aabb::from_array([-1e12, -1e12, -1e12, 1e12, 1e12, 1e12]));
         let _ = r.query_box(&Aabb::from_array([0.0, 0.0, 0.0, 100.0, 100.0, 100.0]));

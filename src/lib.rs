@@ -18,5 +18,6 @@ mod error;
 pub mod fuzzing;
 pub mod geom;
 pub mod query;
+mod rng;
 pub mod scene;
 pub mod store;

@@ -25,9 +25,18 @@ fn queries() -> Vec<Aabb> {
 
 fn image() -> Vec<u8> {
     let dev = Arc::new(MemDevice::new());
-    let db = Database::create_on(dev.clone() as Arc<dyn BlockDevice>, CreateOptions { block_size: BS as u32, lod_levels: 2 }).unwrap();
+    let db = Database::create_on(
+        dev.clone() as Arc<dyn BlockDevice>,
+        CreateOptions { block_size: BS as u32, lod_levels: 2 },
+    )
+    .unwrap();
     let mut w = db.begin_write().unwrap();
-    w.bulk_load(&grid_scene(90), &BuildParams { leaf: LeafRule::Objects(5), ..BuildParams::default() }, &|_| {}).unwrap();
+    w.bulk_load(
+        &grid_scene(90),
+        &BuildParams { leaf: LeafRule::Objects(5), ..BuildParams::default() },
+        &|_| {},
+    )
+    .unwrap();
     w.commit().unwrap();
     drop(db);
     dev.to_bytes()
@@ -66,7 +75,8 @@ fn probe(bytes: Vec<u8>, good: &[Vec<u32>], what: &str) -> bool {
 fn damage_anywhere_is_an_error_or_the_right_answer() {
     let img = image();
     let good: Vec<Vec<u32>> = {
-        let db = Database::open_on(Arc::new(MemDevice::from_bytes(img.clone())) as Arc<dyn BlockDevice>).unwrap();
+        let db =
+            Database::open_on(Arc::new(MemDevice::from_bytes(img.clone())) as Arc<dyn BlockDevice>).unwrap();
         let r = db.begin_read().unwrap();
         queries().iter().map(|q| r.query_box(q).unwrap().objects.iter().map(|o| o.0).collect()).collect()
     };
@@ -78,7 +88,10 @@ fn damage_anywhere_is_an_error_or_the_right_answer() {
             bytes[b * BS + offset] ^= 1 << (offset % 8);
             let clean = probe(bytes, &good, &format!("bit flip in block {b} at {offset}"));
             // Only a flip in a commit slot can be repaired (the slot is discarded).
-            assert!(!clean || (b == 0 && (512..1024).contains(&offset)), "block {b} offset {offset}: damage went unnoticed");
+            assert!(
+                !clean || (b == 0 && (512..1024).contains(&offset)),
+                "block {b} offset {offset}: damage went unnoticed"
+            );
         }
         let mut zeroed = img.clone();
         zeroed[b * BS..(b + 1) * BS].fill(0);
@@ -88,7 +101,10 @@ fn damage_anywhere_is_an_error_or_the_right_answer() {
             let (x, y) = swapped.split_at_mut((b + 1) * BS);
             x[b * BS..].swap_with_slice(&mut y[..BS]);
             if swapped != img {
-                assert!(!probe(swapped, &good, &format!("swapped blocks {b} and {}", b + 1)), "swap {b} went unnoticed");
+                assert!(
+                    !probe(swapped, &good, &format!("swapped blocks {b} and {}", b + 1)),
+                    "swap {b} went unnoticed"
+                );
             }
         }
     }
@@ -97,11 +113,13 @@ fn damage_anywhere_is_an_error_or_the_right_answer() {
 #[test]
 fn a_truncated_file_is_refused() {
     let img = image();
-    let mut lengths: Vec<usize> = (0..img.len()).step_by(BS).flat_map(|l| [l, l + 1, l + BS / 2]).filter(|&l| l < img.len()).collect();
+    let mut lengths: Vec<usize> =
+        (0..img.len()).step_by(BS).flat_map(|l| [l, l + 1, l + BS / 2]).filter(|&l| l < img.len()).collect();
     lengths.push(img.len() - 1);
     for len in lengths {
-        let err = Database::open_on(Arc::new(MemDevice::from_bytes(img[..len].to_vec())) as Arc<dyn BlockDevice>)
-            .expect_err("a truncated file must not open");
+        let err =
+            Database::open_on(Arc::new(MemDevice::from_bytes(img[..len].to_vec())) as Arc<dyn BlockDevice>)
+                .expect_err("a truncated file must not open");
         assert!(err.is_corruption(), "length {len}: {err}");
     }
 }
@@ -119,11 +137,14 @@ fn a_child_link_that_loops_is_an_error_not_a_hang() {
     // The meta holds the root block's checksum at offset 20; the slot holds the meta's.
     f[5 * 1024 + 20..5 * 1024 + 24].copy_from_slice(&root_sum.to_le_bytes());
     let meta_sum = seal(5, &mut f[block(5)], BlockType::Meta, 2);
-    let SlotRead::Committed(c) = Slot::decode(1, &f[slot_offset(1)..slot_offset(1) + 256]) else { panic!("slot 1") };
+    let SlotRead::Committed(c) = Slot::decode(1, &f[slot_offset(1)..slot_offset(1) + 256]) else {
+        panic!("slot 1")
+    };
     let c = Commit { meta_checksum: meta_sum, ..c };
     f[slot_offset(1)..slot_offset(1) + 256].copy_from_slice(&Slot::encode(1, SlotState::Committed, &c));
     let db = Database::open_on(Arc::new(MemDevice::from_bytes(f)) as Arc<dyn BlockDevice>).unwrap();
-    let err = db.begin_read().unwrap().query_box(&Aabb::from_array([-1e9, -1e9, -1e9, 1e9, 1e9, 1e9])).unwrap_err();
+    let err =
+        db.begin_read().unwrap().query_box(&Aabb::from_array([-1e9, -1e9, -1e9, 1e9, 1e9, 1e9])).unwrap_err();
     assert!(err.is_corruption(), "{err}");
     assert!(check(&db).is_err() || !check(&db).unwrap().ok());
 }

@@ -16,7 +16,11 @@ use mktree::store::device::{CrashDevice, CrashImage, MemDevice};
 
 fn load(db: &Database, scene: &Scene, method: Method) -> Result<(), mktree::Error> {
     let mut w = db.begin_write()?;
-    w.bulk_load(scene, &BuildParams { method, leaf: LeafRule::Objects(6), ..BuildParams::default() }, &|_| {})?;
+    w.bulk_load(
+        scene,
+        &BuildParams { method, leaf: LeafRule::Objects(6), ..BuildParams::default() },
+        &|_| {},
+    )?;
     w.commit()?;
     Ok(())
 }
@@ -35,7 +39,11 @@ fn a_crash_anywhere_in_a_commit_reopens_at_one_side_of_it() {
     let new_scene = grid_scene(150);
     // A committed old tree, as a durable image.
     let base = Arc::new(MemDevice::new());
-    let db = Database::create_on(base.clone() as Arc<dyn BlockDevice>, CreateOptions { block_size: 1024, lod_levels: 2 }).unwrap();
+    let db = Database::create_on(
+        base.clone() as Arc<dyn BlockDevice>,
+        CreateOptions { block_size: 1024, lod_levels: 2 },
+    )
+    .unwrap();
     load(&db, &old_scene, Method::Moa).unwrap();
     let old = fingerprint(&db);
     drop(db);
@@ -48,12 +56,21 @@ fn a_crash_anywhere_in_a_commit_reopens_at_one_side_of_it() {
     let new = fingerprint(&db);
     let events = clean.events() - before;
     assert_ne!(old, new);
-    let modes = [CrashImage::DropAll, CrashImage::KeepAll, CrashImage::TearLast, CrashImage::Mask(0x5555_5555_5555_5555), CrashImage::Mask(0xF0F0_0F0F_3333_CCCC)];
+    let modes = [
+        CrashImage::DropAll,
+        CrashImage::KeepAll,
+        CrashImage::TearLast,
+        CrashImage::Mask(0x5555_5555_5555_5555),
+        CrashImage::Mask(0xF0F0_0F0F_3333_CCCC),
+    ];
     let mut outcomes = [0usize; 2];
     for crash_at in 0..events {
         let dev = Arc::new(CrashDevice::new(image.clone(), crash_at));
         let db = Database::open_on(dev.clone() as Arc<dyn BlockDevice>).unwrap();
-        assert!(load(&db, &new_scene, Method::Median).is_err(), "crash at event {crash_at} must fail the commit");
+        assert!(
+            load(&db, &new_scene, Method::Median).is_err(),
+            "crash at event {crash_at} must fail the commit"
+        );
         drop(db);
         for mode in modes {
             let after = Arc::new(MemDevice::from_bytes(dev.image(mode)));
@@ -72,7 +89,11 @@ fn a_crash_anywhere_in_a_commit_reopens_at_one_side_of_it() {
 #[test]
 fn an_aborted_transaction_leaves_the_file_as_it_was() {
     let dev = Arc::new(MemDevice::new());
-    let db = Database::create_on(dev.clone() as Arc<dyn BlockDevice>, CreateOptions { block_size: 1024, lod_levels: 1 }).unwrap();
+    let db = Database::create_on(
+        dev.clone() as Arc<dyn BlockDevice>,
+        CreateOptions { block_size: 1024, lod_levels: 1 },
+    )
+    .unwrap();
     load(&db, &grid_scene(50), Method::Moa).unwrap();
     let before = fingerprint(&db);
     let mut w = db.begin_write().unwrap();
@@ -89,7 +110,9 @@ fn an_aborted_transaction_leaves_the_file_as_it_was() {
 #[test]
 fn a_reader_keeps_its_snapshot_while_a_writer_replaces_the_tree_twice() {
     let dev = Arc::new(MemDevice::new());
-    let db = Database::create_on(dev as Arc<dyn BlockDevice>, CreateOptions { block_size: 1024, lod_levels: 1 }).unwrap();
+    let db =
+        Database::create_on(dev as Arc<dyn BlockDevice>, CreateOptions { block_size: 1024, lod_levels: 1 })
+            .unwrap();
     load(&db, &grid_scene(60), Method::Moa).unwrap();
     let reader = db.begin_read().unwrap();
     let q = Aabb::from_array([0.0, 0.0, 0.0, 1e4, 1e4, 1e4]);

@@ -24,10 +24,15 @@ fn tiny() -> Vec<u8> {
         Object::new("box", box_mesh([10.0, 10.0, 10.0], [20.0, 30.0, 40.0])),
         Object::new("far", triangle([500.0, 0.0, 0.0], [600.0, 0.0, 0.0], [500.0, 10.0, 5.0])),
     ]);
-    let params = BuildParams { method: Method::Moa, rate: 0.2, leaf: LeafRule::Objects(2), ..BuildParams::default() };
+    let params =
+        BuildParams { method: Method::Moa, rate: 0.2, leaf: LeafRule::Objects(2), ..BuildParams::default() };
     let tree = build(&scene.object_boxes(), None, &params, &|_| {}).unwrap();
     let dev = Arc::new(MemDevice::new());
-    let db = Database::create_on(dev.clone() as Arc<dyn BlockDevice>, CreateOptions { block_size: 1024, lod_levels: 2 }).unwrap();
+    let db = Database::create_on(
+        dev.clone() as Arc<dyn BlockDevice>,
+        CreateOptions { block_size: 1024, lod_levels: 2 },
+    )
+    .unwrap();
     let mut w = db.begin_write().unwrap();
     w.write_tree(&scene, &tree, &params, 0.0).unwrap();
     w.commit().unwrap();
@@ -51,7 +56,8 @@ fn hexdump(bytes: &[u8]) -> String {
             continue;
         }
         in_zero_run = false;
-        let hex: Vec<String> = line.chunks(2).map(|p| p.iter().map(|b| format!("{b:02x}")).collect()).collect();
+        let hex: Vec<String> =
+            line.chunks(2).map(|p| p.iter().map(|b| format!("{b:02x}")).collect()).collect();
         out.push_str(&format!("{:08x}: {}\n", i * 16, hex.join(" ")));
     }
     out
@@ -76,7 +82,11 @@ fn the_writer_reproduces_the_golden_file_and_the_spec_shows_it() {
     let golden = std::fs::read(GOLDEN).expect("tests/golden/tiny-v1.mkt");
     assert!(bytes == golden, "the writer no longer produces the golden file byte for byte");
     let md = std::fs::read_to_string(EXAMPLE).unwrap();
-    assert_eq!(fenced_dump(&md).expect("a ```text block in example.md"), hexdump(&golden), "example.md's dump differs from the golden file");
+    assert_eq!(
+        fenced_dump(&md).expect("a ```text block in example.md"),
+        hexdump(&golden),
+        "example.md's dump differs from the golden file"
+    );
     let db = Database::open_on(Arc::new(MemDevice::from_bytes(golden)) as Arc<dyn BlockDevice>).unwrap();
     let r = db.begin_read().unwrap();
     assert_eq!(r.info().unwrap().objects, 3);

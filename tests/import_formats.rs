@@ -327,7 +327,10 @@ fn gltf_errors_name_the_file_and_the_node_mesh_or_accessor() {
     // A cycle in the node hierarchy.
     let m = glb_error(|doc| doc["nodes"][3]["children"] = json!([2]));
     assert!(m.contains("node 2 occurs twice in the hierarchy of scene 0"), "{m}");
-    // A reference to a missing node.
+    // A POSITION accessor that does not exist (gltf-json's validation
+    // would index with it), and a reference to a missing node.
+    let m = glb_error(|doc| doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(7));
+    assert!(m.contains("glTF: mesh 0, primitive 0: POSITION names accessor 7, but there are 3"), "{m}");
     let m = glb_error(|doc| doc["scenes"][0]["nodes"] = json!([42]));
     assert!(m.contains("glTF: invalid glTF"), "{m}");
     // A scene whose meshes are only lines.

@@ -14,9 +14,18 @@ use mktree::store::device::{CountingDevice, FaultDevice, FaultOp, MemDevice};
 
 fn base_image() -> Vec<u8> {
     let dev = Arc::new(MemDevice::new());
-    let db = Database::create_on(dev.clone() as Arc<dyn BlockDevice>, CreateOptions { block_size: 1024, lod_levels: 1 }).unwrap();
+    let db = Database::create_on(
+        dev.clone() as Arc<dyn BlockDevice>,
+        CreateOptions { block_size: 1024, lod_levels: 1 },
+    )
+    .unwrap();
     let mut w = db.begin_write().unwrap();
-    w.bulk_load(&grid_scene(40), &BuildParams { leaf: LeafRule::Objects(4), ..BuildParams::default() }, &|_| {}).unwrap();
+    w.bulk_load(
+        &grid_scene(40),
+        &BuildParams { leaf: LeafRule::Objects(4), ..BuildParams::default() },
+        &|_| {},
+    )
+    .unwrap();
     w.commit().unwrap();
     drop(db);
     dev.to_bytes()
@@ -26,7 +35,11 @@ fn base_image() -> Vec<u8> {
 fn session(dev: Arc<dyn BlockDevice>) -> Result<usize, mktree::Error> {
     let db = Database::open_on(dev)?;
     let mut w = db.begin_write()?;
-    w.bulk_load(&grid_scene(60), &BuildParams { leaf: LeafRule::Objects(4), ..BuildParams::default() }, &|_| {})?;
+    w.bulk_load(
+        &grid_scene(60),
+        &BuildParams { leaf: LeafRule::Objects(4), ..BuildParams::default() },
+        &|_| {},
+    )?;
     w.commit()?;
     Ok(db.begin_read()?.query_box(&Aabb::from_array([0.0, 0.0, 0.0, 1e4, 1e4, 1e4]))?.objects.len())
 }
@@ -46,7 +59,8 @@ fn every_failed_operation_is_a_typed_error_and_the_file_reopens() {
                 Err(e) => assert!(!e.to_string().is_empty()),
                 Ok(n) => assert_eq!(n, 60),
             }
-            let db = Database::open_on(mem as Arc<dyn BlockDevice>).unwrap_or_else(|e| panic!("{op:?} {nth}: reopen: {e}"));
+            let db = Database::open_on(mem as Arc<dyn BlockDevice>)
+                .unwrap_or_else(|e| panic!("{op:?} {nth}: reopen: {e}"));
             let objects = db.begin_read().unwrap().info().map(|i| i.objects);
             assert!(objects == Some(40) || objects == Some(60), "{op:?} {nth}: {objects:?}");
             assert!(check(&db).unwrap().ok(), "{op:?} {nth}: check failed after reopen");

@@ -59,12 +59,21 @@ fn multi_block_leaves_and_big_objects_are_predicted_too() {
 fn counted_reads_are_the_device_reads() {
     let scene = grid_scene(400);
     let counting = Arc::new(CountingDevice::new(MemDevice::new()));
-    let db = Database::create_on(counting.clone() as Arc<dyn BlockDevice>, CreateOptions { block_size: 2048, lod_levels: 2 }).unwrap();
+    let db = Database::create_on(
+        counting.clone() as Arc<dyn BlockDevice>,
+        CreateOptions { block_size: 2048, lod_levels: 2 },
+    )
+    .unwrap();
     let mut w = db.begin_write().unwrap();
-    w.bulk_load(&scene, &BuildParams { leaf: LeafRule::Objects(8), ..BuildParams::default() }, &|_| {}).unwrap();
+    w.bulk_load(&scene, &BuildParams { leaf: LeafRule::Objects(8), ..BuildParams::default() }, &|_| {})
+        .unwrap();
     w.commit().unwrap();
     let r = db.begin_read().unwrap();
-    for q in [[0.0, 0.0, 0.0, 250.0, 250.0, 250.0], [300.0, 0.0, 0.0, 320.0, 800.0, 10.0], [-9.0, -9.0, -9.0, -8.0, -8.0, -8.0]] {
+    for q in [
+        [0.0, 0.0, 0.0, 250.0, 250.0, 250.0],
+        [300.0, 0.0, 0.0, 320.0, 800.0, 10.0],
+        [-9.0, -9.0, -9.0, -8.0, -8.0, -8.0],
+    ] {
         let before = counting.counts().reads;
         let res = r.query_box(&Aabb::from_array(q)).unwrap();
         assert_eq!(counting.counts().reads - before, res.stats.reads.total());

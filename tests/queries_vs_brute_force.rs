@@ -12,7 +12,12 @@ use mktree::query::brute_force_box;
 use proptest::prelude::*;
 
 fn methods() -> Vec<BuildParams> {
-    let p = |method, leaf| BuildParams { method, leaf, look_ahead: LookAhead::Levels(2), ..BuildParams::default() };
+    let p = |method, leaf| BuildParams {
+        method,
+        leaf,
+        look_ahead: LookAhead::Levels(2),
+        ..BuildParams::default()
+    };
     vec![
         p(Method::Moa, LeafRule::Objects(4)),
         p(Method::Laa, LeafRule::Objects(3)),

@@ -50,4 +50,3 @@ fn engine_has_67_objects_and_110336_triangles() {
         imported.scene.objects().iter().filter(|o| o.name.starts_with("Spring_Link__0_Parts_1_node")).count();
     assert_eq!(springs, 20);
 }
-

@@ -130,21 +130,33 @@ fn check_tree(c: &mut Checker) -> Result<(), StorageError> {
     }
     // The names run's blocks.
     if let Some(m) = txn.snapshot.meta.as_ref().filter(|m| m.names_block != 0) {
-        let head = txn.pager().read(m.names_block, BlockType::Names, Some(m.names_checksum), &mut ReadStats::default(), None)?;
+        let head = txn.pager().read(
+            m.names_block,
+            BlockType::Names,
+            Some(m.names_checksum),
+            &mut ReadStats::default(),
+            None,
+        )?;
         let (blocks, _, _) = run::header(m.names_block, &head)?;
-        let lod = if blocks == 1 { LodRef::InBlock { block: m.names_block, offset: 0, checksum: 0 } } else { LodRef::Run { first: m.names_block, blocks, checksum: 0 } };
+        let lod = if blocks == 1 {
+            LodRef::InBlock { block: m.names_block, offset: 0, checksum: 0 }
+        } else {
+            LodRef::Run { first: m.names_block, blocks, checksum: 0 }
+        };
         c.claim_run(&lod, BlockType::Names);
     }
     let m = txn.pager().lod_levels() as usize;
     let mut seen = vec![false; info.objects as usize];
-    let (mut nodes, mut leaves, mut depth, mut node_blocks, mut geometry_blocks) = (0u64, 0u64, 0u32, 0u32, 0u64);
+    let (mut nodes, mut leaves, mut depth, mut node_blocks, mut geometry_blocks) =
+        (0u64, 0u64, 0u32, 0u32, 0u64);
     let (mut triangles, mut vertices) = (0u64, 0u64);
     let mut next_id = 0u32;
     // (records, location, expected level, box the parent holds for it)
     let records = txn.read_node_block(root.block, root.checksum, &mut ReadStats::default(), None)?;
     c.claim(root.block, Owner::Used(BlockType::Node));
     node_blocks += 1;
-    let mut stack: Vec<(Arc<Vec<NodeRecord>>, NodeLocation, u16, Option<[f32; 6]>)> = vec![(records, root, 0, None)];
+    let mut stack: Vec<(Arc<Vec<NodeRecord>>, NodeLocation, u16, Option<[f32; 6]>)> =
+        vec![(records, root, 0, None)];
     let mut guard = super::TraversalGuard::new(txn);
     while let Some((records, at, level, parent_box)) = stack.pop() {
         guard.visit(at)?;
@@ -185,12 +197,15 @@ fn check_tree(c: &mut Checker) -> Result<(), StorageError> {
                         (records.clone(), NodeLocation { block: k.block, slot: k.slot, checksum: None })
                     } else {
                         if k.slot != 0 {
-                            c.fault(format!("{here}: a child in another block is not that block's first record"));
+                            c.fault(format!(
+                                "{here}: a child in another block is not that block's first record"
+                            ));
                         }
                         c.claim(k.block, Owner::Used(BlockType::Node));
                         node_blocks += 1;
                         reads += 1;
-                        let b = txn.read_node_block(k.block, Some(k.checksum), &mut ReadStats::default(), None)?;
+                        let b =
+                            txn.read_node_block(k.block, Some(k.checksum), &mut ReadStats::default(), None)?;
                         (b, NodeLocation { block: k.block, slot: k.slot, checksum: Some(k.checksum) })
                     };
                     let crec = record_at(&child, loc.block, loc.slot)?;
@@ -217,7 +232,11 @@ fn check_tree(c: &mut Checker) -> Result<(), StorageError> {
                     }
                 };
                 if objects.len() != rec.object_count as usize {
-                    c.fault(format!("{here}: {} objects stored, record says {}", objects.len(), rec.object_count));
+                    c.fault(format!(
+                        "{here}: {} objects stored, record says {}",
+                        objects.len(),
+                        rec.object_count
+                    ));
                 }
                 for (id, mesh) in &objects {
                     triangles += mesh.triangle_count() as u64;
@@ -251,7 +270,12 @@ fn check_tree(c: &mut Checker) -> Result<(), StorageError> {
         }
     }
     let root_box = Aabb::from_array(info.scene_box);
-    let stored = record_at(&txn.read_node_block(root.block, root.checksum, &mut ReadStats::default(), None)?, root.block, root.slot)?.aabb();
+    let stored = record_at(
+        &txn.read_node_block(root.block, root.checksum, &mut ReadStats::default(), None)?,
+        root.block,
+        root.slot,
+    )?
+    .aabb();
     if !stored.contains(&root_box) {
         c.fault("the root's box does not contain the scene box");
     }

@@ -58,7 +58,12 @@ mod tests {
     fn codes_round_trip() {
         for m in METHODS {
             for t in TIE_BREAKS {
-                let p = BuildParams { method: m, tie_break: t, look_ahead: LookAhead::Max, ..BuildParams::default() };
+                let p = BuildParams {
+                    method: m,
+                    tie_break: t,
+                    look_ahead: LookAhead::Max,
+                    ..BuildParams::default()
+                };
                 assert_eq!(decode(&encode(&p, 1.0)), Some(p));
             }
         }

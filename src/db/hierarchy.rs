@@ -15,7 +15,12 @@ pub fn read_hierarchy(txn: &ReadTransaction) -> Result<Hierarchy, StorageError> 
     let mut records = Vec::new();
     txn.walk_nodes(&mut ReadStats::default(), |at, rec| {
         if rec.node_id as usize != records.len() {
-            return Err(StorageError::corrupt_record(at.block, u32::from(at.slot), "node_id", format!("{} is not preorder position {}", rec.node_id, records.len())));
+            return Err(StorageError::corrupt_record(
+                at.block,
+                u32::from(at.slot),
+                "node_id",
+                format!("{} is not preorder position {}", rec.node_id, records.len()),
+            ));
         }
         ids.insert((at.block, at.slot), rec.node_id);
         records.push(rec.clone());
@@ -35,7 +40,11 @@ pub fn read_hierarchy(txn: &ReadTransaction) -> Result<Hierarchy, StorageError> 
                 },
             },
             None => {
-                let mut objects: Vec<_> = txn.read_objects(&rec.lods[m - 1][1], &mut ReadStats::default(), None)?.into_iter().map(|(id, _)| id).collect();
+                let mut objects: Vec<_> = txn
+                    .read_objects(&rec.lods[m - 1][1], &mut ReadStats::default(), None)?
+                    .into_iter()
+                    .map(|(id, _)| id)
+                    .collect();
                 objects.sort_unstable();
                 NodeKind::Leaf { objects }
             }

@@ -148,8 +148,11 @@ impl Database {
         }
         let mut block0 = header::encode_block0(block_size, lod_levels);
         let first = Commit { txn: 1, block_count: 1, ..Commit::default() };
-        block0[header::slot_offset(0)..header::slot_offset(1)]
-            .copy_from_slice(&Slot::encode(0, SlotState::Committed, &first));
+        block0[header::slot_offset(0)..header::slot_offset(1)].copy_from_slice(&Slot::encode(
+            0,
+            SlotState::Committed,
+            &first,
+        ));
         device.write_at(0, &block0)?;
         device.sync()?;
         Database::open_on(device)
@@ -161,7 +164,11 @@ impl Database {
     pub fn open_on(device: Arc<dyn BlockDevice>) -> Result<Database, StorageError> {
         let len = device.len()?;
         if len < PREFIX_LEN as u64 {
-            return Err(if len == 0 { StorageError::NotMktree } else { StorageError::Truncated { detail: format!("{len} bytes is shorter than a header") } });
+            return Err(if len == 0 {
+                StorageError::NotMktree
+            } else {
+                StorageError::Truncated { detail: format!("{len} bytes is shorter than a header") }
+            });
         }
         let mut prefix = vec![0u8; PREFIX_LEN];
         device.read_at(0, &mut prefix)?;
@@ -180,7 +187,10 @@ impl Database {
         let blocks_on_disk = pager.block_count()?;
         if blocks_on_disk < u64::from(committed.block_count) {
             return Err(StorageError::Truncated {
-                detail: format!("the commit holds {} blocks, the file {blocks_on_disk}", committed.block_count),
+                detail: format!(
+                    "the commit holds {} blocks, the file {blocks_on_disk}",
+                    committed.block_count
+                ),
             });
         }
         let free = read_free_list(&pager, &committed)?;
@@ -201,7 +211,10 @@ impl Database {
             readers: BTreeMap::new(),
             freed_at: Vec::new(),
         };
-        Ok(Database { inner: Arc::new(Inner { pager, state: Mutex::new(state), writer: Mutex::new(()) }), recovery })
+        Ok(Database {
+            inner: Arc::new(Inner { pager, state: Mutex::new(state), writer: Mutex::new(()) }),
+            recovery,
+        })
     }
 
     /// What opening found and repaired.
@@ -281,7 +294,11 @@ pub(crate) fn read_free_list(pager: &Pager, c: &Commit) -> Result<Vec<(u32, u32)
         for &(first, count) in &fl.ranges {
             let last = ranges.last().map_or(1, |&(f, n)| f + n + 1);
             if count == 0 || first < last || u64::from(first) + u64::from(count) > u64::from(c.block_count) {
-                return Err(StorageError::corrupt(block, "ranges", format!("range ({first}, {count}) is out of order or out of the file")));
+                return Err(StorageError::corrupt(
+                    block,
+                    "ranges",
+                    format!("range ({first}, {count}) is out of order or out of the file"),
+                ));
             }
             ranges.push((first, count));
         }
@@ -289,7 +306,11 @@ pub(crate) fn read_free_list(pager: &Pager, c: &Commit) -> Result<Vec<(u32, u32)
     }
     let total: u64 = ranges.iter().map(|r| u64::from(r.1)).sum();
     if total != u64::from(c.free_blocks) {
-        return Err(StorageError::corrupt(0, "free_blocks", format!("the slot says {}, the list holds {total}", c.free_blocks)));
+        return Err(StorageError::corrupt(
+            0,
+            "free_blocks",
+            format!("the slot says {}, the list holds {total}", c.free_blocks),
+        ));
     }
     Ok(ranges)
 }
@@ -300,18 +321,33 @@ pub(crate) fn read_meta(pager: &Pager, c: &Commit) -> Result<Option<Meta>, Stora
         return Ok(None);
     }
     if c.meta_block >= c.block_count {
-        return Err(StorageError::corrupt(0, "meta_block", format!("block {} is past the end", c.meta_block)));
+        return Err(StorageError::corrupt(
+            0,
+            "meta_block",
+            format!("block {} is past the end", c.meta_block),
+        ));
     }
-    let b = pager.read(c.meta_block, BlockType::Meta, Some(c.meta_checksum), &mut ReadStats::default(), None)?;
+    let b =
+        pager.read(c.meta_block, BlockType::Meta, Some(c.meta_checksum), &mut ReadStats::default(), None)?;
     let meta = Meta::decode(c.meta_block, &b)?;
     if meta.root_block == 0 || meta.root_block >= c.block_count {
-        return Err(StorageError::corrupt(c.meta_block, "root_block", format!("{} is not a block of the file", meta.root_block)));
+        return Err(StorageError::corrupt(
+            c.meta_block,
+            "root_block",
+            format!("{} is not a block of the file", meta.root_block),
+        ));
     }
     Ok(Some(meta))
 }
 
 /// Recovery after an interrupted transaction (format-spec/commit.md).
-fn recover(pager: &Pager, c: &Commit, other_slot: usize, free: &[(u32, u32)], r: &mut Recovery) -> Result<(), StorageError> {
+fn recover(
+    pager: &Pager,
+    c: &Commit,
+    other_slot: usize,
+    free: &[(u32, u32)],
+    r: &mut Recovery,
+) -> Result<(), StorageError> {
     let bs = u64::from(pager.block_size());
     let len = pager.device().len()?;
     let end = u64::from(c.block_count) * bs;

@@ -108,7 +108,11 @@ impl ReadTransaction {
 
     fn check_in_snapshot(&self, block: u32) -> Result<(), StorageError> {
         if block >= self.snapshot.block_count {
-            return Err(StorageError::corrupt(block, "reference", format!("past the committed end ({} blocks)", self.snapshot.block_count)));
+            return Err(StorageError::corrupt(
+                block,
+                "reference",
+                format!("past the committed end ({} blocks)", self.snapshot.block_count),
+            ));
         }
         Ok(())
     }
@@ -125,19 +129,28 @@ impl ReadTransaction {
         let (first, blocks, checksum) = match *lod {
             LodRef::InBlock { block, offset, checksum } => {
                 if offset as usize != run::FIRST_DATA {
-                    return Err(StorageError::corrupt(block, "lod offset", format!("a run starts at {}, not {offset}", run::FIRST_DATA)));
+                    return Err(StorageError::corrupt(
+                        block,
+                        "lod offset",
+                        format!("a run starts at {}, not {offset}", run::FIRST_DATA),
+                    ));
                 }
                 (block, 1, checksum)
             }
             LodRef::Run { first, blocks, checksum } => (first, blocks, checksum),
             _ => return Err(StorageError::Invalid("not a run reference".into())),
         };
-        let last = first.checked_add(blocks - 1).ok_or_else(|| StorageError::corrupt(first, "run", "overflows"))?;
+        let last =
+            first.checked_add(blocks - 1).ok_or_else(|| StorageError::corrupt(first, "run", "overflows"))?;
         self.check_in_snapshot(last)?;
         let head = self.pager().read(first, first_type, Some(checksum), stats, cache.as_deref_mut())?;
         let (n, _, _) = run::header(first, &head)?;
         if n != blocks {
-            return Err(StorageError::corrupt(first, "run_blocks", format!("the parent says {blocks} blocks, the run {n}")));
+            return Err(StorageError::corrupt(
+                first,
+                "run_blocks",
+                format!("the parent says {blocks} blocks, the run {n}"),
+            ));
         }
         let mut all = vec![head];
         for id in first + 1..=last {
@@ -171,16 +184,25 @@ impl ReadTransaction {
             return Ok(Vec::new());
         }
         let mut stats = ReadStats::default();
-        let head = self.pager().read(m.names_block, BlockType::Names, Some(m.names_checksum), &mut stats, None)?;
+        let head =
+            self.pager().read(m.names_block, BlockType::Names, Some(m.names_checksum), &mut stats, None)?;
         let (blocks, _, _) = run::header(m.names_block, &head)?;
         let lod = if blocks == 1 {
-            LodRef::InBlock { block: m.names_block, offset: run::FIRST_DATA as u32, checksum: m.names_checksum }
+            LodRef::InBlock {
+                block: m.names_block,
+                offset: run::FIRST_DATA as u32,
+                checksum: m.names_checksum,
+            }
         } else {
             LodRef::Run { first: m.names_block, blocks, checksum: m.names_checksum }
         };
         let (first, records, words, len) = self.read_run(&lod, BlockType::Names, &mut stats, None)?;
         if records != m.object_count {
-            return Err(StorageError::corrupt(first, "record_count", format!("{records} names for {} objects", m.object_count)));
+            return Err(StorageError::corrupt(
+                first,
+                "record_count",
+                format!("{records} names for {} objects", m.object_count),
+            ));
         }
         geometry::decode_names(first, &words, len, records)
     }
@@ -211,11 +233,23 @@ impl ReadTransaction {
             let rec = record_at(&records, at.block, at.slot)?;
             let entry = rec.lods[k as usize - 1][usize::from(objects)];
             match entry {
-                LodRef::Absent => return Err(StorageError::Invalid(format!("level {k} is not stored for node {}", rec.node_id))),
-                LodRef::InBlock { .. } | LodRef::Run { .. } => out.extend(self.read_objects(&entry, stats, None)?),
+                LodRef::Absent => {
+                    return Err(StorageError::Invalid(format!(
+                        "level {k} is not stored for node {}",
+                        rec.node_id
+                    )));
+                }
+                LodRef::InBlock { .. } | LodRef::Run { .. } => {
+                    out.extend(self.read_objects(&entry, stats, None)?)
+                }
                 LodRef::Spread { .. } => {
                     let Some((kids, _)) = &rec.children else {
-                        return Err(StorageError::corrupt_record(at.block, u32::from(at.slot), "lods", "a leaf's entry is spread"));
+                        return Err(StorageError::corrupt_record(
+                            at.block,
+                            u32::from(at.slot),
+                            "lods",
+                            "a leaf's entry is spread",
+                        ));
                     };
                     for c in kids.iter().rev() {
                         let loc = NodeLocation { block: c.block, slot: c.slot, checksum: None };
@@ -249,10 +283,16 @@ impl ReadTransaction {
             if let Some((kids, _)) = &rec.children {
                 for c in kids.iter().rev() {
                     if c.block == at.block {
-                        stack.push((records.clone(), NodeLocation { block: c.block, slot: c.slot, checksum: None }));
+                        stack.push((
+                            records.clone(),
+                            NodeLocation { block: c.block, slot: c.slot, checksum: None },
+                        ));
                     } else {
                         let child = self.read_node_block(c.block, Some(c.checksum), stats, None)?;
-                        stack.push((child, NodeLocation { block: c.block, slot: c.slot, checksum: Some(c.checksum) }));
+                        stack.push((
+                            child,
+                            NodeLocation { block: c.block, slot: c.slot, checksum: Some(c.checksum) },
+                        ));
                     }
                 }
             }
@@ -275,13 +315,21 @@ pub(crate) struct TraversalGuard {
 
 impl TraversalGuard {
     pub(crate) fn new(txn: &ReadTransaction) -> TraversalGuard {
-        TraversalGuard { limit: txn.snapshot.meta.as_ref().map_or(0, |m| u64::from(m.node_count)), visited: 0 }
+        TraversalGuard {
+            limit: txn.snapshot.meta.as_ref().map_or(0, |m| u64::from(m.node_count)),
+            visited: 0,
+        }
     }
 
     pub(crate) fn visit(&mut self, at: NodeLocation) -> Result<(), StorageError> {
         self.visited += 1;
         if self.visited > self.limit {
-            return Err(StorageError::corrupt_record(at.block, u32::from(at.slot), "child_block", format!("more than the {} nodes the meta block counts: the links loop", self.limit)));
+            return Err(StorageError::corrupt_record(
+                at.block,
+                u32::from(at.slot),
+                "child_block",
+                format!("more than the {} nodes the meta block counts: the links loop", self.limit),
+            ));
         }
         Ok(())
     }
@@ -289,7 +337,7 @@ impl TraversalGuard {
 
 /// Record `slot` of a decoded block, or a corruption error.
 pub(crate) fn record_at(records: &[NodeRecord], block: u32, slot: u16) -> Result<&NodeRecord, StorageError> {
-    records
-        .get(usize::from(slot))
-        .ok_or_else(|| StorageError::corrupt(block, "child_slot", format!("slot {slot} of {} records", records.len())))
+    records.get(usize::from(slot)).ok_or_else(|| {
+        StorageError::corrupt(block, "child_slot", format!("slot {slot} of {} records", records.len()))
+    })
 }

@@ -40,7 +40,10 @@ fn to_f32_box(b: &Aabb) -> [f32; 6] {
 }
 
 impl<'db> WriteTransaction<'db> {
-    pub(super) fn begin(inner: &'db Arc<Inner>, guard: MutexGuard<'db, ()>) -> Result<WriteTransaction<'db>, StorageError> {
+    pub(super) fn begin(
+        inner: &'db Arc<Inner>,
+        guard: MutexGuard<'db, ()>,
+    ) -> Result<WriteTransaction<'db>, StorageError> {
         let (base, slot, avail) = {
             let mut s = inner.lock_state();
             // Blocks freed by a commit become reusable once no reader older than it lives.
@@ -83,7 +86,11 @@ impl<'db> WriteTransaction<'db> {
     }
 
     /// Writes `payloads` as a run (first block `first_type`, then continuations).
-    fn write_run(&mut self, mut payloads: Vec<Vec<u8>>, first_type: BlockType) -> Result<LodRef, StorageError> {
+    fn write_run(
+        &mut self,
+        mut payloads: Vec<Vec<u8>>,
+        first_type: BlockType,
+    ) -> Result<LodRef, StorageError> {
         let n = payloads.len() as u32;
         let first = self.allocate(n)?;
         let mut checksum = 0;
@@ -125,19 +132,29 @@ impl<'db> WriteTransaction<'db> {
     /// Writes a tree already built from `scene` with `params` (e.g. once for
     /// several files); `build_seconds` is recorded in the meta block. The tree
     /// must be a valid hierarchy of exactly the scene's objects.
-    pub fn write_tree(&mut self, scene: &Scene, tree: &Hierarchy, params: &BuildParams, build_seconds: f64) -> Result<(), StorageError> {
+    pub fn write_tree(
+        &mut self,
+        scene: &Scene,
+        tree: &Hierarchy,
+        params: &BuildParams,
+        build_seconds: f64,
+    ) -> Result<(), StorageError> {
         if self.meta.is_some() {
             return Err(StorageError::Invalid("a transaction writes one tree".into()));
         }
         let boxes = scene.object_boxes();
         let sizes: Vec<u64> = scene.objects().iter().map(|o| geometry::record_len(&o.mesh)).collect();
-        tree.validate(&boxes, Some(&sizes), params).map_err(|e| StorageError::Invalid(format!("the tree does not fit the scene: {e}")))?;
+        tree.validate(&boxes, Some(&sizes), params)
+            .map_err(|e| StorageError::Invalid(format!("the tree does not fit the scene: {e}")))?;
         let pager = self.inner.pager().clone();
         let (bs, m) = (pager.block_size(), pager.lod_levels());
         let nodes = &tree.nodes;
         let n = nodes.len();
         if tree.depth() > u32::from(u16::MAX) {
-            return Err(StorageError::Invalid(format!("the tree has {} levels; a file holds at most 65,535", tree.depth())));
+            return Err(StorageError::Invalid(format!(
+                "the tree has {} levels; a file holds at most 65,535",
+                tree.depth()
+            )));
         }
         // Geometry runs, one per leaf, in preorder.
         let mut exact = vec![LodRef::Absent; n];
@@ -147,7 +164,8 @@ impl<'db> WriteTransaction<'db> {
             if let Some(objects) = node.objects() {
                 stream.clear();
                 for id in objects {
-                    let o = scene.object(*id).ok_or_else(|| StorageError::Invalid(format!("no object {id}")))?;
+                    let o =
+                        scene.object(*id).ok_or_else(|| StorageError::Invalid(format!("no object {id}")))?;
                     geometry::encode_object(*id, &o.mesh, &mut stream);
                 }
                 let payloads = run::encode(&stream, objects.len() as u32, bs);
@@ -158,7 +176,8 @@ impl<'db> WriteTransaction<'db> {
         // Pack nodes into blocks; block ids in the order blocks were started.
         let capacity = node::records_per_block(bs, m);
         let packing = layout::pack(n, |i| nodes[i].children().map(|c| c.map(|x| x.index())), capacity);
-        let block_ids: Vec<u32> = (0..packing.blocks.len()).map(|_| self.allocate(1)).collect::<Result<_, _>>()?;
+        let block_ids: Vec<u32> =
+            (0..packing.blocks.len()).map(|_| self.allocate(1)).collect::<Result<_, _>>()?;
         // Level M: reads through the subtree, and subtree object counts, bottom-up
         // (preorder puts children after parents).
         let mut object_count = vec![0u32; n];
@@ -182,11 +201,18 @@ impl<'db> WriteTransaction<'db> {
         for b in (0..packing.blocks.len()).rev() {
             let records: Vec<NodeRecord> = packing.blocks[b]
                 .iter()
-                .map(|&i| record(nodes, i as usize, m, &exact, &object_count, |c| {
-                    let (cb, slot) = packing.place[c];
-                    let checksum = if cb as usize == b { 0 } else { checksums[cb as usize] };
-                    ChildRef { block: block_ids[cb as usize], slot, checksum, aabb: to_f32_box(&nodes[c].aabb) }
-                }))
+                .map(|&i| {
+                    record(nodes, i as usize, m, &exact, &object_count, |c| {
+                        let (cb, slot) = packing.place[c];
+                        let checksum = if cb as usize == b { 0 } else { checksums[cb as usize] };
+                        ChildRef {
+                            block: block_ids[cb as usize],
+                            slot,
+                            checksum,
+                            aabb: to_f32_box(&nodes[c].aabb),
+                        }
+                    })
+                })
                 .collect();
             let mut block = vec![0u8; bs as usize];
             node::encode_block(&records, m, &mut block);
@@ -253,7 +279,11 @@ impl<'db> WriteTransaction<'db> {
         let (mut next, mut next_sum) = (0u32, 0u32);
         let chunks: Vec<&[(u32, u32)]> = free.chunks(per).collect();
         for (j, &id) in list_blocks.iter().enumerate().rev() {
-            let fl = FreeListBlock { next_block: next, next_checksum: next_sum, ranges: chunks.get(j).map_or(Vec::new(), |c| c.to_vec()) };
+            let fl = FreeListBlock {
+                next_block: next,
+                next_checksum: next_sum,
+                ranges: chunks.get(j).map_or(Vec::new(), |c| c.to_vec()),
+            };
             let mut block = vec![0u8; pager.block_size() as usize];
             fl.encode(&mut block);
             next_sum = pager.write(id, &mut block, BlockType::FreeList, self.txn)?;
@@ -274,7 +304,10 @@ impl<'db> WriteTransaction<'db> {
     fn finish(&mut self, c: Commit, loaded: Option<(Meta, Vec<(u32, u32)>)>) -> Result<(), StorageError> {
         let pager = self.inner.pager();
         pager.sync()?;
-        pager.write_header_bytes(header::slot_offset(self.slot) as u64, &Slot::encode(self.slot, SlotState::Committed, &c))?;
+        pager.write_header_bytes(
+            header::slot_offset(self.slot) as u64,
+            &Slot::encode(self.slot, SlotState::Committed, &c),
+        )?;
         pager.sync()?;
         self.done = true;
         let mut s = self.inner.lock_state();
@@ -335,7 +368,10 @@ fn record(
             Order::Max => 1,
             Order::Center => 2,
         };
-        (kids.map(|c| child(c.index())), SplitInfo { axis: s.axis, order, overlap: s.overlap as f32, gap: s.gap as f32 })
+        (
+            kids.map(|c| child(c.index())),
+            SplitInfo { axis: s.axis, order, overlap: s.overlap as f32, gap: s.gap as f32 },
+        )
     });
     let mut lods = vec![[LodRef::Absent; 2]; m as usize];
     // Level M is the exact geometry: as a group and as objects, the same blocks.

@@ -44,12 +44,17 @@ fn mesh_meets_box(mesh: &Mesh, query: &Aabb, triangles_tested: &mut u64) -> bool
 }
 
 /// The box query of `txn`'s tree, reading through `cache` when given.
-pub fn query_box(txn: &ReadTransaction, query: &Aabb, mut cache: Option<&mut BlockCache>) -> Result<BoxQuery, StorageError> {
+pub fn query_box(
+    txn: &ReadTransaction,
+    query: &Aabb,
+    mut cache: Option<&mut BlockCache>,
+) -> Result<BoxQuery, StorageError> {
     let started = Instant::now();
     let mut stats = QueryStats::default();
     let mut objects = Vec::new();
     if let Some(root) = txn.root() {
-        let records = txn.read_node_block(root.block, root.checksum, &mut stats.reads, cache.as_deref_mut())?;
+        let records =
+            txn.read_node_block(root.block, root.checksum, &mut stats.reads, cache.as_deref_mut())?;
         let mut stack: Vec<(Arc<Vec<NodeRecord>>, NodeLocation)> = Vec::new();
         if crate::db::record_at(&records, root.block, root.slot)?.aabb().intersects(query) {
             stack.push((records, root));
@@ -66,7 +71,12 @@ pub fn query_box(txn: &ReadTransaction, query: &Aabb, mut cache: Option<&mut Blo
                         if c.block == at.block {
                             stack.push((records.clone(), loc));
                         } else {
-                            let child = txn.read_node_block(c.block, Some(c.checksum), &mut stats.reads, cache.as_deref_mut())?;
+                            let child = txn.read_node_block(
+                                c.block,
+                                Some(c.checksum),
+                                &mut stats.reads,
+                                cache.as_deref_mut(),
+                            )?;
                             stack.push((child, loc));
                         }
                     }
@@ -92,5 +102,8 @@ pub fn query_box(txn: &ReadTransaction, query: &Aabb, mut cache: Option<&mut Blo
 /// The same answer by testing every object of `scene`: the oracle for tests.
 pub fn brute_force_box(scene: &Scene, query: &Aabb) -> Vec<ObjectId> {
     let mut n = 0;
-    (0..scene.len() as u32).map(ObjectId).filter(|&id| scene.objects().get(id.index()).is_some_and(|o| mesh_meets_box(&o.mesh, query, &mut n))).collect()
+    (0..scene.len() as u32)
+        .map(ObjectId)
+        .filter(|&id| scene.objects().get(id.index()).is_some_and(|o| mesh_meets_box(&o.mesh, query, &mut n)))
+        .collect()
 }

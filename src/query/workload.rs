@@ -6,7 +6,7 @@ use crate::geom::{Aabb, Point};
 /// `count` boxes whose sides are `share` of the scene's extent on each axis,
 /// centred uniformly at random in `scene` (deterministic for a seed).
 pub fn random_boxes(scene: &Aabb, count: usize, share: f64, seed: u64) -> Vec<Aabb> {
-    let mut rng = crate::scene::generate::rng::Rng::new(seed ^ share.to_bits());
+    let mut rng = crate::rng::Rng::new(seed ^ share.to_bits());
     let e = scene.extent();
     let half = e * share / 2.0;
     (0..count)
@@ -34,7 +34,10 @@ pub struct WorkloadStats {
 }
 
 /// Runs `queries` against `txn` and averages their statistics.
-pub fn run_boxes(txn: &crate::db::ReadTransaction, queries: &[Aabb]) -> Result<WorkloadStats, crate::store::StorageError> {
+pub fn run_boxes(
+    txn: &crate::db::ReadTransaction,
+    queries: &[Aabb],
+) -> Result<WorkloadStats, crate::store::StorageError> {
     let mut s = WorkloadStats { queries: queries.len(), ..WorkloadStats::default() };
     for q in queries {
         let r = txn.query_box(q)?;
@@ -46,7 +49,14 @@ pub fn run_boxes(txn: &crate::db::ReadTransaction, queries: &[Aabb]) -> Result<W
         s.mean_milliseconds += r.stats.seconds * 1e3;
     }
     let n = queries.len().max(1) as f64;
-    for v in [&mut s.mean_node_reads, &mut s.mean_geometry_reads, &mut s.mean_total_reads, &mut s.mean_objects, &mut s.mean_leaves_visited, &mut s.mean_milliseconds] {
+    for v in [
+        &mut s.mean_node_reads,
+        &mut s.mean_geometry_reads,
+        &mut s.mean_total_reads,
+        &mut s.mean_objects,
+        &mut s.mean_leaves_visited,
+        &mut s.mean_milliseconds,
+    ] {
         *v /= n;
     }
     Ok(s)

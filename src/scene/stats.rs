@@ -48,7 +48,8 @@ pub struct SceneInfo {
 impl SceneInfo {
     /// Statistics of `scene`.
     pub fn of(scene: &Scene) -> SceneInfo {
-        let aabb = if scene.is_empty() { Aabb::new(Default::default(), Default::default()) } else { scene.aabb() };
+        let aabb =
+            if scene.is_empty() { Aabb::new(Default::default(), Default::default()) } else { scene.aabb() };
         let mut tris: Vec<f64> = scene.objects().iter().map(|o| o.mesh.triangle_count() as f64).collect();
         let sides: Vec<(f64, f64)> = scene
             .objects()

@@ -2,9 +2,9 @@
 //! and counts blocks, the writer that lays a tree out in blocks, and `check`.
 //! The format is specified in `format-spec/`.
 
+pub mod alloc;
 pub mod device;
 mod error;
-pub mod alloc;
 pub mod format;
 pub mod layout;
 pub mod pager;

@@ -105,7 +105,10 @@ pub struct Pager {
 
 impl std::fmt::Debug for Pager {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Pager").field("block_size", &self.block_size).field("lod_levels", &self.lod_levels).finish()
+        f.debug_struct("Pager")
+            .field("block_size", &self.block_size)
+            .field("lod_levels", &self.lod_levels)
+            .finish()
     }
 }
 
@@ -157,7 +160,11 @@ impl Pager {
         cache: Option<&mut BlockCache>,
     ) -> Result<Arc<[u8]>, StorageError> {
         if id == 0 {
-            return Err(StorageError::corrupt(0, "reference", format!("a {} reference points to block 0", expected.name())));
+            return Err(StorageError::corrupt(
+                0,
+                "reference",
+                format!("a {} reference points to block 0", expected.name()),
+            ));
         }
         if let Some(c) = cache {
             if let Some(b) = c.get(id) {
@@ -185,7 +192,13 @@ impl Pager {
     }
 
     /// Seals (frame + checksum) and writes block `id`; returns its checksum.
-    pub fn write(&self, id: u32, block: &mut [u8], block_type: BlockType, txn: u64) -> Result<u32, StorageError> {
+    pub fn write(
+        &self,
+        id: u32,
+        block: &mut [u8],
+        block_type: BlockType,
+        txn: u64,
+    ) -> Result<u32, StorageError> {
         let sum = frame::seal(id, block, block_type, txn);
         self.device.write_at(self.offset(id), block)?;
         Ok(sum)

@@ -15,11 +15,27 @@ use proptest::prelude::*;
 /// A closed box mesh (12 triangles) from `lo` to `hi`.
 pub fn box_mesh(lo: [f64; 3], hi: [f64; 3]) -> Mesh {
     let p: Vec<Point> = (0..8)
-        .map(|i| Point::new(if i & 1 == 0 { lo[0] } else { hi[0] }, if i & 2 == 0 { lo[1] } else { hi[1] }, if i & 4 == 0 { lo[2] } else { hi[2] }))
+        .map(|i| {
+            Point::new(
+                if i & 1 == 0 { lo[0] } else { hi[0] },
+                if i & 2 == 0 { lo[1] } else { hi[1] },
+                if i & 4 == 0 { lo[2] } else { hi[2] },
+            )
+        })
         .collect();
     let t = vec![
-        [0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
-        [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5],
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
     ];
     Mesh::from_world(&p, t).expect("a box is a valid mesh")
 }
@@ -38,7 +54,11 @@ pub fn arb_scene(max_objects: usize) -> impl Strategy<Value = Scene> {
                 .enumerate()
                 .map(|(i, (lo, size, is_box))| {
                     let hi = [lo[0] + size[0], lo[1] + size[1], lo[2] + size[2]];
-                    let mesh = if is_box { box_mesh(lo, hi) } else { triangle(lo, [hi[0], lo[1], hi[2]], [lo[0], hi[1], hi[2]]) };
+                    let mesh = if is_box {
+                        box_mesh(lo, hi)
+                    } else {
+                        triangle(lo, [hi[0], lo[1], hi[2]], [lo[0], hi[1], hi[2]])
+                    };
                     Object::new(format!("o{i}"), mesh)
                 })
                 .collect(),

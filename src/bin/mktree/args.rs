@@ -7,7 +7,11 @@ use mktree::build::{BuildParams, LeafRule, LookAhead, Method, TieBreak};
 use mktree::store::format::run;
 
 #[derive(Parser, Debug)]
-#[command(name = "mktree", version, about = "MKtree: a paged spatial index with levels of detail for large 3D scenes")]
+#[command(
+    name = "mktree",
+    version,
+    about = "MKtree: a paged spatial index with levels of detail for large 3D scenes"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -174,13 +178,22 @@ impl BuildArgs {
             (None, Some(b)) => LeafRule::Bytes { capacity: b },
             (None, None) => LeafRule::Bytes { capacity: run::first_capacity(self.block_size()) },
         };
-        BuildParams { method: self.method, rate: self.rate, leaf, look_ahead: self.look_ahead, tie_break: self.tie_break }
+        BuildParams {
+            method: self.method,
+            rate: self.rate,
+            leaf,
+            look_ahead: self.look_ahead,
+            tie_break: self.tie_break,
+        }
     }
 }
 
 /// Six comma-separated finite numbers (a box x0,y0,z0,x1,y1,z1).
 fn six_numbers(s: &str) -> Result<[f64; 6], String> {
-    let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>().map_err(|_| format!("{x:?} is not a number"))).collect::<Result<_, _>>()?;
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|_| format!("{x:?} is not a number")))
+        .collect::<Result<_, _>>()?;
     let a: [f64; 6] = v.try_into().map_err(|v: Vec<f64>| format!("six numbers expected, got {}", v.len()))?;
     if a.iter().any(|x| !x.is_finite()) || a[0] > a[3] || a[1] > a[4] || a[2] > a[5] {
         return Err("a box is finite, with x0 <= x1, y0 <= y1, z0 <= z1".into());

@@ -27,7 +27,6 @@ mod emit;
 mod outfit;
 mod parts;
 mod presets;
-pub(crate) mod rng;
 mod ship;
 mod spans;
 mod trig;

@@ -19,9 +19,9 @@ use std::io;
 
 use super::emit::Emitter;
 use super::parts::{Part, Section, snap, valve_height, valve_length};
-use super::rng::Rng;
 use super::spans::{pieces, stations};
 use crate::geom::{Aabb, Point, Vector};
+use crate::rng::Rng;
 
 /// The space a compartment leaves for outfitting.
 #[derive(Debug, Clone)]

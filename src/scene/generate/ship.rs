@@ -15,9 +15,9 @@ use super::emit::Emitter;
 use super::outfit::{self, Room, Through};
 use super::parts::{Part, Section, snap};
 use super::presets::{Layout, Structure};
-use super::rng::Rng;
 use super::spans::{pieces, stations};
 use crate::geom::{Aabb, Point, Vector};
+use crate::rng::Rng;
 
 /// Hull plating thickness.
 const PLATE_MM: f64 = 14.0;

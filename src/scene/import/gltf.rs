@@ -9,10 +9,11 @@
 //! Objects are named `<mesh name>_node<node index>`, or
 //! `mesh<mesh index>_node<node index>` for an unnamed mesh.
 //!
-//! Guards: the `gltf` crate trusts some input it does not validate (an
+//! Guards: the `gltf` crates trust some input they do not validate (an
 //! accessor's byte range, a GLB header's length, a buffer URI's percent
-//! escapes) and would panic on it, so those are checked here first. Sparse
-//! and quantised (non-f32) position accessors are refused with a message.
+//! escapes, a POSITION accessor index during validation) and would panic on
+//! it, so those are checked here first. Sparse and quantised (non-f32)
+//! position accessors are refused with a message.
 //! A mirroring transform (negative determinant) reverses the winding, as
 //! the glTF specification asks, so faces keep their orientation.
 
@@ -33,8 +34,11 @@ pub(super) fn load(path: &Path, scale: f64) -> Result<Imported, ImportError> {
     let bytes = std::fs::read(path).map_err(|source| ImportError::Io { file: path.into(), source })?;
     let gltf_error = |message: String| ImportError::Gltf { file: path.into(), message };
     check_glb_header(&bytes).map_err(gltf_error)?;
-    let Gltf { document, blob } = Gltf::from_slice(&bytes).map_err(|e| gltf_error(e.to_string()))?;
+    let Gltf { document, blob } =
+        Gltf::from_slice_without_validation(&bytes).map_err(|e| gltf_error(e.to_string()))?;
     drop(bytes);
+    check_position_references(document.as_json()).map_err(gltf_error)?;
+    let document = Document::from_json(document.into_json()).map_err(|e| gltf_error(e.to_string()))?;
     let buffers = load_buffers(&document, path.parent(), blob).map_err(gltf_error)?;
 
     let mut scene = Scene::default();
@@ -63,6 +67,26 @@ fn check_glb_header(bytes: &[u8]) -> Result<(), String> {
         Some(length) => Err(format!("GLB header declares {length} bytes, the file has {}", bytes.len())),
         None => Err(format!("GLB file of {} bytes is shorter than its 12-byte header", bytes.len())),
     }
+}
+
+/// Every POSITION attribute must name an accessor that exists: `gltf-json`
+/// 1.4's validation indexes the accessors with it before checking.
+fn check_position_references(root: &::gltf::json::Root) -> Result<(), String> {
+    let positions = ::gltf::json::validation::Checked::Valid(::gltf::Semantic::Positions);
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if let Some(accessor) = primitive.attributes.get(&positions)
+                && accessor.value() >= root.accessors.len()
+            {
+                return Err(format!(
+                    "mesh {m}, primitive {p}: POSITION names accessor {}, but there are {}",
+                    accessor.value(),
+                    root.accessors.len()
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Every buffer's bytes: the GLB binary chunk, a `data:` URI or a file

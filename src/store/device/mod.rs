@@ -2,8 +2,8 @@
 //! so tests can count, fail or crash it, and another backend (a redb table, an
 //! object store) can be added without touching the tree.
 
-mod crash;
 mod counting;
+mod crash;
 mod fault;
 mod file;
 mod mem;

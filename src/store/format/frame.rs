@@ -83,8 +83,9 @@ pub fn open(id: u32, block: &[u8]) -> Result<(Frame, BlockType), StorageError> {
             format!("stored {:#010x}, computed {sum:#010x}", frame.checksum.get()),
         ));
     }
-    let block_type = BlockType::from_code(frame.block_type)
-        .ok_or_else(|| StorageError::corrupt(id, "type", format!("unknown block type {}", frame.block_type)))?;
+    let block_type = BlockType::from_code(frame.block_type).ok_or_else(|| {
+        StorageError::corrupt(id, "type", format!("unknown block type {}", frame.block_type))
+    })?;
     if frame.reserved != [0; 3] {
         return Err(StorageError::corrupt(id, "reserved", "frame reserved bytes are not zero"));
     }
@@ -93,7 +94,12 @@ pub fn open(id: u32, block: &[u8]) -> Result<(Frame, BlockType), StorageError> {
 
 /// Verifies block `id`: checksum, the expected type, and (when a parent holds
 /// it) the expected checksum, which catches a stale block left by a lost write.
-pub fn verify(id: u32, block: &[u8], expected: BlockType, parent_checksum: Option<u32>) -> Result<Frame, StorageError> {
+pub fn verify(
+    id: u32,
+    block: &[u8],
+    expected: BlockType,
+    parent_checksum: Option<u32>,
+) -> Result<Frame, StorageError> {
     let (frame, block_type) = open(id, block)?;
     if block_type != expected {
         return Err(StorageError::corrupt(

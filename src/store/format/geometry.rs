@@ -41,7 +41,12 @@ pub fn encode_object(id: ObjectId, mesh: &Mesh, stream: &mut Vec<u8>) {
 
 /// Decodes `records` object records from a reassembled stream of `len` bytes
 /// (the run starting at block `id`), checking every rule of the spec.
-pub fn decode_objects(id: u32, words: &[u32], len: usize, records: u32) -> Result<Vec<(ObjectId, Mesh)>, StorageError> {
+pub fn decode_objects(
+    id: u32,
+    words: &[u32],
+    len: usize,
+    records: u32,
+) -> Result<Vec<(ObjectId, Mesh)>, StorageError> {
     let bytes: &[u8] = &bytemuck::cast_slice(words)[..len];
     let mut at = 0usize;
     let mut out = Vec::with_capacity(records as usize);
@@ -54,7 +59,9 @@ pub fn decode_objects(id: u32, words: &[u32], len: usize, records: u32) -> Resul
         let (v, t) = (h.vertex_count.get() as usize, h.triangle_count.get() as usize);
         let body = 12usize.checked_mul(v).and_then(|a| a.checked_add(12usize.checked_mul(t)?));
         let end = body.and_then(|b| (at + HEADER_LEN).checked_add(b)).filter(|&e| e <= len);
-        let Some(end) = end else { return Err(bad("vertex_count", format!("{v} vertices and {t} triangles overrun the stream"))) };
+        let Some(end) = end else {
+            return Err(bad("vertex_count", format!("{v} vertices and {t} triangles overrun the stream")));
+        };
         if h.reserved != [0; 4] {
             return Err(bad("reserved", "reserved bytes are not zero".into()));
         }
@@ -67,7 +74,8 @@ pub fn decode_objects(id: u32, words: &[u32], len: usize, records: u32) -> Resul
         }
         let word = (at + HEADER_LEN) / 4;
         let offsets: Vec<[f32; 3]> = bytemuck::cast_slice(&words[word..word + 3 * v]).to_vec();
-        let triangles: Vec<[u32; 3]> = bytemuck::cast_slice(&words[word + 3 * v..word + 3 * v + 3 * t]).to_vec();
+        let triangles: Vec<[u32; 3]> =
+            bytemuck::cast_slice(&words[word + 3 * v..word + 3 * v + 3 * t]).to_vec();
         if let Some(i) = offsets.iter().position(|o| !o.iter().all(|c| c.is_finite())) {
             return Err(bad("offsets", format!("vertex {i} is not finite")));
         }
@@ -78,7 +86,11 @@ pub fn decode_objects(id: u32, words: &[u32], len: usize, records: u32) -> Resul
         at = end;
     }
     if at != len {
-        return Err(StorageError::corrupt(id, "data_bytes", format!("{} bytes after the last record", len - at)));
+        return Err(StorageError::corrupt(
+            id,
+            "data_bytes",
+            format!("{} bytes after the last record", len - at),
+        ));
     }
     Ok(out)
 }

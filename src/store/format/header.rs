@@ -160,7 +160,10 @@ pub fn decode_prefix(prefix: &[u8]) -> Result<(u32, u8), StorageError> {
         return Err(StorageError::NotMktree);
     }
     if f.format_version.get() != FORMAT_VERSION {
-        return Err(StorageError::UnsupportedVersion { found: f.format_version.get(), supported: FORMAT_VERSION });
+        return Err(StorageError::UnsupportedVersion {
+            found: f.format_version.get(),
+            supported: FORMAT_VERSION,
+        });
     }
     let block_size = validate_block_size(f.block_size.get().into())?;
     let lod_levels = validate_lod_levels(f.lod_levels.into())?;
@@ -175,7 +178,11 @@ pub fn decode_block0(block0: &[u8]) -> Result<(u32, u8, [SlotRead; 2]), StorageE
     }
     let stored = u32::from_le_bytes([block0[508], block0[509], block0[510], block0[511]]);
     if stored != header_checksum(block0) {
-        return Err(StorageError::corrupt(0, "header_checksum", "the fixed header or block 0's tail is damaged"));
+        return Err(StorageError::corrupt(
+            0,
+            "header_checksum",
+            "the fixed header or block 0's tail is damaged",
+        ));
     }
     if !all_zero(&block0[17..508]) || !all_zero(&block0[PREFIX_LEN..]) {
         return Err(StorageError::corrupt(0, "reserved", "reserved bytes of block 0 are not zero"));
@@ -193,7 +200,11 @@ mod tests {
         let c = Commit { txn: 9, meta_block: 4, meta_checksum: 77, block_count: 12, ..Commit::default() };
         let bytes = Slot::encode(1, SlotState::Committed, &c);
         assert_eq!(Slot::decode(1, &bytes), SlotRead::Committed(c));
-        assert_eq!(Slot::decode(0, &bytes), SlotRead::Invalid, "a slot copied to the other position is caught");
+        assert_eq!(
+            Slot::decode(0, &bytes),
+            SlotRead::Invalid,
+            "a slot copied to the other position is caught"
+        );
         assert_eq!(Slot::decode(0, &[0u8; 256]), SlotRead::Empty);
     }
 

@@ -138,7 +138,10 @@ impl Meta {
         }
         let (objects, nodes, leaves) = (r.object_count.get(), r.node_count.get(), r.leaf_count.get());
         if objects == 0 || leaves == 0 || u64::from(nodes) != 2 * u64::from(leaves) - 1 || leaves > objects {
-            return bad("node_count", format!("{nodes} nodes, {leaves} leaves, {objects} objects is not a binary tree"));
+            return bad(
+                "node_count",
+                format!("{nodes} nodes, {leaves} leaves, {objects} objects is not a binary tree"),
+            );
         }
         let scene_box = r.scene_box.map(|x| x.get());
         if scene_box.iter().any(|x| !x.is_finite()) || (0..3).any(|i| scene_box[i] > scene_box[i + 3]) {

@@ -187,7 +187,9 @@ impl NodeRecord {
             Some((c, s)) => (Some(c), Some(s)),
             None => (None, None),
         };
-        let child = |i: usize| kids.map(|c| c[i]).unwrap_or(ChildRef { block: 0, slot: 0, checksum: 0, aabb: [0.0; 6] });
+        let child = |i: usize| {
+            kids.map(|c| c[i]).unwrap_or(ChildRef { block: 0, slot: 0, checksum: 0, aabb: [0.0; 6] })
+        };
         let fixed = NodeFixed {
             node_id: self.node_id.into(),
             kind: if kids.is_some() { 1 } else { 2 },
@@ -221,7 +223,8 @@ impl NodeRecord {
 
     fn decode(block: u32, slot: u32, bytes: &[u8], lod_levels: u8) -> Result<NodeRecord, StorageError> {
         let bad = |field, detail: String| StorageError::corrupt_record(block, slot, field, detail);
-        let fixed = NodeFixed::ref_from_bytes(&bytes[..FIXED_LEN]).map_err(|_| bad("record", "short".into()))?;
+        let fixed =
+            NodeFixed::ref_from_bytes(&bytes[..FIXED_LEN]).map_err(|_| bad("record", "short".into()))?;
         if fixed.reserved0 != 0 || fixed.reserved1 != [0; 2] || fixed.reserved2 != [0; 4] {
             return Err(bad("reserved", "reserved bytes are not zero".into()));
         }
@@ -257,7 +260,9 @@ impl NodeRecord {
                 if kids.iter().any(|k| k.block == 0) {
                     return Err(bad("child_block", "an internal node points to block 0".into()));
                 }
-                if let Some(k) = kids.iter().find(|k| k.aabb.iter().any(|x| !x.is_finite()) || (0..3).any(|i| k.aabb[i] > k.aabb[i + 3])) {
+                if let Some(k) = kids.iter().find(|k| {
+                    k.aabb.iter().any(|x| !x.is_finite()) || (0..3).any(|i| k.aabb[i] > k.aabb[i + 3])
+                }) {
                     return Err(bad("child_box", format!("{:?} is not a box", k.aabb)));
                 }
                 Some((kids, SplitInfo { axis, order: fixed.split_order, overlap, gap }))
@@ -279,7 +284,9 @@ impl NodeRecord {
                 let at = FIXED_LEN + k * LOD_PAIR_LEN;
                 let pair = <[LodEntryRaw; 2]>::ref_from_bytes(&bytes[at..at + LOD_PAIR_LEN])
                     .map_err(|_| bad("lods", "short".into()))?;
-                let dec = |e: &LodEntryRaw| LodRef::decode(e).ok_or_else(|| bad("lods", format!("bad entry at k = {}", k + 1)));
+                let dec = |e: &LodEntryRaw| {
+                    LodRef::decode(e).ok_or_else(|| bad("lods", format!("bad entry at k = {}", k + 1)))
+                };
                 Ok([dec(&pair[0])?, dec(&pair[1])?])
             })
             .collect::<Result<_, StorageError>>()?;
@@ -297,7 +304,11 @@ impl NodeRecord {
 /// Writes `records` into a node block's payload.
 pub fn encode_block(records: &[NodeRecord], lod_levels: u8, block: &mut [u8]) {
     let size = record_size(lod_levels);
-    let h = NodeBlockHeader { record_count: (records.len() as u16).into(), record_size: (size as u16).into(), reserved: [0; 4] };
+    let h = NodeBlockHeader {
+        record_count: (records.len() as u16).into(),
+        record_size: (size as u16).into(),
+        reserved: [0; 4],
+    };
     block[FRAME_LEN..RECORDS_START].copy_from_slice(h.as_bytes());
     for (i, r) in records.iter().enumerate() {
         let at = RECORDS_START + i * size;
@@ -312,7 +323,11 @@ pub fn decode_block(id: u32, block: &[u8], lod_levels: u8) -> Result<Vec<NodeRec
         .map_err(|_| StorageError::corrupt(id, "node block", "too small"))?;
     let (count, size) = (h.record_count.get() as usize, h.record_size.get() as usize);
     if size != record_size(lod_levels) {
-        return Err(StorageError::corrupt(id, "record_size", format!("{size}, expected {}", record_size(lod_levels))));
+        return Err(StorageError::corrupt(
+            id,
+            "record_size",
+            format!("{size}, expected {}", record_size(lod_levels)),
+        ));
     }
     let end = RECORDS_START + count * size;
     if count == 0 || end > block.len() {
@@ -328,7 +343,12 @@ pub fn decode_block(id: u32, block: &[u8], lod_levels: u8) -> Result<Vec<NodeRec
             if let Some((kids, _)) = &r.children
                 && let Some(k) = kids.iter().find(|k| k.block == id && usize::from(k.slot) >= count)
             {
-                return Err(StorageError::corrupt_record(id, i as u32, "child_slot", format!("{} >= {count}", k.slot)));
+                return Err(StorageError::corrupt_record(
+                    id,
+                    i as u32,
+                    "child_slot",
+                    format!("{} >= {count}", k.slot),
+                ));
             }
             Ok(r)
         })

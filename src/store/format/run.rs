@@ -36,7 +36,11 @@ pub fn encode(stream: &[u8], record_count: u32, block_size: u32) -> Vec<Vec<u8>>
     let bs = block_size as usize;
     let mut blocks = Vec::with_capacity(n);
     let mut first = vec![0u8; bs];
-    let h = RunHeader { run_blocks: (n as u32).into(), record_count: record_count.into(), data_bytes: (stream.len() as u64).into() };
+    let h = RunHeader {
+        run_blocks: (n as u32).into(),
+        record_count: record_count.into(),
+        data_bytes: (stream.len() as u64).into(),
+    };
     first[FRAME_LEN..FIRST_DATA].copy_from_slice(h.as_bytes());
     let take = stream.len().min(bs - FIRST_DATA);
     first[FIRST_DATA..FIRST_DATA + take].copy_from_slice(&stream[..take]);
@@ -55,7 +59,11 @@ pub fn header(id: u32, first: &[u8]) -> Result<(u32, u32, u64), StorageError> {
         .map_err(|_| StorageError::corrupt(id, "run header", "too small"))?;
     let (blocks, records, bytes) = (h.run_blocks.get(), h.record_count.get(), h.data_bytes.get());
     if u64::from(blocks) != blocks_for(bytes, first.len() as u32) {
-        return Err(StorageError::corrupt(id, "run_blocks", format!("{blocks} blocks cannot hold exactly {bytes} bytes")));
+        return Err(StorageError::corrupt(
+            id,
+            "run_blocks",
+            format!("{blocks} blocks cannot hold exactly {bytes} bytes"),
+        ));
     }
     Ok((blocks, records, bytes))
 }
@@ -76,7 +84,11 @@ pub fn assemble(first_id: u32, blocks: &[&[u8]]) -> Result<(u32, Vec<u32>, usize
         let take = (bytes - at).min(b.len() - start);
         out[at..at + take].copy_from_slice(&b[start..start + take]);
         if !all_zero(&b[start + take..]) {
-            return Err(StorageError::corrupt(first_id + i as u32, "padding", "bytes after the stream are not zero"));
+            return Err(StorageError::corrupt(
+                first_id + i as u32,
+                "padding",
+                "bytes after the stream are not zero",
+            ));
         }
         at += take;
     }

@@ -50,7 +50,9 @@ pub fn run(files: &[PathBuf], queries: usize, shares: &[f64], seed: u64, as_json
     if as_json {
         return output::json(&serde_json::json!({ "queries": queries, "seed": seed, "rows": rows }));
     }
-    println!("{queries} random box queries per size (sides a share of the scene extent), seed {seed}; means per query");
+    println!(
+        "{queries} random box queries per size (sides a share of the scene extent), seed {seed}; means per query"
+    );
     let table: Vec<Vec<String>> = rows
         .iter()
         .map(|r| {
@@ -67,6 +69,9 @@ pub fn run(files: &[PathBuf], queries: usize, shares: &[f64], seed: u64, as_json
             ]
         })
         .collect();
-    output::table(&["file", "method", "block", "box", "node reads", "geometry reads", "total reads", "objects", "ms"], &table);
+    output::table(
+        &["file", "method", "block", "box", "node reads", "geometry reads", "total reads", "objects", "ms"],
+        &table,
+    );
     Ok(())
 }

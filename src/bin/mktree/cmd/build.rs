@@ -18,7 +18,12 @@ use crate::output;
 /// A progress bar over objects placed in leaves (on stderr, hidden when not a terminal).
 fn progress_bar(scene: &Scene, build: &BuildArgs) -> ProgressBar {
     let pb = ProgressBar::new(scene.len() as u64);
-    pb.set_style(ProgressStyle::with_template("{spinner} building [{bar:40}] {pos}/{len} objects placed {msg} ({elapsed})").unwrap_or_else(|_| ProgressStyle::default_bar()));
+    pb.set_style(
+        ProgressStyle::with_template(
+            "{spinner} building [{bar:40}] {pos}/{len} objects placed {msg} ({elapsed})",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
     let work = estimate_work(scene.len(), None, &build.params());
     pb.set_message(format!("~{work:.2e} object visits estimated"));
     pb
@@ -28,7 +33,9 @@ fn progress_bar(scene: &Scene, build: &BuildArgs) -> ProgressBar {
 pub fn build_in_memory(scene: &Scene, args: &BuildArgs) -> Result<Hierarchy> {
     let sizes: Vec<u64> = scene.objects().iter().map(|o| record_len(&o.mesh)).collect();
     let pb = progress_bar(scene, args);
-    let tree = build(&scene.object_boxes(), Some(&sizes), &args.params(), &|p: BuildProgress| pb.set_position(p.objects_placed))?;
+    let tree = build(&scene.object_boxes(), Some(&sizes), &args.params(), &|p: BuildProgress| {
+        pb.set_position(p.objects_placed)
+    })?;
     pb.finish_and_clear();
     Ok(tree)
 }
@@ -56,7 +63,9 @@ pub fn run(scene_path: &Path, out: &Path, args: &BuildArgs, lods: u8, as_json: b
     let bytes = u64::from(info.file_blocks) * u64::from(info.block_size);
     let report = Report::of(&tree);
     if as_json {
-        return output::json(&json!({ "file": info, "file_bytes": bytes, "seconds": seconds, "report": report }));
+        return output::json(
+            &json!({ "file": info, "file_bytes": bytes, "seconds": seconds, "report": report }),
+        );
     }
     println!(
         "{}: {} objects, {} nodes ({} leaves, {} levels) in {} blocks of {} bytes ({} node, {} geometry), {} bytes; {:.3} s ({:.1} MB/s written)",

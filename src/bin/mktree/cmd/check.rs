@@ -15,7 +15,10 @@ pub fn run(file: &Path, as_json: bool) -> Result<()> {
         output::json(&report)?;
     } else {
         if rec.interrupted {
-            println!("recovered an interrupted transaction: {} torn free blocks rewritten, {} blocks truncated", rec.scrubbed_blocks, rec.truncated_blocks);
+            println!(
+                "recovered an interrupted transaction: {} torn free blocks rewritten, {} blocks truncated",
+                rec.scrubbed_blocks, rec.truncated_blocks
+            );
         }
         let types: Vec<String> = report.blocks_by_type.iter().map(|(t, n)| format!("{n} {t}")).collect();
         println!(

@@ -46,11 +46,20 @@ fn demo(dir: &Path) -> Result<()> {
     );
     let mut dbs = Vec::new();
     let mut reports = Vec::new();
-    for (name, method, look_ahead) in [("moa", Method::Moa, LookAhead::Levels(0)), ("laa", Method::Laa, LookAhead::Max)] {
+    for (name, method, look_ahead) in
+        [("moa", Method::Moa, LookAhead::Levels(0)), ("laa", Method::Laa, LookAhead::Max)]
+    {
         let path = dir.join(format!("tanker2-{name}.mkt"));
         let _ = std::fs::remove_file(&path);
-        let db = Database::create(&path, CreateOptions::default()).with_context(|| format!("creating {}", path.display()))?;
-        let params = BuildParams { method, rate: 0.3, leaf: LeafRule::Objects(500), look_ahead, ..BuildParams::default() };
+        let db = Database::create(&path, CreateOptions::default())
+            .with_context(|| format!("creating {}", path.display()))?;
+        let params = BuildParams {
+            method,
+            rate: 0.3,
+            leaf: LeafRule::Objects(500),
+            look_ahead,
+            ..BuildParams::default()
+        };
         let t = Instant::now();
         let mut w = db.begin_write()?;
         let tree = w.bulk_load(&scene, &params, &|_| {})?;
@@ -78,10 +87,17 @@ fn demo(dir: &Path) -> Result<()> {
     println!("\nper level, MOA | LAA(max), R = 0.3, MemPage = 500 objects (the paper's Tables 13 and 31)");
     let depth = reports.iter().map(|r| r.levels.len()).max().unwrap_or(0);
     let cell = |r: &Report, l: usize| -> Vec<String> {
-        r.levels.get(l).map_or(vec!["".into(); 4], |x| vec![x.leaves.to_string(), opt(x.ov_min), opt(x.ov_min_rel), opt(x.ov_max)])
+        r.levels.get(l).map_or(vec!["".into(); 4], |x| {
+            vec![x.leaves.to_string(), opt(x.ov_min), opt(x.ov_min_rel), opt(x.ov_max)]
+        })
     };
-    let rows: Vec<Vec<String>> = (0..depth).map(|l| [vec![l.to_string()], cell(&reports[0], l), cell(&reports[1], l)].concat()).collect();
-    output::table(&["level", "MOA leaves", "ovMin", "ovMinRel", "ovMax", "LAA leaves", "ovMin", "ovMinRel", "ovMax"], &rows);
+    let rows: Vec<Vec<String>> = (0..depth)
+        .map(|l| [vec![l.to_string()], cell(&reports[0], l), cell(&reports[1], l)].concat())
+        .collect();
+    output::table(
+        &["level", "MOA leaves", "ovMin", "ovMinRel", "ovMax", "LAA leaves", "ovMin", "ovMinRel", "ovMax"],
+        &rows,
+    );
     println!("\nbox queries (exact triangle-box answers), block reads MOA | LAA:");
     let c = scene.aabb().center();
     let mut rows = Vec::new();
@@ -94,7 +110,12 @@ fn demo(dir: &Path) -> Result<()> {
             let mut answers = Vec::new();
             for db in &dbs {
                 let res = db.begin_read()?.query_box(&q)?;
-                row.push(format!("{} ({}+{})", res.stats.reads.total(), res.stats.reads.node, res.stats.reads.geometry));
+                row.push(format!(
+                    "{} ({}+{})",
+                    res.stats.reads.total(),
+                    res.stats.reads.node,
+                    res.stats.reads.geometry
+                ));
                 answers.push(res.objects);
             }
             anyhow::ensure!(answers[0] == answers[1], "MOA and LAA files disagree on a query");
@@ -102,6 +123,9 @@ fn demo(dir: &Path) -> Result<()> {
             rows.push(row);
         }
     }
-    output::table(&["box (share of extent, centre)", "objects", "MOA reads (node+geo)", "LAA reads (node+geo)"], &rows);
+    output::table(
+        &["box (share of extent, centre)", "objects", "MOA reads (node+geo)", "LAA reads (node+geo)"],
+        &rows,
+    );
     Ok(())
 }

@@ -29,11 +29,15 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Sweep { scene, pages, rates, look_ahead, json, import } => {
             sweep::run(&scene, &import.options(), pages, &rates, look_ahead, json)
         }
-        Command::Build { scene, output, build, lods, json } => build::run(&scene, &output, &build, lods, json),
+        Command::Build { scene, output, build, lods, json } => {
+            build::run(&scene, &output, &build, lods, json)
+        }
         Command::Query { file, aabb, json } => query::run(&file, &aabb, json),
         Command::Check { file, json } => check::run(&file, json),
         Command::Demo { dir } => demo::run(dir.as_deref()),
-        Command::BenchQueries { files, queries, shares, seed, json } => bench_queries::run(&files, queries, &shares, seed, json),
+        Command::BenchQueries { files, queries, shares, seed, json } => {
+            bench_queries::run(&files, queries, &shares, seed, json)
+        }
     }
 }
 

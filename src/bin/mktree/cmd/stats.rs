@@ -17,7 +17,11 @@ pub fn describe(p: &BuildParams) -> String {
         mktree::build::LeafRule::Objects(n) => format!("MemPage {n} objects"),
         mktree::build::LeafRule::Bytes { capacity } => format!("MemPage {capacity} bytes"),
     };
-    let la = if p.method == mktree::build::Method::Laa { format!(", look-ahead {}", p.look_ahead) } else { String::new() };
+    let la = if p.method == mktree::build::Method::Laa {
+        format!(", look-ahead {}", p.look_ahead)
+    } else {
+        String::new()
+    };
     format!("method {}, R {}, {leaf}{la}, tie-break {}", p.method, p.rate, p.tie_break)
 }
 
@@ -26,7 +30,9 @@ pub fn run(input: &Path, build: &BuildArgs, as_json: bool) -> Result<()> {
     let report = Report::of(&tree);
     let shape = TreeShape::of(&tree);
     let (params, seconds, file) = match &source {
-        Source::File(info) => (info.params.clone().unwrap_or_else(|| build.params()), info.build_seconds, Some(info)),
+        Source::File(info) => {
+            (info.params.clone().unwrap_or_else(|| build.params()), info.build_seconds, Some(info))
+        }
         Source::Memory { seconds } => (build.params(), *seconds, None),
     };
     if as_json {
@@ -38,7 +44,10 @@ pub fn run(input: &Path, build: &BuildArgs, as_json: bool) -> Result<()> {
             m.insert("shape".into(), serde_json::to_value(&shape)?);
             if let Some(info) = file {
                 m.insert("file".into(), serde_json::to_value(info)?);
-                m.insert("file_bytes".into(), json!(u64::from(info.file_blocks) * u64::from(info.block_size)));
+                m.insert(
+                    "file_bytes".into(),
+                    json!(u64::from(info.file_blocks) * u64::from(info.block_size)),
+                );
             }
         }
         return output::json(&v);
@@ -47,7 +56,13 @@ pub fn run(input: &Path, build: &BuildArgs, as_json: bool) -> Result<()> {
     print_table(&report);
     println!(
         "ovAccumulated {:.6}  N_g {}  ovAverage {:.6}  depth {}  leaves {}  objects {}  build {:.3} s",
-        report.ov_accumulated, report.grey_nodes, report.ov_average, report.depth, report.leaves, report.objects, seconds
+        report.ov_accumulated,
+        report.grey_nodes,
+        report.ov_average,
+        report.depth,
+        report.leaves,
+        report.objects,
+        seconds
     );
     if let Some(info) = file {
         println!(
@@ -68,7 +83,9 @@ pub fn print_table(report: &Report) {
     let rows: Vec<Vec<String>> = report
         .levels
         .iter()
-        .map(|l| vec![l.level.to_string(), l.leaves.to_string(), opt(l.ov_min), opt(l.ov_min_rel), opt(l.ov_max)])
+        .map(|l| {
+            vec![l.level.to_string(), l.leaves.to_string(), opt(l.ov_min), opt(l.ov_min_rel), opt(l.ov_max)]
+        })
         .collect();
     output::table(&["tree level", "N. leaves", "ovMin", "ovMinRel", "ovMax"], &rows);
 }

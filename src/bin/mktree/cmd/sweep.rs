@@ -27,15 +27,29 @@ struct Cell {
     build_seconds: f64,
 }
 
-pub fn run(scene_path: &Path, options: &ImportOptions, pages: Option<Vec<u32>>, rates: &[f64], look_ahead: LookAhead, as_json: bool) -> Result<()> {
+pub fn run(
+    scene_path: &Path,
+    options: &ImportOptions,
+    pages: Option<Vec<u32>>,
+    rates: &[f64],
+    look_ahead: LookAhead,
+    as_json: bool,
+) -> Result<()> {
     let scene = crate::cmd::read_scene(scene_path, options)?;
-    let pages = pages.unwrap_or_else(|| if scene.len() < 1000 { vec![10, 20, 30] } else { vec![100, 200, 500] });
+    let pages =
+        pages.unwrap_or_else(|| if scene.len() < 1000 { vec![10, 20, 30] } else { vec![100, 200, 500] });
     let boxes = scene.object_boxes();
     let mut cells = Vec::new();
     for method in [Method::Moa, Method::Laa] {
         for &rate in rates {
             for &page in &pages {
-                let params = BuildParams { method, rate, leaf: LeafRule::Objects(page), look_ahead, ..BuildParams::default() };
+                let params = BuildParams {
+                    method,
+                    rate,
+                    leaf: LeafRule::Objects(page),
+                    look_ahead,
+                    ..BuildParams::default()
+                };
                 let reached = AtomicU32::new(0);
                 eprint!("\r{} R={rate} MemPage={page} ...          ", method.name());
                 let started = Instant::now();
@@ -62,7 +76,9 @@ pub fn run(scene_path: &Path, options: &ImportOptions, pages: Option<Vec<u32>>, 
     }
     eprint!("\r{:60}\r", "");
     if as_json {
-        return output::json(&serde_json::json!({ "scene": scene_path, "objects": scene.len(), "cells": cells }));
+        return output::json(
+            &serde_json::json!({ "scene": scene_path, "objects": scene.len(), "cells": cells }),
+        );
     }
     for method in ["moa", "laa"] {
         println!("{} {} accumulated overlap", scene_path.display(), method.to_uppercase());
@@ -71,7 +87,11 @@ pub fn run(scene_path: &Path, options: &ImportOptions, pages: Option<Vec<u32>>, 
             .filter(|c| c.method == method)
             .map(|c| {
                 vec![
-                    if method == "laa" { format!("{} ({})", c.look_ahead, c.look_level_reached) } else { "-".into() },
+                    if method == "laa" {
+                        format!("{} ({})", c.look_ahead, c.look_level_reached)
+                    } else {
+                        "-".into()
+                    },
                     c.rate.to_string(),
                     c.mem_page.to_string(),
                     format!("{:.6}", c.ov_accumulated),
@@ -82,7 +102,19 @@ pub fn run(scene_path: &Path, options: &ImportOptions, pages: Option<Vec<u32>>, 
                 ]
             })
             .collect();
-        output::table(&["look level (reached)", "R", "MemPage", "ovAccumulated", "N_g", "ovAverage", "depth", "build s"], &rows);
+        output::table(
+            &[
+                "look level (reached)",
+                "R",
+                "MemPage",
+                "ovAccumulated",
+                "N_g",
+                "ovAverage",
+                "depth",
+                "build s",
+            ],
+            &rows,
+        );
         println!();
     }
     Ok(())

@@ -1,4 +1,4 @@
-//! The generator's random numbers: SplitMix64 (Steele, Lea and Flood,
+//! The crate's random numbers (scene generator, query workloads): SplitMix64 (Steele, Lea and Flood,
 //! "Fast splittable pseudorandom number generators", OOPSLA 2014).
 //!
 //! Why our own: a generated scene must be byte-identical for a preset and
