@@ -4,30 +4,12 @@
 //! union of its objects' boxes, leaves within the page, split records
 //! matching the children (all checked by `Hierarchy::validate`).
 
-use mktree::build::{BuildParams, LeafRule, LookAhead, Method, TieBreak, build};
-use mktree::geom::Aabb;
-use proptest::prelude::*;
+mod common;
 
-/// Boxes on a coarse integer grid (many ties, shared faces, identical
-/// boxes) or with continuous coordinates.
-fn scene(max: usize) -> impl Strategy<Value = Vec<Aabb>> {
-    let grid = (prop::array::uniform3(0u8..12), prop::array::uniform3(0u8..4)).prop_map(|(lo, ext)| {
-        let lo = lo.map(f64::from);
-        Aabb::from_array([
-            lo[0],
-            lo[1],
-            lo[2],
-            lo[0] + f64::from(ext[0]),
-            lo[1] + f64::from(ext[1]),
-            lo[2] + f64::from(ext[2]),
-        ])
-    });
-    let free =
-        (prop::array::uniform3(-1e3f64..1e3), prop::array::uniform3(0f64..50.0)).prop_map(|(lo, ext)| {
-            Aabb::from_array([lo[0], lo[1], lo[2], lo[0] + ext[0], lo[1] + ext[1], lo[2] + ext[2]])
-        });
-    prop_oneof![prop::collection::vec(grid, 1..max), prop::collection::vec(free, 1..max)]
-}
+use common::arb_boxes;
+
+use mktree::build::{BuildParams, LeafRule, LookAhead, Method, TieBreak, build};
+use proptest::prelude::*;
 
 fn params() -> impl Strategy<Value = BuildParams> {
     (
@@ -54,7 +36,7 @@ proptest! {
 
     #[test]
     fn every_method_builds_a_valid_hierarchy(
-        boxes in scene(150),
+        boxes in arb_boxes(1, 150),
         params in params(),
         size_seed in any::<u64>(),
     ) {

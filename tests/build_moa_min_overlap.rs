@@ -4,28 +4,13 @@
 //! rule. Checked against an independent quadratic search in the style of
 //! the paper's `SearchMax`/`SearchMin`, on random small scenes.
 
+mod common;
+
+use common::arb_boxes;
+
 use mktree::build::{BuildParams, Hierarchy, LeafRule, Method, NodeId, Order, TieBreak, build};
 use mktree::geom::Aabb;
 use proptest::prelude::*;
-
-fn scene() -> impl Strategy<Value = Vec<Aabb>> {
-    let grid = (prop::array::uniform3(0u8..10), prop::array::uniform3(0u8..4)).prop_map(|(lo, ext)| {
-        let lo = lo.map(f64::from);
-        Aabb::from_array([
-            lo[0],
-            lo[1],
-            lo[2],
-            lo[0] + f64::from(ext[0]),
-            lo[1] + f64::from(ext[1]),
-            lo[2] + f64::from(ext[2]),
-        ])
-    });
-    let free =
-        (prop::array::uniform3(0f64..100.0), prop::array::uniform3(0f64..20.0)).prop_map(|(lo, ext)| {
-            Aabb::from_array([lo[0], lo[1], lo[2], lo[0] + ext[0], lo[1] + ext[1], lo[2] + ext[2]])
-        });
-    prop_oneof![prop::collection::vec(grid, 2..90), prop::collection::vec(free, 2..90)]
-}
 
 /// The objects under `node`, sorted by id.
 fn objects_under(tree: &Hierarchy, node: NodeId) -> Vec<u32> {
@@ -101,7 +86,7 @@ proptest! {
 
     #[test]
     fn every_moa_split_is_a_brute_force_minimum_overlap_cut(
-        boxes in scene(),
+        boxes in arb_boxes(2, 90),
         rate in prop_oneof![Just(0.0), Just(0.5), 0.0f64..=0.5],
         mem_page in 1u32..8,
         tie in prop::sample::select(TieBreak::ALL.to_vec()),

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use mktree::build::BuildParams;
 use mktree::db::{CreateOptions, Database};
-use mktree::geom::Point;
+use mktree::geom::{Aabb, Point};
 use mktree::scene::{Mesh, Object, Scene};
 use mktree::store::BlockDevice;
 use mktree::store::device::MemDevice;
@@ -64,6 +64,21 @@ pub fn arb_scene(max_objects: usize) -> impl Strategy<Value = Scene> {
                 .collect(),
         )
     })
+}
+
+/// Random object boxes, from 1 to `max` of them: on a coarse integer grid
+/// (many ties, shared faces, identical boxes) or with continuous coordinates.
+pub fn arb_boxes(min: usize, max: usize) -> impl Strategy<Value = Vec<Aabb>> {
+    let grid = (prop::array::uniform3(0u8..12), prop::array::uniform3(0u8..4)).prop_map(|(lo, ext)| {
+        let lo = lo.map(f64::from);
+        let ext = ext.map(f64::from);
+        Aabb::from_array([lo[0], lo[1], lo[2], lo[0] + ext[0], lo[1] + ext[1], lo[2] + ext[2]])
+    });
+    let free =
+        (prop::array::uniform3(-1e3f64..1e3), prop::array::uniform3(0f64..50.0)).prop_map(|(lo, ext)| {
+            Aabb::from_array([lo[0], lo[1], lo[2], lo[0] + ext[0], lo[1] + ext[1], lo[2] + ext[2]])
+        });
+    prop_oneof![prop::collection::vec(grid, min..max), prop::collection::vec(free, min..max)]
 }
 
 /// A deterministic scene of `n` boxes on a jittered grid.

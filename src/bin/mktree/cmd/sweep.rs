@@ -1,6 +1,7 @@
 //! `mktree sweep`: the grid of Tables 39-44, MOA and LAA over R x MemPage,
 //! with the look level LAA reached and the build time of each cell.
 
+use std::io::IsTerminal;
 use std::path::Path;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Instant;
@@ -39,6 +40,8 @@ pub fn run(
     let pages =
         pages.unwrap_or_else(|| if scene.len() < 1000 { vec![10, 20, 30] } else { vec![100, 200, 500] });
     let boxes = scene.object_boxes();
+    // Which cell is running, for a person watching; never in redirected output.
+    let tty = std::io::stderr().is_terminal();
     let mut cells = Vec::new();
     for method in [Method::Moa, Method::Laa] {
         for &rate in rates {
@@ -51,7 +54,9 @@ pub fn run(
                     ..BuildParams::default()
                 };
                 let reached = AtomicU32::new(0);
-                eprint!("\r{} R={rate} MemPage={page} ...          ", method.name());
+                if tty {
+                    eprint!("\r{} R={rate} MemPage={page} ...          ", method.name());
+                }
                 let started = Instant::now();
                 let tree = build(&boxes, None, &params, &|p| {
                     reached.fetch_max(p.look_level_reached, Ordering::Relaxed);
@@ -74,7 +79,9 @@ pub fn run(
             }
         }
     }
-    eprint!("\r{:60}\r", "");
+    if tty {
+        eprint!("\r{:60}\r", "");
+    }
     if as_json {
         return output::json(
             &serde_json::json!({ "scene": scene_path, "objects": scene.len(), "cells": cells }),
