@@ -120,6 +120,10 @@ pub fn check(db: &Database) -> Result<CheckReport, StorageError> {
     Ok(c.report)
 }
 
+/// A node still to check: its block's records, its location, the level it
+/// must have, and the copy of its box its parent holds (none for the root).
+type Pending = (Arc<Vec<NodeRecord>>, NodeLocation, u16, Option<[f32; 6]>);
+
 fn check_tree(c: &mut Checker) -> Result<(), StorageError> {
     let txn = c.txn;
     let Some(info) = txn.info() else { return Ok(()) };
@@ -151,12 +155,10 @@ fn check_tree(c: &mut Checker) -> Result<(), StorageError> {
         (0u64, 0u64, 0u32, 0u32, 0u64);
     let (mut triangles, mut vertices) = (0u64, 0u64);
     let mut next_id = 0u32;
-    // (records, location, expected level, box the parent holds for it)
     let records = txn.read_node_block(root.block, root.checksum, &mut ReadStats::default(), None)?;
     c.claim(root.block, Owner::Used(BlockType::Node));
     node_blocks += 1;
-    let mut stack: Vec<(Arc<Vec<NodeRecord>>, NodeLocation, u16, Option<[f32; 6]>)> =
-        vec![(records, root, 0, None)];
+    let mut stack: Vec<Pending> = vec![(records, root, 0, None)];
     let mut guard = super::TraversalGuard::new(txn);
     while let Some((records, at, level, parent_box)) = stack.pop() {
         guard.visit(at)?;
