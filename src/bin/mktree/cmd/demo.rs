@@ -1,5 +1,6 @@
 //! `mktree demo`: the README's first command. Generates tanker2, builds it
-//! with MOA and with LAA(max) at R = 0.3 and MemPage = 500 objects, prints both
+//! with MOA and with LAA(max) at R = 0.3 and MemPage = 500 objects in the
+//! paper's 48,000-byte blocks, prints both
 //! per-level tables side by side, then box queries with their block reads.
 
 use std::path::Path;
@@ -51,7 +52,8 @@ fn demo(dir: &Path) -> Result<()> {
     {
         let path = dir.join(format!("tanker2-{name}.mkt"));
         let _ = std::fs::remove_file(&path);
-        let db = Database::create(&path, CreateOptions::default())
+        // The paper's page: MemPage = 48000 bytes (500 objects), §3.1.1.
+        let db = Database::create(&path, CreateOptions { block_size: 48_000, ..CreateOptions::default() })
             .with_context(|| format!("creating {}", path.display()))?;
         let params = BuildParams {
             method,
