@@ -11,13 +11,16 @@
 //! first-found tie-break and rayon's global pool; rstar's bulk load is
 //! single-threaded.
 //!
-//! Skipped: LAA(5) and LAA(max) on `ship` with 10^6 objects. One iteration
-//! took 35 s and 52 s on this 2-core machine, and criterion's warm-up plus
-//! 10 samples would spend 6 to 10 minutes on each; LAA(2) (11 s) is the
-//! deepest look-ahead measured there. Their cost trend is visible on
-//! `ship` with 10^5 objects, where every look-ahead runs.
+//! Skipped: LAA(5) and LAA(max) on `ship` with 10^6 objects. Timed once
+//! while writing this file, on the shared 2-core machine, one iteration
+//! took 35 s and 52 s, so criterion's warm-up plus 10 samples would spend
+//! 6 to 10 minutes on each; LAA(2) (11 to 17 s) is the deepest look-ahead
+//! measured there. How the cost grows with the look-ahead shows on `ship`
+//! with 10^5 objects, where every look-ahead runs.
 //!
-//! `cargo bench --bench build [-- FILTER]`, e.g. `-- tanker2/`.
+//! `cargo bench --bench build [-- FILTER]`, e.g. `-- tanker2/`; the whole
+//! run takes about 6 minutes. Every scene is generated even when a filter
+//! leaves it out (a few seconds for the ship scenes).
 
 use std::hint::black_box;
 use std::time::Duration;
@@ -58,8 +61,8 @@ const SCENES: [Scene; 4] = [
 ];
 
 /// The scene's object boxes, in id order. Meshes are dropped as they are
-/// generated: 10^6 objects' meshes would take gigabytes, and the builders
-/// only read boxes.
+/// generated: 10^6 objects' meshes (about 30 triangles each, plus names)
+/// would take most of a gigabyte, and the builders only read boxes.
 fn scene_boxes(scene: &Scene) -> Vec<Aabb> {
     let mut boxes = Vec::new();
     let options = GenOptions { preset: scene.preset, objects: scene.objects, seed: 0 };
@@ -76,6 +79,7 @@ fn rectangle(b: &Aabb) -> Rectangle<[f64; 3]> {
     Rectangle::from_corners(b.min.into(), b.max.into())
 }
 
+/// The options every line shares; `look_ahead` matters to LAA only.
 fn params(method: Method, look_ahead: LookAhead) -> BuildParams {
     BuildParams { method, rate: 0.3, leaf: LeafRule::Objects(100), look_ahead, ..BuildParams::default() }
 }
@@ -92,6 +96,8 @@ fn bench_build(c: &mut Criterion) {
         group.sampling_mode(SamplingMode::Flat);
         group.sample_size(10);
         group.warm_up_time(Duration::from_secs(1));
+        // Enough for the millisecond lines. The slow lines overrun it, and
+        // criterion warns so, but still take their 10 one-iteration samples.
         group.measurement_time(Duration::from_secs(3));
 
         // The tree is dropped outside the timing, as rstar's is below.
