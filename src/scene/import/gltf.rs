@@ -26,7 +26,7 @@ use nalgebra::Matrix4;
 
 use super::{ImportError, Imported, Location};
 use crate::geom::Point;
-use crate::scene::{Mesh, MeshError, Object, Scene};
+use crate::scene::{MeshError, Object, Scene};
 
 /// Reads the glTF or GLB file at `path`; coordinates are multiplied by
 /// `scale` after the node transforms.
@@ -263,15 +263,7 @@ impl Instance<'_> {
         if !any_triangle_primitive {
             return Ok(None);
         }
-        if triangles.is_empty() {
-            return Err(ImportError::NoTriangles { file: path.into(), object: name, line: None });
-        }
-        let mesh = Mesh::from_world(&points, triangles).map_err(|source| ImportError::Mesh {
-            file: path.into(),
-            object: name.clone(),
-            source,
-        })?;
-        Ok(Some(Object::new(name, mesh)))
+        super::load::object(path, name, None, &points, triangles).map(Some)
     }
 }
 

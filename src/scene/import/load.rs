@@ -6,7 +6,8 @@ use std::io::BufReader;
 use std::path::Path;
 
 use super::{ImportError, dir, gltf, obj, stl};
-use crate::scene::Scene;
+use crate::geom::Point;
+use crate::scene::{Mesh, Object, Scene};
 
 /// How to read the formats whose units or conventions differ from ours.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -107,6 +108,27 @@ fn load_obj(path: &Path) -> Result<Imported, ImportError> {
 /// its extension.
 pub(super) fn file_stem(path: &Path) -> String {
     path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
+}
+
+/// One imported object from its vertices and triangles, for every reader:
+/// no triangles is an error naming the object (and its line, where the
+/// format has lines); a mesh the object model refuses is wrapped likewise.
+pub(super) fn object(
+    file: &Path,
+    name: String,
+    line: Option<u64>,
+    points: &[Point],
+    triangles: Vec<[u32; 3]>,
+) -> Result<Object, ImportError> {
+    if triangles.is_empty() {
+        return Err(ImportError::NoTriangles { file: file.into(), object: name, line });
+    }
+    let mesh = Mesh::from_world(points, triangles).map_err(|source| ImportError::Mesh {
+        file: file.into(),
+        object: name.clone(),
+        source,
+    })?;
+    Ok(Object::new(name, mesh))
 }
 
 #[cfg(test)]

@@ -37,7 +37,7 @@ use std::path::{Path, PathBuf};
 use super::load::file_stem;
 use super::{ImportError, Imported, Location};
 use crate::geom::Point;
-use crate::scene::{Mesh, Object, Scene};
+use crate::scene::{Object, Scene};
 
 /// Reads an OBJ scene from `reader`; `source` names the file in errors and
 /// gives the name of an object made of faces before any `o` or `g`.
@@ -322,17 +322,10 @@ impl Parser {
     /// Turns a finished object into a mesh over the vertices it uses.
     fn build(&mut self, pending: Pending) -> Result<(), ImportError> {
         let Pending { name, line, mut triangles } = pending;
-        if triangles.is_empty() {
-            return Err(ImportError::NoTriangles { file: self.file.clone(), object: name, line });
-        }
         let points = self.renumber(&mut triangles);
-        let mesh = Mesh::from_world(&points, triangles).map_err(|source| ImportError::Mesh {
-            file: self.file.clone(),
-            object: name.clone(),
-            source,
-        })?;
-        self.degenerate_triangles += mesh.degenerate_triangles();
-        self.objects.push(Object::new(name, mesh));
+        let object = super::load::object(&self.file, name, line, &points, triangles)?;
+        self.degenerate_triangles += object.mesh.degenerate_triangles();
+        self.objects.push(object);
         Ok(())
     }
 

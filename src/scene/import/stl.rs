@@ -18,7 +18,7 @@ use std::path::Path;
 use super::load::file_stem;
 use super::{ImportError, Location};
 use crate::geom::Point;
-use crate::scene::{Mesh, MeshError, Object};
+use crate::scene::{MeshError, Object};
 
 const BINARY_HEADER_BYTES: u64 = 84;
 const BINARY_FACET_BYTES: u64 = 50;
@@ -60,16 +60,9 @@ pub(super) fn load(path: &Path) -> Result<(Object, usize), ImportError> {
         }
         triangles.push(corners);
     }
-    if triangles.is_empty() {
-        return Err(ImportError::NoTriangles { file: path.into(), object: name, line: None });
-    }
-    let mesh = Mesh::from_world(&points, triangles).map_err(|source| ImportError::Mesh {
-        file: path.into(),
-        object: name.clone(),
-        source,
-    })?;
-    let degenerate_triangles = mesh.degenerate_triangles();
-    Ok((Object::new(name, mesh), degenerate_triangles))
+    let object = super::load::object(path, name, None, &points, triangles)?;
+    let degenerate_triangles = object.mesh.degenerate_triangles();
+    Ok((object, degenerate_triangles))
 }
 
 /// Decides ASCII or binary and returns bytes that `stl_io` reads that way,
