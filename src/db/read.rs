@@ -117,48 +117,35 @@ impl ReadTransaction {
         Ok(())
     }
 
-    /// Reads a run (`InBlock` or `Run` entry) of `first_type` and returns its
-    /// record count and stream (as aligned words) and stream length.
+    /// Reads the run whose first block is `first` (type `first_type`,
+    /// carrying `checksum`), its length from its header, checked against
+    /// `expected_blocks` when the parent says it; returns the record count,
+    /// the stream (as aligned words) and the stream's length.
     fn read_run(
         &self,
-        lod: &LodRef,
+        first: u32,
+        checksum: u32,
+        expected_blocks: Option<u32>,
         first_type: BlockType,
         stats: &mut ReadStats,
         mut cache: Option<&mut BlockCache>,
-    ) -> Result<(u32, u32, Vec<u32>, usize), StorageError> {
-        let (first, blocks, checksum) = match *lod {
-            LodRef::InBlock { block, offset, checksum } => {
-                if offset as usize != run::FIRST_DATA {
-                    return Err(StorageError::corrupt(
-                        block,
-                        "lod offset",
-                        format!("a run starts at {}, not {offset}", run::FIRST_DATA),
-                    ));
-                }
-                (block, 1, checksum)
-            }
-            LodRef::Run { first, blocks, checksum } => (first, blocks, checksum),
-            _ => return Err(StorageError::Invalid("not a run reference".into())),
-        };
+    ) -> Result<(u32, Vec<u32>, usize), StorageError> {
+        self.check_in_snapshot(first)?;
+        let head = self.pager().read(first, first_type, Some(checksum), stats, cache.as_deref_mut())?;
+        let (blocks, _, _) = run::header(first, &head)?;
+        if expected_blocks.is_some_and(|e| e != blocks) {
+            let detail = format!("the parent says {expected_blocks:?} blocks, the run {blocks}");
+            return Err(StorageError::corrupt(first, "run_blocks", detail));
+        }
         let last =
             first.checked_add(blocks - 1).ok_or_else(|| StorageError::corrupt(first, "run", "overflows"))?;
         self.check_in_snapshot(last)?;
-        let head = self.pager().read(first, first_type, Some(checksum), stats, cache.as_deref_mut())?;
-        let (n, _, _) = run::header(first, &head)?;
-        if n != blocks {
-            return Err(StorageError::corrupt(
-                first,
-                "run_blocks",
-                format!("the parent says {blocks} blocks, the run {n}"),
-            ));
-        }
         let mut all = vec![head];
         for id in first + 1..=last {
             all.push(self.pager().read(id, BlockType::Continuation, None, stats, cache.as_deref_mut())?);
         }
         let refs: Vec<&[u8]> = all.iter().map(|b| &b[..]).collect();
-        let (records, words, len) = run::assemble(first, &refs)?;
-        Ok((first, records, words, len))
+        run::assemble(first, &refs)
     }
 
     /// The exact objects a level-M entry names (a leaf's geometry run).
@@ -168,7 +155,19 @@ impl ReadTransaction {
         stats: &mut ReadStats,
         cache: Option<&mut BlockCache>,
     ) -> Result<Vec<(ObjectId, Mesh)>, StorageError> {
-        let (first, records, words, len) = self.read_run(lod, BlockType::Geometry, stats, cache)?;
+        let (first, blocks, checksum) = match *lod {
+            LodRef::InBlock { block, offset, checksum } if offset as usize == run::FIRST_DATA => {
+                (block, 1, checksum)
+            }
+            LodRef::InBlock { block, offset, .. } => {
+                let detail = format!("a run starts at {}, not {offset}", run::FIRST_DATA);
+                return Err(StorageError::corrupt(block, "lod offset", detail));
+            }
+            LodRef::Run { first, blocks, checksum } => (first, blocks, checksum),
+            _ => return Err(StorageError::Invalid("not a geometry reference".into())),
+        };
+        let (records, words, len) =
+            self.read_run(first, checksum, Some(blocks), BlockType::Geometry, stats, cache)?;
         let objects = geometry::decode_objects(first, &words, len, records)?;
         let count = self.snapshot.meta.as_ref().map_or(0, |m| m.object_count);
         if let Some((id, _)) = objects.iter().find(|(id, _)| id.0 >= count) {
@@ -183,20 +182,9 @@ impl ReadTransaction {
         if m.names_block == 0 {
             return Ok(Vec::new());
         }
-        let mut stats = ReadStats::default();
-        let head =
-            self.pager().read(m.names_block, BlockType::Names, Some(m.names_checksum), &mut stats, None)?;
-        let (blocks, _, _) = run::header(m.names_block, &head)?;
-        let lod = if blocks == 1 {
-            LodRef::InBlock {
-                block: m.names_block,
-                offset: run::FIRST_DATA as u32,
-                checksum: m.names_checksum,
-            }
-        } else {
-            LodRef::Run { first: m.names_block, blocks, checksum: m.names_checksum }
-        };
-        let (first, records, words, len) = self.read_run(&lod, BlockType::Names, &mut stats, None)?;
+        let first = m.names_block;
+        let (records, words, len) =
+            self.read_run(first, m.names_checksum, None, BlockType::Names, &mut ReadStats::default(), None)?;
         if records != m.object_count {
             return Err(StorageError::corrupt(
                 first,

@@ -125,7 +125,7 @@ impl<'db> WriteTransaction<'db> {
         let sizes: Vec<u64> = scene.objects().iter().map(|o| geometry::record_len(&o.mesh)).collect();
         let tree = build(&boxes, Some(&sizes), params, progress)?;
         let build_seconds = started.elapsed().as_secs_f64();
-        self.write_tree(scene, &tree, params, build_seconds)?;
+        self.write(scene, &tree, params, build_seconds)?;
         Ok(tree)
     }
 
@@ -146,6 +146,17 @@ impl<'db> WriteTransaction<'db> {
         let sizes: Vec<u64> = scene.objects().iter().map(|o| geometry::record_len(&o.mesh)).collect();
         tree.validate(&boxes, Some(&sizes), params)
             .map_err(|e| StorageError::Invalid(format!("the tree does not fit the scene: {e}")))?;
+        self.write(scene, tree, params, build_seconds)
+    }
+
+    /// Writes a valid tree of `scene` (built here, or checked by `write_tree`).
+    fn write(
+        &mut self,
+        scene: &Scene,
+        tree: &Hierarchy,
+        params: &BuildParams,
+        build_seconds: f64,
+    ) -> Result<(), StorageError> {
         let pager = self.inner.pager().clone();
         let (bs, m) = (pager.block_size(), pager.lod_levels());
         let nodes = &tree.nodes;
