@@ -6,28 +6,22 @@ mod common;
 use std::sync::Arc;
 
 use mktree::build::{BuildParams, LeafRule};
-use mktree::db::{CreateOptions, Database};
+use mktree::db::CreateOptions;
 use mktree::geom::Aabb;
 use mktree::query::query_box;
+use mktree::store::BlockCache;
 use mktree::store::device::{CountingDevice, MemDevice};
-use mktree::store::{BlockCache, BlockDevice};
 
 #[test]
 fn a_repeated_query_is_served_from_the_pool() {
     let dev = Arc::new(CountingDevice::new(MemDevice::new()));
-    let db = Database::create_on(
-        dev.clone() as Arc<dyn BlockDevice>,
-        CreateOptions { block_size: 1024, lod_levels: 1 },
-    )
-    .unwrap();
-    let mut w = db.begin_write().unwrap();
-    w.bulk_load(
+    let params = BuildParams { leaf: LeafRule::Objects(5), ..BuildParams::default() };
+    let db = common::load_on(
+        dev.clone(),
         &common::grid_scene(200),
-        &BuildParams { leaf: LeafRule::Objects(5), ..BuildParams::default() },
-        &|_| {},
-    )
-    .unwrap();
-    w.commit().unwrap();
+        &params,
+        CreateOptions { block_size: 1024, lod_levels: 1 },
+    );
     let r = db.begin_read().unwrap();
     let q = Aabb::from_array([0.0, 0.0, 0.0, 300.0, 300.0, 300.0]);
     let mut pool = BlockCache::new(1000);

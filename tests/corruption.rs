@@ -24,22 +24,8 @@ fn queries() -> Vec<Aabb> {
 }
 
 fn image() -> Vec<u8> {
-    let dev = Arc::new(MemDevice::new());
-    let db = Database::create_on(
-        dev.clone() as Arc<dyn BlockDevice>,
-        CreateOptions { block_size: BS as u32, lod_levels: 2 },
-    )
-    .unwrap();
-    let mut w = db.begin_write().unwrap();
-    w.bulk_load(
-        &grid_scene(90),
-        &BuildParams { leaf: LeafRule::Objects(5), ..BuildParams::default() },
-        &|_| {},
-    )
-    .unwrap();
-    w.commit().unwrap();
-    drop(db);
-    dev.to_bytes()
+    let params = BuildParams { leaf: LeafRule::Objects(5), ..BuildParams::default() };
+    common::image(&grid_scene(90), &params, CreateOptions { block_size: BS as u32, lod_levels: 2 })
 }
 
 /// Opens `bytes` and runs the queries: each answer must be the undamaged one

@@ -13,22 +13,8 @@ use mktree::store::BlockDevice;
 use mktree::store::device::{CountingDevice, FaultDevice, FaultOp, MemDevice};
 
 fn base_image() -> Vec<u8> {
-    let dev = Arc::new(MemDevice::new());
-    let db = Database::create_on(
-        dev.clone() as Arc<dyn BlockDevice>,
-        CreateOptions { block_size: 1024, lod_levels: 1 },
-    )
-    .unwrap();
-    let mut w = db.begin_write().unwrap();
-    w.bulk_load(
-        &grid_scene(40),
-        &BuildParams { leaf: LeafRule::Objects(4), ..BuildParams::default() },
-        &|_| {},
-    )
-    .unwrap();
-    w.commit().unwrap();
-    drop(db);
-    dev.to_bytes()
+    let params = BuildParams { leaf: LeafRule::Objects(4), ..BuildParams::default() };
+    common::image(&grid_scene(40), &params, CreateOptions { block_size: 1024, lod_levels: 1 })
 }
 
 /// Opens, replaces the tree, and queries; any step may fail.

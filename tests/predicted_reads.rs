@@ -10,8 +10,8 @@ use common::{arb_scene, grid_scene};
 use mktree::build::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database};
 use mktree::geom::Aabb;
+use mktree::store::ReadStats;
 use mktree::store::device::{CountingDevice, MemDevice};
-use mktree::store::{BlockDevice, ReadStats};
 use proptest::prelude::*;
 
 /// Checks every node of `db`: predicted = actual at level M, and the objects
@@ -59,15 +59,9 @@ fn multi_block_leaves_and_big_objects_are_predicted_too() {
 fn counted_reads_are_the_device_reads() {
     let scene = grid_scene(400);
     let counting = Arc::new(CountingDevice::new(MemDevice::new()));
-    let db = Database::create_on(
-        counting.clone() as Arc<dyn BlockDevice>,
-        CreateOptions { block_size: 2048, lod_levels: 2 },
-    )
-    .unwrap();
-    let mut w = db.begin_write().unwrap();
-    w.bulk_load(&scene, &BuildParams { leaf: LeafRule::Objects(8), ..BuildParams::default() }, &|_| {})
-        .unwrap();
-    w.commit().unwrap();
+    let params = BuildParams { leaf: LeafRule::Objects(8), ..BuildParams::default() };
+    let db =
+        common::load_on(counting.clone(), &scene, &params, CreateOptions { block_size: 2048, lod_levels: 2 });
     let r = db.begin_read().unwrap();
     for q in [
         [0.0, 0.0, 0.0, 250.0, 250.0, 250.0],

@@ -96,12 +96,29 @@ pub fn grid_scene(n: usize) -> Scene {
     )
 }
 
-/// `scene` bulk-loaded with `params` into a fresh in-memory database.
-pub fn mem_db(scene: &Scene, params: &BuildParams, options: CreateOptions) -> (Database, Arc<MemDevice>) {
-    let dev = Arc::new(MemDevice::new());
-    let db = Database::create_on(dev.clone() as Arc<dyn BlockDevice>, options).expect("create");
+/// A fresh database on `device` with `scene` bulk-loaded by `params` and committed.
+pub fn load_on(
+    device: Arc<dyn BlockDevice>,
+    scene: &Scene,
+    params: &BuildParams,
+    options: CreateOptions,
+) -> Database {
+    let db = Database::create_on(device, options).expect("create");
     let mut w = db.begin_write().expect("begin_write");
     w.bulk_load(scene, params, &|_| {}).expect("bulk_load");
     w.commit().expect("commit");
-    (db, dev)
+    db
+}
+
+/// `scene` bulk-loaded with `params` into a fresh in-memory database.
+pub fn mem_db(scene: &Scene, params: &BuildParams, options: CreateOptions) -> (Database, Arc<MemDevice>) {
+    let dev = Arc::new(MemDevice::new());
+    (load_on(dev.clone(), scene, params, options), dev)
+}
+
+/// The bytes of a file holding `scene` bulk-loaded by `params`.
+pub fn image(scene: &Scene, params: &BuildParams, options: CreateOptions) -> Vec<u8> {
+    let (db, dev) = mem_db(scene, params, options);
+    drop(db);
+    dev.to_bytes()
 }
