@@ -17,6 +17,7 @@ pub mod db;
 mod error;
 pub mod fuzzing;
 pub mod geom;
+pub mod lod;
 pub mod query;
 mod rng;
 pub mod scene;

@@ -1,0 +1,264 @@
+//! A voxel grid over a box at one lattice level: cells are lattice cells
+//! clipped to the box, so edge cells may be smaller (or flat when the box is).
+
+use super::{Lattice, LodError};
+use crate::geom::Aabb;
+
+/// The most cells a grid may have (2 MiB of bitmap): what we build or decode.
+pub const MAX_CELLS: u64 = 1 << 24;
+/// The most cells along one axis, so cell coordinates fit a u16 box corner.
+pub const MAX_DIM: u32 = 65535;
+
+/// A grid over `bounds` at lattice level `level`. Along each axis its planes
+/// are `bounds.min`, every lattice plane strictly inside, and `bounds.max`.
+/// Because lattice planes of level j + 1 are planes of level j, a grid at
+/// level j over R' ⊆ R nests into the grid at any level >= j over R.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Grid {
+    lattice: Lattice,
+    level: u8,
+    bounds: Aabb,
+    /// Lattice index of the first plane strictly inside the bounds, per axis.
+    first: [i64; 3],
+    dims: [u32; 3],
+}
+
+impl Grid {
+    /// The grid over `bounds` at `level`. Refuses empty or non-finite bounds,
+    /// an invalid lattice, and grids larger than [`MAX_CELLS`] or [`MAX_DIM`].
+    pub fn new(lattice: &Lattice, level: u8, bounds: &Aabb) -> Result<Grid, LodError> {
+        if !lattice.is_valid() || !lattice.cell_at(level).is_finite() {
+            return Err(LodError::BadLattice { origin: lattice.origin.into(), cell: lattice.cell });
+        }
+        let arr = bounds.to_array();
+        if !arr.iter().all(|c| c.is_finite()) || bounds.is_empty() {
+            return Err(LodError::BadBounds(arr));
+        }
+        let s = lattice.cell_at(level);
+        let too_large = |dims: [u32; 3]| LodError::TooLarge {
+            level,
+            dims,
+            cells: dims.iter().map(|&d| u64::from(d)).fold(1u64, u64::saturating_mul),
+        };
+        let mut first = [0i64; 3];
+        let mut dims = [1u32; 3];
+        let mut estimate = [1u32; 3];
+        for a in 0..3 {
+            let (lo, hi) = (bounds.min[a], bounds.max[a]);
+            let span = (hi - lo) / s;
+            let far = ((lo - lattice.origin[a]) / s).abs().max(((hi - lattice.origin[a]) / s).abs());
+            // Beyond 2^50 plane indices stop being exact; beyond MAX_DIM the grid is refused anyway.
+            if span > f64::from(MAX_DIM) + 2.0 || far >= (1u64 << 50) as f64 {
+                estimate[a] = u32::MAX;
+                continue;
+            }
+            let mut n = ((lo - lattice.origin[a]) / s).floor() as i64 + 1;
+            while lattice.plane(level, a, n - 1) > lo {
+                n -= 1;
+            }
+            while lattice.plane(level, a, n) <= lo {
+                n += 1;
+            }
+            let mut m = n - 1;
+            while lattice.plane(level, a, m + 1) < hi {
+                m += 1;
+            }
+            first[a] = n;
+            let d = (m - n + 2).max(1);
+            estimate[a] = u32::try_from(d).unwrap_or(u32::MAX);
+            dims[a] = estimate[a];
+        }
+        if estimate.iter().any(|&d| d > MAX_DIM) {
+            return Err(too_large(estimate));
+        }
+        let grid = Grid { lattice: *lattice, level, bounds: *bounds, first, dims };
+        if grid.cells() > MAX_CELLS {
+            return Err(too_large(dims));
+        }
+        Ok(grid)
+    }
+
+    /// The finest level >= `min_level` whose grid over `bounds` has at most
+    /// `max_cells` cells (and fits [`MAX_CELLS`]).
+    pub fn coarsest_within(
+        lattice: &Lattice,
+        bounds: &Aabb,
+        max_cells: u64,
+        min_level: u8,
+    ) -> Result<Grid, LodError> {
+        for level in min_level..=u8::MAX {
+            match Grid::new(lattice, level, bounds) {
+                Ok(g) if g.cells() <= max_cells => return Ok(g),
+                Ok(_) | Err(LodError::TooLarge { .. }) => {}
+                Err(e) => return Err(e),
+            }
+        }
+        Err(LodError::TooLarge { level: u8::MAX, dims: [0; 3], cells: max_cells.saturating_add(1) })
+    }
+
+    /// The lattice the grid sits on.
+    pub fn lattice(&self) -> &Lattice {
+        &self.lattice
+    }
+
+    /// The lattice level j: interior cells have side `lattice.cell_at(j)`.
+    pub fn level(&self) -> u8 {
+        self.level
+    }
+
+    /// The box the grid covers.
+    pub fn bounds(&self) -> &Aabb {
+        &self.bounds
+    }
+
+    /// Cells along x, y and z.
+    pub fn dims(&self) -> [u32; 3] {
+        self.dims
+    }
+
+    /// Total number of cells.
+    pub fn cells(&self) -> u64 {
+        self.dims.iter().map(|&d| u64::from(d)).product()
+    }
+
+    /// Plane `k` (0..=dims) along `axis`.
+    pub(crate) fn plane(&self, axis: usize, k: u32) -> f64 {
+        if k == 0 {
+            self.bounds.min[axis]
+        } else if k >= self.dims[axis] {
+            self.bounds.max[axis]
+        } else {
+            self.lattice.plane(self.level, axis, self.first[axis] + i64::from(k) - 1)
+        }
+    }
+
+    /// All dims + 1 planes along `axis`, for loops that read many cell boxes.
+    pub(crate) fn planes(&self, axis: usize) -> Vec<f64> {
+        (0..=self.dims[axis]).map(|k| self.plane(axis, k)).collect()
+    }
+
+    /// The closed box of cell `c`.
+    pub fn cell_box(&self, c: [u32; 3]) -> Aabb {
+        Aabb::from_array([
+            self.plane(0, c[0]),
+            self.plane(1, c[1]),
+            self.plane(2, c[2]),
+            self.plane(0, c[0] + 1),
+            self.plane(1, c[1] + 1),
+            self.plane(2, c[2] + 1),
+        ])
+    }
+
+    /// The linear index of cell `c` (x fastest, then y, then z).
+    pub(crate) fn index(&self, c: [u32; 3]) -> usize {
+        let [dx, dy, _] = self.dims.map(|d| d as usize);
+        c[0] as usize + dx * (c[1] as usize + dy * c[2] as usize)
+    }
+
+    /// The cell coordinates of a linear index.
+    pub(crate) fn coords(&self, i: usize) -> [u32; 3] {
+        let [dx, dy, _] = self.dims.map(|d| d as usize);
+        [(i % dx) as u32, ((i / dx) % dy) as u32, (i / (dx * dy)) as u32]
+    }
+
+    /// The cell k along `axis` with plane(k) <= x < plane(k + 1), clamped to the grid.
+    pub(crate) fn cell_of(&self, axis: usize, x: f64) -> u32 {
+        let d = self.dims[axis];
+        let s = self.lattice.cell_at(self.level);
+        let est = ((x - self.lattice.origin[axis]) / s).floor();
+        let est = if est.is_finite() { est as i64 - self.first[axis] + 1 } else { 0 };
+        let mut k = est.clamp(0, i64::from(d) - 1) as u32;
+        while k > 0 && self.plane(axis, k) > x {
+            k -= 1;
+        }
+        while k + 1 < d && self.plane(axis, k + 1) <= x {
+            k += 1;
+        }
+        k
+    }
+
+    /// The cells along `axis` whose closed extent meets [lo, hi], if any.
+    pub(crate) fn range(&self, axis: usize, lo: f64, hi: f64) -> Option<(u32, u32)> {
+        if lo.is_nan() || hi.is_nan() || lo > hi || hi < self.bounds.min[axis] || lo > self.bounds.max[axis] {
+            return None;
+        }
+        let mut a = self.cell_of(axis, lo);
+        if a > 0 && self.plane(axis, a) == lo {
+            a -= 1;
+        }
+        Some((a, self.cell_of(axis, hi)))
+    }
+
+    /// The cells whose closed boxes meet `b`, per axis.
+    pub(crate) fn box_range(&self, b: &Aabb) -> Option<[(u32, u32); 3]> {
+        Some([
+            self.range(0, b.min.x, b.max.x)?,
+            self.range(1, b.min.y, b.max.y)?,
+            self.range(2, b.min.z, b.max.z)?,
+        ])
+    }
+
+    /// How far cells are grown before testing against geometry, so rounding in
+    /// the tests never loses a touching triangle: 1e-9 of the coordinates' magnitude.
+    pub(crate) fn tolerance(&self) -> f64 {
+        let a = self.bounds.to_array();
+        let mag = a.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+        let ext = self.bounds.extent().max();
+        (1e-9 * (mag + ext)).max(f64::MIN_POSITIVE)
+    }
+
+    /// The guaranteed error of a voxel set built on this grid: the diagonal
+    /// of its largest cell, grown by the voxelization tolerance on every side.
+    pub fn max_cell_diagonal(&self) -> f64 {
+        let t = self.tolerance();
+        let w: Vec<f64> = (0..3)
+            .map(|a| {
+                let p = self.planes(a);
+                p.windows(2).fold(0.0f64, |m, w| m.max(w[1] - w[0])) + 2.0 * t
+            })
+            .collect();
+        // Rounded up by a relative 1e-12 so the bound holds on the f64 result too.
+        (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt() * (1.0 + 1e-12)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::Point;
+
+    fn lat() -> Lattice {
+        Lattice { origin: Point::origin(), cell: 1.0 }
+    }
+
+    #[test]
+    fn edge_cells_are_clipped_to_the_bounds() {
+        let g = Grid::new(&lat(), 1, &Aabb::from_array([0.5, 0.0, 0.0, 4.5, 2.0, 0.0])).unwrap();
+        // x planes: 0.5, 2, 4, 4.5; y: 0, 2; z flat.
+        assert_eq!(g.dims(), [3, 1, 1]);
+        assert_eq!(g.planes(0), vec![0.5, 2.0, 4.0, 4.5]);
+        assert_eq!(g.cell_box([1, 0, 0]), Aabb::from_array([2.0, 0.0, 0.0, 4.0, 2.0, 0.0]));
+        assert_eq!(g.cell_of(0, 2.0), 1);
+        assert_eq!(g.range(0, 2.0, 2.0), Some((0, 1)));
+        assert_eq!(g.range(0, 5.0, 6.0), None);
+    }
+
+    #[test]
+    fn too_large_grids_are_refused_and_coarsest_within_finds_a_level() {
+        let b = Aabb::from_array([0.0, 0.0, 0.0, 1000.0, 1000.0, 1000.0]);
+        assert!(matches!(Grid::new(&lat(), 0, &b), Err(LodError::TooLarge { .. })));
+        let g = Grid::coarsest_within(&lat(), &b, 4096, 0).unwrap();
+        assert!(g.cells() <= 4096);
+        let finer = Grid::new(&lat(), g.level() - 1, &b).unwrap();
+        assert!(finer.cells() > 4096);
+        assert!(Grid::coarsest_within(&lat(), &b, 0, 0).is_err());
+    }
+
+    #[test]
+    fn bad_bounds_and_lattices_are_refused() {
+        assert!(matches!(Grid::new(&lat(), 0, &Aabb::EMPTY), Err(LodError::BadBounds(_))));
+        let l = Lattice { origin: Point::origin(), cell: 0.0 };
+        let b = Aabb::from_array([0.0; 6]);
+        assert!(matches!(Grid::new(&l, 0, &b), Err(LodError::BadLattice { .. })));
+    }
+}

@@ -1,0 +1,127 @@
+//! Conservative voxelization (paper §1.5, the cuberille): a cell is set when a
+//! triangle touches it (exact SAT on the cell grown by the grid's tolerance),
+//! plus the interior of each closed mesh, found per mesh (`interior.rs`).
+
+use super::interior::{Sub, fill_interior};
+use super::{Grid, Voxels, is_closed};
+use crate::geom::{Aabb, Point, intersects_triangle_box};
+use crate::scene::Mesh;
+
+impl Voxels {
+    /// The conservative voxelization of `meshes` on `grid`: every cell a
+    /// triangle touches, and every cell inside a closed mesh. Interiors are
+    /// found per mesh, over the mesh's own part of the grid, so a cavity that
+    /// several objects enclose together stays empty. Geometry outside the
+    /// grid's bounds is clipped away.
+    pub fn of_meshes<'a>(grid: Grid, meshes: impl IntoIterator<Item = &'a Mesh>) -> Voxels {
+        let mut v = Voxels::empty(grid);
+        let planes: [Vec<f64>; 3] = std::array::from_fn(|a| v.grid.planes(a));
+        let tol = v.grid.tolerance();
+        let mut local: Vec<u64> = Vec::new();
+        let mut scratch = Default::default();
+        for mesh in meshes {
+            let Some(range) = v.grid.box_range(&mesh.aabb().grown(2.0 * tol)) else { continue };
+            let sub = Sub::new(range);
+            local.clear();
+            local.resize(sub.cells().div_ceil(64), 0);
+            for t in mesh.triangle_points() {
+                surface(&v.grid, &planes, tol, &sub, &t, &mut local);
+            }
+            if is_closed(mesh) {
+                fill_interior(&planes, &sub, mesh, &mut local, &mut scratch);
+            }
+            for (wi, &w) in local.iter().enumerate() {
+                let mut w = w;
+                while w != 0 {
+                    let c = sub.global(wi * 64 + w.trailing_zeros() as usize);
+                    w &= w - 1;
+                    let i = v.grid.index(c);
+                    v.set(i);
+                }
+            }
+        }
+        v
+    }
+}
+
+/// Sets, in the mesh's sub-grid bitmap, every cell the triangle touches.
+fn surface(grid: &Grid, planes: &[Vec<f64>; 3], tol: f64, sub: &Sub, t: &[Point; 3], local: &mut [u64]) {
+    let tb = Aabb::from_points(t.iter());
+    let Some(r) = grid.box_range(&tb.grown(2.0 * tol)) else { return };
+    // A triangle inside the grid whose range is one cell touches that cell.
+    let single = r.iter().all(|&(a, b)| a == b) && grid.bounds().contains(&tb);
+    for z in r[2].0..=r[2].1 {
+        for y in r[1].0..=r[1].1 {
+            for x in r[0].0..=r[0].1 {
+                let hit = single || {
+                    let cell = Aabb::from_array([
+                        planes[0][x as usize] - tol,
+                        planes[1][y as usize] - tol,
+                        planes[2][z as usize] - tol,
+                        planes[0][x as usize + 1] + tol,
+                        planes[1][y as usize + 1] + tol,
+                        planes[2][z as usize + 1] + tol,
+                    ]);
+                    intersects_triangle_box(t, &cell)
+                };
+                if hit && let Some(i) = sub.local([x, y, z]) {
+                    local[i / 64] |= 1 << (i % 64);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lod::Lattice;
+
+    fn lat() -> Lattice {
+        Lattice { origin: Point::origin(), cell: 1.0 }
+    }
+
+    fn quad(z: f64, lo: f64, hi: f64) -> Mesh {
+        let v = [Point::new(lo, lo, z), Point::new(hi, lo, z), Point::new(hi, hi, z), Point::new(lo, hi, z)];
+        Mesh::from_world(&v, vec![[0, 1, 2], [0, 2, 3]]).unwrap()
+    }
+
+    #[test]
+    fn a_plate_on_a_lattice_plane_sets_the_cells_on_both_sides() {
+        let g = Grid::new(&lat(), 0, &Aabb::from_array([0.0, 0.0, 0.0, 4.0, 4.0, 4.0])).unwrap();
+        let v = Voxels::of_meshes(g, [&quad(2.0, 0.5, 3.5)]);
+        assert_eq!(v.count(), 2 * 16);
+    }
+
+    #[test]
+    fn a_closed_box_is_filled() {
+        let g = Grid::new(&lat(), 0, &Aabb::from_array([0.0, 0.0, 0.0, 8.0, 8.0, 8.0])).unwrap();
+        let cube = crate::lod::closed::tests::cube_mesh([0.5; 3], [7.5; 3]);
+        let v = Voxels::of_meshes(g, [&cube]);
+        assert_eq!(v.count(), 512, "surface cells and the 6^3 inner ones");
+    }
+
+    #[test]
+    fn the_cavity_between_two_open_plates_stays_empty() {
+        let g = Grid::new(&lat(), 0, &Aabb::from_array([0.0, 0.0, 0.0, 8.0, 8.0, 8.0])).unwrap();
+        let v = Voxels::of_meshes(g, [&quad(0.5, 0.5, 7.5), &quad(7.5, 0.5, 7.5)]);
+        assert_eq!(v.count(), 2 * 64);
+    }
+
+    #[test]
+    fn a_cavity_walled_by_six_closed_slabs_stays_empty() {
+        use crate::lod::closed::tests::cube_mesh;
+        let g = Grid::new(&lat(), 0, &Aabb::from_array([0.0, 0.0, 0.0, 8.0, 8.0, 8.0])).unwrap();
+        let (a, b) = (0.2, 0.8); // each slab is thinner than a cell
+        let slabs = [
+            cube_mesh([a, a, a], [7.8, 7.8, b]),
+            cube_mesh([a, a, 7.2], [7.8, 7.8, 7.8]),
+            cube_mesh([a, a, a], [b, 7.8, 7.8]),
+            cube_mesh([7.2, a, a], [7.8, 7.8, 7.8]),
+            cube_mesh([a, a, a], [7.8, b, 7.8]),
+            cube_mesh([a, 7.2, a], [7.8, 7.8, 7.8]),
+        ];
+        let v = Voxels::of_meshes(g, &slabs);
+        assert_eq!(v.count(), 512 - 216, "the walls only");
+    }
+}

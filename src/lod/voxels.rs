@@ -1,0 +1,184 @@
+//! A voxel set on a [`Grid`]: a dense bitmap, one bit per cell, and the
+//! operations every level needs (lift into a coarser grid, point, box and
+//! triangle tests).
+
+use super::{Grid, LodError};
+use crate::geom::{Aabb, Point, intersects_triangle_box};
+
+/// A set of cells of a grid, as a dense bitmap (bit i of word i / 64 is cell
+/// i, x fastest, then y, then z). Bits past the last cell are always zero.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Voxels {
+    pub(crate) grid: Grid,
+    pub(crate) bits: Vec<u64>,
+}
+
+impl Voxels {
+    /// No cell set.
+    pub fn empty(grid: Grid) -> Voxels {
+        let words = (grid.cells() as usize).div_ceil(64);
+        Voxels { grid, bits: vec![0; words] }
+    }
+
+    /// The grid the set lives on.
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
+    /// Number of set cells.
+    pub fn count(&self) -> u64 {
+        self.bits.iter().map(|w| u64::from(w.count_ones())).sum()
+    }
+
+    /// True when no cell is set.
+    pub fn is_empty(&self) -> bool {
+        self.bits.iter().all(|&w| w == 0)
+    }
+
+    pub(crate) fn get(&self, i: usize) -> bool {
+        self.bits[i / 64] >> (i % 64) & 1 == 1
+    }
+
+    pub(crate) fn set(&mut self, i: usize) {
+        self.bits[i / 64] |= 1 << (i % 64);
+    }
+
+    /// Linear indices of the set cells, in increasing order.
+    pub(crate) fn set_cells(&self) -> impl Iterator<Item = usize> + '_ {
+        self.bits.iter().enumerate().flat_map(|(wi, &w)| {
+            let mut w = w;
+            std::iter::from_fn(move || {
+                if w == 0 {
+                    return None;
+                }
+                let b = w.trailing_zeros() as usize;
+                w &= w - 1;
+                Some(wi * 64 + b)
+            })
+        })
+    }
+
+    /// ORs every set cell into the cell of `target`'s grid that contains it.
+    /// Refuses (NotNested) a target on another lattice, at a finer level, or
+    /// whose bounds do not contain this set's bounds.
+    pub fn lift_into(&self, target: &mut Voxels) -> Result<(), LodError> {
+        let (from, to) = (&self.grid, &target.grid);
+        let not_nested = || LodError::NotNested {
+            from_level: from.level(),
+            from: from.bounds().to_array(),
+            to_level: to.level(),
+            to: to.bounds().to_array(),
+        };
+        if from.lattice() != to.lattice() || to.level() < from.level() || !to.bounds().contains(from.bounds())
+        {
+            return Err(not_nested());
+        }
+        // Per axis, the target cell of each source cell; checked to contain it.
+        let mut map: [Vec<u32>; 3] = Default::default();
+        for (a, m) in map.iter_mut().enumerate() {
+            let p = from.planes(a);
+            for k in 0..from.dims()[a] as usize {
+                let t = to.cell_of(a, p[k]);
+                if !(to.plane(a, t) <= p[k] && p[k + 1] <= to.plane(a, t + 1)) {
+                    return Err(not_nested());
+                }
+                m.push(t);
+            }
+        }
+        let to_grid = to.clone();
+        for i in self.set_cells() {
+            let c = from.coords(i);
+            target.set(to_grid.index([map[0][c[0] as usize], map[1][c[1] as usize], map[2][c[2] as usize]]));
+        }
+        Ok(())
+    }
+
+    /// True when every cell of this set, lifted into `other`'s grid, is set there.
+    pub fn is_subset_of(&self, other: &Voxels) -> Result<bool, LodError> {
+        let mut lifted = Voxels::empty(other.grid.clone());
+        self.lift_into(&mut lifted)?;
+        Ok(lifted.bits.iter().zip(&other.bits).all(|(a, b)| a & !b == 0))
+    }
+
+    /// Visits the cells of a per-axis range until `f` returns true.
+    pub(crate) fn any_in(&self, r: [(u32, u32); 3], mut f: impl FnMut(usize, [u32; 3]) -> bool) -> bool {
+        for z in r[2].0..=r[2].1 {
+            for y in r[1].0..=r[1].1 {
+                let row = self.grid.index([0, y, z]);
+                for x in r[0].0..=r[0].1 {
+                    let i = row + x as usize;
+                    if self.get(i) && f(i, [x, y, z]) {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
+    }
+
+    /// True when `p` lies in a set cell, grown by the voxelization tolerance
+    /// (so rounding in a point computed on the geometry never loses it).
+    pub fn contains_point(&self, p: &Point) -> bool {
+        let b = Aabb::new(*p, *p).grown(self.grid.tolerance());
+        self.grid.box_range(&b).is_some_and(|r| self.any_in(r, |_, _| true))
+    }
+
+    /// True when the closed box `b` meets a set (closed) cell.
+    pub fn intersects_aabb(&self, b: &Aabb) -> bool {
+        self.grid.box_range(b).is_some_and(|r| self.any_in(r, |_, _| true))
+    }
+
+    /// True when the triangle meets a set cell (grown by the tolerance:
+    /// conservative, never a missed contact).
+    pub fn intersects_triangle(&self, t: &[Point; 3]) -> bool {
+        let tol = self.grid.tolerance();
+        let b = Aabb::from_points(t.iter()).grown(tol);
+        self.grid.box_range(&b).is_some_and(|r| {
+            self.any_in(r, |_, c| intersects_triangle_box(t, &self.grid.cell_box(c).grown(tol)))
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lod::Lattice;
+
+    fn grid(level: u8, b: [f64; 6]) -> Grid {
+        Grid::new(&Lattice { origin: Point::origin(), cell: 1.0 }, level, &Aabb::from_array(b)).unwrap()
+    }
+
+    #[test]
+    fn lifting_maps_each_cell_into_the_coarse_cell_holding_it() {
+        let mut fine = Voxels::empty(grid(0, [1.0, 0.0, 0.0, 3.0, 1.0, 1.0]));
+        fine.set(1); // cell [2, 3] on x
+        let mut coarse = Voxels::empty(grid(1, [0.0, 0.0, 0.0, 4.0, 2.0, 2.0]));
+        fine.lift_into(&mut coarse).unwrap();
+        assert_eq!(coarse.set_cells().collect::<Vec<_>>(), vec![1]);
+        assert!(fine.is_subset_of(&coarse).unwrap());
+        assert!(!fine.is_subset_of(&Voxels::empty(coarse.grid.clone())).unwrap());
+    }
+
+    #[test]
+    fn lifting_into_a_finer_or_smaller_grid_is_refused() {
+        let a = Voxels::empty(grid(1, [0.0, 0.0, 0.0, 4.0, 4.0, 4.0]));
+        let mut finer = Voxels::empty(grid(0, [0.0, 0.0, 0.0, 4.0, 4.0, 4.0]));
+        assert!(matches!(a.lift_into(&mut finer), Err(LodError::NotNested { .. })));
+        let mut smaller = Voxels::empty(grid(2, [0.0, 0.0, 0.0, 3.0, 4.0, 4.0]));
+        assert!(matches!(a.lift_into(&mut smaller), Err(LodError::NotNested { .. })));
+    }
+
+    #[test]
+    fn point_box_and_triangle_tests_see_only_set_cells() {
+        let mut v = Voxels::empty(grid(0, [0.0, 0.0, 0.0, 2.0, 1.0, 1.0]));
+        v.set(0);
+        assert!(v.contains_point(&Point::new(0.5, 0.5, 0.5)));
+        assert!(v.contains_point(&Point::new(1.0, 0.5, 0.5)), "closed cells");
+        assert!(!v.contains_point(&Point::new(1.5, 0.5, 0.5)));
+        assert!(v.intersects_aabb(&Aabb::from_array([1.0, 0.0, 0.0, 1.5, 1.0, 1.0])));
+        assert!(!v.intersects_aabb(&Aabb::from_array([1.1, 0.0, 0.0, 1.5, 1.0, 1.0])));
+        let p = |x, y, z| Point::new(x, y, z);
+        assert!(v.intersects_triangle(&[p(0.9, 0.5, 0.5), p(1.9, 0.5, 0.5), p(1.9, 0.6, 0.5)]));
+        assert!(!v.intersects_triangle(&[p(1.2, 0.5, 0.5), p(1.9, 0.5, 0.5), p(1.9, 0.6, 0.5)]));
+    }
+}
