@@ -7,8 +7,11 @@
 //! lattice level j over R' ⊆ R refines the grid at level j' >= j over R.
 //! Blob layout: `format-spec/lod.md`.
 
+mod blob;
+mod boxes;
 mod closed;
 mod error;
+mod faces;
 
 mod grid;
 mod inside;
@@ -17,6 +20,7 @@ mod lattice;
 mod voxelize;
 mod voxels;
 
+pub use blob::{Form, decode, decode_objects, encode, encode_objects, encoded_len};
 pub use closed::is_closed;
 pub use error::LodError;
 
