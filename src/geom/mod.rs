@@ -6,11 +6,13 @@
 
 mod aabb;
 mod axis;
+mod parry;
 mod round;
 mod triangle_box;
 
 pub use aabb::Aabb;
 pub use axis::Axis;
+pub use parry::SurfaceDistance;
 pub use round::{round_down_f32, round_up_f32};
 pub use triangle_box::intersects_triangle_box;
 

@@ -149,12 +149,12 @@ pub fn decode(bytes: &[u8], lattice: &Lattice) -> Result<(Voxels, usize), LodErr
                 }
             }
             let cells = v.grid.cells() as usize;
-            if cells % 64 != 0 && v.bits.last().is_some_and(|&w| w >> (cells % 64) != 0) {
+            if !cells.is_multiple_of(64) && v.bits.last().is_some_and(|&w| w >> (cells % 64) != 0) {
                 return Err(LodError::Corrupt("bitmap padding bits are not zero".into()));
             }
         }
         Form::Boxes => {
-            if payload % BOX_BYTES != 0 {
+            if !payload.is_multiple_of(BOX_BYTES) {
                 return Err(LodError::Corrupt(format!("boxes payload of {payload} bytes")));
             }
             let data = r.take(payload, "boxes")?;

@@ -11,6 +11,7 @@ mod blob;
 mod boxes;
 mod closed;
 mod error;
+mod error_measure;
 mod faces;
 
 mod grid;
@@ -23,6 +24,7 @@ mod voxels;
 pub use blob::{Form, decode, decode_objects, encode, encode_objects, encoded_len};
 pub use closed::is_closed;
 pub use error::LodError;
+pub use error_measure::measured_error;
 
 pub use grid::{Grid, MAX_CELLS, MAX_DIM};
 pub use lattice::Lattice;
