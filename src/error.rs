@@ -17,4 +17,6 @@ pub enum Error {
     Import(#[from] ImportError),
     #[error(transparent)]
     Generate(#[from] GenError),
+    #[error(transparent)]
+    Lod(#[from] crate::lod::LodError),
 }

@@ -114,15 +114,17 @@ fn a_truncated_file_is_refused() {
 fn a_child_link_that_loops_is_an_error_not_a_hang() {
     use mktree::store::format::frame::{BlockType, seal};
     use mktree::store::format::header::{Commit, Slot, SlotRead, SlotState, slot_offset};
-    // The golden file: block 3 holds the root (slot 0) and its leaves; block 5 the meta; slot 1 the commit.
-    let mut f = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v1.mkt")).unwrap();
+    // The golden file: one node block holds the root (slot 0) and its leaves; slot 1 the commit.
+    let mut f = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v2.mkt")).unwrap();
     let block = |i: usize| i * 1024..(i + 1) * 1024;
-    // Root record at offset 24 of block 3; child0_slot at 64 in the record: point it at the root itself.
-    f[3 * 1024 + 24 + 64..3 * 1024 + 24 + 66].copy_from_slice(&0u16.to_le_bytes());
-    let root_sum = seal(3, &mut f[block(3)], BlockType::Node, 2);
+    let of_type = |f: &[u8], t: BlockType| (1..f.len() / 1024).find(|&i| f[i * 1024 + 4] == t as u8).unwrap();
+    let (node, meta) = (of_type(&f, BlockType::Node), of_type(&f, BlockType::Meta));
+    // Root record at offset 24 of the node block; child0_slot at 64 in the record: point it at the root itself.
+    f[node * 1024 + 24 + 64..node * 1024 + 24 + 66].copy_from_slice(&0u16.to_le_bytes());
+    let root_sum = seal(node as u32, &mut f[block(node)], BlockType::Node, 2);
     // The meta holds the root block's checksum at offset 20; the slot holds the meta's.
-    f[5 * 1024 + 20..5 * 1024 + 24].copy_from_slice(&root_sum.to_le_bytes());
-    let meta_sum = seal(5, &mut f[block(5)], BlockType::Meta, 2);
+    f[meta * 1024 + 20..meta * 1024 + 24].copy_from_slice(&root_sum.to_le_bytes());
+    let meta_sum = seal(meta as u32, &mut f[block(meta)], BlockType::Meta, 2);
     let SlotRead::Committed(c) = Slot::decode(1, &f[slot_offset(1)..slot_offset(1) + 256]) else {
         panic!("slot 1")
     };

@@ -1,6 +1,6 @@
 //! Claim: the writer produces the spec's example file byte for byte
-//! (`tests/golden/tiny-v1.mkt`, shown in `format-spec/example.md`), and a
-//! reader opens it. Set MKTREE_BLESS=1 to rewrite both after a deliberate
+//! (`tests/golden/tiny-v2.mkt`, shown in `format-spec/example.md`), and a
+//! reader opens it; the version 1 golden file is refused, not misread. Set MKTREE_BLESS=1 to rewrite both after a deliberate
 //! format change (with a new version: format-spec/versions.md).
 
 mod common;
@@ -14,10 +14,11 @@ use mktree::scene::{Object, Scene};
 use mktree::store::BlockDevice;
 use mktree::store::device::MemDevice;
 
-const GOLDEN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v1.mkt");
+const GOLDEN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v2.mkt");
+const GOLDEN_V1: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v1.mkt");
 const EXAMPLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/format-spec/example.md");
 
-/// Three objects, two leaves, 1,024-byte blocks, M = 2.
+/// Three objects, two leaves, 1,024-byte blocks, M = 3 (box, cuberille, exact).
 fn tiny() -> Vec<u8> {
     let scene = Scene::new(vec![
         Object::new("plate", triangle([0.0, 0.0, 0.0], [100.0, 0.0, 0.0], [0.0, 50.0, 0.0])),
@@ -30,7 +31,7 @@ fn tiny() -> Vec<u8> {
     let dev = Arc::new(MemDevice::new());
     let db = Database::create_on(
         dev.clone() as Arc<dyn BlockDevice>,
-        CreateOptions { block_size: 1024, lod_levels: 2 },
+        CreateOptions { block_size: 1024, lod_levels: 3 },
     )
     .unwrap();
     let mut w = db.begin_write().unwrap();
@@ -79,7 +80,7 @@ fn the_writer_reproduces_the_golden_file_and_the_spec_shows_it() {
         let end = start + md[start..].find("```").expect("its end");
         std::fs::write(EXAMPLE, format!("{}{}{}", &md[..start], hexdump(&bytes), &md[end..])).unwrap();
     }
-    let golden = std::fs::read(GOLDEN).expect("tests/golden/tiny-v1.mkt");
+    let golden = std::fs::read(GOLDEN).expect("tests/golden/tiny-v2.mkt");
     assert!(bytes == golden, "the writer no longer produces the golden file byte for byte");
     let md = std::fs::read_to_string(EXAMPLE).unwrap();
     assert_eq!(
@@ -96,7 +97,14 @@ fn the_writer_reproduces_the_golden_file_and_the_spec_shows_it() {
 #[test]
 fn an_unknown_version_is_refused_not_guessed() {
     let mut bytes = std::fs::read(GOLDEN).unwrap();
-    bytes[8] = 2;
+    bytes[8] = 3;
     let err = Database::open_on(Arc::new(MemDevice::from_bytes(bytes)) as Arc<dyn BlockDevice>).unwrap_err();
-    assert!(err.to_string().contains("unsupported format version 2"), "{err}");
+    assert!(err.to_string().contains("unsupported format version 3"), "{err}");
+}
+
+#[test]
+fn a_version_1_file_is_refused_with_its_version() {
+    let bytes = std::fs::read(GOLDEN_V1).expect("tests/golden/tiny-v1.mkt");
+    let err = Database::open_on(Arc::new(MemDevice::from_bytes(bytes)) as Arc<dyn BlockDevice>).unwrap_err();
+    assert!(err.to_string().contains("unsupported format version 1 (this build reads version 2)"), "{err}");
 }

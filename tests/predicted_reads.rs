@@ -1,5 +1,6 @@
-//! Claim: for every node and level, the reads its record predicts for
-//! fetching the level from a cold cache equal the reads done, and the reads
+//! Claim (property 4 of the levels of detail): for every node, every level
+//! k and both b(S_n,k) and B(S_n,k), the reads its record predicts for
+//! fetching the level from a cold cache equal the reads done; and the reads
 //! the pager counts are the reads the device sees.
 
 mod common;
@@ -8,14 +9,14 @@ use std::sync::Arc;
 
 use common::{arb_scene, grid_scene};
 use mktree::build::{BuildParams, LeafRule, Method};
-use mktree::db::{CreateOptions, Database};
+use mktree::db::{CreateOptions, Database, Piece};
 use mktree::geom::Aabb;
 use mktree::store::ReadStats;
 use mktree::store::device::{CountingDevice, MemDevice};
 use proptest::prelude::*;
 
-/// Checks every node of `db`: predicted = actual at level M, and the objects
-/// fetched are exactly the node's subtree count.
+/// Checks every node of `db`: predicted = actual at every level, and at
+/// level M the objects fetched are exactly the node's subtree count.
 fn check_predictions(db: &Database) {
     let r = db.begin_read().unwrap();
     let m = db.lod_levels();
@@ -26,12 +27,24 @@ fn check_predictions(db: &Database) {
     })
     .unwrap();
     for (at, rec) in nodes {
-        for objects in [false, true] {
-            let predicted = rec.lods[m as usize - 1][usize::from(objects)].reads();
-            let mut stats = ReadStats::default();
-            let got = r.fetch_level(at, m, objects, &mut stats).unwrap();
-            assert_eq!(stats.total(), predicted, "node {} objects={objects}", rec.node_id);
-            assert_eq!(got.len() as u32, rec.object_count);
+        for k in 1..=m {
+            for objects in [false, true] {
+                let predicted = rec.predicted_reads(k, objects).unwrap();
+                let mut stats = ReadStats::default();
+                let got = r.fetch_level(at, k, objects, &mut stats).unwrap();
+                assert_eq!(stats.total(), predicted, "node {} k={k} objects={objects}", rec.node_id);
+                if k == m {
+                    let count: usize = got
+                        .pieces
+                        .iter()
+                        .map(|p| match p {
+                            Piece::Objects(o) => o.len(),
+                            _ => panic!("level M holds objects"),
+                        })
+                        .sum();
+                    assert_eq!(count as u32, rec.object_count);
+                }
+            }
         }
     }
 }
@@ -39,9 +52,9 @@ fn check_predictions(db: &Database) {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
     #[test]
-    fn predicted_reads_equal_actual_reads(scene in arb_scene(80), cap in 1u32..6, bs in prop::sample::select(vec![1024u32, 1536, 4096])) {
+    fn predicted_reads_equal_actual_reads(scene in arb_scene(80), cap in 1u32..6, bs in prop::sample::select(vec![1024u32, 1536, 4096]), m in 1u8..6) {
         let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(cap), ..BuildParams::default() };
-        let (db, _) = common::mem_db(&scene, &params, CreateOptions { block_size: bs, lod_levels: 3 });
+        let (db, _) = common::mem_db(&scene, &params, CreateOptions { block_size: bs, lod_levels: m });
         check_predictions(&db);
     }
 }

@@ -6,6 +6,7 @@
 mod check;
 mod codes;
 mod hierarchy;
+mod lod;
 mod read;
 mod write;
 
@@ -17,6 +18,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 pub use check::{CheckReport, check};
 pub use codes::{method_from_code, method_to_code};
 pub use hierarchy::read_hierarchy;
+pub use lod::{Level, LodInfo, Piece};
 pub use read::{NodeLocation, ReadTransaction, TreeInfo};
 pub(crate) use read::{TraversalGuard, record_at};
 pub use write::WriteTransaction;

@@ -106,7 +106,7 @@ impl ReadTransaction {
         Ok(Arc::new(node::decode_block(block, &b, self.pager().lod_levels())?))
     }
 
-    fn check_in_snapshot(&self, block: u32) -> Result<(), StorageError> {
+    pub(crate) fn check_in_snapshot(&self, block: u32) -> Result<(), StorageError> {
         if block >= self.snapshot.block_count {
             return Err(StorageError::corrupt(
                 block,
@@ -121,7 +121,7 @@ impl ReadTransaction {
     /// carrying `checksum`), its length from its header, checked against
     /// `expected_blocks` when the parent says it; returns the record count,
     /// the stream (as aligned words) and the stream's length.
-    fn read_run(
+    pub(crate) fn read_run(
         &self,
         first: u32,
         checksum: u32,
@@ -142,7 +142,7 @@ impl ReadTransaction {
         self.check_in_snapshot(last)?;
         let mut all = vec![head];
         for id in first + 1..=last {
-            all.push(self.pager().read(id, BlockType::Continuation, None, stats, cache.as_deref_mut())?);
+            all.push(self.pager().read(id, first_type.continuation(), None, stats, cache.as_deref_mut())?);
         }
         let refs: Vec<&[u8]> = all.iter().map(|b| &b[..]).collect();
         run::assemble(first, &refs)
@@ -193,64 +193,6 @@ impl ReadTransaction {
             ));
         }
         geometry::decode_names(first, &words, len, records)
-    }
-
-    /// Fetches level `k` (1-based) of node `at` as the paper's queries do:
-    /// B(S_n,k) (`objects` = true) or b(S_n,k), following the node's entry:
-    /// one block, a run, or the children's entries through the subtree, from a
-    /// cold cache with the node's record in hand. Returns the objects (level M)
-    /// and the reads it took, which equal the entry's predicted reads.
-    pub fn fetch_level(
-        &self,
-        at: NodeLocation,
-        k: u8,
-        objects: bool,
-        stats: &mut ReadStats,
-    ) -> Result<Vec<(ObjectId, Mesh)>, StorageError> {
-        let m = self.pager().lod_levels();
-        if k == 0 || k > m {
-            return Err(StorageError::Invalid(format!("level {k} is not in 1..={m}")));
-        }
-        // The record in hand is not counted: read it outside `stats`.
-        let records = self.read_node_block(at.block, at.checksum, &mut ReadStats::default(), None)?;
-        let mut out = Vec::new();
-        let mut stack = vec![(records, at)];
-        let mut guard = TraversalGuard::new(self);
-        while let Some((records, at)) = stack.pop() {
-            guard.visit(at)?;
-            let rec = record_at(&records, at.block, at.slot)?;
-            let entry = rec.lods[k as usize - 1][usize::from(objects)];
-            match entry {
-                LodRef::Absent => {
-                    return Err(StorageError::Invalid(format!(
-                        "level {k} is not stored for node {}",
-                        rec.node_id
-                    )));
-                }
-                LodRef::InBlock { .. } | LodRef::Run { .. } => {
-                    out.extend(self.read_objects(&entry, stats, None)?)
-                }
-                LodRef::Spread { .. } => {
-                    let Some((kids, _)) = &rec.children else {
-                        return Err(StorageError::corrupt_record(
-                            at.block,
-                            u32::from(at.slot),
-                            "lods",
-                            "a leaf's entry is spread",
-                        ));
-                    };
-                    for c in kids.iter().rev() {
-                        let loc = NodeLocation { block: c.block, slot: c.slot, checksum: None };
-                        if c.block == at.block {
-                            stack.push((records.clone(), loc));
-                        } else {
-                            stack.push((self.read_node_block(c.block, Some(c.checksum), stats, None)?, loc));
-                        }
-                    }
-                }
-            }
-        }
-        Ok(out)
     }
 
     /// Visits every node in preorder (left child first) with its location and

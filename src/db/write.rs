@@ -7,12 +7,14 @@ use std::time::Instant;
 use super::{Inner, Snapshot, codes};
 use crate::build::{BuildParams, BuildProgress, Hierarchy, Node, Order, build};
 use crate::geom::Aabb;
+use crate::lod::{Computed, Entry, LodParams, LodPlan};
 use crate::scene::Scene;
 use crate::store::alloc::FreeSpace;
 use crate::store::format::frame::BlockType;
 use crate::store::format::freelist::{FreeListBlock, ranges_per_block};
 use crate::store::format::header::{self, Commit, Slot, SlotState};
-use crate::store::format::meta::Meta;
+use crate::store::format::lodblock::{self, LodBlockWriter};
+use crate::store::format::meta::{LOD_KEEP_IDENTITY, LOD_TABLE_LEN, LodCodes, Meta};
 use crate::store::format::node::{self, ChildRef, LodRef, NodeRecord, SplitInfo};
 use crate::store::format::{geometry, run};
 use crate::store::{StorageError, layout};
@@ -31,6 +33,8 @@ pub struct WriteTransaction<'db> {
     written: FreeSpace,
     /// The new meta block (block, checksum), once a tree is loaded.
     meta: Option<(u32, u32, Meta)>,
+    /// How the levels of detail below M are built.
+    lod_params: LodParams,
     done: bool,
 }
 
@@ -70,8 +74,15 @@ impl<'db> WriteTransaction<'db> {
             avail,
             written: FreeSpace::new(end, []),
             meta: None,
+            lod_params: LodParams::default(),
             done: false,
         })
+    }
+
+    /// Sets how the next tree's levels of detail are built (default:
+    /// `LodParams::default()`, eps from the scene).
+    pub fn set_lod_params(&mut self, params: LodParams) {
+        self.lod_params = params;
     }
 
     /// This transaction's id.
@@ -95,7 +106,7 @@ impl<'db> WriteTransaction<'db> {
         let first = self.allocate(n)?;
         let mut checksum = 0;
         for (j, b) in payloads.iter_mut().enumerate() {
-            let t = if j == 0 { first_type } else { BlockType::Continuation };
+            let t = if j == 0 { first_type } else { first_type.continuation() };
             let s = self.inner.pager().write(first + j as u32, b, t, self.txn)?;
             if j == 0 {
                 checksum = s;
@@ -184,27 +195,64 @@ impl<'db> WriteTransaction<'db> {
                 exact[i] = self.write_run(payloads, BlockType::Geometry)?;
             }
         }
+        // Levels of detail below M, placed in LOD blocks level by level.
+        let lods = if m >= 2 {
+            let plan = LodPlan::new(scene, m, &self.lod_params).map_err(lod_error)?;
+            let computed = crate::lod::compute(scene, tree, &plan, &self.lod_params, lodblock::max_blob(bs))
+                .map_err(lod_error)?;
+            Some(computed)
+        } else {
+            None
+        };
+        let mut entries = vec![vec![[LodRef::Absent; 2]; m as usize]; n];
+        let mut usage = [[0u64; 2]; LOD_TABLE_LEN];
+        if let Some(c) = &lods {
+            self.place_lods(c, &mut entries, &mut usage)?;
+        }
         // Pack nodes into blocks; block ids in the order blocks were started.
         let capacity = node::records_per_block(bs, m);
         let packing = layout::pack(n, |i| nodes[i].children().map(|c| c.map(|x| x.index())), capacity);
         let block_ids: Vec<u32> =
             (0..packing.blocks.len()).map(|_| self.allocate(1)).collect::<Result<_, _>>()?;
-        // Level M: reads through the subtree, and subtree object counts, bottom-up
-        // (preorder puts children after parents).
+        let node_block: Vec<u32> = packing.place.iter().map(|p| block_ids[p.0 as usize]).collect();
+        // Level M: a leaf's geometry run; an internal node spreads over its children.
         let mut object_count = vec![0u32; n];
         for i in (0..n).rev() {
             match nodes[i].children() {
-                None => object_count[i] = nodes[i].objects().map_or(0, |o| o.len() as u32),
+                None => {
+                    object_count[i] = nodes[i].objects().map_or(0, |o| o.len() as u32);
+                    entries[i][m as usize - 1] = [exact[i]; 2];
+                }
                 Some(kids) => {
-                    let mut reads = 0u32;
-                    for c in kids.map(|c| c.index()) {
-                        let crosses = packing.place[c].1 == 0; // c starts its own block
-                        reads += u32::from(crosses) + exact[c].reads() as u32;
-                        object_count[i] += object_count[c];
-                    }
-                    exact[i] = LodRef::Spread { reads };
+                    object_count[i] = kids.iter().map(|c| object_count[c.index()]).sum();
+                    entries[i][m as usize - 1] = [LodRef::Spread { reads: 0 }; 2];
                 }
             }
+        }
+        // Every spread entry's reads: the distinct blocks its fetch touches.
+        let mut spread_reads = Vec::new();
+        for (i, node_entries) in entries.iter().enumerate() {
+            for (k, pair) in node_entries.iter().enumerate() {
+                for obj in [false, true] {
+                    if let LodRef::Spread { .. } = pair[usize::from(obj)] {
+                        let reads = super::lod::fetch_reads(
+                            i,
+                            k as u8 + 1,
+                            obj,
+                            |j, k, obj| entries[j][usize::from(k) - 1][usize::from(obj)],
+                            |j| nodes[j].children().map(|c| c.map(|c| c.index())),
+                            |j| node_block[j],
+                        );
+                        let reads = u32::try_from(reads).map_err(|_| {
+                            StorageError::Invalid("a level needs more than 2^32 reads".into())
+                        })?;
+                        spread_reads.push((i, k, usize::from(obj), reads));
+                    }
+                }
+            }
+        }
+        for (i, k, obj, reads) in spread_reads {
+            entries[i][k][obj] = LodRef::Spread { reads };
         }
         // Write node blocks last to first: a child block is always started
         // after its parent's, so its checksum is known when the parent is written.
@@ -213,7 +261,7 @@ impl<'db> WriteTransaction<'db> {
             let records: Vec<NodeRecord> = packing.blocks[b]
                 .iter()
                 .map(|&i| {
-                    record(nodes, i as usize, m, &exact, &object_count, |c| {
+                    record(nodes, i as usize, &entries[i as usize], &object_count, |c| {
                         let (cb, slot) = packing.place[c];
                         let checksum = if cb as usize == b { 0 } else { checksums[cb as usize] };
                         ChildRef {
@@ -257,7 +305,20 @@ impl<'db> WriteTransaction<'db> {
             build: codes::encode(params, build_seconds),
             names_block,
             names_checksum,
-            lod_table: [[0.0; 2]; 16],
+            lod_table: lod_table(lods.as_ref()),
+            lods: LodCodes {
+                lattice_origin: lods.as_ref().map_or([0.0; 3], |c| c.plan.lattice.origin.coords.into()),
+                lattice_cell: lods.as_ref().map_or(0.0, |c| c.plan.lattice.cell),
+                flags: if self.lod_params.keep_identity { LOD_KEEP_IDENTITY } else { 0 },
+                cuberille_bits: self.lod_params.cuberille_bits,
+                cuberille_object_bits: self.lod_params.cuberille_object_bits,
+                grid_level: lods.as_ref().map_or([0; LOD_TABLE_LEN], |c| {
+                    let mut g = [0; LOD_TABLE_LEN];
+                    g[..c.plan.grid_level.len()].copy_from_slice(&c.plan.grid_level);
+                    g
+                }),
+                usage,
+            },
         };
         let meta_block = self.allocate(1)?;
         let mut block = vec![0u8; bs as usize];
@@ -338,6 +399,70 @@ impl<'db> WriteTransaction<'db> {
         Ok(())
     }
 
+    /// Writes the blobs of every level below M into LOD blocks, level by
+    /// level in preorder (a level's blobs for nearby nodes share blocks),
+    /// each blob larger than a block as its own run; fills `entries` and
+    /// per level the bytes and blocks used.
+    fn place_lods(
+        &mut self,
+        c: &Computed,
+        entries: &mut [Vec<[LodRef; 2]>],
+        usage: &mut [[u64; 2]; LOD_TABLE_LEN],
+    ) -> Result<(), StorageError> {
+        let bs = self.inner.pager().block_size();
+        for k in 1..c.plan.levels {
+            let ki = usize::from(k) - 1;
+            let mut block = LodBlockWriter::new(bs);
+            let mut waiting: Vec<(usize, usize, u32)> = Vec::new();
+            for obj in [0, 1] {
+                for (i, node) in c.nodes.iter().enumerate() {
+                    entries[i][ki][obj] = match &node[ki][obj] {
+                        Entry::InRecord => LodRef::InRecord,
+                        Entry::Spread => LodRef::Spread { reads: 0 },
+                        Entry::Same { level, objects } => LodRef::Same { level: *level, objects: *objects },
+                        Entry::Blob { bytes, .. } if bytes.len() > lodblock::max_blob(bs) => {
+                            let payloads = run::encode(bytes, 1, bs);
+                            usage[ki][0] += bytes.len() as u64;
+                            usage[ki][1] += payloads.len() as u64;
+                            self.write_run(payloads, BlockType::LodRun)?
+                        }
+                        Entry::Blob { bytes, .. } => {
+                            if !block.fits(bytes.len()) {
+                                let full = std::mem::replace(&mut block, LodBlockWriter::new(bs));
+                                self.flush_lod_block(full, &mut waiting, entries, ki)?;
+                                usage[ki][1] += 1;
+                            }
+                            usage[ki][0] += bytes.len() as u64;
+                            waiting.push((i, obj, block.push(bytes)));
+                            LodRef::Absent // filled when the block is written
+                        }
+                    };
+                }
+            }
+            if !block.is_empty() {
+                self.flush_lod_block(block, &mut waiting, entries, ki)?;
+                usage[ki][1] += 1;
+            }
+        }
+        Ok(())
+    }
+
+    fn flush_lod_block(
+        &mut self,
+        block: LodBlockWriter,
+        waiting: &mut Vec<(usize, usize, u32)>,
+        entries: &mut [Vec<[LodRef; 2]>],
+        ki: usize,
+    ) -> Result<(), StorageError> {
+        let id = self.allocate(1)?;
+        let mut bytes = block.finish();
+        let checksum = self.inner.pager().write(id, &mut bytes, BlockType::Lod, self.txn)?;
+        for (i, obj, offset) in waiting.drain(..) {
+            entries[i][ki][obj] = LodRef::InBlock { block: id, offset, checksum };
+        }
+        Ok(())
+    }
+
     /// Abandons the transaction; the file keeps its committed state.
     pub fn abort(mut self) -> Result<(), StorageError> {
         self.rollback()
@@ -363,12 +488,11 @@ impl Drop for WriteTransaction<'_> {
     }
 }
 
-/// Node `i`'s record: its box, split, children (through `child`), and level M.
+/// Node `i`'s record: its box, split, children (through `child`), and its LOD entries.
 fn record(
     nodes: &[Node],
     i: usize,
-    m: u8,
-    exact: &[LodRef],
+    lods: &[[LodRef; 2]],
     object_count: &[u32],
     child: impl Fn(usize) -> ChildRef,
 ) -> NodeRecord {
@@ -384,15 +508,27 @@ fn record(
             SplitInfo { axis: s.axis, order, overlap: s.overlap as f32, gap: s.gap as f32 },
         )
     });
-    let mut lods = vec![[LodRef::Absent; 2]; m as usize];
-    // Level M is the exact geometry: as a group and as objects, the same blocks.
-    lods[m as usize - 1] = [exact[i]; 2];
     NodeRecord {
         node_id: i as u32,
         aabb: to_f32_box(&node.aabb),
         level: node.level as u16, // checked in write_tree
         object_count: object_count[i],
         children,
-        lods,
+        lods: lods.to_vec(),
     }
+}
+
+fn lod_error(e: crate::lod::LodError) -> StorageError {
+    StorageError::Invalid(format!("levels of detail: {e}"))
+}
+
+/// Per level k = 1 .. 16: (eps_k, measured error).
+fn lod_table(lods: Option<&Computed>) -> [[f64; 2]; LOD_TABLE_LEN] {
+    let mut t = [[0.0; 2]; LOD_TABLE_LEN];
+    if let Some(c) = lods {
+        for (k, row) in t.iter_mut().enumerate().take(c.eps.len()) {
+            *row = [c.eps[k], c.measured[k]];
+        }
+    }
+    t
 }

@@ -38,6 +38,9 @@ pub enum LodError {
         /// The target grid's bounds.
         to: [f64; 6],
     },
+    /// Parameters that cannot build levels of detail (the eps list, M).
+    #[error("level-of-detail parameters: {0}")]
+    Params(String),
     /// A blob that is not a valid encoding: the message names the field.
     #[error("level-of-detail blob is corrupt: {0}")]
     Corrupt(String),

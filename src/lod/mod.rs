@@ -18,6 +18,7 @@ mod grid;
 mod inside;
 mod interior;
 mod lattice;
+mod levels;
 mod voxelize;
 mod voxels;
 
@@ -28,4 +29,5 @@ pub use error_measure::measured_error;
 
 pub use grid::{Grid, MAX_CELLS, MAX_DIM};
 pub use lattice::Lattice;
+pub use levels::{Computed, Entry, LodParams, LodPlan, NodeEntries, compute};
 pub use voxels::Voxels;

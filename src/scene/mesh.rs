@@ -57,6 +57,39 @@ impl Mesh {
         Ok(Mesh::from_parts(anchor, offsets, triangles))
     }
 
+    /// The closed surface of a box: 8 corners, 12 triangles facing out.
+    /// `None` for an empty or non-finite box.
+    pub fn of_box(b: &Aabb) -> Option<Mesh> {
+        let (lo, hi) = (b.min, b.max);
+        let corners: Vec<Point> = (0..8)
+            .map(|i| {
+                Point::new(
+                    if i & 1 == 0 { lo.x } else { hi.x },
+                    if i & 2 == 0 { lo.y } else { hi.y },
+                    if i & 4 == 0 { lo.z } else { hi.z },
+                )
+            })
+            .collect();
+        const FACES: [[u32; 3]; 12] = [
+            [0, 2, 1],
+            [1, 2, 3],
+            [4, 5, 6],
+            [5, 7, 6], // z low, z high
+            [0, 1, 4],
+            [1, 5, 4],
+            [2, 6, 3],
+            [3, 6, 7], // y low, y high
+            [0, 4, 2],
+            [2, 4, 6],
+            [1, 3, 5],
+            [3, 7, 5], // x low, x high
+        ];
+        if b.is_empty() {
+            return None;
+        }
+        Mesh::from_world(&corners, FACES.to_vec()).ok()
+    }
+
     /// A mesh from its stored form, already validated by the caller (the
     /// file decoder checks indices and finiteness before calling this).
     pub(crate) fn from_parts(anchor: Point, offsets: Vec<[f32; 3]>, triangles: Vec<[u32; 3]>) -> Mesh {

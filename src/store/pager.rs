@@ -16,6 +16,8 @@ pub struct ReadStats {
     pub node: u64,
     /// Geometry and continuation blocks read from the device.
     pub geometry: u64,
+    /// Level-of-detail blocks (levels below M) read from the device.
+    pub lod: u64,
     /// Other blocks (meta, names, free list) read from the device.
     pub other: u64,
     /// Blocks found in the buffer pool instead of read.
@@ -25,13 +27,14 @@ pub struct ReadStats {
 impl ReadStats {
     /// All device reads.
     pub fn total(&self) -> u64 {
-        self.node + self.geometry + self.other
+        self.node + self.geometry + self.lod + self.other
     }
 
     fn count(&mut self, t: BlockType) {
         match t {
             BlockType::Node => self.node += 1,
             BlockType::Geometry | BlockType::Continuation => self.geometry += 1,
+            BlockType::Lod | BlockType::LodRun | BlockType::LodContinuation => self.lod += 1,
             _ => self.other += 1,
         }
     }
@@ -41,6 +44,7 @@ impl std::ops::AddAssign for ReadStats {
     fn add_assign(&mut self, o: ReadStats) {
         self.node += o.node;
         self.geometry += o.geometry;
+        self.lod += o.lod;
         self.other += o.other;
         self.cache_hits += o.cache_hits;
     }

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use mktree::build::BuildParams;
 use mktree::db::{CreateOptions, Database};
-use mktree::geom::{Aabb, Point};
+use mktree::geom::Aabb;
 use mktree::scene::{Mesh, Object, Scene};
 use mktree::store::BlockDevice;
 use mktree::store::device::MemDevice;
@@ -14,30 +14,7 @@ use proptest::prelude::*;
 
 /// A closed box mesh (12 triangles) from `lo` to `hi`.
 pub fn box_mesh(lo: [f64; 3], hi: [f64; 3]) -> Mesh {
-    let p: Vec<Point> = (0..8)
-        .map(|i| {
-            Point::new(
-                if i & 1 == 0 { lo[0] } else { hi[0] },
-                if i & 2 == 0 { lo[1] } else { hi[1] },
-                if i & 4 == 0 { lo[2] } else { hi[2] },
-            )
-        })
-        .collect();
-    let t = vec![
-        [0, 2, 1],
-        [1, 2, 3],
-        [4, 5, 6],
-        [5, 7, 6],
-        [0, 1, 4],
-        [1, 5, 4],
-        [2, 6, 3],
-        [3, 6, 7],
-        [0, 4, 2],
-        [2, 4, 6],
-        [1, 3, 5],
-        [3, 7, 5],
-    ];
-    Mesh::from_world(&p, t).expect("a box is a valid mesh")
+    Mesh::of_box(&Aabb::new(lo.into(), hi.into())).expect("a box is a valid mesh")
 }
 
 /// A single triangle (an open, thin object).

@@ -78,9 +78,31 @@ pub enum Command {
         output: PathBuf,
         #[command(flatten)]
         build: BuildArgs,
-        /// M, the levels of detail each node record carries (new files only).
-        #[arg(long, default_value_t = mktree::db::DEFAULT_LOD_LEVELS)]
-        lods: u8,
+        #[command(flatten)]
+        lod: LodArgs,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Per level of detail: faces at the root (b and B), eps, measured error, bytes and blocks.
+    Lods {
+        file: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
+    /// One node's b(S_n,k) (or B(S_n,k) with --objects): faces, bytes, eps, predicted and actual reads.
+    Node {
+        file: PathBuf,
+        /// Node id (preorder, root 0).
+        node: u32,
+        /// Level k, 1 ..= M.
+        #[arg(long)]
+        lod: u8,
+        /// B(S_n,k), the per-object bounds, instead of b(S_n,k).
+        #[arg(long)]
+        objects: bool,
+        /// Write the bound as OBJ, one `o` per stored piece.
+        #[arg(long)]
+        export: Option<PathBuf>,
         #[arg(long)]
         json: bool,
     },
@@ -119,6 +141,31 @@ pub enum Command {
         #[arg(long)]
         dir: Option<PathBuf>,
     },
+}
+
+/// Levels of detail of a new tree.
+#[derive(Args, Debug, Clone)]
+pub struct LodArgs {
+    /// M, the levels of detail each node record carries (new files only):
+    /// 1 AABB, 2 cuberille, 3 .. M-1 polyhedra, M exact [default: 4].
+    #[arg(long)]
+    pub lods: Option<u8>,
+    /// eps of the polyhedral levels 3 .. M-1 in mm, coarse to fine (default: from the scene).
+    #[arg(long, value_delimiter = ',')]
+    pub lod_eps: Option<Vec<f64>>,
+    /// Keep per-object bounds B(S_n,k) at every node instead of pointing to b(S_n,k).
+    #[arg(long)]
+    pub lod_keep_identity: bool,
+}
+
+impl LodArgs {
+    pub fn params(&self) -> mktree::lod::LodParams {
+        mktree::lod::LodParams {
+            eps: self.lod_eps.clone(),
+            keep_identity: self.lod_keep_identity,
+            ..mktree::lod::LodParams::default()
+        }
+    }
 }
 
 /// Options for reading scenes.

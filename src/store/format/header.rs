@@ -213,9 +213,9 @@ mod tests {
         let b = encode_block0(4096, 4);
         let (bs, m, slots) = decode_block0(&b).unwrap();
         assert_eq!((bs, m, slots), (4096, 4, [SlotRead::Empty, SlotRead::Empty]));
-        let mut v2 = b.clone();
-        v2[8] = 2;
-        assert!(matches!(decode_prefix(&v2), Err(StorageError::UnsupportedVersion { found: 2, .. })));
+        let mut v1 = b.clone();
+        v1[8] = 1;
+        assert!(matches!(decode_prefix(&v1), Err(StorageError::UnsupportedVersion { found: 1, .. })));
         let mut bad = b;
         bad[2000] = 1;
         assert!(decode_block0(&bad).is_err());

@@ -37,8 +37,36 @@ pub(crate) struct MetaRecord {
     pub(crate) names_checksum: U32,
     pub(crate) build_seconds: F64,
     pub(crate) lod_table: [[F64; 2]; LOD_TABLE_LEN],
+    pub(crate) lattice_origin: [F64; 3],
+    pub(crate) lattice_cell: F64,
+    pub(crate) lod_flags: U32,
+    pub(crate) cuberille_bits: U32,
+    pub(crate) cuberille_object_bits: U32,
+    pub(crate) reserved2: [u8; 4],
+    pub(crate) lod_grid_level: [u8; LOD_TABLE_LEN],
+    pub(crate) lod_usage: [[U64; 2]; LOD_TABLE_LEN],
 }
-const _: () = assert!(FRAME_LEN + size_of::<MetaRecord>() == 416);
+const _: () = assert!(FRAME_LEN + size_of::<MetaRecord>() == 736);
+
+/// `lod_flags` bit 0: B(S_n,k) keeps object identity at every level.
+pub const LOD_KEEP_IDENTITY: u32 = 1;
+
+/// How the levels of detail below M were built (format-spec/meta.md).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LodCodes {
+    /// The global voxel lattice: origin and level-0 cell (mm); cell 0 when
+    /// no level below M holds voxels.
+    pub lattice_origin: [f64; 3],
+    pub lattice_cell: f64,
+    pub flags: u32,
+    /// Bit budgets of a node's and an object's cuberille (level 2).
+    pub cuberille_bits: u32,
+    pub cuberille_object_bits: u32,
+    /// Per level k = 1 .. 16: the lattice level of its grids (level 2: the finest allowed).
+    pub grid_level: [u8; LOD_TABLE_LEN],
+    /// Per level k = 1 .. 16: (bytes of blobs, blocks holding them).
+    pub usage: [[u64; 2]; LOD_TABLE_LEN],
+}
 
 /// How the tree was built, as raw codes (the db layer maps them to `build` types).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -73,6 +101,7 @@ pub struct Meta {
     pub names_checksum: u32,
     /// (eps_k, measured error) for k = 1 .. 16.
     pub lod_table: [[f64; 2]; LOD_TABLE_LEN],
+    pub lods: LodCodes,
 }
 
 /// Largest valid method, tie-break and leaf-rule codes.
@@ -109,6 +138,14 @@ impl Meta {
             names_checksum: self.names_checksum.into(),
             build_seconds: f(self.build.build_seconds),
             lod_table: self.lod_table.map(|p| p.map(f)),
+            lattice_origin: self.lods.lattice_origin.map(f),
+            lattice_cell: f(self.lods.lattice_cell),
+            lod_flags: self.lods.flags.into(),
+            cuberille_bits: self.lods.cuberille_bits.into(),
+            cuberille_object_bits: self.lods.cuberille_object_bits.into(),
+            reserved2: [0; 4],
+            lod_grid_level: self.lods.grid_level,
+            lod_usage: self.lods.usage.map(|p| p.map(U64::new)),
         };
         let end = FRAME_LEN + size_of::<MetaRecord>();
         block[FRAME_LEN..end].copy_from_slice(r.as_bytes());
@@ -119,7 +156,7 @@ impl Meta {
         let end = FRAME_LEN + size_of::<MetaRecord>();
         let r = MetaRecord::read_from_bytes(&block[FRAME_LEN..end])
             .map_err(|_| StorageError::corrupt(id, "meta", "block too small"))?;
-        if r.reserved0 != [0; 2] || r.reserved1 != 0 || !all_zero(&block[end..]) {
+        if r.reserved0 != [0; 2] || r.reserved1 != 0 || r.reserved2 != [0; 4] || !all_zero(&block[end..]) {
             return Err(StorageError::corrupt(id, "reserved", "reserved bytes are not zero"));
         }
         let bad = |field, detail: String| Err(StorageError::corrupt(id, field, detail));
@@ -147,6 +184,18 @@ impl Meta {
         if scene_box.iter().any(|x| !x.is_finite()) || (0..3).any(|i| scene_box[i] > scene_box[i + 3]) {
             return bad("scene_box", format!("{scene_box:?} is not a box"));
         }
+        let lattice_origin = r.lattice_origin.map(|x| x.get());
+        let lattice_cell = r.lattice_cell.get();
+        if lattice_origin.iter().any(|x| !x.is_finite()) || !(lattice_cell.is_finite() && lattice_cell >= 0.0)
+        {
+            return bad("lattice", format!("origin {lattice_origin:?}, cell {lattice_cell}"));
+        }
+        if r.lod_flags.get() & !LOD_KEEP_IDENTITY != 0 {
+            return bad("lod_flags", format!("unknown bits {:#x}", r.lod_flags.get()));
+        }
+        if r.lod_table.iter().flatten().any(|x| !(x.get().is_finite() && x.get() >= 0.0)) {
+            return bad("lod_table", "an error is negative or not finite".into());
+        }
         Ok(Meta {
             root_block: r.root_block.get(),
             root_checksum: r.root_checksum.get(),
@@ -172,6 +221,15 @@ impl Meta {
             names_block: r.names_block.get(),
             names_checksum: r.names_checksum.get(),
             lod_table: r.lod_table.map(|p| p.map(|x| x.get())),
+            lods: LodCodes {
+                lattice_origin,
+                lattice_cell,
+                flags: r.lod_flags.get(),
+                cuberille_bits: r.cuberille_bits.get(),
+                cuberille_object_bits: r.cuberille_object_bits.get(),
+                grid_level: r.lod_grid_level,
+                usage: r.lod_usage.map(|p| p.map(|x| x.get())),
+            },
         })
     }
 }

@@ -84,6 +84,11 @@ pub enum LodRef {
     Run { first: u32, blocks: u32, checksum: u32 },
     /// The union of the children's (Fits = false): `reads` reads through the subtree.
     Spread { reads: u32 },
+    /// The same bound as entry (`level`, `objects`) of this record: a level
+    /// that buys no accuracy is not stored twice. Never names another `Same`.
+    Same { level: u8, objects: bool },
+    /// b(S_n,1): the record's own box, no read.
+    InRecord,
 }
 
 impl LodRef {
@@ -92,13 +97,23 @@ impl LodRef {
         matches!(self, LodRef::InBlock { .. })
     }
 
-    /// Block reads to fetch it from a cold cache, with the node record in hand.
+    /// Block reads to fetch it from a cold cache, with the node record in
+    /// hand; a `Same` entry costs what it names (`NodeRecord::entry`).
     pub fn reads(&self) -> u64 {
         match *self {
-            LodRef::Absent => 0,
+            LodRef::Absent | LodRef::InRecord | LodRef::Same { .. } => 0,
             LodRef::InBlock { .. } => 1,
             LodRef::Run { blocks, .. } => blocks.into(),
             LodRef::Spread { reads } => reads.into(),
+        }
+    }
+
+    /// The stored block this entry starts at, for `InBlock` and `Run`.
+    pub fn block(&self) -> Option<(u32, u32)> {
+        match *self {
+            LodRef::InBlock { block, checksum, .. } => Some((block, checksum)),
+            LodRef::Run { first, checksum, .. } => Some((first, checksum)),
+            _ => None,
         }
     }
 
@@ -108,6 +123,8 @@ impl LodRef {
             LodRef::InBlock { block, offset, checksum } => (1, block, offset, checksum),
             LodRef::Run { first, blocks, checksum } => (2, first, blocks, checksum),
             LodRef::Spread { reads } => (3, reads, 0, 0),
+            LodRef::Same { level, objects } => (4, level.into(), objects.into(), 0),
+            LodRef::InRecord => (5, 0, 0, 0),
         };
         LodEntryRaw { tag, reserved: [0; 3], value: value.into(), aux: aux.into(), checksum: checksum.into() }
     }
@@ -122,6 +139,10 @@ impl LodRef {
             1 if v != 0 => Some(LodRef::InBlock { block: v, offset: a, checksum: c }),
             2 if v != 0 && a >= 2 => Some(LodRef::Run { first: v, blocks: a, checksum: c }),
             3 if a == 0 && c == 0 => Some(LodRef::Spread { reads: v }),
+            4 if (1..=255).contains(&v) && a <= 1 && c == 0 => {
+                Some(LodRef::Same { level: v as u8, objects: a == 1 })
+            }
+            5 if v == 0 && a == 0 && c == 0 => Some(LodRef::InRecord),
             _ => None,
         }
     }
@@ -179,6 +200,26 @@ impl NodeRecord {
     /// True for a leaf.
     pub fn is_leaf(&self) -> bool {
         self.children.is_none()
+    }
+
+    /// The block reads a cold fetch of entry (`k`, `objects`) takes with
+    /// this record in hand: the paper's bFits/bPage (BFits/BPage) prediction.
+    pub fn predicted_reads(&self, k: u8, objects: bool) -> Option<u64> {
+        self.entry(k, objects).map(|(_, _, e)| e.reads())
+    }
+
+    /// Entry `k` (1-based) of b(S_n,k) or, with `objects`, B(S_n,k), with a
+    /// `Same` followed: the level and kind it resolves to, and its entry.
+    /// Decoding guarantees the target exists and is not itself `Same`.
+    pub fn entry(&self, k: u8, objects: bool) -> Option<(u8, bool, LodRef)> {
+        let e = *self.lods.get(usize::from(k).checked_sub(1)?)?.get(usize::from(objects))?;
+        match e {
+            LodRef::Same { level, objects } => {
+                let t = self.lods.get(usize::from(level) - 1)?[usize::from(objects)];
+                Some((level, objects, t))
+            }
+            e => Some((k, objects, e)),
+        }
     }
 
     fn encode(&self, out: &mut [u8]) {
@@ -279,7 +320,7 @@ impl NodeRecord {
             }
             k => return Err(bad("kind", format!("{k} is neither internal (1) nor leaf (2)"))),
         };
-        let lods = (0..lod_levels as usize)
+        let lods: Vec<[LodRef; 2]> = (0..lod_levels as usize)
             .map(|k| {
                 let at = FIXED_LEN + k * LOD_PAIR_LEN;
                 let pair = <[LodEntryRaw; 2]>::ref_from_bytes(&bytes[at..at + LOD_PAIR_LEN])
@@ -290,6 +331,7 @@ impl NodeRecord {
                 Ok([dec(&pair[0])?, dec(&pair[1])?])
             })
             .collect::<Result<_, StorageError>>()?;
+        check_entries(&lods, children.is_none()).map_err(|d| bad("lods", d))?;
         Ok(NodeRecord {
             node_id: fixed.node_id.get(),
             aabb,
@@ -299,6 +341,33 @@ impl NodeRecord {
             lods,
         })
     }
+}
+
+/// The rules that tie a record's entries together (format-spec/node.md): a
+/// `Same` names a stored entry of another level or kind, `InRecord` is only
+/// b(S_n,1), a leaf has no children to spread over.
+fn check_entries(lods: &[[LodRef; 2]], leaf: bool) -> Result<(), String> {
+    for (k, pair) in lods.iter().enumerate() {
+        for (j, e) in pair.iter().enumerate() {
+            let at = || format!("k = {}, {}", k + 1, if j == 1 { "objects" } else { "group" });
+            match *e {
+                LodRef::Same { level, objects } => {
+                    let target = lods.get(usize::from(level) - 1).map(|p| p[usize::from(objects)]);
+                    if (usize::from(level) - 1, usize::from(objects)) == (k, j)
+                        || matches!(target, None | Some(LodRef::Same { .. } | LodRef::Absent))
+                    {
+                        return Err(format!("{}: names level {level}, which is not stored", at()));
+                    }
+                }
+                LodRef::InRecord if (k, j) != (0, 0) => {
+                    return Err(format!("{}: only b(S_n,1) is the record's box", at()));
+                }
+                LodRef::Spread { .. } if leaf => return Err(format!("{}: a leaf has no children", at())),
+                _ => {}
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Writes `records` into a node block's payload.

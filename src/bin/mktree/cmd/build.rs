@@ -12,7 +12,7 @@ use mktree::scene::Scene;
 use mktree::store::format::geometry::record_len;
 use serde_json::json;
 
-use crate::args::BuildArgs;
+use crate::args::{BuildArgs, LodArgs};
 use crate::output;
 
 /// A progress bar over objects placed in leaves (on stderr, hidden when not a terminal).
@@ -40,7 +40,7 @@ pub fn build_in_memory(scene: &Scene, args: &BuildArgs) -> Result<Hierarchy> {
     Ok(tree)
 }
 
-pub fn run(scene_path: &Path, out: &Path, args: &BuildArgs, lods: u8, as_json: bool) -> Result<()> {
+pub fn run(scene_path: &Path, out: &Path, args: &BuildArgs, lod: &LodArgs, as_json: bool) -> Result<()> {
     let scene = crate::cmd::read_scene(scene_path, &args.import.options())?;
     let started = Instant::now();
     let db = if out.exists() {
@@ -48,13 +48,23 @@ pub fn run(scene_path: &Path, out: &Path, args: &BuildArgs, lods: u8, as_json: b
         if args.block_size.is_some_and(|b| b != db.block_size()) {
             bail!("{} has {}-byte blocks; a new block size needs a new file", out.display(), db.block_size());
         }
+        if lod.lods.is_some_and(|m| m != db.lod_levels()) {
+            bail!("{} has {} levels of detail; a new M needs a new file", out.display(), db.lod_levels());
+        }
         db
     } else {
-        Database::create(out, CreateOptions { block_size: args.block_size(), lod_levels: lods })
-            .with_context(|| format!("creating {}", out.display()))?
+        Database::create(
+            out,
+            CreateOptions {
+                block_size: args.block_size(),
+                lod_levels: lod.lods.unwrap_or(mktree::db::DEFAULT_LOD_LEVELS),
+            },
+        )
+        .with_context(|| format!("creating {}", out.display()))?
     };
     let pb = progress_bar(&scene, args);
     let mut w = db.begin_write()?;
+    w.set_lod_params(lod.params());
     let tree = w.bulk_load(&scene, &args.params(), &|p: BuildProgress| pb.set_position(p.objects_placed))?;
     w.commit()?;
     pb.finish_and_clear();

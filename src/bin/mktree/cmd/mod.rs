@@ -6,6 +6,7 @@ mod check;
 mod demo;
 mod dump;
 mod gen_info;
+mod lods;
 mod query;
 mod stats;
 mod sweep;
@@ -29,8 +30,10 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Sweep { scene, pages, rates, look_ahead, json, import } => {
             sweep::run(&scene, &import.options(), pages, &rates, look_ahead, json)
         }
-        Command::Build { scene, output, build, lods, json } => {
-            build::run(&scene, &output, &build, lods, json)
+        Command::Build { scene, output, build, lod, json } => build::run(&scene, &output, &build, &lod, json),
+        Command::Lods { file, json } => lods::table(&file, json),
+        Command::Node { file, node, lod, objects, export, json } => {
+            lods::node(&file, node, lod, objects, export.as_deref(), json)
         }
         Command::Query { file, aabb, json } => query::run(&file, &aabb, json),
         Command::Check { file, json } => check::run(&file, json),

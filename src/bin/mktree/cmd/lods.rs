@@ -1,0 +1,166 @@
+//! `mktree lods` and `mktree node`: what each level of detail stores, and
+//! one node's bound at one level, with its predicted and actual reads.
+
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+use anyhow::{Context, Result, bail};
+use mktree::db::{Database, NodeLocation, Piece, ReadTransaction};
+use mktree::scene::{Mesh, ObjWriter, Object};
+use mktree::store::ReadStats;
+use mktree::store::format::node::NodeRecord;
+use serde_json::json;
+
+use crate::output;
+
+fn open(file: &Path) -> Result<(Database, ReadTransaction)> {
+    let db = Database::open(file).with_context(|| format!("opening {}", file.display()))?;
+    let r = db.begin_read()?;
+    Ok((db, r))
+}
+
+pub fn table(file: &Path, as_json: bool) -> Result<()> {
+    let (_db, r) = open(file)?;
+    let (Some(root), Some(info), Some(tree)) = (r.root(), r.lod_info(), r.info()) else {
+        bail!("{} holds no tree", file.display())
+    };
+    let mut levels = Vec::new();
+    for k in 1..=info.levels {
+        let i = usize::from(k) - 1;
+        // Faces at the root; level M is the objects themselves (no need to read them all).
+        let (faces_b, faces_obj, bytes) = if k == info.levels {
+            (tree.triangles, tree.triangles, tree.geometry_blocks * u64::from(tree.block_size))
+        } else {
+            let b = r.fetch_level(root, k, false, &mut ReadStats::default())?;
+            let o = r.fetch_level(root, k, true, &mut ReadStats::default())?;
+            (b.faces(), o.faces(), info.bytes[i])
+        };
+        levels.push(json!({
+            "k": k,
+            "faces_b": faces_b,
+            "faces_B": faces_obj,
+            "eps": info.eps[i],
+            "measured_error": info.measured_error[i],
+            "bytes": bytes,
+            "blocks": info.blocks[i],
+        }));
+    }
+    if as_json {
+        return output::json(&json!({ "levels": levels }));
+    }
+    println!(
+        "{}: {} objects, {} triangles, M = {}{}",
+        file.display(),
+        tree.objects,
+        tree.triangles,
+        info.levels,
+        if info.keep_identity { ", B keeps object identity" } else { "" }
+    );
+    let rows: Vec<Vec<String>> = levels
+        .iter()
+        .map(|l| {
+            ["k", "faces_b", "faces_B", "eps", "measured_error", "bytes", "blocks"]
+                .iter()
+                .map(|key| match &l[*key] {
+                    serde_json::Value::Number(n) if n.is_f64() => format!("{:.1}", n.as_f64().unwrap_or(0.0)),
+                    v => v.to_string(),
+                })
+                .collect()
+        })
+        .collect();
+    output::table(
+        &["k", "Faces(b(S,k))", "Faces(B(S,k))", "eps mm", "measured mm", "bytes", "blocks"],
+        &rows,
+    );
+    Ok(())
+}
+
+/// Node `id`'s location and record (walks the node blocks).
+fn find(r: &ReadTransaction, id: u32) -> Result<(NodeLocation, NodeRecord)> {
+    let mut found = None;
+    r.walk_nodes(&mut ReadStats::default(), |at, rec| {
+        if rec.node_id == id {
+            found = Some((at, rec.clone()));
+        }
+        Ok(())
+    })?;
+    found.with_context(|| format!("no node {id}"))
+}
+
+pub fn node(file: &Path, id: u32, k: u8, objects: bool, export: Option<&Path>, as_json: bool) -> Result<()> {
+    let (_db, r) = open(file)?;
+    let info = r.lod_info().with_context(|| format!("{} holds no tree", file.display()))?;
+    if k == 0 || k > info.levels {
+        bail!("--lod {k} is not a level of this file (1 ..= {})", info.levels);
+    }
+    let (at, rec) = find(&r, id)?;
+    let predicted = rec.predicted_reads(k, objects).context("the record has no such level")?;
+    let mut stats = ReadStats::default();
+    let level = r.fetch_level(at, k, objects, &mut stats)?;
+    if let Some(path) = export {
+        write_obj(path, id, k, &level.pieces).with_context(|| format!("writing {}", path.display()))?;
+    }
+    let value = json!({
+        "node": id,
+        "lod": k,
+        "objects": objects,
+        "pieces": level.pieces.len(),
+        "faces": level.faces(),
+        "bytes": level.bytes,
+        "eps": info.eps[usize::from(k) - 1],
+        "predicted_reads": predicted,
+        "actual_reads": stats.total(),
+        "block_reads": stats,
+    });
+    if as_json {
+        return output::json(&value);
+    }
+    println!(
+        "node {id}, {} at level {k}: {} pieces, {} faces, {} bytes, eps {:.1} mm; reads predicted {predicted}, actual {} ({} node, {} lod, {} geometry)",
+        if objects { "B(S_n,k)" } else { "b(S_n,k)" },
+        level.pieces.len(),
+        level.faces(),
+        level.bytes,
+        info.eps[usize::from(k) - 1],
+        stats.total(),
+        stats.node,
+        stats.lod,
+        stats.geometry
+    );
+    Ok(())
+}
+
+/// Each piece as closed meshes: a box, a voxel set's boundary, or the objects.
+fn write_obj(path: &Path, node: u32, k: u8, pieces: &[Piece]) -> Result<()> {
+    let mut w = ObjWriter::new(BufWriter::new(std::fs::File::create(path)?));
+    w.comment(&format!("mktree node {node}, level {k}"))?;
+    let mut put = |name: String, mesh: Option<Mesh>| -> Result<()> {
+        if let Some(mesh) = mesh {
+            w.write_object(&Object::new(name, mesh))?;
+        }
+        Ok(())
+    };
+    for p in pieces {
+        match p {
+            Piece::Box { node, aabb } => put(format!("node{node}_k{k}"), Mesh::of_box(aabb))?,
+            Piece::ObjectBoxes(b) => {
+                for (id, aabb) in b {
+                    put(format!("object{id}_k{k}"), Mesh::of_box(aabb))?;
+                }
+            }
+            Piece::Voxels { node, voxels } => put(format!("node{node}_k{k}"), Some(voxels.boundary_mesh()))?,
+            Piece::ObjectVoxels(v) => {
+                for (id, voxels) in v {
+                    put(format!("object{id}_k{k}"), Some(voxels.boundary_mesh()))?;
+                }
+            }
+            Piece::Objects(o) => {
+                for (id, mesh) in o {
+                    put(format!("object{id}"), Some(mesh.clone()))?;
+                }
+            }
+        }
+    }
+    w.finish()?.flush()?;
+    Ok(())
+}
