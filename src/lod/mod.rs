@@ -1,7 +1,7 @@
 //! Voxel levels of detail (paper §1.4-1.5): k = 2 is the cuberille, a bitmap
 //! over R(S_n); k >= 3 is the same conservative voxel solid, stored as
 //! disjoint boxes and reported as a polyhedron (its boundary with coplanar
-//! faces merged), the octree offset-surface family of [ABA01].
+//! faces merged), the octree offset-surface family the paper cites (ABA01).
 //!
 //! Every grid sits on one global [`Lattice`], so levels nest: a grid at
 //! lattice level j over R' ⊆ R refines the grid at level j' >= j over R.

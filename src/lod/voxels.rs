@@ -35,6 +35,23 @@ impl Voxels {
         self.bits.iter().all(|&w| w == 0)
     }
 
+    /// True when cell `c` is set. Panics when `c` is outside the grid.
+    pub fn is_set(&self, c: [u32; 3]) -> bool {
+        self.get(self.checked_index(c))
+    }
+
+    /// Sets cell `c`. Panics when `c` is outside the grid.
+    pub fn set_cell(&mut self, c: [u32; 3]) {
+        let i = self.checked_index(c);
+        self.set(i);
+    }
+
+    fn checked_index(&self, c: [u32; 3]) -> usize {
+        let d = self.grid.dims();
+        assert!((0..3).all(|a| c[a] < d[a]), "cell {c:?} outside a grid of {d:?}");
+        self.grid.index(c)
+    }
+
     pub(crate) fn get(&self, i: usize) -> bool {
         self.bits[i / 64] >> (i % 64) & 1 == 1
     }
