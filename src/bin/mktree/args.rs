@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
-use mktree::build::{BuildParams, LeafRule, LookAhead, Method, TieBreak};
+use mktree::build::{BuildParams, LeafRule, LookAhead, Method, QueryExtent, TieBreak};
 use mktree::store::format::run;
 
 #[derive(Parser, Debug)]
@@ -138,7 +138,7 @@ impl ImportArgs {
 /// Every bulk-loading option.
 #[derive(Args, Debug, Clone)]
 pub struct BuildArgs {
-    /// Splitting method: moa, laa, median, hilbert, sah.
+    /// Splitting method: moa, laa, median, hilbert, sah, vsah, refine.
     #[arg(long, default_value = "moa")]
     pub method: Method,
     /// R, in [0, 0.5].
@@ -160,6 +160,10 @@ pub struct BuildArgs {
     /// Which of equally good cuts wins: first-found (the paper), widest-gap, most-balanced.
     #[arg(long, default_value = "first-found")]
     pub tie_break: TieBreak,
+    /// refine: the query extent q its cost model is tuned for, in mm: one
+    /// side, three (x,y,z), or auto (the mean object extent + 100 mm).
+    #[arg(long, default_value = "auto")]
+    pub query_extent: QueryExtent,
     #[command(flatten)]
     pub import: ImportArgs,
 }
@@ -184,6 +188,7 @@ impl BuildArgs {
             leaf,
             look_ahead: self.look_ahead,
             tie_break: self.tie_break,
+            query_extent: self.query_extent,
         }
     }
 }
