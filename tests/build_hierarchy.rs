@@ -8,7 +8,7 @@ mod common;
 
 use common::arb_boxes;
 
-use mktree::build::{BuildParams, LeafRule, LookAhead, Method, TieBreak, build};
+use mktree::build::{BuildParams, LeafRule, LookAhead, Method, QueryExtent, TieBreak, build};
 use proptest::prelude::*;
 
 fn params() -> impl Strategy<Value = BuildParams> {
@@ -21,13 +21,18 @@ fn params() -> impl Strategy<Value = BuildParams> {
         ],
         prop_oneof![(0u32..4).prop_map(LookAhead::Levels), Just(LookAhead::Max)],
         prop::sample::select(TieBreak::ALL.to_vec()),
+        prop_oneof![
+            Just(QueryExtent::Auto),
+            (0.0f64..500.0).prop_map(|q| QueryExtent::Mm([q, 2.0 * q, 0.0]))
+        ],
     )
-        .prop_map(|(method, rate, leaf, look_ahead, tie_break)| BuildParams {
+        .prop_map(|(method, rate, leaf, look_ahead, tie_break, query_extent)| BuildParams {
             method,
             rate,
             leaf,
             look_ahead,
             tie_break,
+            query_extent,
         })
 }
 

@@ -229,12 +229,30 @@ pub(crate) fn partition(keys: &Keys, lists: &SixLists, cut: &Cut) -> (SixLists, 
     for (i, &j) in lists[o].iter().enumerate() {
         keys.side[j as usize].store(i <= k, Relaxed);
     }
+    divide_marked(keys, lists, Some((o, k)))
+}
+
+/// The node's lists divided into the objects of `first` (some of the
+/// node's objects, found by another method) and the rest, each list
+/// keeping its order.
+pub(crate) fn partition_by(keys: &Keys, lists: &SixLists, first: &[u32]) -> (SixLists, SixLists) {
+    for &j in &lists[0] {
+        keys.side[j as usize].store(false, Relaxed);
+    }
+    for &j in first {
+        keys.side[j as usize].store(true, Relaxed);
+    }
+    divide_marked(keys, lists, None)
+}
+
+/// The lists divided by the marks in `keys.side`; `cut` (order, Icut), when
+/// the marks come from one, divides its own list by position.
+fn divide_marked(keys: &Keys, lists: &SixLists, cut: Option<(usize, usize)>) -> (SixLists, SixLists) {
     let parts = six(lists[0].len() >= PAR_MIN, |p| {
         let list = &lists[p];
-        if p == o {
-            (list[..=k].to_vec(), list[k + 1..].to_vec())
-        } else {
-            list.iter().partition(|&&j| keys.side[j as usize].load(Relaxed))
+        match cut {
+            Some((o, k)) if p == o => (list[..=k].to_vec(), list[k + 1..].to_vec()),
+            _ => list.iter().partition(|&&j| keys.side[j as usize].load(Relaxed)),
         }
     });
     let mut first = SixLists::default();

@@ -8,6 +8,7 @@
 //! less time on random scenes); every tie is still broken by input id, so
 //! the numbering never shows in the tree.
 
+use super::cost::CostModel;
 use super::cut::Keys;
 use super::hierarchy::node_id;
 use super::hilbert::{self, Hilbert};
@@ -16,7 +17,8 @@ use super::leaf::Leaf;
 use super::median::Median;
 use super::moa::Moa;
 use super::progress::Meter;
-use super::sah::Sah;
+use super::refine::Refine;
+use super::sah::{Heuristic, Sah};
 use super::walk::{Walk, walk};
 use super::{
     BuildError, BuildParams, BuildProgress, Hierarchy, Method, Node, NodeId, NodeKind, Order, Split,
@@ -76,18 +78,23 @@ pub fn build(
     };
     let all = (0..boxes.len() as u32).collect::<Vec<u32>>();
     let nodes = match params.method {
-        Method::Moa | Method::Laa => {
+        Method::Moa | Method::Laa | Method::Refine => {
             let keys = Keys::new(&local_boxes, &ids);
             let lists = keys.sorted_lists();
             match params.method {
                 Method::Laa => grow(&ctx, &Laa::new(&ctx, &keys, params.look_ahead), lists),
+                Method::Refine => {
+                    let model = CostModel::of_boxes(boxes, params.query_extent);
+                    grow(&ctx, &Refine::new(&ctx, &keys, model), lists)
+                }
                 _ => grow(&ctx, &Moa::new(&ctx, &keys), lists),
             }
         }
         Method::Median => grow(&ctx, &Median::new(&ctx), all),
         // Local numbering is already the curve's order.
         Method::Hilbert => grow(&ctx, &Hilbert::new(&ctx), all),
-        Method::Sah => grow(&ctx, &Sah::new(&ctx), all),
+        Method::Sah => grow(&ctx, &Sah::new(&ctx, Heuristic::Area), all),
+        Method::Vsah => grow(&ctx, &Sah::new(&ctx, Heuristic::Volume), all),
     };
     ctx.meter.finish();
     Ok(Hierarchy { nodes })

@@ -51,6 +51,12 @@ pub enum BuildError {
         /// Sizes given.
         sizes: usize,
     },
+    /// A fixed query extent with a negative or non-finite side.
+    #[error("the query extent {query_extent:?} needs three finite sides >= 0 mm")]
+    BadQueryExtent {
+        /// The rejected sides.
+        query_extent: [f64; 3],
+    },
     /// `LeafRule::Bytes` was asked for without the objects' byte sizes.
     #[error("the byte leaf rule needs every object's size in bytes")]
     MissingSizes,

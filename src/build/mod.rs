@@ -1,12 +1,16 @@
 //! Bulk loading: the MKtree hierarchy of §3 — MOA (MOA1/MOA2, §3.1), LAA
-//! (LAA1-LAA3, §3.2) and the median, Hilbert and SAH reference methods —
-//! and the paper's reports on it (Tables 2-44).
+//! (LAA1-LAA3, §3.2), the median, Hilbert, SAH and volume-SAH reference
+//! methods and `refine`, which refines the volume-SAH tree with MOA's cuts
+//! under a cost model of box queries — and the paper's reports on it
+//! (Tables 2-44).
 //!
 //! The builder works on object boxes (and, for the byte leaf rule, object
 //! sizes), never on meshes. One algorithm per file: `cut.rs` is the step
-//! MOA, LAA and LAA's trials share, `walk.rs` the depth-first engine under
+//! MOA, LAA, LAA's trials and `refine` share, `cost.rs` the cost model,
+//! `walk.rs` the depth-first engine under
 //! every method, `driver.rs` the entry point.
 
+mod cost;
 mod cut;
 mod driver;
 mod error;
@@ -18,16 +22,18 @@ mod median;
 mod moa;
 mod params;
 mod progress;
+mod refine;
 mod report;
 mod sah;
 mod validate;
 mod walk;
 
+pub use cost::CostModel;
 pub use driver::build;
 pub use error::BuildError;
 pub use hierarchy::{Hierarchy, Node, NodeId, NodeKind, Order, Split};
 pub use leaf::{LeafRule, object_bytes};
-pub use params::{BuildParams, LookAhead, Method, ParseParamError, TieBreak};
+pub use params::{BuildParams, LookAhead, Method, ParseParamError, QueryExtent, TieBreak};
 pub use progress::{BuildProgress, estimate_work};
 pub use report::{LevelRow, Report, TreeShape};
 pub use validate::HierarchyError;

@@ -1,7 +1,8 @@
 //! Build options: the paper's arguments of `generate_tree` (MOA1 §3.1,
 //! LAA1 §3.2) — `mem_page` (MemPage, in [`LeafRule`]), `rate` (R) and
 //! `look_ahead_level` (LookAheadLevel) — plus the method and the rule that
-//! breaks ties between equal-overlap cuts.
+//! breaks ties between equal-overlap cuts, and the query extent of the
+//! cost model that `refine` minimises.
 
 use std::fmt;
 use std::str::FromStr;
@@ -26,6 +27,9 @@ pub struct BuildParams {
     pub look_ahead: LookAhead,
     /// MOA and LAA: which of several equally good cuts wins.
     pub tie_break: TieBreak,
+    /// `refine`: the query extent q of the cost model it minimises (see
+    /// [`CostModel`](super::CostModel)).
+    pub query_extent: QueryExtent,
 }
 
 impl Default for BuildParams {
@@ -36,6 +40,7 @@ impl Default for BuildParams {
             leaf: LeafRule::Objects(100),
             look_ahead: LookAhead::Levels(2),
             tie_break: TieBreak::FirstFound,
+            query_extent: QueryExtent::Auto,
         }
     }
 }
@@ -48,6 +53,11 @@ impl BuildParams {
         }
         if self.leaf.is_zero() {
             return Err(BuildError::ZeroCapacity);
+        }
+        if let QueryExtent::Mm(q) = self.query_extent
+            && !q.iter().all(|x| x.is_finite() && *x >= 0.0)
+        {
+            return Err(BuildError::BadQueryExtent { query_extent: q });
         }
         Ok(())
     }
@@ -68,13 +78,27 @@ pub enum Method {
     Hilbert,
     /// Reference: the binned surface-area heuristic.
     Sah,
+    /// The binned SAH with the volume of the boxes in place of their area.
+    Vsah,
+    /// `vsah`, then one top-down pass that replaces a node's cut by one of
+    /// MOA's six candidates where that lowers the subtree's expected leaf
+    /// accesses under the [`CostModel`](super::CostModel).
+    Refine,
 }
 
 impl Method {
     /// Every method, in declaration order.
-    pub const ALL: [Method; 5] = [Method::Moa, Method::Laa, Method::Median, Method::Hilbert, Method::Sah];
+    pub const ALL: [Method; 7] = [
+        Method::Moa,
+        Method::Laa,
+        Method::Median,
+        Method::Hilbert,
+        Method::Sah,
+        Method::Vsah,
+        Method::Refine,
+    ];
 
-    /// "moa", "laa", "median", "hilbert" or "sah".
+    /// "moa", "laa", "median", "hilbert", "sah", "vsah" or "refine".
     pub fn name(self) -> &'static str {
         match self {
             Method::Moa => "moa",
@@ -82,8 +106,21 @@ impl Method {
             Method::Median => "median",
             Method::Hilbert => "hilbert",
             Method::Sah => "sah",
+            Method::Vsah => "vsah",
+            Method::Refine => "refine",
         }
     }
+}
+
+/// The query extent q of the cost model: per axis, the side of the box
+/// queries the tree is tuned for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum QueryExtent {
+    /// Taken from the data: the mean extent of the objects' boxes on each
+    /// axis plus 100 mm (a collision query about an object of the scene).
+    Auto,
+    /// Fixed sides, in mm, one per axis.
+    Mm([f64; 3]),
 }
 
 /// How far LAA's trial subtrees look below the node being split.
@@ -163,7 +200,7 @@ fn parse_named<T: Copy>(
 impl FromStr for Method {
     type Err = ParseParamError;
     fn from_str(s: &str) -> Result<Method, ParseParamError> {
-        parse_named(s, &Method::ALL, Method::name, "method", "moa, laa, median, hilbert or sah")
+        parse_named(s, &Method::ALL, Method::name, "method", "moa, laa, median, hilbert, sah, vsah or refine")
     }
 }
 
@@ -206,6 +243,39 @@ impl fmt::Display for TieBreak {
     }
 }
 
+impl FromStr for QueryExtent {
+    type Err = ParseParamError;
+    /// `auto`, one side in mm for all three axes, or three comma-separated sides.
+    fn from_str(s: &str) -> Result<QueryExtent, ParseParamError> {
+        if s == "auto" {
+            return Ok(QueryExtent::Auto);
+        }
+        let bad = || ParseParamError {
+            what: "query extent",
+            value: s.to_owned(),
+            expected: "auto, a side in mm, or three sides x,y,z (finite, >= 0)",
+        };
+        let v: Vec<f64> =
+            s.split(',').map(|x| x.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| bad())?;
+        let q = match v[..] {
+            [a] => [a; 3],
+            [a, b, c] => [a, b, c],
+            _ => return Err(bad()),
+        };
+        if q.iter().all(|x| x.is_finite() && *x >= 0.0) { Ok(QueryExtent::Mm(q)) } else { Err(bad()) }
+    }
+}
+
+impl fmt::Display for QueryExtent {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            QueryExtent::Auto => f.write_str("auto"),
+            QueryExtent::Mm([a, b, c]) if a == b && b == c => write!(f, "{a}"),
+            QueryExtent::Mm([a, b, c]) => write!(f, "{a},{b},{c}"),
+        }
+    }
+}
+
 impl fmt::Display for LookAhead {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -229,6 +299,12 @@ mod tests {
         }
         for l in [LookAhead::Levels(0), LookAhead::Levels(7), LookAhead::Max] {
             assert_eq!(l.to_string().parse::<LookAhead>(), Ok(l));
+        }
+        for q in [QueryExtent::Auto, QueryExtent::Mm([150.0; 3]), QueryExtent::Mm([1.0, 2.5, 0.0])] {
+            assert_eq!(q.to_string().parse::<QueryExtent>(), Ok(q));
+        }
+        for bad in ["", "1,2", "-1", "nan", "1,2,inf", "x"] {
+            assert!(bad.parse::<QueryExtent>().is_err(), "{bad}");
         }
         assert!("rtree".parse::<Method>().is_err());
         assert!("-1".parse::<LookAhead>().is_err());

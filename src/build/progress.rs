@@ -34,7 +34,7 @@ pub struct BuildProgress {
 /// It assumes balanced halves: D - 1 internal levels with
 /// D = ⌈log2(N / leaf)⌉ + 1, each visiting all N objects; LAA adds, at
 /// each level l, six candidates times min(look_ahead_level, D - 2 - l)
-/// trial levels. A low rate R (which allows lopsided cuts) or a lumpy scene
+/// trial levels, and `refine` seven options with trials to the leaves. A low rate R (which allows lopsided cuts) or a lumpy scene
 /// gives deeper trees and more work; R = 0 can be quadratic in N. `sizes`
 /// serves the byte leaf rule (one object per leaf is assumed without it).
 pub fn estimate_work(objects: usize, sizes: Option<&[u64]>, params: &BuildParams) -> f64 {
@@ -44,11 +44,14 @@ pub fn estimate_work(objects: usize, sizes: Option<&[u64]>, params: &BuildParams
         return 0.0;
     }
     let internal_levels = (n / per_leaf).log2().ceil().max(1.0) as u32;
-    let look = match params.method {
-        Method::Laa => params.look_ahead.levels(),
-        _ => 0,
+    // LAA: six candidates' trials down `look_ahead_level` levels; refine:
+    // seven options' trials down to the leaves.
+    let (options, look) = match params.method {
+        Method::Laa => (6.0, params.look_ahead.levels()),
+        Method::Refine => (7.0, u32::MAX),
+        _ => (0.0, 0),
     };
-    (0..internal_levels).map(|l| n * (1.0 + 6.0 * f64::from(look.min(internal_levels - 1 - l)))).sum()
+    (0..internal_levels).map(|l| n * (1.0 + options * f64::from(look.min(internal_levels - 1 - l)))).sum()
 }
 
 /// Reports per thousandth of the objects placed or of the estimated work.

@@ -214,10 +214,16 @@ fn check_split(
     method: Method,
 ) -> Result<(), HierarchyError> {
     let i = split.axis.index();
-    let (order_fits, expected_gap) = match method {
-        Method::Moa | Method::Laa => (split.order != Order::Center, left.max[i] - right.min[i]),
-        _ => (split.order == Order::Center, signed_intersection(left, right, split.axis)),
+    // MOA2's value for cuts in a sorted order; the signed intersection for
+    // cuts by box centre. `refine` keeps cuts of both kinds.
+    let moa_cut = split.order != Order::Center;
+    let order_fits = match method {
+        Method::Moa | Method::Laa => moa_cut,
+        Method::Refine => true,
+        Method::Median | Method::Hilbert | Method::Sah | Method::Vsah => !moa_cut,
     };
+    let expected_gap =
+        if moa_cut { left.max[i] - right.min[i] } else { signed_intersection(left, right, split.axis) };
     let clamped = if expected_gap > 0.0 { expected_gap } else { 0.0 };
     if order_fits && split.gap == expected_gap && split.overlap == clamped {
         Ok(())

@@ -1,9 +1,11 @@
 //! The meta block's codes for build options (format-spec/meta.md).
 
-use crate::build::{BuildParams, LeafRule, LookAhead, Method, TieBreak};
+use crate::build::{BuildParams, LeafRule, LookAhead, Method, QueryExtent, TieBreak};
 use crate::store::format::meta::BuildCodes;
 
-const METHODS: [Method; 5] = [Method::Moa, Method::Laa, Method::Median, Method::Hilbert, Method::Sah];
+// Codes are positions: new methods go at the end (format-spec/meta.md).
+const METHODS: [Method; 7] =
+    [Method::Moa, Method::Laa, Method::Median, Method::Hilbert, Method::Sah, Method::Vsah, Method::Refine];
 const TIE_BREAKS: [TieBreak; 3] = [TieBreak::FirstFound, TieBreak::WidestGap, TieBreak::MostBalanced];
 
 /// The meta code of a method.
@@ -47,6 +49,8 @@ pub(crate) fn decode(c: &BuildCodes) -> Option<BuildParams> {
         },
         look_ahead: if c.look_ahead == u32::MAX { LookAhead::Max } else { LookAhead::Levels(c.look_ahead) },
         tie_break: *TIE_BREAKS.get(c.tie_break as usize)?,
+        // The meta block does not record q: `refine`'s default.
+        query_extent: QueryExtent::Auto,
     })
 }
 

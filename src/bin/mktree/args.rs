@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
-use mktree::build::{BuildParams, LeafRule, LookAhead, Method, TieBreak};
+use mktree::build::{BuildParams, LeafRule, LookAhead, Method, QueryExtent, TieBreak};
 use mktree::store::format::run;
 
 #[derive(Parser, Debug)]
@@ -135,6 +135,38 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Every bulk loader on the same scenes and queries: leaves visited (and
+    /// block reads with --block-size) per query for boxes, cubes and collisions.
+    BenchBuild {
+        /// Scene files, or presets: tanker1, tanker2, tanker3, ship, ship:N (N objects).
+        #[arg(required = true)]
+        scenes: Vec<String>,
+        /// MemPage: at most this many objects per leaf (default 100 without --block-size).
+        #[arg(long, conflicts_with = "block_size")]
+        page_objects: Option<u32>,
+        /// Write each tree to a file of this block size, leaves cut to fit one
+        /// block, and count its exact block reads.
+        #[arg(long)]
+        block_size: Option<u32>,
+        /// Queries per query set.
+        #[arg(long, default_value_t = 200)]
+        queries: usize,
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// R of MOA, LAA and refine's candidate cuts, in [0, 0.5].
+        #[arg(long, default_value_t = 0.2)]
+        rate: f64,
+        /// Methods to run (default: all; LAA with look-ahead max).
+        #[arg(long, value_delimiter = ',')]
+        methods: Option<Vec<Method>>,
+        #[arg(long)]
+        json: bool,
+        /// Write bench-build.json, bench-build.svg and bench-build.png here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        #[command(flatten)]
+        import: ImportArgs,
+    },
     /// The main job on the built-in scene: tanker2 built with MOA and LAA, stats side by side, box queries.
     Demo {
         /// Keep the .mkt files here (default: a temporary directory, removed after).
@@ -185,7 +217,7 @@ impl ImportArgs {
 /// Every bulk-loading option.
 #[derive(Args, Debug, Clone)]
 pub struct BuildArgs {
-    /// Splitting method: moa, laa, median, hilbert, sah.
+    /// Splitting method: moa, laa, median, hilbert, sah, vsah, refine.
     #[arg(long, default_value = "moa")]
     pub method: Method,
     /// R, in [0, 0.5].
@@ -207,6 +239,10 @@ pub struct BuildArgs {
     /// Which of equally good cuts wins: first-found (the paper), widest-gap, most-balanced.
     #[arg(long, default_value = "first-found")]
     pub tie_break: TieBreak,
+    /// refine: the query extent q its cost model is tuned for, in mm: one
+    /// side, three (x,y,z), or auto (the mean object extent + 100 mm).
+    #[arg(long, default_value = "auto")]
+    pub query_extent: QueryExtent,
     #[command(flatten)]
     pub import: ImportArgs,
 }
@@ -231,6 +267,7 @@ impl BuildArgs {
             leaf,
             look_ahead: self.look_ahead,
             tie_break: self.tie_break,
+            query_extent: self.query_extent,
         }
     }
 }

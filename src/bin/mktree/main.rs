@@ -2,6 +2,7 @@
 //! per subcommand, prints a table or JSON. Errors print one line and exit 1.
 
 mod args;
+mod chart;
 mod cmd;
 mod output;
 

@@ -105,7 +105,7 @@ pub struct Meta {
 }
 
 /// Largest valid method, tie-break and leaf-rule codes.
-pub const MAX_METHOD: u8 = 4;
+pub const MAX_METHOD: u8 = 6;
 pub const MAX_TIE_BREAK: u8 = 2;
 pub const MAX_LEAF_RULE: u8 = 1;
 

@@ -1,5 +1,6 @@
 //! One file per subcommand; `run` dispatches.
 
+pub mod bench_build;
 mod bench_queries;
 mod build;
 mod check;
@@ -17,6 +18,7 @@ use anyhow::{Context, Result};
 use mktree::build::Hierarchy;
 use mktree::db::{Database, TreeInfo, read_hierarchy};
 use mktree::scene::Scene;
+use mktree::scene::generate::{GenOptions, Preset, generate_scene};
 use mktree::scene::import::{ImportOptions, load};
 
 use crate::args::{BuildArgs, Cli, Command};
@@ -41,6 +43,29 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::BenchQueries { files, queries, shares, seed, json } => {
             bench_queries::run(&files, queries, &shares, seed, json)
         }
+        Command::BenchBuild {
+            scenes,
+            page_objects,
+            block_size,
+            queries,
+            seed,
+            rate,
+            methods,
+            json,
+            out,
+            import,
+        } => bench_build::run(&bench_build::Options {
+            scenes,
+            page_objects,
+            block_size,
+            queries,
+            seed,
+            rate,
+            methods,
+            json,
+            out,
+            import: import.options(),
+        }),
     }
 }
 
@@ -51,6 +76,23 @@ pub fn read_scene(path: &Path, options: &ImportOptions) -> Result<Scene> {
         eprintln!("mktree: warning: {} zero-area triangles kept", imported.degenerate_triangles);
     }
     Ok(imported.scene)
+}
+
+/// A scene named on the command line: a scene file, or else a preset of
+/// the generator (`tanker1`, ..., `ship`, `ship:N` for N objects, seed 0).
+pub fn scene_or_preset(arg: &str, options: &ImportOptions) -> Result<Scene> {
+    let path = Path::new(arg);
+    if path.exists() {
+        return read_scene(path, options);
+    }
+    let (name, objects) = match arg.split_once(':') {
+        Some((name, n)) => {
+            (name, Some(n.parse::<u64>().with_context(|| format!("{arg}: {n:?} is not a count"))?))
+        }
+        None => (arg, None),
+    };
+    let preset = name.parse::<Preset>().with_context(|| format!("{arg} is neither a file nor a preset"))?;
+    Ok(generate_scene(&GenOptions { preset, objects, seed: 0 })?)
 }
 
 /// True when `path` is an .mkt file (by its magic number).

@@ -1,0 +1,128 @@
+//! Charts (plotters): `bench-build`'s reads per query by method and query
+//! set, as SVG and PNG.
+//!
+//! The PNG carries no text: plotters draws text into a bitmap only through
+//! a TTF font (font-kit and the system's fonts, or a font embedded with
+//! ab_glyph), and the CLI takes neither. Its lines and colours are the
+//! SVG's, whose labels and legend name them.
+
+use std::path::Path;
+
+use anyhow::{Result, anyhow};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use crate::cmd::bench_build::{Bench, SceneResult};
+
+/// Pixels per scene panel.
+const PANEL: (u32, u32) = (1100, 380);
+
+/// `bench-build`'s chart: one panel per scene, each method's block reads
+/// (or leaves visited) per query over the best of median, sah and vsah, by
+/// query set, written as `svg` and `png`.
+pub fn bench_build(bench: &Bench, svg: &Path, png: &Path) -> Result<()> {
+    let size = (PANEL.0, PANEL.1 * bench.scenes.len().max(1) as u32);
+    let svg_root = SVGBackend::new(svg, size).into_drawing_area();
+    draw(&svg_root, bench, true)?;
+    svg_root.present().map_err(|e| anyhow!("writing {}: {e}", svg.display()))?;
+    let png_root = BitMapBackend::new(png, size).into_drawing_area();
+    draw(&png_root, bench, false)?;
+    png_root.present().map_err(|e| anyhow!("writing {}: {e}", png.display()))?;
+    Ok(())
+}
+
+fn failed(e: impl std::fmt::Display) -> anyhow::Error {
+    anyhow!("drawing the chart: {e}")
+}
+
+fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, bench: &Bench, text: bool) -> Result<()> {
+    root.fill(&WHITE).map_err(failed)?;
+    let panels = root.split_evenly((bench.scenes.len().max(1), 1));
+    for (area, scene) in panels.iter().zip(&bench.scenes) {
+        panel(area, scene, bench.block_size.is_some(), text)?;
+    }
+    Ok(())
+}
+
+/// One scene: a line per method across the query sets.
+fn panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    scene: &SceneResult,
+    reads: bool,
+    text: bool,
+) -> Result<()> {
+    let labels: Vec<String> = scene
+        .methods
+        .first()
+        .map(|m| m.queries.iter().map(|q| q.query.clone()).collect())
+        .unwrap_or_default();
+    let lines: Vec<(&str, Vec<(f64, f64)>)> = scene
+        .methods
+        .iter()
+        .map(|m| {
+            let points = m
+                .queries
+                .iter()
+                .enumerate()
+                .filter_map(|(i, q)| q.ratio_to_best_reference.map(|r| (i as f64, r)))
+                .collect();
+            (m.method, points)
+        })
+        .collect();
+    let (lo, hi) = lines
+        .iter()
+        .flat_map(|(_, p)| p.iter().map(|&(_, y)| y))
+        .fold((0.9f64, 1.1f64), |(lo, hi), y| (lo.min(y), hi.max(y)));
+    let (lo, hi) = (lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo));
+    let mut builder = ChartBuilder::on(area);
+    builder.margin(12);
+    if text {
+        let what = if reads { "block reads" } else { "leaves visited" };
+        builder
+            .caption(
+                format!("{}: {what} per query / best of median, sah, vsah", scene.scene),
+                ("sans-serif", 18),
+            )
+            .x_label_area_size(28)
+            .y_label_area_size(48)
+            .right_y_label_area_size(90);
+    }
+    let sets = labels.len().max(1) as f64;
+    let mut chart = builder.build_cartesian_2d(-0.5f64..sets - 0.5, lo..hi).map_err(failed)?;
+    let mut mesh = chart.configure_mesh();
+    mesh.x_labels(labels.len()).disable_x_mesh();
+    if text {
+        let fmt = |x: &f64| labels.get(x.round() as usize).cloned().unwrap_or_default();
+        mesh.x_label_formatter(&fmt).y_label_formatter(&|y| format!("{y:.2}")).draw().map_err(failed)?;
+    } else {
+        mesh.x_labels(0).y_labels(0).draw().map_err(failed)?;
+    }
+    for (level, colour) in [(1.0, BLACK.mix(0.6)), (0.9, RED.mix(0.4))] {
+        chart
+            .draw_series(LineSeries::new([(-0.5, level), (sets - 0.5, level)], colour.stroke_width(1)))
+            .map_err(failed)?;
+    }
+    for (i, (method, points)) in lines.iter().enumerate() {
+        let colour = Palette99::pick(i).to_rgba();
+        let series = chart
+            .draw_series(LineSeries::new(points.iter().copied(), colour.stroke_width(2)))
+            .map_err(failed)?;
+        if text {
+            let legend = colour;
+            series
+                .label(*method)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], legend.stroke_width(2)));
+        }
+        chart.draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled()))).map_err(failed)?;
+    }
+    if text {
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(failed)?;
+    }
+    Ok(())
+}
