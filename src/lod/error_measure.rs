@@ -18,36 +18,55 @@ pub fn measured_error<'a>(
     meshes: impl IntoIterator<Item = &'a Mesh> + Clone,
     max_cells: usize,
 ) -> f64 {
-    let count = v.count() as usize;
-    if count == 0 {
-        return 0.0;
+    ErrorProbe::new(meshes).measure(v, max_cells)
+}
+
+/// The geometry [`measured_error`] measures against, built once (a BVH over
+/// the triangles) and used for every level of the same objects.
+pub struct ErrorProbe {
+    surface: SurfaceDistance,
+    solids: Vec<(Aabb, Vec<[Point; 3]>)>,
+}
+
+impl ErrorProbe {
+    /// A probe of `meshes`' surfaces and closed solids.
+    pub fn new<'a>(meshes: impl IntoIterator<Item = &'a Mesh> + Clone) -> ErrorProbe {
+        let surface = SurfaceDistance::new(meshes.clone().into_iter().flat_map(|m| m.triangle_points()));
+        let solids = meshes
+            .into_iter()
+            .filter(|m| is_closed(m))
+            .map(|m| (m.aabb(), m.triangle_points().collect()))
+            .collect();
+        ErrorProbe { surface, solids }
     }
-    let surface = SurfaceDistance::new(meshes.clone().into_iter().flat_map(|m| m.triangle_points()));
-    let solids: Vec<(Aabb, Vec<[Point; 3]>)> = meshes
-        .into_iter()
-        .filter(|m| is_closed(m))
-        .map(|m| (m.aabb(), m.triangle_points().collect()))
-        .collect();
-    let stride = count.div_ceil(max_cells.max(1));
-    let mut worst = 0.0f64;
-    for i in v.set_cells().step_by(stride) {
-        let b = v.grid.cell_box(v.grid.coords(i));
-        let corners = (0..8).map(|k| {
-            Point::new(
-                if k & 1 == 0 { b.min.x } else { b.max.x },
-                if k & 2 == 0 { b.min.y } else { b.max.y },
-                if k & 4 == 0 { b.min.z } else { b.max.z },
-            )
-        });
-        for p in corners.chain([b.center()]) {
-            let d = surface.distance(&p);
-            // Only a point that would raise the maximum pays for the solid test.
-            if d > worst && !solids.iter().any(|(bb, t)| bb.contains_point(&p) && inside(t, &p)) {
-                worst = d;
+
+    /// [`measured_error`] of `v` against this probe's meshes.
+    pub fn measure(&self, v: &Voxels, max_cells: usize) -> f64 {
+        let count = v.count() as usize;
+        if count == 0 {
+            return 0.0;
+        }
+        let stride = count.div_ceil(max_cells.max(1));
+        let mut worst = 0.0f64;
+        for i in v.set_cells().step_by(stride) {
+            let b = v.grid.cell_box(v.grid.coords(i));
+            let corners = (0..8).map(|k| {
+                Point::new(
+                    if k & 1 == 0 { b.min.x } else { b.max.x },
+                    if k & 2 == 0 { b.min.y } else { b.max.y },
+                    if k & 4 == 0 { b.min.z } else { b.max.z },
+                )
+            });
+            for p in corners.chain([b.center()]) {
+                let d = self.surface.distance(&p);
+                // Only a point that would raise the maximum pays for the solid test.
+                if d > worst && !self.solids.iter().any(|(bb, t)| bb.contains_point(&p) && inside(t, &p)) {
+                    worst = d;
+                }
             }
         }
+        worst
     }
-    worst
 }
 
 #[cfg(test)]

@@ -10,7 +10,7 @@
 
 use rayon::prelude::*;
 
-use super::{Form, Grid, Lattice, LodError, Voxels, encode, encode_objects, measured_error};
+use super::{ErrorProbe, Form, Grid, Lattice, LodError, Voxels, encode, encode_objects};
 use crate::build::Hierarchy;
 use crate::scene::{Mesh, ObjectId, Scene};
 
@@ -53,6 +53,9 @@ pub struct LodPlan {
     /// finest its per-node grids may use); 0 for levels 1 and M.
     pub grid_level: Vec<u8>,
 }
+
+/// Nodes with more triangles than this get no sampled error (see `errors`).
+const MEASURED_TRIANGLES: u64 = 1_000_000;
 
 /// The finest polyhedral cell by default: a quarter of the median object's
 /// longest side, so a typical object is a few cells across.
@@ -348,11 +351,12 @@ impl NodeCtx<'_> {
         })?;
         let mut err = self.errors(&group, &objs);
         for (p, (_, mesh)) in per.iter().zip(&objs) {
+            let probe = ErrorProbe::new([*mesh]);
             for (k, v) in p.iter().enumerate() {
                 if let Some(v) = v {
                     let e = &mut err[k + 1];
                     e[0] = e[0].max(v.grid().max_cell_diagonal());
-                    e[1] = e[1].max(measured_error(v, [*mesh], self.params.error_samples));
+                    e[1] = e[1].max(probe.measure(v, self.params.error_samples));
                 }
             }
         }
@@ -458,20 +462,33 @@ impl NodeCtx<'_> {
     /// Per level k = 1 .. M: (guaranteed, measured) error of the group sets.
     fn errors(&self, group: &Sets, objs: &[(ObjectId, &Mesh)]) -> Vec<[f64; 2]> {
         let mut err = vec![[0f64; 2]; usize::from(self.m())];
-        let meshes = || objs.iter().map(|(_, mesh)| *mesh);
         // Level 1, the box: one cell of a lattice level coarse enough to hold it.
-        if self.m() > 1 {
-            let bounds = self.tree.nodes[self.i].aabb;
-            if let Ok(g) = Grid::coarsest_within(&self.plan.lattice, &bounds, 1, 0) {
-                let v = Voxels::of_meshes(g, meshes());
-                err[0] =
-                    [v.grid().max_cell_diagonal(), measured_error(&v, meshes(), self.params.error_samples)];
-            }
+        let bounds = self.tree.nodes[self.i].aabb;
+        let mut boxed = None;
+        if self.m() > 1
+            && let Ok(g) = Grid::coarsest_within(&self.plan.lattice, &bounds, 1, 0)
+        {
+            let mut v = Voxels::empty(g);
+            v.set_cell([0, 0, 0]);
+            err[0][0] = v.grid().max_cell_diagonal();
+            boxed = Some(v);
         }
         for (k, v) in group.iter().enumerate() {
             if let Some(v) = v {
-                err[k + 1] =
-                    [v.grid().max_cell_diagonal(), measured_error(v, meshes(), self.params.error_samples)];
+                err[k + 1][0] = v.grid().max_cell_diagonal();
+            }
+        }
+        // The sampled error needs a BVH over the node's triangles: measured
+        // where that is affordable (every leaf, and every node of a scene up to
+        // MEASURED_TRIANGLES); eps above bounds it everywhere.
+        if self.triangles <= MEASURED_TRIANGLES {
+            let probe = ErrorProbe::new(objs.iter().map(|(_, mesh)| *mesh));
+            let sets = boxed
+                .iter()
+                .map(|v| (0, v))
+                .chain(group.iter().enumerate().filter_map(|(k, v)| Some((k + 1, v.as_ref()?))));
+            for (k, v) in sets {
+                err[k][1] = probe.measure(v, self.params.error_samples);
             }
         }
         err

@@ -25,7 +25,7 @@ mod voxels;
 pub use blob::{Form, decode, decode_objects, encode, encode_objects, encoded_len};
 pub use closed::is_closed;
 pub use error::LodError;
-pub use error_measure::measured_error;
+pub use error_measure::{ErrorProbe, measured_error};
 
 pub use grid::{Grid, MAX_CELLS, MAX_DIM};
 pub use lattice::Lattice;
