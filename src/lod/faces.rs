@@ -22,10 +22,20 @@ impl Voxels {
     /// Faces of the boundary polyhedron after merging coplanar faces: the
     /// 4-connected regions of boundary squares per plane and normal.
     pub fn faces(&self) -> usize {
+        self.faces_up_to(usize::MAX)
+    }
+
+    /// [`Voxels::faces`], but counting stops at `limit`: min(faces, limit).
+    /// Deciding whether a bound has fewer faces than its triangles need not
+    /// count them all.
+    pub fn faces_up_to(&self, limit: usize) -> usize {
         let mut n = 0;
         let mut seen = Vec::new();
         let mut stack = Vec::new();
         self.for_each_plane(|_, _, _, mask, du, dv| {
+            if n >= limit {
+                return false;
+            }
             seen.clear();
             seen.resize(mask.len(), false);
             for start in 0..mask.len() {
@@ -57,8 +67,9 @@ impl Voxels {
                     }
                 }
             }
+            true
         });
-        n
+        n.min(limit)
     }
 
     /// The boundary as greedy rectangles per plane and normal (T-junctions
@@ -88,6 +99,7 @@ impl Voxels {
                 let uv = [u0, v0, u1, v1].map(|c| c as u32);
                 out.push(Rect { axis, plane, positive, uv });
             }
+            true
         });
         out
     }
@@ -129,7 +141,8 @@ impl Voxels {
 
     /// Calls `f(axis, plane, positive, mask, du, dv)` for every plane and
     /// normal with a boundary square; `mask[u + du * v]` marks the squares.
-    fn for_each_plane(&self, mut f: impl FnMut(usize, u32, bool, &[bool], usize, usize)) {
+    /// Calls `f` with each plane's mask of boundary squares until `f` returns false.
+    fn for_each_plane(&self, mut f: impl FnMut(usize, u32, bool, &[bool], usize, usize) -> bool) {
         let g = &self.grid;
         let d = g.dims();
         let mut mask = Vec::new();
@@ -161,8 +174,8 @@ impl Voxels {
                             mask.push(b);
                         }
                     }
-                    if any {
-                        f(a, plane, positive, &mask, du, dv);
+                    if any && !f(a, plane, positive, &mask, du, dv) {
+                        return;
                     }
                 }
             }
@@ -192,6 +205,8 @@ mod tests {
         assert_eq!(solid(&[[0, 0, 0], [1, 0, 0]]).faces(), 6, "a 2x1x1 bar");
         // An L in one layer: top and bottom are L-shaped faces, plus 6 sides.
         assert_eq!(solid(&[[0, 0, 0], [1, 0, 0], [0, 1, 0]]).faces(), 8);
+        let l = solid(&[[0, 0, 0], [1, 0, 0], [0, 1, 0]]);
+        assert_eq!((l.faces_up_to(3), l.faces_up_to(8), l.faces_up_to(100)), (3, 8, 8));
         // A 2x2x2 cube without its corner cell (1, 1, 1): the 3 faces at the
         // corner become L-shaped, the other 3 stay whole, the notch adds 3.
         let mut c: Vec<[u16; 3]> = Vec::new();

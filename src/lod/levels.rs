@@ -54,7 +54,7 @@ pub struct LodPlan {
     pub grid_level: Vec<u8>,
 }
 
-/// Nodes with more triangles than this get no sampled error (see `errors`).
+/// A root with more triangles than this gets no sampled error (see `errors`).
 const MEASURED_TRIANGLES: u64 = 1_000_000;
 
 /// The finest polyhedral cell by default: a quarter of the median object's
@@ -350,13 +350,12 @@ impl NodeCtx<'_> {
             Voxels::of_meshes(g, objs.iter().map(|(_, mesh)| *mesh))
         })?;
         let mut err = self.errors(&group, &objs);
-        for (p, (_, mesh)) in per.iter().zip(&objs) {
-            let probe = ErrorProbe::new([*mesh]);
+        // Objects' sets: their grids bound eps (sampled errors are measured on
+        // the leaf's sets, which hold them, to keep builds linear).
+        for p in &per {
             for (k, v) in p.iter().enumerate() {
                 if let Some(v) = v {
-                    let e = &mut err[k + 1];
-                    e[0] = e[0].max(v.grid().max_cell_diagonal());
-                    e[1] = e[1].max(probe.measure(v, self.params.error_samples));
+                    err[k + 1][0] = err[k + 1][0].max(v.grid().max_cell_diagonal());
                 }
             }
         }
@@ -374,7 +373,14 @@ impl NodeCtx<'_> {
                 objs.iter().zip(&per).map(|((id, _), p)| p[idx].as_ref().map(|v| (id.0, v))).collect();
             let objects = match items {
                 Some(items) => {
-                    let faces: u64 = items.iter().map(|(_, v)| v.faces() as u64).sum();
+                    let mut faces = 0u64;
+                    for (_, v) in &items {
+                        let left = self.triangles.saturating_sub(faces);
+                        faces += v.faces_up_to(usize::try_from(left).unwrap_or(usize::MAX)) as u64;
+                        if faces >= self.triangles {
+                            break;
+                        }
+                    }
                     if faces >= self.triangles {
                         Draft::Up
                     } else {
@@ -402,7 +408,7 @@ impl NodeCtx<'_> {
             bb.push(objects);
         }
         let entries = self.resolve(b, bb);
-        Ok((group, entries, err))
+        Ok((self.keep_for_parent(group, &entries), entries, err))
     }
 
     fn internal(&self, kids: [Sets; 2]) -> Result<NodeOut, LodError> {
@@ -437,14 +443,14 @@ impl NodeCtx<'_> {
             });
         }
         let entries = self.resolve(b, bb);
-        Ok((group, entries, err))
+        Ok((self.keep_for_parent(group, &entries), entries, err))
     }
 
     /// b(S_n,k) from its voxel set: stored, or the level up when it has as
     /// many faces as the exact objects, or the level below when it is the
     /// same set, or spread when it does not fit a block.
     fn group_draft(&self, v: &Voxels, form: Form, k: u8, group: &Sets) -> Draft {
-        let faces = v.faces() as u64;
+        let faces = v.faces_up_to(usize::try_from(self.triangles).unwrap_or(usize::MAX)) as u64;
         if faces >= self.triangles {
             return Draft::Up;
         }
@@ -457,6 +463,23 @@ impl NodeCtx<'_> {
             return Draft::Final(Entry::Spread);
         }
         Draft::Final(Entry::Blob { bytes, faces })
+    }
+
+    /// The sets the parent builds on: a polyhedral level that is spread here
+    /// (or too big for a block) is spread in every ancestor too, so its set is
+    /// dropped instead of lifted into ever larger grids.
+    fn keep_for_parent(&self, mut group: Sets, entries: &NodeEntries) -> Sets {
+        for k in 3..self.m() {
+            let big = match &entries[usize::from(k) - 1][0] {
+                Entry::Spread => true,
+                Entry::Blob { bytes, .. } => bytes.len() > self.max_blob,
+                _ => false,
+            };
+            if big {
+                group[usize::from(k) - 2] = None;
+            }
+        }
+        group
     }
 
     /// Per level k = 1 .. M: (guaranteed, measured) error of the group sets.
@@ -478,10 +501,12 @@ impl NodeCtx<'_> {
                 err[k + 1][0] = v.grid().max_cell_diagonal();
             }
         }
-        // The sampled error needs a BVH over the node's triangles: measured
-        // where that is affordable (every leaf, and every node of a scene up to
-        // MEASURED_TRIANGLES); eps above bounds it everywhere.
-        if self.triangles <= MEASURED_TRIANGLES {
+        // The sampled error needs a BVH over the node's triangles: measured at
+        // every leaf (the finest sets) and at the root (the coarsest cuberille)
+        // when it has at most MEASURED_TRIANGLES; a BVH per internal node would
+        // cost O(triangles x depth). eps bounds every node's error.
+        let leaf = self.tree.nodes[self.i].children().is_none();
+        if leaf || (self.i == 0 && self.triangles <= MEASURED_TRIANGLES) {
             let probe = ErrorProbe::new(objs.iter().map(|(_, mesh)| *mesh));
             let sets = boxed
                 .iter()

@@ -10,7 +10,7 @@ use std::collections::{BTreeSet, HashMap};
 use super::super::lod::fetch_reads;
 use super::super::{NodeLocation, Piece, ReadTransaction};
 use crate::geom::Point;
-use crate::lod::{Voxels, measured_error};
+use crate::lod::{ErrorProbe, Voxels};
 use crate::scene::{Mesh, ObjectId};
 use crate::store::ReadStats;
 use crate::store::format::node::{LodRef, NodeRecord};
@@ -225,18 +225,39 @@ impl LodChecker {
                 }
             }
         }
-        for ((id, mesh), (_, points)) in objects.iter().zip(&samples) {
-            for step in self.path.iter() {
-                for (tk, s) in step.sets.iter().flatten() {
-                    if let Some(p) = points.iter().find(|p| !s.contains_point(p)) {
-                        self.faults.push(format!(
-                            "{here}: object {id}'s point {p:?} is outside level {tk} of {}",
-                            step.here
-                        ));
-                    }
+        // Per level, the nearest set on the path: the rest of the path holds
+        // it (the nesting check in `visit_node`), so it holds the objects too.
+        let nearest: Vec<(&String, u8, &Voxels)> = (0..usize::from(m))
+            .filter_map(|j| {
+                self.path.iter().rev().find_map(|p| p.sets[j].as_ref().map(|(tk, s)| (&p.here, *tk, s)))
+            })
+            .collect();
+        let mut outside = Vec::new();
+        for (id, points) in &samples {
+            for (owner, tk, s) in &nearest {
+                if let Some(p) = points.iter().find(|p| !s.contains_point(p)) {
+                    outside
+                        .push(format!("{here}: object {id}'s point {p:?} is outside level {tk} of {owner}"));
                 }
             }
+        }
+        self.faults.extend(outside);
+        // The leaf's own sets stay within eps of its objects.
+        if let Some(last) = self.path.last() {
+            let probe = ErrorProbe::new(objects.iter().map(|(_, m)| m));
+            let mut far = Vec::new();
+            for (tk, v) in last.sets.iter().flatten() {
+                let eps = self.eps.get(usize::from(*tk) - 1).copied().unwrap_or(0.0);
+                let e = probe.measure(v, ERROR_SAMPLES);
+                if e > eps + tolerance(eps) {
+                    far.push(format!("{here}: b(S_n,{tk}) is {e} mm from its objects, eps {eps}"));
+                }
+            }
+            self.faults.extend(far);
+        }
+        for ((id, mesh), (_, points)) in objects.iter().zip(&samples) {
             let Some(levels) = per.get(id) else { continue };
+            let probe = ErrorProbe::new([mesh]);
             let mut coarser: Option<&Voxels> = None;
             for (k, v) in levels.iter().enumerate() {
                 let Some(v) = v else { continue };
@@ -245,7 +266,7 @@ impl LodChecker {
                     self.faults.push(format!("{here}: object {id}'s point {p:?} is outside b(o,{k})"));
                 }
                 let eps = self.eps.get(k - 1).copied().unwrap_or(0.0);
-                let e = measured_error(v, [mesh], ERROR_SAMPLES);
+                let e = probe.measure(v, ERROR_SAMPLES);
                 if e > eps + tolerance(eps) {
                     self.faults.push(format!("{here}: b(o,{k}) of object {id} is {e} mm from it, eps {eps}"));
                 }
