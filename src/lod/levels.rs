@@ -446,21 +446,23 @@ impl NodeCtx<'_> {
         Ok((self.keep_for_parent(group, &entries), entries, err))
     }
 
-    /// b(S_n,k) from its voxel set: stored, or the level up when it has as
-    /// many faces as the exact objects, or the level below when it is the
-    /// same set, or spread when it does not fit a block.
+    /// b(S_n,k) from its voxel set: spread when it does not fit a block (an
+    /// internal node), else the level up when it has as many faces as the
+    /// exact objects, the level below when it is the same set, or stored.
     fn group_draft(&self, v: &Voxels, form: Form, k: u8, group: &Sets) -> Draft {
+        // Size first: a set spread over the children is stored nowhere here,
+        // and counting a large set's faces costs more than encoding it.
+        let mut bytes = Vec::new();
+        encode(v, form, &mut bytes);
+        if bytes.len() > self.max_blob && self.tree.nodes[self.i].children().is_some() {
+            return Draft::Final(Entry::Spread);
+        }
         let faces = v.faces_up_to(usize::try_from(self.triangles).unwrap_or(usize::MAX)) as u64;
         if faces >= self.triangles {
             return Draft::Up;
         }
         if k > 2 && group[usize::from(k) - 3].as_ref() == Some(v) {
             return Draft::Final(Entry::Same { level: k - 1, objects: false });
-        }
-        let mut bytes = Vec::new();
-        encode(v, form, &mut bytes);
-        if bytes.len() > self.max_blob && self.tree.nodes[self.i].children().is_some() {
-            return Draft::Final(Entry::Spread);
         }
         Draft::Final(Entry::Blob { bytes, faces })
     }
