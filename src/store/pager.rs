@@ -173,6 +173,14 @@ impl Pager {
         if let Some(c) = cache {
             if let Some(b) = c.get(id) {
                 stats.cache_hits += 1;
+                // Verified when it was read; a damaged file may still name it as another type.
+                if b.get(frame::TYPE_OFFSET) != Some(&(expected as u8)) {
+                    return Err(StorageError::corrupt(
+                        id,
+                        "type",
+                        format!("a {} reference names a block of another type", expected.name()),
+                    ));
+                }
                 return Ok(b);
             }
             let b = self.read_uncached(id, expected, parent_checksum, stats)?;
@@ -238,5 +246,17 @@ mod tests {
         c.put(3, b);
         assert!(c.get(2).is_none(), "2 was the least recently used");
         assert!(c.get(1).is_some() && c.get(3).is_some());
+    }
+
+    #[test]
+    fn a_pooled_block_is_refused_under_another_type() {
+        let pager = Pager::new(Arc::new(crate::store::device::MemDevice::new()), 1024, 2);
+        pager.write(1, &mut vec![0u8; 1024], BlockType::Node, 1).unwrap();
+        let (mut cache, mut stats) = (BlockCache::new(8), ReadStats::default());
+        pager.read(1, BlockType::Node, None, &mut stats, Some(&mut cache)).unwrap();
+        assert!(pager.read(1, BlockType::Node, None, &mut stats, Some(&mut cache)).is_ok());
+        let err = pager.read(1, BlockType::Lod, None, &mut stats, Some(&mut cache)).unwrap_err();
+        assert!(err.is_corruption(), "{err}");
+        assert_eq!((stats.node, stats.cache_hits), (1, 2));
     }
 }
