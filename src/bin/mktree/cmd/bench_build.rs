@@ -126,7 +126,7 @@ pub fn run(o: &Options) -> Result<()> {
     let mut scenes = Vec::new();
     for arg in &o.scenes {
         let scene = crate::cmd::scene_or_preset(arg, &o.import)?;
-        anyhow::ensure!(scene.len() > 0, "{arg}: the scene has no objects");
+        anyhow::ensure!(!scene.is_empty(), "{arg}: the scene has no objects");
         let boxes = scene.object_boxes();
         let sets: Vec<(QueryKind, Vec<Aabb>)> =
             QueryKind::STANDARD.iter().map(|k| (*k, k.generate(&boxes, o.queries, o.seed))).collect();
