@@ -1,17 +1,19 @@
 //! Build time of the bulk loaders (issue 3, "Benchmarks"): MOA (MOA1/MOA2,
 //! §3.1) and LAA (LAA1-LAA3, §3.2) with `look_ahead_level` 0, 2, 5 and
 //! max, with rstar's `RTree::bulk_load` (OMT, default parameters) on the
-//! same object boxes as a reference line in the same run.
+//! same object boxes as a reference line in the same run; and volume-SAH
+//! and `refine` (issue 7), whose cost is about 20 to 60 times volume-SAH's.
 //!
 //! One group per scene: the `tanker2` (3,900 objects) and `tanker3`
 //! (4,096) presets of Table 1 and the `ship` preset with 10^5 and 10^6
-//! objects, all with seed 0. Ids are `<scene>/moa`, `<scene>/laa/<look>`
-//! and `<scene>/rstar`; throughput is in objects. Every build uses R = 0.3,
+//! objects, all with seed 0. Ids are `<scene>/moa`, `<scene>/laa/<look>`,
+//! `<scene>/vsah`, `<scene>/refine` and `<scene>/rstar`; throughput is in objects. Every build uses R = 0.3,
 //! `mem_page` = 100 objects (`LeafRule::Objects(100)`), the paper's
 //! first-found tie-break and rayon's global pool; rstar's bulk load is
 //! single-threaded.
 //!
-//! Skipped: LAA(5) and LAA(max) on `ship` with 10^6 objects. Timed once
+//! Skipped: LAA(5), LAA(max) and refine on `ship` with 10^6 objects
+//! (refine: about 100 s an iteration in `mktree bench-build`). Timed once
 //! while writing this file, on the shared 2-core machine, one iteration
 //! took 35 s and 52 s, so criterion's warm-up plus 10 samples would spend
 //! 6 to 10 minutes on each; LAA(2) (11 to 17 s) is the deepest look-ahead
@@ -41,6 +43,8 @@ struct Scene {
     /// `None`: the preset's own count (Table 1's for the tankers).
     objects: Option<u64>,
     look_aheads: &'static [LookAhead],
+    /// Whether `refine` runs.
+    refine: bool,
 }
 
 /// The look-aheads of issue 3.
@@ -48,15 +52,34 @@ const ALL_LOOK_AHEADS: &[LookAhead] =
     &[LookAhead::Levels(0), LookAhead::Levels(2), LookAhead::Levels(5), LookAhead::Max];
 
 const SCENES: [Scene; 4] = [
-    Scene { name: "tanker2", preset: Preset::Tanker2, objects: None, look_aheads: ALL_LOOK_AHEADS },
-    Scene { name: "tanker3", preset: Preset::Tanker3, objects: None, look_aheads: ALL_LOOK_AHEADS },
-    Scene { name: "ship-1e5", preset: Preset::Ship, objects: Some(100_000), look_aheads: ALL_LOOK_AHEADS },
-    // LAA(5) and LAA(max) skipped here: over 30 s per iteration (see the module doc).
+    Scene {
+        name: "tanker2",
+        preset: Preset::Tanker2,
+        objects: None,
+        look_aheads: ALL_LOOK_AHEADS,
+        refine: true,
+    },
+    Scene {
+        name: "tanker3",
+        preset: Preset::Tanker3,
+        objects: None,
+        look_aheads: ALL_LOOK_AHEADS,
+        refine: true,
+    },
+    Scene {
+        name: "ship-1e5",
+        preset: Preset::Ship,
+        objects: Some(100_000),
+        look_aheads: ALL_LOOK_AHEADS,
+        refine: true,
+    },
+    // LAA(5), LAA(max) and refine skipped here: over 30 s per iteration (see the module doc).
     Scene {
         name: "ship-1e6",
         preset: Preset::Ship,
         objects: Some(1_000_000),
         look_aheads: &[LookAhead::Levels(0), LookAhead::Levels(2)],
+        refine: false,
     },
 ];
 
@@ -111,6 +134,10 @@ fn bench_build(c: &mut Criterion) {
         run(BenchmarkId::from_parameter("moa"), params(Method::Moa, LookAhead::Levels(0)));
         for &look_ahead in scene.look_aheads {
             run(BenchmarkId::new("laa", look_ahead), params(Method::Laa, look_ahead));
+        }
+        run(BenchmarkId::from_parameter("vsah"), params(Method::Vsah, LookAhead::Levels(0)));
+        if scene.refine {
+            run(BenchmarkId::from_parameter("refine"), params(Method::Refine, LookAhead::Levels(0)));
         }
 
         // bulk_load consumes its input, so each iteration gets a fresh copy,

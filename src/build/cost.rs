@@ -8,12 +8,24 @@
 //! ∏_i (W_i + q_i) / (S_i + q_i); the expected leaf accesses of a tree are
 //! that probability summed over its leaves. Not in the paper, which
 //! minimises overlap instead (§3.1).
+//!
+//! What `refine` minimises, [`CostModel::expected_cost`], adds the nodes'
+//! reads: a node block holds a clustered subtree of about three levels (7
+//! records of a 16 KiB block with 4 levels of detail, README), and a query
+//! reads it when it reaches the subtree's root, so every node reached
+//! costs about a third of a block read. Measured: without that term,
+//! `refine` visits 22% fewer leaves than `vsah` on collision queries of
+//! the 10^5-object ship but reads 5% fewer blocks only, its deeper tree
+//! reading 13% more node blocks; with it, 17% fewer blocks.
 
 use super::{Hierarchy, QueryExtent};
 use crate::geom::Aabb;
 
 /// Added to the mean object extent by [`QueryExtent::Auto`], in mm.
 const AUTO_MARGIN_MM: f64 = 100.0;
+
+/// Block reads per node reached, in [`CostModel::expected_cost`].
+pub const NODE_READ_WEIGHT: f64 = 1.0 / 3.0;
 
 /// The Kamel–Faloutsos / Pagel model for one query extent.
 ///
@@ -82,6 +94,19 @@ impl CostModel {
     pub fn expected_leaf_accesses(&self, tree: &Hierarchy) -> f64 {
         tree.nodes.iter().filter(|n| n.objects().is_some()).map(|n| self.access_probability(&n.aabb)).sum()
     }
+
+    /// What one node of box `aabb` adds to [`expected_cost`](Self::expected_cost).
+    pub fn node_cost(&self, aabb: &Aabb, leaf: bool) -> f64 {
+        let p = self.access_probability(aabb);
+        if leaf { (1.0 + NODE_READ_WEIGHT) * p } else { NODE_READ_WEIGHT * p }
+    }
+
+    /// The expected block reads of a query, as `refine` estimates them: a
+    /// leaf reached costs one geometry read, every node reached (leaves
+    /// included) [`NODE_READ_WEIGHT`] of a node block read. Summed in preorder.
+    pub fn expected_cost(&self, tree: &Hierarchy) -> f64 {
+        tree.nodes.iter().map(|n| self.node_cost(&n.aabb, n.objects().is_some())).sum()
+    }
 }
 
 #[cfg(test)]
@@ -96,6 +121,14 @@ mod tests {
         assert_eq!(m.access_probability(&half), 0.5);
         let m = CostModel::new(&scene, [100.0; 3]);
         assert_eq!(m.access_probability(&half), 0.75);
+    }
+
+    #[test]
+    fn a_node_costs_a_third_of_a_read_and_a_leaf_one_more() {
+        let scene = Aabb::from_array([0.0, 0.0, 0.0, 100.0, 100.0, 100.0]);
+        let m = CostModel::new(&scene, [0.0; 3]);
+        assert_eq!(m.node_cost(&scene, false), NODE_READ_WEIGHT);
+        assert_eq!(m.node_cost(&scene, true), 1.0 + NODE_READ_WEIGHT);
     }
 
     #[test]

@@ -5,8 +5,9 @@
 //! the six candidate cuts of MOA2 (§3.1, the best cut of each sorted order
 //! within the rate R, as `cut.rs` finds them for MOA and LAA). Each side of
 //! each is completed with a `vsah` subtree, never materialised, and scored
-//! by the [`CostModel`]: the expected leaf accesses of a box query of
-//! extent q. The cut of least score wins (the `vsah` cut on ties, then the
+//! by the [`CostModel`]'s expected cost of a box query of extent q: the
+//! leaves it reaches, plus a third of a block read for every node it
+//! reaches (see `cost.rs`). The cut of least score wins (the `vsah` cut on ties, then the
 //! first candidate in the six-order), and the pass goes on in its children.
 //!
 //! Scoring with LAA's structure (§3.2: candidates judged by trial subtrees
@@ -14,7 +15,8 @@
 //! nothing of how big the boxes are on the other two, which is what a box
 //! query meets.
 //!
-//! The tree's cost is never above the `vsah` tree's: at the root the kept
+//! The tree's cost is never above the `vsah` tree's: a node's own cost is
+//! the same whichever way it is cut, and at the root the kept
 //! option scores at most the `vsah` cut, whose score is the `vsah` tree's
 //! cost, and each child in turn starts from its own `vsah` subtree, the one
 //! that was scored (up to the rounding of the sums).
@@ -49,7 +51,7 @@ impl<'a> Refine<'a> {
         Refine { ctx, keys, vsah: Sah::new(ctx, Heuristic::Volume), model }
     }
 
-    /// The expected leaf accesses of the `vsah` subtree of `set`.
+    /// The expected cost of the `vsah` subtree of `set`.
     fn score(&self, set: Vec<u32>) -> f64 {
         walk(&Trial { ctx: self.ctx, vsah: &self.vsah, model: &self.model }, set, 0)
     }
@@ -97,7 +99,7 @@ impl Splitter for Refine<'_> {
     }
 }
 
-/// A `vsah` subtree that only adds up its leaves' access probabilities.
+/// A `vsah` subtree that only adds up its nodes' expected costs.
 struct Trial<'a> {
     ctx: &'a Ctx<'a>,
     vsah: &'a Sah<'a>,
@@ -119,8 +121,9 @@ impl Walk for Trial<'_> {
 
     fn visit(&self, set: Vec<u32>, _depth: u32, out: &mut f64) -> Option<(Vec<u32>, Vec<u32>, ())> {
         let aabb = self.ctx.aabb_of(&set);
-        if self.ctx.leaf.fits(&set) {
-            *out += self.model.access_probability(&aabb);
+        let leaf = self.ctx.leaf.fits(&set);
+        *out += self.model.node_cost(&aabb, leaf);
+        if leaf {
             return None;
         }
         self.ctx.meter.worked(set.len());

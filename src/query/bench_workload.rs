@@ -10,10 +10,13 @@
 use serde::Serialize;
 
 use crate::build::Hierarchy;
-use crate::geom::{Aabb, Point, Vector};
+use crate::geom::{Aabb, Vector};
 use crate::rng::Rng;
 
 use super::random_boxes;
+
+/// Seeds cubes apart from the boxes of the same share.
+const CUBE_STREAM: u64 = 0xC0BE;
 
 /// The growth of an object's box in a collision-like query, in mm.
 pub const COLLISION_MARGIN_MM: f64 = 50.0;
@@ -79,7 +82,6 @@ impl QueryKind {
 /// scene's, centred uniformly in `scene`. A flat scene's measure is taken
 /// on its non-flat axes, and the query is flat where the scene is.
 pub fn random_cubes(scene: &Aabb, count: usize, share: f64, seed: u64) -> Vec<Aabb> {
-    let mut rng = Rng::derive(seed, share.to_bits() ^ 0xC0BE);
     let e = scene.extent();
     let axes: Vec<f64> = (0..3).map(|i| e[i]).filter(|&x| x > 0.0).collect();
     let side = if axes.is_empty() {
@@ -92,13 +94,11 @@ pub fn random_cubes(scene: &Aabb, count: usize, share: f64, seed: u64) -> Vec<Aa
         if e.y > 0.0 { side / 2.0 } else { 0.0 },
         if e.z > 0.0 { side / 2.0 } else { 0.0 },
     );
-    (0..count)
-        .map(|_| {
-            let c = Point::new(
-                scene.min.x + rng.unit() * e.x,
-                scene.min.y + rng.unit() * e.y,
-                scene.min.z + rng.unit() * e.z,
-            );
+    // The centres of boxes of another stream: the same placement rule.
+    random_boxes(scene, count, share, seed ^ CUBE_STREAM)
+        .into_iter()
+        .map(|b| {
+            let c = b.center();
             Aabb::new(c - half, c + half)
         })
         .collect()

@@ -137,36 +137,7 @@ pub enum Command {
     },
     /// Every bulk loader on the same scenes and queries: leaves visited (and
     /// block reads with --block-size) per query for boxes, cubes and collisions.
-    BenchBuild {
-        /// Scene files, or presets: tanker1, tanker2, tanker3, ship, ship:N (N objects).
-        #[arg(required = true)]
-        scenes: Vec<String>,
-        /// MemPage: at most this many objects per leaf (default 100 without --block-size).
-        #[arg(long, conflicts_with = "block_size")]
-        page_objects: Option<u32>,
-        /// Write each tree to a file of this block size, leaves cut to fit one
-        /// block, and count its exact block reads.
-        #[arg(long)]
-        block_size: Option<u32>,
-        /// Queries per query set.
-        #[arg(long, default_value_t = 200)]
-        queries: usize,
-        #[arg(long, default_value_t = 0)]
-        seed: u64,
-        /// R of MOA, LAA and refine's candidate cuts, in [0, 0.5].
-        #[arg(long, default_value_t = 0.2)]
-        rate: f64,
-        /// Methods to run (default: all; LAA with look-ahead max).
-        #[arg(long, value_delimiter = ',')]
-        methods: Option<Vec<Method>>,
-        #[arg(long)]
-        json: bool,
-        /// Write bench-build.json, bench-build.svg and bench-build.png here.
-        #[arg(long)]
-        out: Option<PathBuf>,
-        #[command(flatten)]
-        import: ImportArgs,
-    },
+    BenchBuild(BenchBuildArgs),
     /// The main job on the built-in scene: tanker2 built with MOA and LAA, stats side by side, box queries.
     Demo {
         /// Keep the .mkt files here (default: a temporary directory, removed after).
@@ -200,6 +171,39 @@ impl LodArgs {
     }
 }
 
+/// `bench-build`'s arguments.
+#[derive(Args, Debug, Clone)]
+pub struct BenchBuildArgs {
+    /// Scene files, or presets: tanker1, tanker2, tanker3, ship, ship:N (N objects).
+    #[arg(required = true)]
+    pub scenes: Vec<String>,
+    /// MemPage: at most this many objects per leaf (default 100 without --block-size).
+    #[arg(long, conflicts_with = "block_size")]
+    pub page_objects: Option<u32>,
+    /// Write each tree to a file of this block size, leaves cut to fit one
+    /// block, and count its exact block reads.
+    #[arg(long)]
+    pub block_size: Option<u32>,
+    /// Queries per query set.
+    #[arg(long, default_value_t = 200)]
+    pub queries: usize,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// R of MOA, LAA and refine's candidate cuts, in [0, 0.5].
+    #[arg(long, default_value_t = 0.2)]
+    pub rate: f64,
+    /// Methods to run (default: all; LAA with look-ahead max).
+    #[arg(long, value_delimiter = ',')]
+    pub methods: Option<Vec<Method>>,
+    #[arg(long)]
+    pub json: bool,
+    /// Write bench-build.json, bench-build.svg and bench-build.png here.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    #[command(flatten)]
+    pub import: ImportArgs,
+}
+
 /// Options for reading scenes.
 #[derive(Args, Debug, Clone)]
 pub struct ImportArgs {
@@ -217,8 +221,9 @@ impl ImportArgs {
 /// Every bulk-loading option.
 #[derive(Args, Debug, Clone)]
 pub struct BuildArgs {
-    /// Splitting method: moa, laa, median, hilbert, sah, vsah, refine.
-    #[arg(long, default_value = "moa")]
+    /// Splitting method: refine (the default: fewest block reads measured,
+    /// README), moa, laa, median, hilbert, sah, vsah.
+    #[arg(long, default_value = "refine")]
     pub method: Method,
     /// R, in [0, 0.5].
     #[arg(long, default_value_t = 0.2)]

@@ -5,7 +5,6 @@
 //! of the same queries. A table, JSON, and with `--out` a chart.
 
 use std::io::IsTerminal;
-use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -16,31 +15,17 @@ use mktree::db::{CreateOptions, Database};
 use mktree::geom::Aabb;
 use mktree::query::{QueryKind, TreeQueryCount, count_in_tree, run_boxes};
 use mktree::scene::Scene;
-use mktree::scene::import::ImportOptions;
 use mktree::store::format::geometry::record_len;
 use mktree::store::format::run;
 use serde::Serialize;
 
+use crate::args::BenchBuildArgs;
 use crate::output;
 
 /// MemPage when neither a page nor a block size is given.
 const DEFAULT_PAGE_OBJECTS: u32 = 100;
 /// The methods a method is judged against: the best reference per query set.
 const REFERENCES: [Method; 3] = [Method::Median, Method::Sah, Method::Vsah];
-
-/// What the command was asked.
-pub struct Options {
-    pub scenes: Vec<String>,
-    pub page_objects: Option<u32>,
-    pub block_size: Option<u32>,
-    pub queries: usize,
-    pub seed: u64,
-    pub rate: f64,
-    pub methods: Option<Vec<Method>>,
-    pub json: bool,
-    pub out: Option<PathBuf>,
-    pub import: ImportOptions,
-}
 
 /// The whole run, as JSON.
 #[derive(Serialize)]
@@ -115,7 +100,7 @@ impl SetResult {
     }
 }
 
-pub fn run(o: &Options) -> Result<()> {
+pub fn run(o: &BenchBuildArgs) -> Result<()> {
     anyhow::ensure!(o.queries > 0, "--queries must be at least 1");
     let methods = o.methods.clone().unwrap_or_else(|| Method::ALL.to_vec());
     let leaf = match (o.block_size, o.page_objects) {
@@ -125,8 +110,8 @@ pub fn run(o: &Options) -> Result<()> {
     let tty = std::io::stderr().is_terminal();
     let mut scenes = Vec::new();
     for arg in &o.scenes {
-        let scene = crate::cmd::scene_or_preset(arg, &o.import)?;
-        anyhow::ensure!(scene.len() > 0, "{arg}: the scene has no objects");
+        let scene = crate::cmd::scene_or_preset(arg, &o.import.options())?;
+        anyhow::ensure!(!scene.is_empty(), "{arg}: the scene has no objects");
         let boxes = scene.object_boxes();
         let sets: Vec<(QueryKind, Vec<Aabb>)> =
             QueryKind::STANDARD.iter().map(|k| (*k, k.generate(&boxes, o.queries, o.seed))).collect();

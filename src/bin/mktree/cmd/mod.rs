@@ -43,29 +43,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::BenchQueries { files, queries, shares, seed, json } => {
             bench_queries::run(&files, queries, &shares, seed, json)
         }
-        Command::BenchBuild {
-            scenes,
-            page_objects,
-            block_size,
-            queries,
-            seed,
-            rate,
-            methods,
-            json,
-            out,
-            import,
-        } => bench_build::run(&bench_build::Options {
-            scenes,
-            page_objects,
-            block_size,
-            queries,
-            seed,
-            rate,
-            methods,
-            json,
-            out,
-            import: import.options(),
-        }),
+        Command::BenchBuild(args) => bench_build::run(&args),
     }
 }
 

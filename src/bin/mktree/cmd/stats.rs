@@ -17,10 +17,10 @@ pub fn describe(p: &BuildParams) -> String {
         mktree::build::LeafRule::Objects(n) => format!("MemPage {n} objects"),
         mktree::build::LeafRule::Bytes { capacity } => format!("MemPage {capacity} bytes"),
     };
-    let la = if p.method == mktree::build::Method::Laa {
-        format!(", look-ahead {}", p.look_ahead)
-    } else {
-        String::new()
+    let la = match p.method {
+        mktree::build::Method::Laa => format!(", look-ahead {}", p.look_ahead),
+        mktree::build::Method::Refine => format!(", query extent {}", p.query_extent),
+        _ => String::new(),
     };
     format!("method {}, R {}, {leaf}{la}, tie-break {}", p.method, p.rate, p.tie_break)
 }
