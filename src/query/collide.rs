@@ -4,6 +4,8 @@
 //! at M.
 
 use super::QueryError;
+use std::collections::{HashMap, HashSet};
+
 use super::shape::Triangles;
 use super::traverse::{QueryAnswer, QueryOptions, traverse};
 use crate::db::ReadTransaction;
@@ -42,15 +44,22 @@ pub fn collide(
 }
 
 /// Object `id`'s exact mesh, read from the file (its reads are not a
-/// query's: the leaves' object boxes are read until the one holding `id`).
+/// query's).
 pub fn object_mesh(txn: &ReadTransaction, id: ObjectId) -> Result<Mesh, QueryError> {
+    let mut meshes = object_meshes(txn, &[id])?;
+    meshes.pop().ok_or(QueryError::NoObject { id: id.0, objects: 0 })
+}
+
+/// The exact meshes of `ids`, in their order: each leaf's object boxes are
+/// read, and the geometry of the leaves holding a wanted object.
+pub fn object_meshes(txn: &ReadTransaction, ids: &[ObjectId]) -> Result<Vec<Mesh>, QueryError> {
     let info = txn.info().ok_or(QueryError::NoTree)?;
-    if id.0 >= info.objects {
-        return Err(QueryError::NoObject { id: id.0, objects: info.objects });
+    if let Some(bad) = ids.iter().find(|id| id.0 >= info.objects) {
+        return Err(QueryError::NoObject { id: bad.0, objects: info.objects });
     }
+    let wanted: HashSet<ObjectId> = ids.iter().copied().collect();
     let mut cache = BlockCache::new(usize::MAX);
     let mut stats = ReadStats::default();
-    let mut found: Option<Mesh> = None;
     let mut leaves = Vec::new();
     txn.walk_nodes(&mut stats, |_, rec| {
         if rec.is_leaf() {
@@ -58,19 +67,21 @@ pub fn object_mesh(txn: &ReadTransaction, id: ObjectId) -> Result<Mesh, QueryErr
         }
         Ok(())
     })?;
+    let mut found: HashMap<ObjectId, Mesh> = HashMap::new();
     for rec in leaves {
         let Some((level, objects, entry)) = rec.entry(1, true) else { continue };
         let piece = txn.read_entry(&rec, level, objects, entry, &mut stats, Some(&mut cache))?;
-        let holds = piece.and_then(|p| p.object_ids()).is_some_and(|ids| ids.contains(&id));
+        if !piece.and_then(|p| p.object_ids()).is_some_and(|v| v.iter().any(|id| wanted.contains(id))) {
+            continue;
+        }
         let exact = rec.lods.last().map_or(LodRef::Absent, |pair| pair[1]);
-        if holds {
-            found = txn
-                .read_objects(&exact, &mut stats, Some(&mut cache))?
-                .into_iter()
-                .find(|o| o.0 == id)
-                .map(|o| o.1);
-            break;
+        for (id, mesh) in txn.read_objects(&exact, &mut stats, Some(&mut cache))? {
+            if wanted.contains(&id) {
+                found.insert(id, mesh);
+            }
         }
     }
-    found.ok_or(QueryError::NoObject { id: id.0, objects: info.objects })
+    ids.iter()
+        .map(|id| found.get(id).cloned().ok_or(QueryError::NoObject { id: id.0, objects: info.objects }))
+        .collect()
 }
