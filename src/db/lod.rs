@@ -193,7 +193,7 @@ impl ReadTransaction {
         Ok(out)
     }
 
-    fn decode_piece(
+    pub(crate) fn decode_piece(
         &self,
         node: u32,
         k: u8,

@@ -5,6 +5,7 @@
 
 mod check;
 mod codes;
+mod entry;
 mod hierarchy;
 mod lod;
 mod read;
@@ -17,6 +18,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 
 pub use check::{CheckReport, check};
 pub use codes::{method_from_code, method_to_code};
+pub use entry::entry_blocks;
 pub use hierarchy::read_hierarchy;
 pub use lod::{Level, LodInfo, Piece};
 pub use read::{NodeLocation, ReadTransaction, TreeInfo};

@@ -1,19 +1,30 @@
 //! Geometry shared by every layer: axis-aligned boxes, axes, and the outward
-//! rounding that keeps a box stored at lower precision conservative.
+//! rounding that keeps a box stored at lower precision conservative, and
+//! the query shapes (spheres, frusta, posed meshes) with their exact tests.
 //!
 //! `parry.rs` is the only place that imports parry; everything else uses
 //! nalgebra's `Point3<f64>`.
 
 mod aabb;
 mod axis;
+mod frustum;
 mod parry;
+mod pose;
 mod round;
+mod shape_error;
+mod sphere;
 mod triangle_box;
 
 pub use aabb::Aabb;
 pub use axis::Axis;
-pub use parry::SurfaceDistance;
+pub use frustum::{Camera, Frustum};
+pub use parry::{
+    SurfaceDistance, distance_point_triangle, distance_triangle_triangle, intersects_triangle_triangle,
+};
+pub use pose::Pose;
 pub use round::{round_down_f32, round_up_f32};
+pub use shape_error::ShapeError;
+pub use sphere::Sphere;
 pub use triangle_box::intersects_triangle_box;
 
 /// A point in world coordinates, millimetres.

@@ -1,8 +1,68 @@
-//! The only place that imports parry: a triangle set's BVH for point distances.
+//! The only place that imports parry: a triangle set's BVH for point
+//! distances, and the exact triangle-triangle intersection and distance tests
+//! of collision and clearance queries.
 
 use super::Point;
+use parry3d_f64::math::Isometry;
 use parry3d_f64::query::PointQuery;
-use parry3d_f64::shape::TriMesh;
+use parry3d_f64::shape::{Segment, Shape, TriMesh, Triangle};
+
+/// A triangle as parry sees it: parry's triangle routines assume area, so a
+/// zero-area triangle is the segment between its two farthest corners (which
+/// holds its third corner), and tests on it stay exact.
+enum Simplex {
+    Triangle(Triangle),
+    Segment(Segment),
+}
+
+impl Simplex {
+    fn of(t: &[Point; 3]) -> Simplex {
+        let [a, b, c] = *t;
+        if (b - a).cross(&(c - a)).norm_squared() > 0.0 {
+            return Simplex::Triangle(Triangle::new(a, b, c));
+        }
+        let pairs = [(a, b), (b, c), (c, a)];
+        let (p, q) = pairs
+            .into_iter()
+            .max_by(|x, y| (x.1 - x.0).norm_squared().total_cmp(&(y.1 - y.0).norm_squared()))
+            .unwrap_or((a, b));
+        Simplex::Segment(Segment::new(p, q))
+    }
+
+    fn shape(&self) -> &dyn Shape {
+        match self {
+            Simplex::Triangle(t) => t,
+            Simplex::Segment(s) => s,
+        }
+    }
+
+    fn distance_to_point(&self, p: &Point) -> f64 {
+        match self {
+            Simplex::Triangle(t) => t.distance_to_local_point(p, true),
+            Simplex::Segment(s) => s.distance_to_local_point(p, true),
+        }
+    }
+}
+
+/// True when the closed triangles share a point (parry's GJK on the two
+/// simplices; degenerate triangles are segments or points).
+pub fn intersects_triangle_triangle(a: &[Point; 3], b: &[Point; 3]) -> bool {
+    let id = Isometry::identity();
+    // Triangles and segments are support maps: parry supports every pair of them.
+    parry3d_f64::query::intersection_test(&id, Simplex::of(a).shape(), &id, Simplex::of(b).shape())
+        .unwrap_or(true)
+}
+
+/// The distance between two closed triangles (0 when they meet).
+pub fn distance_triangle_triangle(a: &[Point; 3], b: &[Point; 3]) -> f64 {
+    let id = Isometry::identity();
+    parry3d_f64::query::distance(&id, Simplex::of(a).shape(), &id, Simplex::of(b).shape()).unwrap_or(0.0)
+}
+
+/// The distance from `p` to the closed triangle `t`.
+pub fn distance_point_triangle(p: &Point, t: &[Point; 3]) -> f64 {
+    Simplex::of(t).distance_to_point(p)
+}
 
 /// Distances from points to a set of triangles (the surface, not a solid),
 /// through parry's BVH. Deterministic: the same triangles give the same tree.
@@ -48,5 +108,21 @@ mod tests {
         assert!((s.distance(&Point::new(0.5, -2.0, 0.0)) - 2.0).abs() < 1e-12);
         assert!((s.distance(&Point::new(-3.0, -4.0, 0.0)) - 5.0).abs() < 1e-12);
         assert_eq!(SurfaceDistance::new([]).distance(&Point::origin()), f64::INFINITY);
+    }
+
+    #[test]
+    fn triangle_pairs_crossing_apart_and_degenerate() {
+        let p = Point::new;
+        let flat = [p(0.0, 0.0, 0.0), p(2.0, 0.0, 0.0), p(0.0, 2.0, 0.0)];
+        let through = [p(0.5, 0.5, -1.0), p(0.5, 0.5, 1.0), p(0.6, 0.6, 1.0)];
+        assert!(intersects_triangle_triangle(&flat, &through));
+        let above = [p(0.5, 0.5, 3.0), p(1.5, 0.5, 3.0), p(0.5, 1.5, 3.0)];
+        assert!(!intersects_triangle_triangle(&flat, &above));
+        assert!((distance_triangle_triangle(&flat, &above) - 3.0).abs() < 1e-9);
+        // A zero-area "triangle" is the segment it spans.
+        let segment = [p(0.5, 0.5, -1.0), p(0.5, 0.5, 1.0), p(0.5, 0.5, 0.0)];
+        assert!(intersects_triangle_triangle(&flat, &segment));
+        assert!((distance_point_triangle(&p(0.5, 0.5, 2.0), &segment) - 1.0).abs() < 1e-12);
+        assert!((distance_point_triangle(&p(0.5, 0.5, 2.0), &flat) - 2.0).abs() < 1e-12);
     }
 }

@@ -1,4 +1,6 @@
-//! Box queries: the objects whose exact geometry (their triangles, as
+//! Region queries (box, sphere, frustum) at a level k through the shared
+//! traversal, and the level-M box query of the first issue, kept for its
+//! callers. Box queries: the objects whose exact geometry (their triangles, as
 //! surfaces) meets an axis-aligned box. The traversal prunes a child from its
 //! parent's copy of the child's box, so a block is read only when some node in
 //! it may hold an answer; blocks are clustered subtrees, so a depth-first
@@ -7,6 +9,9 @@
 use std::sync::Arc;
 use std::time::Instant;
 
+use super::QueryError;
+use super::shape::Region;
+use super::traverse::{QueryAnswer, QueryOptions, traverse};
 use crate::db::{NodeLocation, ReadTransaction};
 use crate::geom::{Aabb, intersects_triangle_box};
 use crate::scene::{Mesh, ObjectId, Scene};
@@ -97,6 +102,17 @@ pub fn query_box(
     objects.sort_unstable();
     stats.seconds = started.elapsed().as_secs_f64();
     Ok(BoxQuery { objects, stats })
+}
+
+/// A box, sphere or frustum query at `opts`' level and budget, through the
+/// shared traversal (`traverse.rs`).
+pub fn query_region(
+    txn: &ReadTransaction,
+    region: &Region,
+    opts: &QueryOptions,
+    cache: Option<&mut BlockCache>,
+) -> Result<QueryAnswer, QueryError> {
+    traverse(txn, region, opts, cache)
 }
 
 /// The same answer by testing every object of `scene`: the oracle for tests.

@@ -99,3 +99,20 @@ pub fn image(scene: &Scene, params: &BuildParams, options: CreateOptions) -> Vec
     drop(db);
     dev.to_bytes()
 }
+
+/// `scene` in a fresh in-memory database with M = `m` levels of detail,
+/// MOA leaves of at most `cap` objects, and `lod` as its level parameters.
+pub fn lod_db(scene: &Scene, m: u8, block_size: u32, cap: u32, lod: mktree::lod::LodParams) -> Database {
+    let db = Database::create_on(Arc::new(MemDevice::new()), CreateOptions { block_size, lod_levels: m })
+        .expect("create");
+    let mut w = db.begin_write().expect("begin_write");
+    w.set_lod_params(lod);
+    let params = BuildParams {
+        method: mktree::build::Method::Moa,
+        leaf: mktree::build::LeafRule::Objects(cap),
+        ..BuildParams::default()
+    };
+    w.bulk_load(scene, &params, &|_| {}).expect("bulk_load");
+    w.commit().expect("commit");
+    db
+}

@@ -106,12 +106,99 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Objects whose exact geometry meets a box, with the block reads it took.
+    /// Objects that meet a box, sphere or view frustum at level k (exact at M), with the block reads it took.
+    #[command(group = clap::ArgGroup::new("shape").required(true).multiple(false))]
     Query {
         file: PathBuf,
         /// x0,y0,z0,x1,y1,z1 in mm.
-        #[arg(long = "box", value_parser = six_numbers, allow_hyphen_values = true)]
-        aabb: [f64; 6],
+        #[arg(long = "box", value_parser = six_numbers, allow_hyphen_values = true, group = "shape")]
+        aabb: Option<[f64; 6]>,
+        /// x,y,z,r in mm.
+        #[arg(long, value_parser = numbers::<4>, allow_hyphen_values = true, group = "shape")]
+        sphere: Option<[f64; 4]>,
+        /// A camera: eye x,y,z, target x,y,z, vertical fov (degrees), aspect, near, far (mm); up is +z.
+        #[arg(long, value_parser = numbers::<10>, allow_hyphen_values = true, group = "shape")]
+        frustum: Option<[f64; 10]>,
+        #[command(flatten)]
+        level: LevelArgs,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Objects colliding with (or within --clearance of) a posed query object.
+    #[command(group = clap::ArgGroup::new("query").required(true).multiple(false))]
+    Collide {
+        file: PathBuf,
+        /// The query object: a scene file (OBJ, STL, glTF; all its objects as one mesh).
+        #[arg(long, group = "query")]
+        mesh: Option<PathBuf>,
+        /// The query object: object ID of the file's own scene (left out of the answer).
+        #[arg(long, group = "query")]
+        object: Option<u32>,
+        /// Translation x,y,z in mm.
+        #[arg(long, value_parser = numbers::<3>, allow_hyphen_values = true, default_value = "0,0,0")]
+        translate: [f64; 3],
+        /// Rotations about x, then y, then z, in degrees, about the object's box centre.
+        #[arg(long, value_parser = numbers::<3>, allow_hyphen_values = true, default_value = "0,0,0")]
+        rotate_deg: [f64; 3],
+        /// d in mm: objects within d collide.
+        #[arg(long, default_value_t = 0.0)]
+        clearance: f64,
+        #[command(flatten)]
+        level: LevelArgs,
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        import: ImportArgs,
+    },
+    /// Every pair of objects that intersect or come within --clearance, by the tree against itself.
+    Clash {
+        file: PathBuf,
+        /// d in mm.
+        #[arg(long, default_value_t = 0.0)]
+        clearance: f64,
+        /// Level k, 1 ..= M (default M: exact).
+        #[arg(long)]
+        lod: Option<u8>,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Frustum queries along a camera path with an LRU pool kept across steps: reads and hits per step.
+    Navigate {
+        file: PathBuf,
+        /// CSV, one camera per line: ex,ey,ez,tx,ty,tz (mm).
+        #[arg(long)]
+        path: PathBuf,
+        /// Blocks the pool holds.
+        #[arg(long)]
+        cache_blocks: usize,
+        /// Vertical field of view, degrees.
+        #[arg(long, default_value_t = 60.0)]
+        fov_deg: f64,
+        #[arg(long, default_value_t = 1.5)]
+        aspect: f64,
+        /// Near distance, mm.
+        #[arg(long, default_value_t = 100.0)]
+        near: f64,
+        /// Far distance, mm.
+        #[arg(long, default_value_t = 10_000.0)]
+        far: f64,
+        /// Level k, 1 ..= M (default M: exact).
+        #[arg(long)]
+        lod: Option<u8>,
+        #[arg(long)]
+        json: bool,
+    },
+    /// The same random collision queries at every level: block reads, time and precision; a chart (SVG, PNG).
+    Tradeoff {
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        #[arg(long, default_value_t = 100)]
+        queries: usize,
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Directory for tradeoff.svg and tradeoff.png.
+        #[arg(long, default_value = ".")]
+        out: PathBuf,
         #[arg(long)]
         json: bool,
     },
@@ -144,6 +231,23 @@ pub enum Command {
         #[arg(long)]
         dir: Option<PathBuf>,
     },
+}
+
+/// The level and block budget of a query.
+#[derive(Args, Debug, Clone)]
+pub struct LevelArgs {
+    /// Level k, 1 ..= M (default M: the exact answer; below M a superset).
+    #[arg(long)]
+    pub lod: Option<u8>,
+    /// Read at most this many blocks; what is left unrefined is reported as maybe.
+    #[arg(long)]
+    pub budget: Option<u64>,
+}
+
+impl LevelArgs {
+    pub fn options(&self) -> mktree::query::QueryOptions {
+        mktree::query::QueryOptions { lod: self.lod, budget: self.budget }
+    }
 }
 
 /// Levels of detail of a new tree.
@@ -277,14 +381,23 @@ impl BuildArgs {
     }
 }
 
-/// Six comma-separated finite numbers (a box x0,y0,z0,x1,y1,z1).
-fn six_numbers(s: &str) -> Result<[f64; 6], String> {
+/// N comma-separated finite numbers.
+fn numbers<const N: usize>(s: &str) -> Result<[f64; N], String> {
     let v: Vec<f64> = s
         .split(',')
         .map(|x| x.trim().parse::<f64>().map_err(|_| format!("{x:?} is not a number")))
         .collect::<Result<_, _>>()?;
-    let a: [f64; 6] = v.try_into().map_err(|v: Vec<f64>| format!("six numbers expected, got {}", v.len()))?;
-    if a.iter().any(|x| !x.is_finite()) || a[0] > a[3] || a[1] > a[4] || a[2] > a[5] {
+    let a: [f64; N] = v.try_into().map_err(|v: Vec<f64>| format!("{N} numbers expected, got {}", v.len()))?;
+    if a.iter().any(|x| !x.is_finite()) {
+        return Err("numbers must be finite".into());
+    }
+    Ok(a)
+}
+
+/// Six comma-separated finite numbers (a box x0,y0,z0,x1,y1,z1).
+fn six_numbers(s: &str) -> Result<[f64; 6], String> {
+    let a = numbers::<6>(s)?;
+    if a[0] > a[3] || a[1] > a[4] || a[2] > a[5] {
         return Err("a box is finite, with x0 <= x1, y0 <= y1, z0 <= z1".into());
     }
     Ok(a)

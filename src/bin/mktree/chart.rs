@@ -1,5 +1,5 @@
-//! Charts (plotters): `bench-build`'s reads per query by method and query
-//! set, as SVG and PNG.
+//! Charts (plotters), as SVG and PNG: `bench-build`'s reads per query by
+//! method and query set; `tradeoff`'s block reads against precision.
 //!
 //! The PNG carries no text: plotters draws text into a bitmap only through
 //! a TTF font (font-kit and the system's fonts, or a font embedded with
@@ -22,12 +22,84 @@ const PANEL: (u32, u32) = (1100, 380);
 /// query set, written as `svg` and `png`.
 pub fn bench_build(bench: &Bench, svg: &Path, png: &Path) -> Result<()> {
     let size = (PANEL.0, PANEL.1 * bench.scenes.len().max(1) as u32);
-    let svg_root = SVGBackend::new(svg, size).into_drawing_area();
-    draw(&svg_root, bench, true)?;
-    svg_root.present().map_err(|e| anyhow!("writing {}: {e}", svg.display()))?;
-    let png_root = BitMapBackend::new(png, size).into_drawing_area();
-    draw(&png_root, bench, false)?;
-    png_root.present().map_err(|e| anyhow!("writing {}: {e}", png.display()))?;
+    svg_and_png!(size, svg, png, draw(bench))
+}
+
+/// Draws a chart twice, `$draw(area, args.., text)`: as SVG with text, as
+/// PNG without (see the module's note on fonts).
+macro_rules! svg_and_png {
+    ($size:expr, $svg:expr, $png:expr, $draw:ident ( $($arg:expr),* )) => {{
+        let svg_root = SVGBackend::new($svg, $size).into_drawing_area();
+        $draw(&svg_root, $($arg,)* true)?;
+        svg_root.present().map_err(|e| anyhow!("writing {}: {e}", $svg.display()))?;
+        let png_root = BitMapBackend::new($png, $size).into_drawing_area();
+        $draw(&png_root, $($arg,)* false)?;
+        png_root.present().map_err(|e| anyhow!("writing {}: {e}", $png.display()))?;
+        Ok(())
+    }};
+}
+use svg_and_png;
+
+/// One series of `tradeoff`'s chart: a file's (mean block reads, precision)
+/// per level k.
+pub struct Tradeoff {
+    pub name: String,
+    pub points: Vec<(f64, f64, u8)>,
+}
+
+/// `tradeoff`'s chart: block reads (x) against precision (y), a point per
+/// level (labelled k in the SVG), a line per file.
+pub fn tradeoff(series: &[Tradeoff], svg: &Path, png: &Path) -> Result<()> {
+    svg_and_png!((900, 600), svg, png, draw_tradeoff(series))
+}
+
+fn draw_tradeoff<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    series: &[Tradeoff],
+    text: bool,
+) -> Result<()> {
+    root.fill(&WHITE).map_err(failed)?;
+    let x_max = series.iter().flat_map(|s| s.points.iter().map(|p| p.0)).fold(1.0f64, f64::max) * 1.1;
+    let mut builder = ChartBuilder::on(root);
+    builder.margin(16);
+    if text {
+        builder
+            .caption("speed against accuracy: collision queries at each level k", ("sans-serif", 18))
+            .x_label_area_size(36)
+            .y_label_area_size(48);
+    }
+    let mut chart = builder.build_cartesian_2d(0.0..x_max, 0.0..1.05).map_err(failed)?;
+    let mut mesh = chart.configure_mesh();
+    if text {
+        mesh.x_desc("mean block reads per query").y_desc("precision").draw().map_err(failed)?;
+    } else {
+        mesh.x_labels(0).y_labels(0).draw().map_err(failed)?;
+    }
+    for (i, s) in series.iter().enumerate() {
+        let colour = Palette99::pick(i).to_rgba();
+        let line = s.points.iter().map(|p| (p.0, p.1));
+        let drawn = chart.draw_series(LineSeries::new(line, colour.stroke_width(2))).map_err(failed)?;
+        if text {
+            drawn
+                .label(s.name.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
+            let labels =
+                s.points.iter().map(|&(x, y, k)| Text::new(format!("k{k}"), (x, y), ("sans-serif", 13)));
+            chart.draw_series(labels).map_err(failed)?;
+        }
+        chart
+            .draw_series(s.points.iter().map(|&(x, y, _)| Circle::new((x, y), 4, colour.filled())))
+            .map_err(failed)?;
+    }
+    if text {
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::LowerRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(failed)?;
+    }
     Ok(())
 }
 

@@ -4,13 +4,17 @@ pub mod bench_build;
 mod bench_queries;
 mod build;
 mod check;
+mod clash;
+mod collide;
 mod demo;
 mod dump;
 mod gen_info;
 mod lods;
+mod navigate;
 mod query;
 mod stats;
 mod sweep;
+mod tradeoff;
 
 use std::path::Path;
 
@@ -37,7 +41,20 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Node { file, node, lod, objects, export, json } => {
             lods::node(&file, node, lod, objects, export.as_deref(), json)
         }
-        Command::Query { file, aabb, json } => query::run(&file, &aabb, json),
+        Command::Query { file, aabb, sphere, frustum, level, json } => {
+            query::run(&file, &query::shape(aabb, sphere, frustum)?, &level.options(), json)
+        }
+        Command::Collide { file, mesh, object, translate, rotate_deg, clearance, level, json, import } => {
+            let query = collide::Query { mesh, object, translate, rotate_deg, clearance };
+            collide::run(&file, &query, &level.options(), &import.options(), json)
+        }
+        Command::Clash { file, clearance, lod, json } => clash::run(&file, clearance, lod, json),
+        Command::Navigate { file, path, cache_blocks, fov_deg, aspect, near, far, lod, json } => {
+            navigate::run(&file, &path, cache_blocks, [fov_deg, aspect, near, far], lod, json)
+        }
+        Command::Tradeoff { files, queries, seed, out, json } => {
+            tradeoff::run(&files, queries, seed, &out, json)
+        }
         Command::Check { file, json } => check::run(&file, json),
         Command::Demo { dir } => demo::run(dir.as_deref()),
         Command::BenchQueries { files, queries, shares, seed, json } => {

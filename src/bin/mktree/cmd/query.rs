@@ -1,40 +1,94 @@
-//! `mktree query`: a box query through the file, with its block reads.
+//! `mktree query`: a box, sphere or frustum query at level k through the
+//! file, with its block reads; also the JSON and text every single-shape
+//! query prints (collide uses them).
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use mktree::db::Database;
-use mktree::geom::Aabb;
-use serde_json::json;
+use mktree::geom::{Aabb, Camera, Frustum, Point, Sphere};
+use mktree::query::{QueryAnswer, QueryOptions, Region, query_region};
+use serde_json::{Value, json};
 
 use crate::output;
 
-pub fn run(file: &Path, b: &[f64; 6], as_json: bool) -> Result<()> {
+/// The region the flags name (clap lets exactly one through).
+pub fn shape(aabb: Option<[f64; 6]>, sphere: Option<[f64; 4]>, frustum: Option<[f64; 10]>) -> Result<Region> {
+    Ok(match (aabb, sphere, frustum) {
+        (Some(b), _, _) => Region::Box(Aabb::from_array(b)),
+        (_, Some(s), _) => Region::Sphere(Sphere::new(Point::new(s[0], s[1], s[2]), s[3])?),
+        (_, _, Some(f)) => Region::Frustum(Box::new(Frustum::from_camera(&Camera {
+            eye: Point::new(f[0], f[1], f[2]),
+            target: Point::new(f[3], f[4], f[5]),
+            fov_deg: f[6],
+            aspect: f[7],
+            near: f[8],
+            far: f[9],
+        })?)),
+        _ => bail!("one of --box, --sphere, --frustum is needed"),
+    })
+}
+
+pub fn run(file: &Path, region: &Region, opts: &QueryOptions, as_json: bool) -> Result<()> {
     let db = Database::open(file).with_context(|| format!("opening {}", file.display()))?;
     let r = db.begin_read()?;
-    let res = r.query_box(&Aabb::from_array(*b))?;
-    let s = &res.stats;
+    print(&query_region(&r, region, opts, None)?, as_json)
+}
+
+/// An answer's JSON: the keys, then the traversal's statistics.
+pub fn answer_json(a: &QueryAnswer) -> Value {
+    let s = &a.stats;
+    let m = s.tests_per_level.len();
+    json!({
+        "objects": a.objects,
+        "maybe": a.maybe,
+        "unexplored_nodes": a.unexplored_nodes,
+        "level": a.level,
+        "level_reached": a.level_reached,
+        "block_reads": {
+            "node": s.reads.node, "geometry": s.reads.geometry, "lod": s.reads.lod, "total": s.reads.total()
+        },
+        "cache_hits": s.reads.cache_hits,
+        "nodes_visited": s.nodes_visited,
+        "leaves_visited": s.leaves_visited,
+        "objects_tested": if usize::from(a.level) == m { s.tests_per_level.last().copied().unwrap_or(0) } else { 0 },
+        "tests_per_level": s.tests_per_level,
+        "triangles_tested": s.triangles_tested,
+        "decided": a.decided,
+        "seconds": s.seconds,
+    })
+}
+
+/// Prints an answer as JSON or two lines of text.
+pub fn print(a: &QueryAnswer, as_json: bool) -> Result<()> {
     if as_json {
-        return output::json(&json!({
-            "objects": res.objects,
-            "block_reads": { "node": s.reads.node, "geometry": s.reads.geometry, "total": s.reads.total() },
-            "cache_hits": s.reads.cache_hits,
-            "nodes_visited": s.nodes_visited,
-            "leaves_visited": s.leaves_visited,
-            "objects_tested": s.objects_tested,
-            "triangles_tested": s.triangles_tested,
-            "seconds": s.seconds,
-        }));
+        return output::json(&answer_json(a));
     }
-    println!("{} objects: {:?}", res.objects.len(), res.objects.iter().map(|o| o.0).collect::<Vec<_>>());
+    let s = &a.stats;
     println!(
-        "block reads: {} node + {} geometry = {}; {} nodes, {} leaves, {} objects tested; {:.3} ms",
+        "{} objects at level {}: {:?}",
+        a.objects.len(),
+        a.level,
+        a.objects.iter().map(|o| o.0).collect::<Vec<_>>()
+    );
+    if a.level_reached < a.level || !a.maybe.is_empty() || a.unexplored_nodes > 0 {
+        println!(
+            "budget reached: level {} reached, {} maybe {:?}, {} subtrees unexplored",
+            a.level_reached,
+            a.maybe.len(),
+            a.maybe.iter().map(|o| o.0).collect::<Vec<_>>(),
+            a.unexplored_nodes
+        );
+    }
+    println!(
+        "block reads: {} node + {} lod + {} geometry = {}; {} nodes, {} leaves; tests per level {:?}; {:.3} ms",
         s.reads.node,
+        s.reads.lod,
         s.reads.geometry,
         s.reads.total(),
         s.nodes_visited,
         s.leaves_visited,
-        s.objects_tested,
+        s.tests_per_level,
         s.seconds * 1e3
     );
     Ok(())

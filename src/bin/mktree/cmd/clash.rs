@@ -1,0 +1,50 @@
+//! `mktree clash`: every pair of objects within a clearance, with the reads
+//! set against the file's blocks.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use mktree::db::Database;
+use mktree::query::{ClashOptions, clash};
+use serde_json::json;
+
+use crate::output;
+
+pub fn run(file: &Path, clearance: f64, lod: Option<u8>, as_json: bool) -> Result<()> {
+    let db = Database::open(file).with_context(|| format!("opening {}", file.display()))?;
+    let r = db.begin_read()?;
+    let a = clash(&r, &ClashOptions { lod, clearance }, None)?;
+    let s = &a.stats;
+    if as_json {
+        return output::json(&json!({
+            "pairs": a.pairs.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>(),
+            "level": a.level,
+            "clearance": clearance,
+            "block_reads": {
+                "node": s.reads.node, "geometry": s.reads.geometry, "lod": s.reads.lod, "total": s.reads.total()
+            },
+            "cache_hits": s.reads.cache_hits,
+            "file_blocks": a.file_blocks,
+            "nodes_visited": s.nodes_visited,
+            "leaves_visited": s.leaves_visited,
+            "tests_per_level": s.tests_per_level,
+            "triangles_tested": s.triangles_tested,
+            "seconds": s.seconds,
+        }));
+    }
+    println!("{} pairs at level {} within {clearance} mm", a.pairs.len(), a.level);
+    for (x, y) in &a.pairs {
+        println!("{x} {y}");
+    }
+    println!(
+        "block reads: {} node + {} lod + {} geometry = {} of the file's {} blocks; tests per level {:?}; {:.1} ms",
+        s.reads.node,
+        s.reads.lod,
+        s.reads.geometry,
+        s.reads.total(),
+        a.file_blocks,
+        s.tests_per_level,
+        s.seconds * 1e3
+    );
+    Ok(())
+}

@@ -1,0 +1,49 @@
+//! Rigid poses of a query object: a rotation about the object's own box
+//! centre, then a translation, so a pose moves an object where it stands
+//! (rotating about the world origin would swing an object of a 30 m ship
+//! metres away for a few degrees).
+
+use super::{Point, ShapeError, Vector};
+use nalgebra::Rotation3;
+
+/// A rotation (about a centre the caller gives) and a translation, mm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pose {
+    pub rotation: Rotation3<f64>,
+    pub translation: Vector,
+}
+
+impl Default for Pose {
+    fn default() -> Pose {
+        Pose { rotation: Rotation3::identity(), translation: Vector::zeros() }
+    }
+}
+
+impl Pose {
+    /// Translation `t` (mm) and rotations in degrees about x, then y, then z.
+    pub fn from_degrees(t: [f64; 3], r_deg: [f64; 3]) -> Result<Pose, ShapeError> {
+        if !t.iter().chain(&r_deg).all(|x| x.is_finite()) {
+            return Err(ShapeError::NotFinite { what: "a pose" });
+        }
+        let [rx, ry, rz] = r_deg.map(f64::to_radians);
+        Ok(Pose { rotation: Rotation3::from_euler_angles(rx, ry, rz), translation: Vector::from(t) })
+    }
+
+    /// `p` rotated about `center`, then translated.
+    pub fn apply(&self, center: &Point, p: &Point) -> Point {
+        center + self.rotation * (p - center) + self.translation
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_quarter_turn_about_z_turns_about_the_centre_then_moves() {
+        let pose = Pose::from_degrees([10.0, 0.0, 0.0], [0.0, 0.0, 90.0]).unwrap();
+        let q = pose.apply(&Point::new(1.0, 1.0, 0.0), &Point::new(2.0, 1.0, 0.0));
+        assert!((q - Point::new(11.0, 2.0, 0.0)).norm() < 1e-12);
+        assert!(Pose::from_degrees([f64::INFINITY, 0.0, 0.0], [0.0; 3]).is_err());
+    }
+}

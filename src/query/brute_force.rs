@@ -1,0 +1,50 @@
+//! The oracles of the tests: every query answered by testing every object
+//! (or pair) of the scene exactly, with no tree and no file.
+
+use super::shape::{Probe, Region, Triangles};
+use crate::geom::Pose;
+use crate::scene::{Mesh, ObjectId, Scene};
+
+fn all<P: Probe + ?Sized>(scene: &Scene, probe: &P) -> Vec<ObjectId> {
+    let mut n = 0;
+    (0..scene.len() as u32)
+        .map(ObjectId)
+        .filter(|&id| scene.object(id).is_some_and(|o| probe.meets_mesh(&o.mesh, &mut n)))
+        .collect()
+}
+
+/// The objects whose triangles meet `region`.
+pub fn brute_force_region(scene: &Scene, region: &Region) -> Vec<ObjectId> {
+    all(scene, region)
+}
+
+/// The objects within `clearance` of `mesh` under `pose` (sorted).
+pub fn brute_force_collide(
+    scene: &Scene,
+    mesh: &Mesh,
+    pose: &Pose,
+    clearance: f64,
+    exclude: Option<ObjectId>,
+) -> Result<Vec<ObjectId>, crate::geom::ShapeError> {
+    let probe = Triangles::posed(mesh, pose, clearance)?;
+    Ok(all(scene, &probe).into_iter().filter(|&id| Some(id) != exclude).collect())
+}
+
+/// Every pair (a, b), a < b, of objects within `clearance` (sorted).
+pub fn brute_force_clash(
+    scene: &Scene,
+    clearance: f64,
+) -> Result<Vec<(ObjectId, ObjectId)>, crate::geom::ShapeError> {
+    let boxes: Vec<_> = scene.objects().iter().map(|o| o.aabb().grown(clearance)).collect();
+    let mut pairs = Vec::new();
+    let mut n = 0;
+    for (i, a) in scene.objects().iter().enumerate() {
+        let probe = Triangles::posed(&a.mesh, &Pose::default(), clearance)?;
+        for (j, b) in scene.objects().iter().enumerate().skip(i + 1) {
+            if boxes[i].intersects(&b.aabb()) && probe.meets_mesh(&b.mesh, &mut n) {
+                pairs.push((ObjectId(i as u32), ObjectId(j as u32)));
+            }
+        }
+    }
+    Ok(pairs)
+}
