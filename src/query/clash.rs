@@ -141,7 +141,13 @@ impl Clash<'_> {
         Ok(l)
     }
 
-    fn pair(&mut self, a: &LeafObject, b: &LeafObject) {
+    fn pair<'o>(&mut self, mut a: &'o LeafObject, mut b: &'o LeafObject) {
+        // Contact of touching surfaces is decided within parry's tolerance,
+        // and not always symmetrically: test a pair one way only, lower id
+        // as the probe, as brute force does, whichever leaf the tree met first.
+        if b.id < a.id {
+            std::mem::swap(&mut a, &mut b);
+        }
         self.test(1);
         if !a.aabb.grown(self.d).intersects(&b.aabb) {
             return;
