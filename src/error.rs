@@ -19,4 +19,6 @@ pub enum Error {
     Generate(#[from] GenError),
     #[error(transparent)]
     Lod(#[from] crate::lod::LodError),
+    #[error(transparent)]
+    Query(#[from] crate::query::QueryError),
 }
