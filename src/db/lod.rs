@@ -87,6 +87,12 @@ pub struct LodInfo {
 }
 
 impl ReadTransaction {
+    /// The voxel lattice of the snapshot's tree, when a level holds voxels.
+    pub fn lattice(&self) -> Option<Lattice> {
+        let l = &self.snapshot.meta.as_ref()?.lods;
+        (l.lattice_cell > 0.0).then(|| Lattice { origin: l.lattice_origin.into(), cell: l.lattice_cell })
+    }
+
     /// What levels of detail the snapshot's tree holds.
     pub fn lod_info(&self) -> Option<LodInfo> {
         let meta = self.snapshot.meta.as_ref()?;
@@ -95,8 +101,7 @@ impl ReadTransaction {
         let per = |f: &dyn Fn(usize) -> f64| (0..usize::from(m).min(LOD_TABLE_LEN)).map(f).collect();
         let mut info = LodInfo {
             levels: m,
-            lattice: (l.lattice_cell > 0.0)
-                .then(|| Lattice { origin: l.lattice_origin.into(), cell: l.lattice_cell }),
+            lattice: self.lattice(),
             keep_identity: l.flags & LOD_KEEP_IDENTITY != 0,
             eps: per(&|k| meta.lod_table[k][0]),
             measured_error: per(&|k| meta.lod_table[k][1]),
@@ -215,10 +220,7 @@ impl ReadTransaction {
             check_ids(&boxes.iter().map(|b| b.0).collect::<Vec<_>>())?;
             return Ok(Piece::ObjectBoxes(boxes.into_iter().map(|(id, b)| (ObjectId(id), b)).collect()));
         }
-        let lattice = self
-            .lod_info()
-            .and_then(|i| i.lattice)
-            .ok_or_else(|| bad("the meta block has no lattice".into()))?;
+        let lattice = self.lattice().ok_or_else(|| bad("the meta block has no lattice".into()))?;
         if objects {
             let sets = crate::lod::decode_objects(bytes, &lattice).map_err(|e| bad(e.to_string()))?;
             check_ids(&sets.iter().map(|s| s.0).collect::<Vec<_>>())?;

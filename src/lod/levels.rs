@@ -125,8 +125,8 @@ fn longest_side_of(e: &[f64; 3]) -> f64 {
 pub enum Entry {
     /// b(S_n,1): the record's box.
     InRecord,
-    /// Bytes to store; `faces` of the bound they hold.
-    Blob { bytes: Vec<u8>, faces: u64 },
+    /// Bytes to store.
+    Blob { bytes: Vec<u8> },
     /// The union of the children's entries at this level.
     Spread,
     /// The same as another entry of the node (resolved: never names a `Same`).
@@ -364,7 +364,7 @@ impl NodeCtx<'_> {
         let mut level1 = Vec::new();
         crate::store::format::objboxes::encode(&boxes, &mut level1);
         let mut b = vec![Draft::Final(Entry::InRecord)];
-        let mut bb = vec![Draft::Final(Entry::Blob { bytes: level1, faces: 6 * objs.len() as u64 })];
+        let mut bb = vec![Draft::Final(Entry::Blob { bytes: level1 })];
         for k in 2..self.m() {
             let idx = usize::from(k) - 2;
             let form = if k == 2 { Form::Bitmap } else { Form::Boxes };
@@ -386,7 +386,7 @@ impl NodeCtx<'_> {
                     } else {
                         let mut bytes = Vec::new();
                         encode_objects(&items, form, &mut bytes);
-                        Draft::Final(Entry::Blob { bytes, faces })
+                        Draft::Final(Entry::Blob { bytes })
                     }
                 }
                 None => Draft::Up,
@@ -464,7 +464,7 @@ impl NodeCtx<'_> {
         if k > 2 && group[usize::from(k) - 3].as_ref() == Some(v) {
             return Draft::Final(Entry::Same { level: k - 1, objects: false });
         }
-        Draft::Final(Entry::Blob { bytes, faces })
+        Draft::Final(Entry::Blob { bytes })
     }
 
     /// The sets the parent builds on: a polyhedral level that is spread here
