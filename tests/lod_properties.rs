@@ -34,12 +34,7 @@ fn build(scene: &Scene, m: u8, bs: u32, cap: u32, lod: LodParams) -> Database {
 fn vertices_inside_every_level(db: &Database, scene: &Scene) {
     let r = db.begin_read().unwrap();
     let m = db.lod_levels();
-    let mut nodes = Vec::new();
-    r.walk_nodes(&mut ReadStats::default(), |at, rec| {
-        nodes.push((at, rec.clone()));
-        Ok(())
-    })
-    .unwrap();
+    let nodes = common::all_nodes(&r);
     for (at, rec) in &nodes {
         // The node's objects, from level M.
         let exact = r.fetch_level(*at, m, true, &mut ReadStats::default()).unwrap();

@@ -20,12 +20,7 @@ use proptest::prelude::*;
 fn check_predictions(db: &Database) {
     let r = db.begin_read().unwrap();
     let m = db.lod_levels();
-    let mut nodes = Vec::new();
-    r.walk_nodes(&mut ReadStats::default(), |at, rec| {
-        nodes.push((at, rec.clone()));
-        Ok(())
-    })
-    .unwrap();
+    let nodes = common::all_nodes(&r);
     for (at, rec) in nodes {
         for k in 1..=m {
             for objects in [false, true] {

@@ -38,30 +38,7 @@ pub(crate) mod tests {
     use crate::geom::Point;
 
     pub(crate) fn cube_mesh(lo: [f64; 3], hi: [f64; 3]) -> Mesh {
-        let v: Vec<Point> = (0..8)
-            .map(|i| {
-                Point::new(
-                    if i & 1 == 0 { lo[0] } else { hi[0] },
-                    if i & 2 == 0 { lo[1] } else { hi[1] },
-                    if i & 4 == 0 { lo[2] } else { hi[2] },
-                )
-            })
-            .collect();
-        let t = vec![
-            [0, 2, 1],
-            [1, 2, 3],
-            [4, 5, 6],
-            [5, 7, 6],
-            [0, 1, 4],
-            [1, 5, 4],
-            [2, 6, 3],
-            [3, 6, 7],
-            [0, 4, 2],
-            [2, 4, 6],
-            [1, 3, 5],
-            [3, 7, 5],
-        ];
-        Mesh::from_world(&v, t).unwrap()
+        Mesh::of_box(&crate::geom::Aabb::new(lo.into(), hi.into())).unwrap()
     }
 
     #[test]

@@ -68,22 +68,8 @@ mod tests {
     use super::*;
 
     fn cube() -> Vec<[Point; 3]> {
-        let p = |i: usize| Point::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64);
-        let t = [
-            [0, 2, 1],
-            [1, 2, 3],
-            [4, 5, 6],
-            [5, 7, 6],
-            [0, 1, 4],
-            [1, 5, 4],
-            [2, 6, 3],
-            [3, 6, 7],
-            [0, 4, 2],
-            [2, 4, 6],
-            [1, 3, 5],
-            [3, 7, 5],
-        ];
-        t.iter().map(|t| t.map(p)).collect()
+        let unit = crate::geom::Aabb::from_array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0]);
+        crate::scene::Mesh::of_box(&unit).unwrap().triangle_points().collect()
     }
 
     #[test]
