@@ -106,7 +106,7 @@ fn demo(dir: &Path) -> Result<()> {
     for frac in [0.01, 0.05, 0.2] {
         for (dx, dy, dz) in [(0.0, 0.0, 0.0), (0.25, -0.2, 0.1), (-0.3, 0.3, -0.25)] {
             let h = e * frac / 2.0;
-            let p = c + nalgebra::Vector3::new(dx * e.x, dy * e.y, dz * e.z);
+            let p = c + mktree::geom::Vector::new(dx * e.x, dy * e.y, dz * e.z);
             let q = Aabb::new(p - h, p + h);
             let mut row = vec![format!("{:.0}% at ({:.0}, {:.0}, {:.0})", frac * 100.0, p.x, p.y, p.z)];
             let mut answers = Vec::new();
