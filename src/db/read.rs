@@ -1,6 +1,7 @@
 //! The read transaction: a consistent snapshot of the committed tree, with
 //! verified, counted block reads (format-spec/node.md, geometry.md).
 
+use std::collections::HashMap;
 use std::sync::Arc;
 
 use super::{Inner, Snapshot, codes};
@@ -8,19 +9,9 @@ use crate::build::BuildParams;
 use crate::geom::Aabb;
 use crate::scene::{Mesh, ObjectId};
 use crate::store::format::frame::BlockType;
-use crate::store::format::node::{self, LodRef, NodeRecord};
+use crate::store::format::node::{self, LeafView, Limits, NodeView, RecordRef};
 use crate::store::format::{geometry, run};
-use crate::store::{BlockCache, Pager, ReadStats, StorageError};
-
-/// Where a node record lives: its block and slot, and the checksum its
-/// parent holds for that block (none for a record reached inside a block
-/// already verified).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct NodeLocation {
-    pub block: u32,
-    pub slot: u16,
-    pub checksum: Option<u32>,
-}
+use crate::store::{Block, BlockCache, Pager, ReadStats, StorageError};
 
 /// What a file holds, from its meta block.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -36,6 +27,10 @@ pub struct TreeInfo {
     pub depth: u32,
     pub node_blocks: u32,
     pub geometry_blocks: u64,
+    /// Bytes of node records over the node blocks' bytes.
+    pub node_fill: f64,
+    /// Bytes of geometry records over the geometry blocks' bytes.
+    pub geometry_fill: f64,
     pub triangles: u64,
     pub vertices: u64,
     pub scene_box: [f64; 6],
@@ -56,6 +51,43 @@ impl Drop for ReadTransaction {
     }
 }
 
+/// Where a node record is, with its box (the frame its children's and
+/// objects' boxes are quantized in).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NodeRef {
+    pub block: u32,
+    /// The checksum the parent (or the meta block) holds for `block`.
+    pub checksum: u32,
+    pub offset: u32,
+    pub aabb: Aabb,
+}
+
+/// The blocks one operation reads: each at most once (kept until the
+/// operation ends), counted, and shared through the database's cache when
+/// it has one.
+pub struct Reads<'c> {
+    pub stats: ReadStats,
+    held: HashMap<u32, Arc<Block>>,
+    shared: Option<&'c BlockCache>,
+}
+
+impl<'c> Reads<'c> {
+    /// Reads through `shared` (a pool kept across operations) when given.
+    pub fn new(shared: Option<&'c BlockCache>) -> Reads<'c> {
+        Reads { stats: ReadStats::default(), held: HashMap::new(), shared }
+    }
+
+    /// True when block `id` is already in hand (reading it costs nothing).
+    pub fn holds(&self, id: u32) -> bool {
+        self.held.contains_key(&id)
+    }
+
+    /// Blocks in hand.
+    pub fn held(&self) -> usize {
+        self.held.len()
+    }
+}
+
 impl ReadTransaction {
     pub(super) fn new(inner: Arc<Inner>, snapshot: Arc<Snapshot>) -> ReadTransaction {
         ReadTransaction { inner, snapshot }
@@ -65,9 +97,16 @@ impl ReadTransaction {
         self.inner.pager()
     }
 
+    /// The database's shared cache of verified blocks.
+    pub fn cache(&self) -> &BlockCache {
+        self.inner.cache()
+    }
+
     /// The snapshot's tree, or `None` for a database with no tree yet.
     pub fn info(&self) -> Option<TreeInfo> {
         let m = self.snapshot.meta.as_ref()?;
+        let bs = f64::from(self.pager().block_size());
+        let fill = |bytes: u64, blocks: u64| if blocks == 0 { 0.0 } else { bytes as f64 / (blocks as f64 * bs) };
         Some(TreeInfo {
             txn: self.snapshot.txn,
             block_size: self.pager().block_size(),
@@ -79,6 +118,8 @@ impl ReadTransaction {
             depth: m.depth,
             node_blocks: m.node_blocks,
             geometry_blocks: m.geometry_blocks,
+            node_fill: fill(m.node_bytes, m.node_blocks.into()),
+            geometry_fill: fill(m.geometry_bytes, m.geometry_blocks),
             triangles: m.triangle_count,
             vertices: m.vertex_count,
             scene_box: m.scene_box,
@@ -87,93 +128,113 @@ impl ReadTransaction {
         })
     }
 
-    /// The root record's location, or `None` for an empty database.
-    pub fn root(&self) -> Option<NodeLocation> {
+    /// The root record, or `None` for an empty database.
+    pub fn root(&self) -> Option<NodeRef> {
         let m = self.snapshot.meta.as_ref()?;
-        Some(NodeLocation { block: m.root_block, slot: m.root_slot, checksum: Some(m.root_checksum) })
+        Some(NodeRef {
+            block: m.root_block,
+            checksum: m.root_checksum,
+            offset: m.root_offset,
+            aabb: Aabb::from_array(m.scene_box),
+        })
     }
 
-    /// Reads and decodes node block `block` (verified against `checksum` when given).
-    pub fn read_node_block(
-        &self,
-        block: u32,
-        checksum: Option<u32>,
-        stats: &mut ReadStats,
-        cache: Option<&mut BlockCache>,
-    ) -> Result<Arc<Vec<NodeRecord>>, StorageError> {
-        self.check_in_snapshot(block)?;
-        let b = self.pager().read(block, BlockType::Node, checksum, stats, cache)?;
-        Ok(Arc::new(node::decode_block(block, &b, self.pager().lod_levels())?))
-    }
-
-    pub(crate) fn check_in_snapshot(&self, block: u32) -> Result<(), StorageError> {
-        if block >= self.snapshot.block_count {
+    fn check_in_snapshot(&self, block: u32) -> Result<(), StorageError> {
+        if block == 0 || block >= self.snapshot.block_count {
             return Err(StorageError::corrupt(
                 block,
                 "reference",
-                format!("past the committed end ({} blocks)", self.snapshot.block_count),
+                format!("not a block of the committed state ({} blocks)", self.snapshot.block_count),
             ));
         }
         Ok(())
     }
 
-    /// Reads the run whose first block is `first` (type `first_type`,
-    /// carrying `checksum`), its length from its header, checked against
-    /// `expected_blocks` when the parent says it; returns the record count,
-    /// the stream (as aligned words) and the stream's length.
-    pub(crate) fn read_run(
+    /// Block `id` of type `t` carrying `checksum`: from `reads`' hand, the
+    /// shared cache, or the device (verified, validated, counted).
+    pub(crate) fn block(
         &self,
-        first: u32,
+        id: u32,
+        t: BlockType,
         checksum: u32,
-        expected_blocks: Option<u32>,
-        first_type: BlockType,
-        stats: &mut ReadStats,
-        mut cache: Option<&mut BlockCache>,
-    ) -> Result<(u32, Vec<u32>, usize), StorageError> {
-        self.check_in_snapshot(first)?;
-        let head = self.pager().read(first, first_type, Some(checksum), stats, cache.as_deref_mut())?;
-        let (blocks, _, _) = run::header(first, &head)?;
-        if expected_blocks.is_some_and(|e| e != blocks) {
-            let detail = format!("the parent says {expected_blocks:?} blocks, the run {blocks}");
-            return Err(StorageError::corrupt(first, "run_blocks", detail));
+        reads: &mut Reads,
+    ) -> Result<Arc<Block>, StorageError> {
+        if let Some(b) = reads.held.get(&id) {
+            if b.checksum != checksum || b.bytes.get(4) != Some(&(t as u8)) {
+                return Err(StorageError::corrupt(id, "checksum", "two references disagree on this block"));
+            }
+            return Ok(b.clone());
         }
-        let last =
-            first.checked_add(blocks - 1).ok_or_else(|| StorageError::corrupt(first, "run", "overflows"))?;
-        self.check_in_snapshot(last)?;
-        let mut all = vec![head];
-        for id in first + 1..=last {
-            all.push(self.pager().read(id, first_type.continuation(), None, stats, cache.as_deref_mut())?);
-        }
-        let refs: Vec<&[u8]> = all.iter().map(|b| &b[..]).collect();
-        run::assemble(first, &refs)
+        let hit = reads.shared.and_then(|c| c.get(id, checksum)).filter(|b| b.bytes.get(4) == Some(&(t as u8)));
+        let b = match hit {
+            Some(b) => {
+                reads.stats.cache_hits += 1;
+                b
+            }
+            None => {
+                self.check_in_snapshot(id)?;
+                let (bytes, sum) = self.pager().read(id, t, Some(checksum), &mut reads.stats)?;
+                let records = match t {
+                    BlockType::Node => node::validate_block(id, &bytes, &self.limits())?,
+                    _ => Vec::new(),
+                };
+                let b = Arc::new(Block { id, checksum: sum, bytes, records });
+                if let Some(c) = reads.shared {
+                    c.put(b.clone());
+                }
+                b
+            }
+        };
+        reads.held.insert(id, b.clone());
+        Ok(b)
     }
 
-    /// The exact objects a level-M entry names (a leaf's geometry run).
-    pub fn read_objects(
-        &self,
-        lod: &LodRef,
-        stats: &mut ReadStats,
-        cache: Option<&mut BlockCache>,
-    ) -> Result<Vec<(ObjectId, Mesh)>, StorageError> {
-        let (first, blocks, checksum) = match *lod {
-            LodRef::InBlock { block, offset, checksum } if offset as usize == run::FIRST_DATA => {
-                (block, 1, checksum)
-            }
-            LodRef::InBlock { block, offset, .. } => {
-                let detail = format!("a run starts at {}, not {offset}", run::FIRST_DATA);
-                return Err(StorageError::corrupt(block, "lod offset", detail));
-            }
-            LodRef::Run { first, blocks, checksum } => (first, blocks, checksum),
-            _ => return Err(StorageError::Invalid("not a geometry reference".into())),
-        };
-        let (records, words, len) =
-            self.read_run(first, checksum, Some(blocks), BlockType::Geometry, stats, cache)?;
-        let objects = geometry::decode_objects(first, &words, len, records)?;
-        let count = self.snapshot.meta.as_ref().map_or(0, |m| m.object_count);
-        if let Some((id, _)) = objects.iter().find(|(id, _)| id.0 >= count) {
-            return Err(StorageError::corrupt(first, "object_id", format!("{id} >= {count} objects")));
+    fn limits(&self) -> Limits {
+        Limits {
+            block_size: self.pager().block_size(),
+            lod_levels: self.pager().lod_levels(),
+            object_count: self.snapshot.meta.as_ref().map_or(0, |m| m.object_count),
         }
-        Ok(objects)
+    }
+
+    /// The node block a child reference names (`from`: the block holding
+    /// the reference, for a reference within it).
+    pub(crate) fn node_block(&self, from: &Arc<Block>, at: RecordRef, reads: &mut Reads) -> Result<Arc<Block>, StorageError> {
+        if at.block == 0 { Ok(from.clone()) } else { self.block(at.block, BlockType::Node, at.checksum, reads) }
+    }
+
+    /// The exact object `i` of `leaf` (in block `block`): its geometry
+    /// blocks are read through `reads`.
+    pub(crate) fn read_object(
+        &self,
+        block: u32,
+        leaf: &LeafView,
+        i: usize,
+        reads: &mut Reads,
+    ) -> Result<(ObjectId, Mesh), StorageError> {
+        let bs = self.pager().block_size();
+        let o = leaf.object(i).ok_or_else(|| StorageError::corrupt(block, "objects", "no such object"))?;
+        let (first, sums) = leaf.geometry();
+        let sums: Vec<u32> = sums.collect();
+        let p = geometry::payload(bs);
+        let (start, end) = o.span;
+        let mut bytes = Vec::with_capacity((end - start) as usize);
+        for b in geometry::blocks_of(start, end, bs) {
+            let sum = *sums.get(b as usize).ok_or_else(|| {
+                StorageError::corrupt(block, "position", "an object's record lies past its leaf's span")
+            })?;
+            let id = u32::try_from(u64::from(first) + b).map_err(|_| StorageError::corrupt(block, "first_block", "overflows"))?;
+            let g = self.block(id, BlockType::Geometry, sum, reads)?;
+            let from = if b == start / p { start % p } else { 0 };
+            let to = if b == (end - 1) / p { (end - 1) % p + 1 } else { p };
+            let at = crate::store::format::frame::FRAME_LEN;
+            bytes.extend_from_slice(&g.bytes[at + from as usize..at + to as usize]);
+        }
+        let (id, mesh) = geometry::decode_object(first, &bytes)?;
+        if id.0 != o.object_id {
+            return Err(StorageError::corrupt(first, "object_id", format!("the leaf says {}, the record {id}", o.object_id)));
+        }
+        Ok((id, mesh))
     }
 
     /// Every object's name, by id (reads the names run).
@@ -183,8 +244,10 @@ impl ReadTransaction {
             return Ok(Vec::new());
         }
         let first = m.names_block;
-        let (records, words, len) =
-            self.read_run(first, m.names_checksum, None, BlockType::Names, &mut ReadStats::default(), None)?;
+        let mut stats = ReadStats::default();
+        self.check_in_snapshot(first)?;
+        let (head, _) = self.pager().read(first, BlockType::Names, Some(m.names_checksum), &mut stats)?;
+        let (blocks, records, bytes) = run::header(first, &head)?;
         if records != m.object_count {
             return Err(StorageError::corrupt(
                 first,
@@ -192,82 +255,26 @@ impl ReadTransaction {
                 format!("{records} names for {} objects", m.object_count),
             ));
         }
+        // A name takes at least 4 bytes: the stream's length bounds the reads and the allocation.
+        if bytes < 4 * u64::from(records) {
+            return Err(StorageError::corrupt(first, "data_bytes", format!("{bytes} bytes for {records} names")));
+        }
+        let last = first.checked_add(blocks - 1).ok_or_else(|| StorageError::corrupt(first, "run", "overflows"))?;
+        self.check_in_snapshot(last)?;
+        let mut all = vec![head];
+        for id in first + 1..=last {
+            all.push(self.pager().read(id, BlockType::Continuation, None, &mut stats)?.0);
+        }
+        let refs: Vec<&[u8]> = all.iter().map(|b| &b[..]).collect();
+        let (records, words, len) = run::assemble(first, &refs)?;
         geometry::decode_names(first, &words, len, records)
     }
-
-    /// Visits every node in preorder (left child first) with its location and
-    /// record, reading each node block once; `visit` may stop the walk with an error.
-    pub fn walk_nodes(
-        &self,
-        stats: &mut ReadStats,
-        mut visit: impl FnMut(NodeLocation, &NodeRecord) -> Result<(), StorageError>,
-    ) -> Result<(), StorageError> {
-        let Some(root) = self.root() else { return Ok(()) };
-        let records = self.read_node_block(root.block, root.checksum, stats, None)?;
-        let mut stack = vec![(records, root)];
-        let mut guard = TraversalGuard::new(self);
-        while let Some((records, at)) = stack.pop() {
-            guard.visit(at)?;
-            let rec = record_at(&records, at.block, at.slot)?;
-            visit(at, rec)?;
-            if let Some((kids, _)) = &rec.children {
-                for c in kids.iter().rev() {
-                    if c.block == at.block {
-                        stack.push((
-                            records.clone(),
-                            NodeLocation { block: c.block, slot: c.slot, checksum: None },
-                        ));
-                    } else {
-                        let child = self.read_node_block(c.block, Some(c.checksum), stats, None)?;
-                        stack.push((
-                            child,
-                            NodeLocation { block: c.block, slot: c.slot, checksum: Some(c.checksum) },
-                        ));
-                    }
-                }
-            }
-        }
-        Ok(())
-    }
-
-    /// The objects whose exact geometry (surface) meets `query`, with the reads it took.
-    pub fn query_box(&self, query: &Aabb) -> Result<crate::query::BoxQuery, StorageError> {
-        crate::query::query_box(self, query, None)
-    }
 }
 
-/// Stops a traversal of a damaged file whose child links loop: a tree
-/// visits at most the meta block's node count of records.
-pub(crate) struct TraversalGuard {
-    limit: u64,
-    visited: u64,
-}
-
-impl TraversalGuard {
-    pub(crate) fn new(txn: &ReadTransaction) -> TraversalGuard {
-        TraversalGuard {
-            limit: txn.snapshot.meta.as_ref().map_or(0, |m| u64::from(m.node_count)),
-            visited: 0,
-        }
+/// The record at `offset` of a validated node block.
+pub(crate) fn view(block: &Block, offset: u32) -> Result<NodeView<'_>, StorageError> {
+    if block.records.binary_search(&offset).is_err() {
+        return Err(StorageError::corrupt(block.id, "child_offset", format!("{offset} is not a record of the block")));
     }
-
-    pub(crate) fn visit(&mut self, at: NodeLocation) -> Result<(), StorageError> {
-        self.visited += 1;
-        if self.visited > self.limit {
-            return Err(StorageError::corrupt_record(
-                at.block,
-                u32::from(at.slot),
-                "child_block",
-                format!("more than the {} nodes the meta block counts: the links loop", self.limit),
-            ));
-        }
-        Ok(())
-    }
-}
-
-/// Record `slot` of a decoded block, or a corruption error.
-pub(crate) fn record_at(records: &[NodeRecord], block: u32, slot: u16) -> Result<&NodeRecord, StorageError> {
-    records.get(usize::from(slot)).ok_or_else(|| {
-        StorageError::corrupt(block, "child_slot", format!("slot {slot} of {} records", records.len()))
-    })
+    NodeView::at(&block.bytes, offset).map_err(|d| StorageError::corrupt(block.id, "record", d))
 }

@@ -14,6 +14,17 @@ impl Voxels {
     /// several objects enclose together stays empty. Geometry outside the
     /// grid's bounds is clipped away.
     pub fn of_meshes<'a>(grid: Grid, meshes: impl IntoIterator<Item = &'a Mesh>) -> Voxels {
+        Voxels::voxelize(grid, meshes, true)
+    }
+
+    /// The cells the surfaces of `meshes` touch, no interior: every set cell
+    /// holds a piece of a surface, so a query holding a whole cell (grown by
+    /// the tolerance) meets that surface. What the inline bounds store.
+    pub fn of_surfaces<'a>(grid: Grid, meshes: impl IntoIterator<Item = &'a Mesh>) -> Voxels {
+        Voxels::voxelize(grid, meshes, false)
+    }
+
+    fn voxelize<'a>(grid: Grid, meshes: impl IntoIterator<Item = &'a Mesh>, fill: bool) -> Voxels {
         let mut v = Voxels::empty(grid);
         let planes: [Vec<f64>; 3] = std::array::from_fn(|a| v.grid.planes(a));
         let tol = v.grid.tolerance();
@@ -27,7 +38,7 @@ impl Voxels {
             for t in mesh.triangle_points() {
                 surface(&v.grid, &planes, tol, &sub, &t, &mut local);
             }
-            if is_closed(mesh) {
+            if fill && is_closed(mesh) {
                 fill_interior(&planes, &sub, mesh, &mut local, &mut scratch);
             }
             for (wi, &w) in local.iter().enumerate() {

@@ -145,6 +145,19 @@ impl Voxels {
         self.grid.box_range(b).is_some_and(|r| self.any_in(r, |_, _| true))
     }
 
+    /// True when `b` may meet the surface the set bounds: it meets a set
+    /// cell grown by the voxelization tolerance.
+    pub fn may_meet(&self, b: &Aabb) -> bool {
+        self.intersects_aabb(&b.grown(self.grid.tolerance()))
+    }
+
+    /// True when `q` holds a whole set cell grown by the tolerance: for a
+    /// set of surface cells (`of_surfaces`), `q` then meets the surface.
+    pub fn holds_a_cell_in(&self, q: &Aabb) -> bool {
+        let tol = self.grid.tolerance();
+        self.grid.box_range(q).is_some_and(|r| self.any_in(r, |_, c| q.contains(&self.grid.cell_box(c).grown(tol))))
+    }
+
     /// True when the triangle meets a set cell (grown by the tolerance:
     /// conservative, never a missed contact).
     pub fn intersects_triangle(&self, t: &[Point; 3]) -> bool {

@@ -94,7 +94,11 @@ impl Mesh {
     /// file decoder checks indices and finiteness before calling this).
     pub(crate) fn from_parts(anchor: Point, offsets: Vec<[f32; 3]>, triangles: Vec<[u32; 3]>) -> Mesh {
         let mut mesh = Mesh { anchor, offsets, triangles, aabb: Aabb::EMPTY };
-        mesh.aabb = Aabb::from_points(&mesh.vertices().collect::<Vec<_>>());
+        // The box of the surface: each face touches a triangle, so the box can
+        // witness contact (an unused vertex would break that).
+        mesh.aabb = mesh.triangles.iter().flatten().fold(Aabb::EMPTY, |b, &i| {
+            mesh.offsets.get(i as usize).map_or(b, |_| b.including(&mesh.vertex(i as usize)))
+        });
         mesh
     }
 
@@ -144,7 +148,8 @@ impl Mesh {
         (0..self.triangles.len()).map(|t| self.triangle(t))
     }
 
-    /// The exact box of the stored vertices.
+    /// The exact box of the triangles' stored vertices: every face of it
+    /// touches the surface.
     pub fn aabb(&self) -> Aabb {
         self.aabb
     }

@@ -32,29 +32,15 @@ pub enum BlockType {
     FreeList = 5,
     Names = 6,
     Free = 7,
-    /// Blobs of levels of detail below M, several to a block.
-    Lod = 8,
-    /// The first block of a level-of-detail blob larger than a block.
-    LodRun = 9,
-    /// The next blocks of such a blob.
-    LodContinuation = 10,
 }
 
 impl BlockType {
     /// The type with this code, if any.
     pub fn from_code(code: u8) -> Option<BlockType> {
         use BlockType::*;
-        [Meta, Node, Geometry, Continuation, FreeList, Names, Free, Lod, LodRun, LodContinuation]
+        [Meta, Node, Geometry, Continuation, FreeList, Names, Free]
             .into_iter()
             .find(|t| *t as u8 == code)
-    }
-
-    /// The type of a run's blocks after its first block of this type.
-    pub fn continuation(self) -> BlockType {
-        match self {
-            BlockType::LodRun => BlockType::LodContinuation,
-            _ => BlockType::Continuation,
-        }
     }
 
     /// Lower-case name for reports.
@@ -67,9 +53,6 @@ impl BlockType {
             BlockType::FreeList => "free-list",
             BlockType::Names => "names",
             BlockType::Free => "free",
-            BlockType::Lod => "lod",
-            BlockType::LodRun => "lod-run",
-            BlockType::LodContinuation => "lod-continuation",
         }
     }
 }

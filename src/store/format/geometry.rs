@@ -5,6 +5,7 @@ use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
 use crate::geom::Point;
 use crate::scene::{Mesh, ObjectId};
+use super::frame::FRAME_LEN;
 use crate::store::StorageError;
 
 #[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
@@ -16,7 +17,8 @@ pub(crate) struct ObjectHeader {
     pub(crate) reserved: [u8; 4],
     pub(crate) anchor: [F64; 3],
 }
-const HEADER_LEN: usize = 40;
+/// Bytes of an object record's header.
+pub const HEADER_LEN: usize = 40;
 const _: () = assert!(size_of::<ObjectHeader>() == HEADER_LEN);
 
 /// Encoded bytes of one object record: 40 + 12 v + 12 t.
@@ -39,60 +41,101 @@ pub fn encode_object(id: ObjectId, mesh: &Mesh, stream: &mut Vec<u8>) {
     stream.extend_from_slice(bytemuck::cast_slice(mesh.triangles()));
 }
 
-/// Decodes `records` object records from a reassembled stream of `len` bytes
-/// (the run starting at block `id`), checking every rule of the spec.
-pub fn decode_objects(
-    id: u32,
-    words: &[u32],
-    len: usize,
-    records: u32,
-) -> Result<Vec<(ObjectId, Mesh)>, StorageError> {
-    let bytes: &[u8] = &bytemuck::cast_slice(words)[..len];
-    let mut at = 0usize;
-    let mut out = Vec::with_capacity(records as usize);
-    for r in 0..records {
-        let bad = |field, detail: String| StorageError::corrupt_record(id, r, field, detail);
-        let h = bytes
-            .get(at..at + HEADER_LEN)
-            .and_then(|b| ObjectHeader::read_from_bytes(b).ok())
-            .ok_or_else(|| bad("object record", "the stream ends inside a record header".into()))?;
-        let (v, t) = (h.vertex_count.get() as usize, h.triangle_count.get() as usize);
-        let body = 12usize.checked_mul(v).and_then(|a| a.checked_add(12usize.checked_mul(t)?));
-        let end = body.and_then(|b| (at + HEADER_LEN).checked_add(b)).filter(|&e| e <= len);
-        let Some(end) = end else {
-            return Err(bad("vertex_count", format!("{v} vertices and {t} triangles overrun the stream")));
-        };
-        if h.reserved != [0; 4] {
-            return Err(bad("reserved", "reserved bytes are not zero".into()));
-        }
-        if t == 0 {
-            return Err(bad("triangle_count", "an object with no triangles".into()));
-        }
-        let anchor = Point::new(h.anchor[0].get(), h.anchor[1].get(), h.anchor[2].get());
-        if !anchor.iter().all(|c| c.is_finite()) {
-            return Err(bad("anchor", "non-finite anchor".into()));
-        }
-        let word = (at + HEADER_LEN) / 4;
-        let offsets: Vec<[f32; 3]> = bytemuck::cast_slice(&words[word..word + 3 * v]).to_vec();
-        let triangles: Vec<[u32; 3]> =
-            bytemuck::cast_slice(&words[word + 3 * v..word + 3 * v + 3 * t]).to_vec();
-        if let Some(i) = offsets.iter().position(|o| !o.iter().all(|c| c.is_finite())) {
-            return Err(bad("offsets", format!("vertex {i} is not finite")));
-        }
-        if let Some(i) = triangles.iter().position(|tr| tr.iter().any(|&x| x as usize >= v)) {
-            return Err(bad("triangles", format!("triangle {i} indexes past {v} vertices")));
-        }
-        out.push((ObjectId(h.object_id.get()), Mesh::from_parts(anchor, offsets, triangles)));
-        at = end;
+/// Where geometry records go in the stream of geometry blocks' payloads
+/// (format-spec/geometry.md, "Placement"): a record that fits a block never
+/// straddles two; a larger one starts in the current block when that costs
+/// it no extra block, and the next record starts right after it.
+#[derive(Debug, Clone)]
+pub struct Placement {
+    payload: u64,
+    at: u64,
+}
+
+impl Placement {
+    /// An empty stream of blocks of `block_size` bytes.
+    pub fn new(block_size: u32) -> Placement {
+        Placement { payload: payload(block_size), at: 0 }
     }
-    if at != len {
-        return Err(StorageError::corrupt(
-            id,
-            "data_bytes",
-            format!("{} bytes after the last record", len - at),
-        ));
+
+    /// Places a record of `len` bytes; returns its stream offset.
+    pub fn place(&mut self, len: u64) -> u64 {
+        let p = self.payload;
+        let used = self.at % p;
+        let fresh = len.div_ceil(p);
+        let here = if used == 0 { fresh } else { 1 + len.saturating_sub(p - used).div_ceil(p) };
+        if used != 0 && (used + len > p && len <= p || here > fresh) {
+            self.at += p - used;
+        }
+        let pos = self.at;
+        self.at += len;
+        pos
     }
-    Ok(out)
+
+    /// Bytes of the stream so far.
+    pub fn end(&self) -> u64 {
+        self.at
+    }
+
+    /// Blocks the stream takes.
+    pub fn blocks(&self) -> u64 {
+        self.at.div_ceil(self.payload)
+    }
+}
+
+/// Stream bytes a geometry block holds.
+pub fn payload(block_size: u32) -> u64 {
+    u64::from(block_size) - FRAME_LEN as u64
+}
+
+/// The geometry blocks (indices from the span's first block) that hold
+/// stream bytes `[start, end)`.
+pub fn blocks_of(start: u64, end: u64, block_size: u32) -> std::ops::RangeInclusive<u64> {
+    let p = payload(block_size);
+    start / p..=(end.max(start + 1) - 1) / p
+}
+
+/// Decodes the object record at the start of `bytes` (stream bytes
+/// `[start, end)` of a span: the record and the zero padding after it),
+/// read from geometry blocks starting at block `id`, checking every rule.
+pub fn decode_object(id: u32, bytes: &[u8]) -> Result<(ObjectId, Mesh), StorageError> {
+    let bad = |field, detail: String| StorageError::corrupt(id, field, detail);
+    let h = bytes
+        .get(..HEADER_LEN)
+        .and_then(|b| ObjectHeader::read_from_bytes(b).ok())
+        .ok_or_else(|| bad("object record", "the span ends inside a record header".into()))?;
+    let (v, t) = (h.vertex_count.get() as usize, h.triangle_count.get() as usize);
+    // The counts are bounded by the bytes at hand before anything is sized from them.
+    let body = 12usize.checked_mul(v).and_then(|a| a.checked_add(12usize.checked_mul(t)?));
+    let end = body.and_then(|b| HEADER_LEN.checked_add(b)).filter(|&e| e <= bytes.len());
+    let Some(end) = end else {
+        return Err(bad("vertex_count", format!("{v} vertices and {t} triangles overrun the record's span")));
+    };
+    if h.reserved != [0; 4] || !super::all_zero(&bytes[end..]) {
+        return Err(bad("reserved", "reserved or padding bytes are not zero".into()));
+    }
+    if t == 0 {
+        return Err(bad("triangle_count", "an object with no triangles".into()));
+    }
+    let anchor = Point::new(h.anchor[0].get(), h.anchor[1].get(), h.anchor[2].get());
+    if !anchor.iter().all(|c| c.is_finite()) {
+        return Err(bad("anchor", "non-finite anchor".into()));
+    }
+    let arrays = &bytes[HEADER_LEN..end];
+    let offsets: Vec<[f32; 3]> = arrays[..12 * v]
+        .chunks_exact(12)
+        .map(|c| std::array::from_fn(|i| f32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]])))
+        .collect();
+    let triangles: Vec<[u32; 3]> = arrays[12 * v..]
+        .chunks_exact(12)
+        .map(|c| std::array::from_fn(|i| u32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]])))
+        .collect();
+    if let Some(i) = offsets.iter().position(|o| !o.iter().all(|c| c.is_finite())) {
+        return Err(bad("offsets", format!("vertex {i} is not finite")));
+    }
+    if let Some(i) = triangles.iter().position(|tr| tr.iter().any(|&x| x as usize >= v)) {
+        return Err(bad("triangles", format!("triangle {i} indexes past {v} vertices")));
+    }
+    Ok((ObjectId(h.object_id.get()), Mesh::from_parts(anchor, offsets, triangles)))
 }
 
 /// Appends a names-run record: length, UTF-8 bytes, zero padding to 4.
@@ -127,20 +170,36 @@ mod tests {
     use crate::store::format::run;
 
     #[test]
-    fn objects_round_trip_through_a_multi_block_run() {
+    fn an_object_round_trips_and_its_padding_is_checked() {
         let p: Vec<Point> = (0..300).map(|i| Point::new(i as f64, (i * 7 % 13) as f64, 1e6)).collect();
         let tris: Vec<[u32; 3]> = (0..298).map(|i| [i, i + 1, i + 2]).collect();
         let m = Mesh::from_world(&p, tris).unwrap();
         let mut stream = Vec::new();
         encode_object(ObjectId(4), &m, &mut stream);
-        encode_object(ObjectId(9), &m, &mut stream);
-        assert_eq!(stream.len() as u64, 2 * record_len(&m));
-        let blocks = run::encode(&stream, 2, 1024);
-        assert_eq!(blocks.len() as u64, run::blocks_for(stream.len() as u64, 1024));
-        let refs: Vec<&[u8]> = blocks.iter().map(|b| b.as_slice()).collect();
-        let (n, words, len) = run::assemble(7, &refs).unwrap();
-        let objs = decode_objects(7, &words, len, n).unwrap();
-        assert_eq!(objs, vec![(ObjectId(4), m.clone()), (ObjectId(9), m)]);
+        assert_eq!(stream.len() as u64, record_len(&m));
+        stream.extend_from_slice(&[0; 8]);
+        assert_eq!(decode_object(7, &stream).unwrap(), (ObjectId(4), m));
+        *stream.last_mut().unwrap() = 1;
+        assert!(decode_object(7, &stream).is_err());
+        assert!(decode_object(7, &stream[..100]).is_err());
+    }
+
+    #[test]
+    fn placement_fills_blocks_and_never_splits_a_small_record() {
+        let bs = 1024;
+        let p = payload(bs);
+        let mut pl = Placement::new(bs);
+        assert_eq!(pl.place(600), 0);
+        assert_eq!(pl.place(600), p, "600 more would straddle: the next block");
+        assert_eq!(pl.place(400), p + 600);
+        // A large record goes on in the current block when that costs no extra block.
+        let big = pl.place(2 * p);
+        assert_eq!(big, 2 * p, "here it would take three blocks, fresh two");
+        let after = pl.place(3 * p - 100);
+        assert_eq!(after, 4 * p, "at a boundary");
+        assert_eq!(pl.place(50), 7 * p - 100, "the large record's tail block is shared");
+        assert_eq!(blocks_of(0, p, bs), 0..=0);
+        assert_eq!(blocks_of(p - 4, p + 4, bs), 0..=1);
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! The meta block (format-spec/meta.md).
 
-use zerocopy::byteorder::little_endian::{F64, U16, U32, U64};
+use zerocopy::byteorder::little_endian::{F64, U32, U64};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
 use super::all_zero;
@@ -15,8 +15,7 @@ pub const LOD_TABLE_LEN: usize = 16;
 pub(crate) struct MetaRecord {
     pub(crate) root_block: U32,
     pub(crate) root_checksum: U32,
-    pub(crate) root_slot: U16,
-    pub(crate) reserved0: [u8; 2],
+    pub(crate) root_offset: U32,
     pub(crate) object_count: U32,
     pub(crate) node_count: U32,
     pub(crate) leaf_count: U32,
@@ -45,11 +44,11 @@ pub(crate) struct MetaRecord {
     pub(crate) reserved2: [u8; 4],
     pub(crate) lod_grid_level: [u8; LOD_TABLE_LEN],
     pub(crate) lod_usage: [[U64; 2]; LOD_TABLE_LEN],
+    pub(crate) node_bytes: U64,
+    pub(crate) geometry_bytes: U64,
+    pub(crate) query_extent: [F64; 3],
 }
-const _: () = assert!(FRAME_LEN + size_of::<MetaRecord>() == 736);
-
-/// `lod_flags` bit 0: B(S_n,k) keeps object identity at every level.
-pub const LOD_KEEP_IDENTITY: u32 = 1;
+const _: () = assert!(FRAME_LEN + size_of::<MetaRecord>() == 776);
 
 /// How the levels of detail below M were built (format-spec/meta.md).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -58,14 +57,18 @@ pub struct LodCodes {
     /// no level below M holds voxels.
     pub lattice_origin: [f64; 3],
     pub lattice_cell: f64,
+    /// Reserved: zero.
     pub flags: u32,
     /// Bit budgets of a node's and an object's cuberille (level 2).
     pub cuberille_bits: u32,
     pub cuberille_object_bits: u32,
     /// Per level k = 1 .. 16: the lattice level of its grids (level 2: the finest allowed).
     pub grid_level: [u8; LOD_TABLE_LEN],
-    /// Per level k = 1 .. 16: (bytes of blobs, blocks holding them).
+    /// Per level k = 1 .. 16: (bytes of the bounds stored inline, bounds stored).
     pub usage: [[u64; 2]; LOD_TABLE_LEN],
+    /// The query model the stored bounds were judged on: a box query of
+    /// these extents (mm), placed uniformly (format-spec/lod.md, "What pays").
+    pub query_extent: [f64; 3],
 }
 
 /// How the tree was built, as raw codes (the db layer maps them to `build` types).
@@ -86,7 +89,8 @@ pub struct BuildCodes {
 pub struct Meta {
     pub root_block: u32,
     pub root_checksum: u32,
-    pub root_slot: u16,
+    /// Byte offset of the root record in its block.
+    pub root_offset: u32,
     pub object_count: u32,
     pub node_count: u32,
     pub leaf_count: u32,
@@ -99,6 +103,9 @@ pub struct Meta {
     pub build: BuildCodes,
     pub names_block: u32,
     pub names_checksum: u32,
+    /// Bytes of node records, and of geometry records, over all blocks (block fill).
+    pub node_bytes: u64,
+    pub geometry_bytes: u64,
     /// (eps_k, measured error) for k = 1 .. 16.
     pub lod_table: [[f64; 2]; LOD_TABLE_LEN],
     pub lods: LodCodes,
@@ -116,8 +123,7 @@ impl Meta {
         let r = MetaRecord {
             root_block: self.root_block.into(),
             root_checksum: self.root_checksum.into(),
-            root_slot: self.root_slot.into(),
-            reserved0: [0; 2],
+            root_offset: self.root_offset.into(),
             object_count: self.object_count.into(),
             node_count: self.node_count.into(),
             leaf_count: self.leaf_count.into(),
@@ -146,6 +152,9 @@ impl Meta {
             reserved2: [0; 4],
             lod_grid_level: self.lods.grid_level,
             lod_usage: self.lods.usage.map(|p| p.map(U64::new)),
+            node_bytes: self.node_bytes.into(),
+            geometry_bytes: self.geometry_bytes.into(),
+            query_extent: self.lods.query_extent.map(f),
         };
         let end = FRAME_LEN + size_of::<MetaRecord>();
         block[FRAME_LEN..end].copy_from_slice(r.as_bytes());
@@ -156,7 +165,7 @@ impl Meta {
         let end = FRAME_LEN + size_of::<MetaRecord>();
         let r = MetaRecord::read_from_bytes(&block[FRAME_LEN..end])
             .map_err(|_| StorageError::corrupt(id, "meta", "block too small"))?;
-        if r.reserved0 != [0; 2] || r.reserved1 != 0 || r.reserved2 != [0; 4] || !all_zero(&block[end..]) {
+        if r.reserved1 != 0 || r.reserved2 != [0; 4] || !all_zero(&block[end..]) {
             return Err(StorageError::corrupt(id, "reserved", "reserved bytes are not zero"));
         }
         let bad = |field, detail: String| Err(StorageError::corrupt(id, field, detail));
@@ -190,7 +199,11 @@ impl Meta {
         {
             return bad("lattice", format!("origin {lattice_origin:?}, cell {lattice_cell}"));
         }
-        if r.lod_flags.get() & !LOD_KEEP_IDENTITY != 0 {
+        let query_extent = r.query_extent.map(|x| x.get());
+        if query_extent.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+            return bad("query_extent", format!("{query_extent:?}"));
+        }
+        if r.lod_flags.get() != 0 {
             return bad("lod_flags", format!("unknown bits {:#x}", r.lod_flags.get()));
         }
         if r.lod_table.iter().flatten().any(|x| !(x.get().is_finite() && x.get() >= 0.0)) {
@@ -199,7 +212,7 @@ impl Meta {
         Ok(Meta {
             root_block: r.root_block.get(),
             root_checksum: r.root_checksum.get(),
-            root_slot: r.root_slot.get(),
+            root_offset: r.root_offset.get(),
             object_count: objects,
             node_count: nodes,
             leaf_count: leaves,
@@ -220,6 +233,8 @@ impl Meta {
             },
             names_block: r.names_block.get(),
             names_checksum: r.names_checksum.get(),
+            node_bytes: r.node_bytes.get(),
+            geometry_bytes: r.geometry_bytes.get(),
             lod_table: r.lod_table.map(|p| p.map(|x| x.get())),
             lods: LodCodes {
                 lattice_origin,
@@ -229,6 +244,7 @@ impl Meta {
                 cuberille_object_bits: r.cuberille_object_bits.get(),
                 grid_level: r.lod_grid_level,
                 usage: r.lod_usage.map(|p| p.map(|x| x.get())),
+                query_extent,
             },
         })
     }

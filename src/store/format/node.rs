@@ -1,173 +1,140 @@
-//! Node blocks, node records and LOD entries (format-spec/node.md).
+//! Node blocks, version 3 (format-spec/node.md): variable-size records read
+//! in place. A block is validated once, when it is read, and then walked
+//! through borrowed views ([`NodeView`]) with no decoding or copying.
 
 use zerocopy::byteorder::little_endian::{F32, U16, U32};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
 use super::all_zero;
 use super::frame::FRAME_LEN;
+use super::quant::QuantBox;
 use crate::geom::{Aabb, Axis};
 use crate::store::StorageError;
 
 /// Offset of the first record in a node block.
 pub const RECORDS_START: usize = FRAME_LEN + 8;
-/// Bytes of a record before its LOD entries.
-pub const FIXED_LEN: usize = 120;
-/// Bytes of one level's pair of LOD entries.
-pub const LOD_PAIR_LEN: usize = 32;
+/// Bytes of an internal record before its inline bounds.
+pub const INTERNAL_LEN: usize = 84;
+/// Bytes of a leaf record's fixed head.
+pub const LEAF_HEAD_LEN: usize = 20;
+/// Bytes of one object entry of a leaf.
+pub const OBJECT_LEN: usize = 20;
+/// Bytes of a bound entry's head (before its blob).
+pub const BOUND_HEAD_LEN: usize = 8;
 
-/// Record size for `lod_levels` levels.
-pub const fn record_size(lod_levels: u8) -> usize {
-    FIXED_LEN + LOD_PAIR_LEN * lod_levels as usize
+const KIND_INTERNAL: u8 = 1;
+const KIND_LEAF: u8 = 2;
+
+#[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
+#[repr(C)]
+struct BlockHead {
+    used_bytes: U32,
+    record_count: U16,
+    reserved: [u8; 2],
 }
 
-/// Records a node block holds.
-pub fn records_per_block(block_size: u32, lod_levels: u8) -> usize {
-    ((block_size as usize - RECORDS_START) / record_size(lod_levels)).min(u16::MAX as usize)
+/// A child entry of an internal record.
+#[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
+#[repr(C)]
+struct ChildRaw {
+    qbox: [U16; 6],
+    block: U32,
+    checksum: U32,
+    offset: U32,
+    node_blocks: U32,
+    geometry_blocks: U32,
 }
 
 #[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
-pub(crate) struct NodeBlockHeader {
-    pub(crate) record_count: U16,
-    pub(crate) record_size: U16,
-    pub(crate) reserved: [u8; 4],
+struct InternalRaw {
+    kind: u8,
+    split: u8,
+    bounds_bytes: U16,
+    node_id: U32,
+    object_count: U32,
+    split_overlap: F32,
+    split_gap: F32,
+    children: [ChildRaw; 2],
 }
+const _: () = assert!(size_of::<InternalRaw>() == INTERNAL_LEN);
 
-/// The fixed part of a node record.
 #[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
-pub struct NodeFixed {
-    pub node_id: U32,
-    pub kind: u8,
-    pub split_axis: u8,
-    pub split_order: u8,
-    pub reserved0: u8,
-    pub aabb: [F32; 6],
-    pub split_overlap: F32,
-    pub split_gap: F32,
-    pub level: U16,
-    pub reserved1: [u8; 2],
-    pub object_count: U32,
-    pub child0_block: U32,
-    pub child0_checksum: U32,
-    pub child1_block: U32,
-    pub child1_checksum: U32,
-    pub child0_slot: U16,
-    pub child1_slot: U16,
-    pub reserved2: [u8; 4],
-    pub child0_box: [F32; 6],
-    pub child1_box: [F32; 6],
+struct LeafRaw {
+    kind: u8,
+    reserved0: u8,
+    object_count: U16,
+    node_id: U32,
+    first_block: U32,
+    span: U16,
+    reserved1: [u8; 2],
+    bounds_bytes: U32,
 }
-const _: () = assert!(size_of::<NodeFixed>() == FIXED_LEN);
+const _: () = assert!(size_of::<LeafRaw>() == LEAF_HEAD_LEN);
 
-/// A LOD entry as stored.
-#[derive(Debug, Clone, Copy, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
+#[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
-pub struct LodEntryRaw {
-    pub tag: u8,
-    pub reserved: [u8; 3],
-    pub value: U32,
-    pub aux: U32,
-    pub checksum: U32,
+struct ObjectRaw {
+    object_id: U32,
+    qbox: [U16; 6],
+    position: U32,
 }
-const _: () = assert!(size_of::<LodEntryRaw>() * 2 == LOD_PAIR_LEN);
+const _: () = assert!(size_of::<ObjectRaw>() == OBJECT_LEN);
 
-/// Where a level of detail is stored: the paper's Fits / Page pair.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum LodRef {
-    /// Not stored for this node.
-    #[default]
-    Absent,
-    /// Fits one block (Fits = true): one read.
-    InBlock { block: u32, offset: u32, checksum: u32 },
-    /// Larger than a block, in consecutive blocks: `blocks` reads.
-    Run { first: u32, blocks: u32, checksum: u32 },
-    /// The union of the children's (Fits = false): `reads` reads through the subtree.
-    Spread { reads: u32 },
-    /// The same bound as entry (`level`, `objects`) of this record: a level
-    /// that buys no accuracy is not stored twice. Never names another `Same`.
-    Same { level: u8, objects: bool },
-    /// b(S_n,1): the record's own box, no read.
-    InRecord,
+#[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
+#[repr(C)]
+struct BoundRaw {
+    target: U16,
+    level: u8,
+    reserved: u8,
+    blob_bytes: U32,
 }
+const _: () = assert!(size_of::<BoundRaw>() == BOUND_HEAD_LEN);
 
-impl LodRef {
-    /// The paper's Fits[k].
-    pub fn fits(&self) -> bool {
-        matches!(self, LodRef::InBlock { .. })
-    }
-
-    /// Block reads to fetch it from a cold cache, with the node record in
-    /// hand; a `Same` entry costs what it names (`NodeRecord::entry`).
-    pub fn reads(&self) -> u64 {
-        match *self {
-            LodRef::Absent | LodRef::InRecord | LodRef::Same { .. } => 0,
-            LodRef::InBlock { .. } => 1,
-            LodRef::Run { blocks, .. } => blocks.into(),
-            LodRef::Spread { reads } => reads.into(),
-        }
-    }
-
-    /// The stored block this entry starts at, for `InBlock` and `Run`.
-    pub fn block(&self) -> Option<(u32, u32)> {
-        match *self {
-            LodRef::InBlock { block, checksum, .. } => Some((block, checksum)),
-            LodRef::Run { first, checksum, .. } => Some((first, checksum)),
-            _ => None,
-        }
-    }
-
-    fn encode(&self) -> LodEntryRaw {
-        let (tag, value, aux, checksum) = match *self {
-            LodRef::Absent => (0, 0, 0, 0),
-            LodRef::InBlock { block, offset, checksum } => (1, block, offset, checksum),
-            LodRef::Run { first, blocks, checksum } => (2, first, blocks, checksum),
-            LodRef::Spread { reads } => (3, reads, 0, 0),
-            LodRef::Same { level, objects } => (4, level.into(), objects.into(), 0),
-            LodRef::InRecord => (5, 0, 0, 0),
-        };
-        LodEntryRaw { tag, reserved: [0; 3], value: value.into(), aux: aux.into(), checksum: checksum.into() }
-    }
-
-    fn decode(raw: &LodEntryRaw) -> Option<LodRef> {
-        let (v, a, c) = (raw.value.get(), raw.aux.get(), raw.checksum.get());
-        if raw.reserved != [0; 3] {
-            return None;
-        }
-        match raw.tag {
-            0 if v == 0 && a == 0 && c == 0 => Some(LodRef::Absent),
-            1 if v != 0 => Some(LodRef::InBlock { block: v, offset: a, checksum: c }),
-            2 if v != 0 && a >= 2 => Some(LodRef::Run { first: v, blocks: a, checksum: c }),
-            3 if a == 0 && c == 0 => Some(LodRef::Spread { reads: v }),
-            4 if (1..=255).contains(&v) && a <= 1 && c == 0 => {
-                Some(LodRef::Same { level: v as u8, objects: a == 1 })
-            }
-            5 if v == 0 && a == 0 && c == 0 => Some(LodRef::InRecord),
-            _ => None,
-        }
-    }
-}
-
-/// A reference from a record to a child record.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ChildRef {
+/// Where a child record lives: this block (`block` 0) or another one, whose
+/// checksum the parent holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct RecordRef {
+    /// 0 for the parent's own block.
     pub block: u32,
-    pub slot: u16,
-    /// The child block's checksum when it is another block; 0 when it is the same block.
     pub checksum: u32,
-    /// The child's box, as the child's record stores it.
-    pub aabb: [f32; 6],
+    /// Byte offset of the record from the block's start.
+    pub offset: u32,
 }
 
-impl ChildRef {
-    /// The child's box.
-    pub fn aabb(&self) -> Aabb {
-        let a = self.aabb;
-        Aabb::from_f32([a[0], a[1], a[2]], [a[3], a[4], a[5]])
-    }
+/// A child entry, ready to write.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChildEntry {
+    /// The child's box in steps of the parent's box.
+    pub qbox: [u16; 6],
+    pub at: RecordRef,
+    /// Node blocks of the child's subtree other than the parent's block.
+    pub node_blocks: u32,
+    /// Geometry blocks the child's objects occupy.
+    pub geometry_blocks: u32,
 }
 
-/// The split of an internal node.
+/// An object of a leaf, ready to write.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ObjectEntry {
+    pub object_id: u32,
+    /// The object's box in steps of the leaf's box.
+    pub qbox: [u16; 6],
+    /// Byte offset of its geometry record in the leaf's span (a multiple of 4).
+    pub position: u64,
+}
+
+/// A bound stored in a record: a voxel blob of level `level` for child
+/// (internal record) or object (leaf) `target`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoundEntry {
+    pub target: u16,
+    pub level: u8,
+    pub blob: Vec<u8>,
+}
+
+/// How an internal node was split.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SplitInfo {
     pub axis: Axis,
@@ -177,284 +144,557 @@ pub struct SplitInfo {
     pub gap: f32,
 }
 
-/// A node record, decoded.
+/// A record to write.
 #[derive(Debug, Clone, PartialEq)]
-pub struct NodeRecord {
-    pub node_id: u32,
-    pub aabb: [f32; 6],
-    pub level: u16,
+pub enum RecordDraft {
+    Internal {
+        node_id: u32,
+        object_count: u32,
+        split: SplitInfo,
+        children: [ChildEntry; 2],
+        bounds: Vec<BoundEntry>,
+    },
+    Leaf {
+        node_id: u32,
+        first_block: u32,
+        /// Checksums of the geometry blocks `first_block ..`, one per block of the span.
+        checksums: Vec<u32>,
+        objects: Vec<ObjectEntry>,
+        /// Byte offset in the span just past the last object's record.
+        end: u64,
+        bounds: Vec<BoundEntry>,
+    },
+}
+
+fn bounds_len(bounds: &[BoundEntry]) -> usize {
+    bounds.iter().map(|b| BOUND_HEAD_LEN + b.blob.len().next_multiple_of(4)).sum()
+}
+
+/// Bytes of a leaf record with `objects` objects over `span` geometry
+/// blocks and `bounds` bytes of inline bounds.
+pub const fn leaf_len(objects: usize, span: usize, bounds: usize) -> usize {
+    LEAF_HEAD_LEN + 4 * span + OBJECT_LEN * objects + 4 + bounds
+}
+
+impl RecordDraft {
+    /// Encoded bytes (a multiple of 4).
+    pub fn len(&self) -> usize {
+        match self {
+            RecordDraft::Internal { bounds, .. } => INTERNAL_LEN + bounds_len(bounds),
+            RecordDraft::Leaf { checksums, objects, bounds, .. } => {
+                leaf_len(objects.len(), checksums.len(), bounds_len(bounds))
+            }
+        }
+    }
+
+    /// Never true: a record has a head.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    fn encode(&self, out: &mut Vec<u8>) -> Result<(), String> {
+        let start = out.len();
+        match self {
+            RecordDraft::Internal { node_id, object_count, split, children, bounds } => {
+                let child = |c: &ChildEntry| ChildRaw {
+                    qbox: c.qbox.map(U16::new),
+                    block: c.at.block.into(),
+                    checksum: c.at.checksum.into(),
+                    offset: c.at.offset.into(),
+                    node_blocks: c.node_blocks.into(),
+                    geometry_blocks: c.geometry_blocks.into(),
+                };
+                let raw = InternalRaw {
+                    kind: KIND_INTERNAL,
+                    split: split.axis.index() as u8 | (split.order << 2),
+                    bounds_bytes: u16::try_from(bounds_len(bounds))
+                        .map_err(|_| "an internal record's bounds exceed 65,535 bytes".to_string())?
+                        .into(),
+                    node_id: (*node_id).into(),
+                    object_count: (*object_count).into(),
+                    split_overlap: split.overlap.into(),
+                    split_gap: split.gap.into(),
+                    children: [child(&children[0]), child(&children[1])],
+                };
+                out.extend_from_slice(raw.as_bytes());
+                encode_bounds(bounds, out);
+            }
+            RecordDraft::Leaf { node_id, first_block, checksums, objects, end, bounds } => {
+                let raw = LeafRaw {
+                    kind: KIND_LEAF,
+                    reserved0: 0,
+                    object_count: u16::try_from(objects.len())
+                        .map_err(|_| format!("a leaf of {} objects (at most 65,535)", objects.len()))?
+                        .into(),
+                    node_id: (*node_id).into(),
+                    first_block: (*first_block).into(),
+                    span: u16::try_from(checksums.len())
+                        .map_err(|_| format!("a leaf over {} geometry blocks (at most 65,535)", checksums.len()))?
+                        .into(),
+                    reserved1: [0; 2],
+                    bounds_bytes: (bounds_len(bounds) as u32).into(),
+                };
+                out.extend_from_slice(raw.as_bytes());
+                for c in checksums {
+                    out.extend_from_slice(&c.to_le_bytes());
+                }
+                let words = |p: u64| {
+                    u32::try_from(p / 4).map_err(|_| format!("a geometry span of {p} bytes (at most 16 GiB)"))
+                };
+                for o in objects {
+                    let raw =
+                        ObjectRaw { object_id: o.object_id.into(), qbox: o.qbox.map(U16::new), position: words(o.position)?.into() };
+                    out.extend_from_slice(raw.as_bytes());
+                }
+                out.extend_from_slice(&words(*end)?.to_le_bytes());
+                encode_bounds(bounds, out);
+            }
+        }
+        debug_assert_eq!(out.len() - start, self.len());
+        Ok(())
+    }
+}
+
+fn encode_bounds(bounds: &[BoundEntry], out: &mut Vec<u8>) {
+    for b in bounds {
+        let raw =
+            BoundRaw { target: b.target.into(), level: b.level, reserved: 0, blob_bytes: (b.blob.len() as u32).into() };
+        out.extend_from_slice(raw.as_bytes());
+        out.extend_from_slice(&b.blob);
+        out.resize(out.len().next_multiple_of(4), 0);
+    }
+}
+
+/// Record bytes a node block holds.
+pub fn capacity(block_size: u32) -> usize {
+    block_size as usize - RECORDS_START
+}
+
+/// Encodes `records` into a node block's payload; returns each record's offset.
+pub fn encode_block(records: &[RecordDraft], block: &mut [u8]) -> Result<Vec<u32>, String> {
+    let mut bytes = Vec::with_capacity(capacity(block.len() as u32));
+    let mut offsets = Vec::with_capacity(records.len());
+    for r in records {
+        offsets.push((RECORDS_START + bytes.len()) as u32);
+        r.encode(&mut bytes)?;
+    }
+    if RECORDS_START + bytes.len() > block.len() {
+        return Err(format!("{} bytes of records exceed the block", bytes.len()));
+    }
+    let head = BlockHead {
+        used_bytes: (bytes.len() as u32).into(),
+        record_count: u16::try_from(records.len()).map_err(|_| "too many records".to_string())?.into(),
+        reserved: [0; 2],
+    };
+    block[FRAME_LEN..RECORDS_START].copy_from_slice(head.as_bytes());
+    block[RECORDS_START..RECORDS_START + bytes.len()].copy_from_slice(&bytes);
+    Ok(offsets)
+}
+
+/// What validation needs to know of the file.
+#[derive(Debug, Clone, Copy)]
+pub struct Limits {
+    pub block_size: u32,
+    /// M: bound levels lie in 2 ..= M - 1.
+    pub lod_levels: u8,
+    /// Object ids lie below this.
     pub object_count: u32,
-    /// `Some` for internal nodes.
-    pub children: Option<([ChildRef; 2], SplitInfo)>,
-    /// For k = 1 .. M: [group_bound b(S_n,k), object_bounds B(S_n,k)].
-    pub lods: Vec<[LodRef; 2]>,
 }
 
-impl NodeRecord {
-    /// The stored box (f32, rounded outward).
-    pub fn aabb(&self) -> Aabb {
-        let a = self.aabb;
-        Aabb::from_f32([a[0], a[1], a[2]], [a[3], a[4], a[5]])
+/// Checks every rule of format-spec/node.md on node block `id` (its checksum
+/// already verified), so that [`NodeView`]s of it never fail on structure.
+/// Returns the record offsets.
+pub fn validate_block(id: u32, block: &[u8], limits: &Limits) -> Result<Vec<u32>, StorageError> {
+    let bad = |field: &'static str, detail: String| StorageError::corrupt(id, field, detail);
+    let head = block
+        .get(FRAME_LEN..RECORDS_START)
+        .and_then(|b| BlockHead::read_from_bytes(b).ok())
+        .ok_or_else(|| bad("node block", "too small".into()))?;
+    let used = head.used_bytes.get() as usize;
+    let end = RECORDS_START.checked_add(used).filter(|&e| e <= block.len() && used % 4 == 0);
+    let Some(end) = end else { return Err(bad("used_bytes", format!("{used} bytes do not fit the block"))) };
+    if head.reserved != [0; 2] || !all_zero(&block[end..]) {
+        return Err(bad("reserved", "reserved bytes are not zero".into()));
     }
-
-    /// True for a leaf.
-    pub fn is_leaf(&self) -> bool {
-        self.children.is_none()
+    let count = usize::from(head.record_count.get());
+    // Each record is at least a leaf head, so the count is bounded by the bytes.
+    if count == 0 || count > used / LEAF_HEAD_LEN {
+        return Err(bad("record_count", format!("{count} records in {used} bytes")));
     }
-
-    /// The block reads a cold fetch of entry (`k`, `objects`) takes with
-    /// this record in hand: the paper's bFits/bPage (BFits/BPage) prediction.
-    pub fn predicted_reads(&self, k: u8, objects: bool) -> Option<u64> {
-        self.entry(k, objects).map(|(_, _, e)| e.reads())
-    }
-
-    /// Entry `k` (1-based) of b(S_n,k) or, with `objects`, B(S_n,k), with a
-    /// `Same` followed: the level and kind it resolves to, and its entry.
-    /// Decoding guarantees the target exists and is not itself `Same`.
-    pub fn entry(&self, k: u8, objects: bool) -> Option<(u8, bool, LodRef)> {
-        let e = *self.lods.get(usize::from(k).checked_sub(1)?)?.get(usize::from(objects))?;
-        match e {
-            LodRef::Same { level, objects } => {
-                let t = self.lods.get(usize::from(level) - 1)?[usize::from(objects)];
-                Some((level, objects, t))
-            }
-            e => Some((k, objects, e)),
+    let mut offsets = Vec::with_capacity(count);
+    let mut at = RECORDS_START;
+    for i in 0..count {
+        if at >= end {
+            return Err(bad("record_count", format!("record {i} starts past the used bytes")));
         }
+        offsets.push(at as u32);
+        at += validate_record(id, i as u32, &block[at..end], limits)?;
     }
-
-    fn encode(&self, out: &mut [u8]) {
-        let f = |x: f32| F32::new(x);
-        let (kids, split) = match &self.children {
-            Some((c, s)) => (Some(c), Some(s)),
-            None => (None, None),
-        };
-        let child = |i: usize| {
-            kids.map(|c| c[i]).unwrap_or(ChildRef { block: 0, slot: 0, checksum: 0, aabb: [0.0; 6] })
-        };
-        let fixed = NodeFixed {
-            node_id: self.node_id.into(),
-            kind: if kids.is_some() { 1 } else { 2 },
-            split_axis: split.map_or(0, |s| s.axis.index() as u8),
-            split_order: split.map_or(0, |s| s.order),
-            reserved0: 0,
-            aabb: self.aabb.map(f),
-            split_overlap: f(split.map_or(0.0, |s| s.overlap)),
-            split_gap: f(split.map_or(0.0, |s| s.gap)),
-            level: self.level.into(),
-            reserved1: [0; 2],
-            object_count: self.object_count.into(),
-            child0_block: child(0).block.into(),
-            child0_checksum: child(0).checksum.into(),
-            child1_block: child(1).block.into(),
-            child1_checksum: child(1).checksum.into(),
-            child0_slot: child(0).slot.into(),
-            child1_slot: child(1).slot.into(),
-            reserved2: [0; 4],
-            child0_box: child(0).aabb.map(f),
-            child1_box: child(1).aabb.map(f),
-        };
-        out[..FIXED_LEN].copy_from_slice(fixed.as_bytes());
-        for (k, pair) in self.lods.iter().enumerate() {
-            for (j, lod) in pair.iter().enumerate() {
-                let at = FIXED_LEN + k * LOD_PAIR_LEN + j * 16;
-                out[at..at + 16].copy_from_slice(lod.encode().as_bytes());
+    if at != end {
+        return Err(bad("used_bytes", format!("{} bytes after the last record", end - at)));
+    }
+    // In-block children name a record of this block.
+    for (i, &o) in offsets.iter().enumerate() {
+        if let Ok(NodeView::Internal(n)) = NodeView::at(block, o) {
+            for c in 0..2 {
+                let r = n.child_ref(c);
+                if r.block == 0 && offsets.binary_search(&r.offset).is_err() {
+                    return Err(StorageError::corrupt_record(
+                        id,
+                        i as u32,
+                        "child_offset",
+                        format!("{} is not a record of this block", r.offset),
+                    ));
+                }
             }
         }
     }
+    Ok(offsets)
+}
 
-    fn decode(block: u32, slot: u32, bytes: &[u8], lod_levels: u8) -> Result<NodeRecord, StorageError> {
-        let bad = |field, detail: String| StorageError::corrupt_record(block, slot, field, detail);
-        let fixed =
-            NodeFixed::ref_from_bytes(&bytes[..FIXED_LEN]).map_err(|_| bad("record", "short".into()))?;
-        if fixed.reserved0 != 0 || fixed.reserved1 != [0; 2] || fixed.reserved2 != [0; 4] {
-            return Err(bad("reserved", "reserved bytes are not zero".into()));
-        }
-        let aabb = fixed.aabb.map(|x| x.get());
-        if aabb.iter().any(|x| !x.is_finite()) || (0..3).any(|i| aabb[i] > aabb[i + 3]) {
-            return Err(bad("box", format!("{aabb:?} is not a box")));
-        }
-        let object_count = fixed.object_count.get();
-        if object_count == 0 {
-            return Err(bad("object_count", "a node holds no object".into()));
-        }
-        let children = match fixed.kind {
-            1 => {
-                let axis = Axis::from_index(fixed.split_axis.into())
-                    .ok_or_else(|| bad("split_axis", format!("{} is not an axis", fixed.split_axis)))?;
-                if fixed.split_order > 2 {
-                    return Err(bad("split_order", format!("{} is not 0, 1 or 2", fixed.split_order)));
-                }
-                let (overlap, gap) = (fixed.split_overlap.get(), fixed.split_gap.get());
-                if !overlap.is_finite() || overlap < 0.0 || !gap.is_finite() {
-                    return Err(bad("split_overlap", format!("overlap {overlap}, gap {gap}")));
-                }
-                let c = |b: &U32, s: &U16, c: &U32, a: &[F32; 6]| ChildRef {
-                    block: b.get(),
-                    slot: s.get(),
-                    checksum: c.get(),
-                    aabb: a.map(|x| x.get()),
-                };
-                let kids = [
-                    c(&fixed.child0_block, &fixed.child0_slot, &fixed.child0_checksum, &fixed.child0_box),
-                    c(&fixed.child1_block, &fixed.child1_slot, &fixed.child1_checksum, &fixed.child1_box),
-                ];
-                if kids.iter().any(|k| k.block == 0) {
-                    return Err(bad("child_block", "an internal node points to block 0".into()));
-                }
-                if let Some(k) = kids.iter().find(|k| {
-                    k.aabb.iter().any(|x| !x.is_finite()) || (0..3).any(|i| k.aabb[i] > k.aabb[i + 3])
-                }) {
-                    return Err(bad("child_box", format!("{:?} is not a box", k.aabb)));
-                }
-                Some((kids, SplitInfo { axis, order: fixed.split_order, overlap, gap }))
+/// Validates one record at the start of `bytes`; returns its length.
+fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result<usize, StorageError> {
+    let bad = |field: &'static str, detail: String| StorageError::corrupt_record(id, index, field, detail);
+    let qbox_ok = |q: &[U16; 6]| (0..3).all(|a| q[a].get() <= q[a + 3].get());
+    match bytes.first() {
+        Some(&KIND_INTERNAL) => {
+            let (raw, _) = InternalRaw::ref_from_prefix(bytes).map_err(|_| bad("record", "short".into()))?;
+            if raw.split & 0b11 > 2 || raw.split >> 2 > 2 {
+                return Err(bad("split", format!("{:#x} is not an axis and order", raw.split)));
             }
-            2 => {
-                let rest = &fixed.as_bytes()[5..8];
-                let kids = &fixed.as_bytes()[32..40];
-                let links = &fixed.as_bytes()[48..68];
-                let boxes = &fixed.as_bytes()[72..120];
-                if !all_zero(rest) || !all_zero(kids) || !all_zero(links) || !all_zero(boxes) {
-                    return Err(bad("kind", "a leaf carries split or child fields".into()));
-                }
-                None
+            let (overlap, gap) = (raw.split_overlap.get(), raw.split_gap.get());
+            if !overlap.is_finite() || overlap < 0.0 || !gap.is_finite() {
+                return Err(bad("split_overlap", format!("overlap {overlap}, gap {gap}")));
             }
-            k => return Err(bad("kind", format!("{k} is neither internal (1) nor leaf (2)"))),
-        };
-        let lods: Vec<[LodRef; 2]> = (0..lod_levels as usize)
-            .map(|k| {
-                let at = FIXED_LEN + k * LOD_PAIR_LEN;
-                let pair = <[LodEntryRaw; 2]>::ref_from_bytes(&bytes[at..at + LOD_PAIR_LEN])
-                    .map_err(|_| bad("lods", "short".into()))?;
-                let dec = |e: &LodEntryRaw| {
-                    LodRef::decode(e).ok_or_else(|| bad("lods", format!("bad entry at k = {}", k + 1)))
-                };
-                Ok([dec(&pair[0])?, dec(&pair[1])?])
-            })
-            .collect::<Result<_, StorageError>>()?;
-        check_entries(&lods, children.is_none()).map_err(|d| bad("lods", d))?;
-        Ok(NodeRecord {
-            node_id: fixed.node_id.get(),
-            aabb,
-            level: fixed.level.get(),
-            object_count,
-            children,
-            lods,
-        })
+            if raw.object_count.get() < 2 {
+                return Err(bad("object_count", "an internal node holds fewer than two objects".into()));
+            }
+            for c in &raw.children {
+                if !qbox_ok(&c.qbox) {
+                    return Err(bad("child_box", "a lower step exceeds the upper one".into()));
+                }
+                let (b, s) = (c.block.get(), c.checksum.get());
+                if b == id || (b == 0 && s != 0) {
+                    return Err(bad("child_block", format!("block {b} with checksum {s}")));
+                }
+                if c.offset.get() % 4 != 0 || (c.offset.get() as usize) < RECORDS_START {
+                    return Err(bad("child_offset", format!("{} is not a record offset", c.offset.get())));
+                }
+            }
+            let len = INTERNAL_LEN + usize::from(raw.bounds_bytes.get());
+            let area = bytes.get(INTERNAL_LEN..len).ok_or_else(|| bad("bounds_bytes", "overruns the block".into()))?;
+            validate_bounds(area, 2, limits).map_err(|d| bad("bounds", d))?;
+            Ok(len)
+        }
+        Some(&KIND_LEAF) => {
+            let (raw, _) = LeafRaw::ref_from_prefix(bytes).map_err(|_| bad("record", "short".into()))?;
+            if raw.reserved0 != 0 || raw.reserved1 != [0; 2] {
+                return Err(bad("reserved", "reserved bytes are not zero".into()));
+            }
+            let (n, span) = (usize::from(raw.object_count.get()), usize::from(raw.span.get()));
+            if n == 0 || span == 0 || raw.first_block.get() == 0 {
+                return Err(bad("object_count", format!("{n} objects over {span} blocks from {}", raw.first_block)));
+            }
+            let bounds = raw.bounds_bytes.get() as usize;
+            let len = bounds.checked_add(leaf_len(n, span, 0)).filter(|&l| l <= bytes.len());
+            let Some(len) = len else { return Err(bad("bounds_bytes", "the record overruns the block".into())) };
+            let payload = limits.block_size as u64 - FRAME_LEN as u64;
+            let objects_at = LEAF_HEAD_LEN + 4 * span;
+            let mut prev: Option<u64> = None;
+            for i in 0..n {
+                let at = objects_at + i * OBJECT_LEN;
+                let (o, _) = ObjectRaw::ref_from_prefix(&bytes[at..]).map_err(|_| bad("objects", "short".into()))?;
+                if o.object_id.get() >= limits.object_count {
+                    return Err(bad("object_id", format!("{} >= {} objects", o.object_id, limits.object_count)));
+                }
+                if !qbox_ok(&o.qbox) {
+                    return Err(bad("object_box", "a lower step exceeds the upper one".into()));
+                }
+                let p = u64::from(o.position.get()) * 4;
+                if i == 0 && p >= payload {
+                    return Err(bad("position", "the first object does not start in the span's first block".into()));
+                }
+                if prev.is_some_and(|q| p < q + super::geometry::HEADER_LEN as u64) {
+                    return Err(bad("position", format!("object {i} starts inside the one before")));
+                }
+                prev = Some(p);
+            }
+            let end_at = objects_at + n * OBJECT_LEN;
+            let end = u64::from(u32::from_le_bytes(
+                bytes[end_at..end_at + 4].try_into().map_err(|_| bad("end", "short".into()))?,
+            )) * 4;
+            if prev.is_some_and(|q| end < q + super::geometry::HEADER_LEN as u64) || end > payload * span as u64 {
+                return Err(bad("end", format!("the span's records end at {end} bytes, past its {span} blocks")));
+            }
+            if (end - 1) / payload + 1 != span as u64 {
+                return Err(bad("span", format!("{span} blocks for records ending at byte {end}")));
+            }
+            validate_bounds(&bytes[end_at + 4..len], n, limits).map_err(|d| bad("bounds", d))?;
+            Ok(len)
+        }
+        Some(k) => Err(bad("kind", format!("{k} is neither internal (1) nor leaf (2)"))),
+        None => Err(bad("record", "empty".into())),
     }
 }
 
-/// The rules that tie a record's entries together (format-spec/node.md): a
-/// `Same` names a stored entry of another level or kind, `InRecord` is only
-/// b(S_n,1), a leaf has no children to spread over.
-fn check_entries(lods: &[[LodRef; 2]], leaf: bool) -> Result<(), String> {
-    for (k, pair) in lods.iter().enumerate() {
-        for (j, e) in pair.iter().enumerate() {
-            let at = || format!("k = {}, {}", k + 1, if j == 1 { "objects" } else { "group" });
-            match *e {
-                LodRef::Same { level, objects } => {
-                    let target = lods.get(usize::from(level) - 1).map(|p| p[usize::from(objects)]);
-                    if (usize::from(level) - 1, usize::from(objects)) == (k, j)
-                        || matches!(target, None | Some(LodRef::Same { .. } | LodRef::Absent))
-                    {
-                        return Err(format!("{}: names level {level}, which is not stored", at()));
-                    }
-                }
-                LodRef::InRecord if (k, j) != (0, 0) => {
-                    return Err(format!("{}: only b(S_n,1) is the record's box", at()));
-                }
-                LodRef::Spread { .. } if leaf => return Err(format!("{}: a leaf has no children", at())),
-                _ => {}
-            }
+fn validate_bounds(mut area: &[u8], targets: usize, limits: &Limits) -> Result<(), String> {
+    let mut last: Option<(u16, u8)> = None;
+    while !area.is_empty() {
+        let (raw, rest) = BoundRaw::ref_from_prefix(area).map_err(|_| "a bound's head is cut".to_string())?;
+        let (t, k) = (raw.target.get(), raw.level);
+        if usize::from(t) >= targets || k < 2 || k >= limits.lod_levels || raw.reserved != 0 {
+            return Err(format!("a bound of target {t} at level {k}"));
         }
+        // One bound per target and level, in order: a reader finds them by scanning once.
+        if last.is_some_and(|l| l >= (t, k)) {
+            return Err("bounds are not in (target, level) order".into());
+        }
+        last = Some((t, k));
+        let n = raw.blob_bytes.get() as usize;
+        let padded = n.checked_next_multiple_of(4).filter(|&p| p <= rest.len());
+        let Some(padded) = padded else { return Err(format!("a bound of {n} bytes overruns its record")) };
+        if !all_zero(&rest[n..padded]) {
+            return Err("a bound's padding is not zero".into());
+        }
+        area = &rest[padded..];
     }
     Ok(())
 }
 
-/// Writes `records` into a node block's payload.
-pub fn encode_block(records: &[NodeRecord], lod_levels: u8, block: &mut [u8]) {
-    let size = record_size(lod_levels);
-    let h = NodeBlockHeader {
-        record_count: (records.len() as u16).into(),
-        record_size: (size as u16).into(),
-        reserved: [0; 4],
-    };
-    block[FRAME_LEN..RECORDS_START].copy_from_slice(h.as_bytes());
-    for (i, r) in records.iter().enumerate() {
-        let at = RECORDS_START + i * size;
-        r.encode(&mut block[at..at + size]);
+/// A record of a validated block, borrowed in place.
+#[derive(Debug, Clone, Copy)]
+pub enum NodeView<'a> {
+    Internal(InternalView<'a>),
+    Leaf(LeafView<'a>),
+}
+
+/// An internal record in place.
+#[derive(Debug, Clone, Copy)]
+pub struct InternalView<'a> {
+    raw: &'a InternalRaw,
+    bounds: &'a [u8],
+}
+
+/// A leaf record in place.
+#[derive(Debug, Clone, Copy)]
+pub struct LeafView<'a> {
+    raw: &'a LeafRaw,
+    checksums: &'a [U32],
+    objects: &'a [ObjectRaw],
+    end: u64,
+    bounds: &'a [u8],
+}
+
+impl<'a> NodeView<'a> {
+    /// The record at `offset` of a block that [`validate_block`] accepted.
+    pub fn at(block: &'a [u8], offset: u32) -> Result<NodeView<'a>, String> {
+        let bytes = block.get(offset as usize..).ok_or("offset past the block")?;
+        match bytes.first() {
+            Some(&KIND_INTERNAL) => {
+                let (raw, rest) = InternalRaw::ref_from_prefix(bytes).map_err(|_| "short record")?;
+                let bounds = rest.get(..usize::from(raw.bounds_bytes.get())).ok_or("bounds overrun")?;
+                Ok(NodeView::Internal(InternalView { raw, bounds }))
+            }
+            Some(&KIND_LEAF) => {
+                let (raw, rest) = LeafRaw::ref_from_prefix(bytes).map_err(|_| "short record")?;
+                let (checksums, rest) =
+                    <[U32]>::ref_from_prefix_with_elems(rest, usize::from(raw.span.get())).map_err(|_| "short")?;
+                let (objects, rest) =
+                    <[ObjectRaw]>::ref_from_prefix_with_elems(rest, usize::from(raw.object_count.get()))
+                        .map_err(|_| "short")?;
+                let (end, rest) = U32::ref_from_prefix(rest).map_err(|_| "short")?;
+                let bounds = rest.get(..raw.bounds_bytes.get() as usize).ok_or("bounds overrun")?;
+                Ok(NodeView::Leaf(LeafView { raw, checksums, objects, end: u64::from(end.get()) * 4, bounds }))
+            }
+            _ => Err("not a record".into()),
+        }
+    }
+
+    /// The preorder id.
+    pub fn node_id(&self) -> u32 {
+        match self {
+            NodeView::Internal(n) => n.raw.node_id.get(),
+            NodeView::Leaf(l) => l.raw.node_id.get(),
+        }
+    }
+
+    /// Objects in the subtree.
+    pub fn object_count(&self) -> u32 {
+        match self {
+            NodeView::Internal(n) => n.raw.object_count.get(),
+            NodeView::Leaf(l) => l.objects.len() as u32,
+        }
     }
 }
 
-/// Decodes every record of node block `id` (checksum already verified),
-/// checking each against the format's rules.
-pub fn decode_block(id: u32, block: &[u8], lod_levels: u8) -> Result<Vec<NodeRecord>, StorageError> {
-    let h = NodeBlockHeader::read_from_bytes(&block[FRAME_LEN..RECORDS_START])
-        .map_err(|_| StorageError::corrupt(id, "node block", "too small"))?;
-    let (count, size) = (h.record_count.get() as usize, h.record_size.get() as usize);
-    if size != record_size(lod_levels) {
-        return Err(StorageError::corrupt(
-            id,
-            "record_size",
-            format!("{size}, expected {}", record_size(lod_levels)),
-        ));
+/// A bound borrowed from a record: the blob of level `level` for `target`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoundView<'a> {
+    pub target: u16,
+    pub level: u8,
+    pub blob: &'a [u8],
+}
+
+fn bounds_iter(mut area: &[u8]) -> impl Iterator<Item = BoundView<'_>> {
+    std::iter::from_fn(move || {
+        let (raw, rest) = BoundRaw::ref_from_prefix(area).ok()?;
+        let n = raw.blob_bytes.get() as usize;
+        let blob = rest.get(..n)?;
+        area = rest.get(n.next_multiple_of(4)..).unwrap_or_default();
+        Some(BoundView { target: raw.target.get(), level: raw.level, blob })
+    })
+}
+
+impl<'a> InternalView<'a> {
+    /// Child `i`'s (0 or 1) box, decoded in `frame` (this node's box).
+    pub fn child_box(&self, i: usize, frame: &Aabb) -> Option<QuantBox> {
+        QuantBox::decode(frame, self.raw.children[i].qbox.map(|x| x.get()))
     }
-    let end = RECORDS_START + count * size;
-    if count == 0 || end > block.len() {
-        return Err(StorageError::corrupt(id, "record_count", format!("{count} records of {size} bytes")));
+
+    /// Where child `i`'s record is.
+    pub fn child_ref(&self, i: usize) -> RecordRef {
+        let c = &self.raw.children[i];
+        RecordRef { block: c.block.get(), checksum: c.checksum.get(), offset: c.offset.get() }
     }
-    if h.reserved != [0; 4] || !all_zero(&block[end..]) {
-        return Err(StorageError::corrupt(id, "reserved", "reserved bytes are not zero"));
+
+    /// Child `i`'s node blocks other than this record's, and its geometry blocks.
+    pub fn child_blocks(&self, i: usize) -> (u32, u32) {
+        let c = &self.raw.children[i];
+        (c.node_blocks.get(), c.geometry_blocks.get())
     }
-    (0..count)
-        .map(|i| {
-            let at = RECORDS_START + i * size;
-            let r = NodeRecord::decode(id, i as u32, &block[at..at + size], lod_levels)?;
-            if let Some((kids, _)) = &r.children
-                && let Some(k) = kids.iter().find(|k| k.block == id && usize::from(k.slot) >= count)
-            {
-                return Err(StorageError::corrupt_record(
-                    id,
-                    i as u32,
-                    "child_slot",
-                    format!("{} >= {count}", k.slot),
-                ));
-            }
-            Ok(r)
+
+    /// The split.
+    pub fn split(&self) -> SplitInfo {
+        let s = self.raw.split;
+        SplitInfo {
+            axis: Axis::from_index(usize::from(s & 0b11)).unwrap_or(Axis::X),
+            order: s >> 2,
+            overlap: self.raw.split_overlap.get(),
+            gap: self.raw.split_gap.get(),
+        }
+    }
+
+    /// The inline group bounds b(S_c,k) of the children, by (child, level).
+    pub fn bounds(&self) -> impl Iterator<Item = BoundView<'a>> + 'a {
+        bounds_iter(self.bounds)
+    }
+}
+
+/// An object of a leaf in place.
+#[derive(Debug, Clone, Copy)]
+pub struct ObjectView {
+    pub object_id: u32,
+    pub qbox: [u16; 6],
+    /// Byte range of its geometry record (and any padding after it) in the leaf's span.
+    pub span: (u64, u64),
+}
+
+impl<'a> LeafView<'a> {
+    /// Objects.
+    pub fn len(&self) -> usize {
+        self.objects.len()
+    }
+
+    /// Never true for a valid record.
+    pub fn is_empty(&self) -> bool {
+        self.objects.is_empty()
+    }
+
+    /// Object `i`.
+    pub fn object(&self, i: usize) -> Option<ObjectView> {
+        let o = self.objects.get(i)?;
+        let next = self.objects.get(i + 1).map_or(self.end, |n| u64::from(n.position.get()) * 4);
+        Some(ObjectView {
+            object_id: o.object_id.get(),
+            qbox: o.qbox.map(|x| x.get()),
+            span: (u64::from(o.position.get()) * 4, next),
         })
-        .collect()
+    }
+
+    /// The first geometry block of the span and the checksums of its blocks.
+    pub fn geometry(&self) -> (u32, impl ExactSizeIterator<Item = u32> + 'a) {
+        (self.raw.first_block.get(), self.checksums.iter().map(|c| c.get()))
+    }
+
+    /// The inline per-object bounds B(o,k), by (object index, level).
+    pub fn bounds(&self) -> impl Iterator<Item = BoundView<'a>> + 'a {
+        bounds_iter(self.bounds)
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    #[test]
-    fn records_round_trip() {
-        let leaf = NodeRecord {
-            node_id: 2,
-            aabb: [0.0, 1.0, 2.0, 3.0, 4.0, 5.0],
-            level: 1,
-            object_count: 3,
-            children: None,
-            lods: vec![[LodRef::Absent; 2], [LodRef::InBlock { block: 9, offset: 16, checksum: 5 }; 2]],
+    fn limits() -> Limits {
+        Limits { block_size: 1024, lod_levels: 4, object_count: 10 }
+    }
+
+    fn drafts() -> Vec<RecordDraft> {
+        let leaf = RecordDraft::Leaf {
+            node_id: 1,
+            first_block: 9,
+            checksums: vec![77],
+            objects: vec![
+                ObjectEntry { object_id: 3, qbox: [0, 0, 0, 10, 10, 10], position: 0 },
+                ObjectEntry { object_id: 4, qbox: [1, 2, 3, 4, 5, 6], position: 100 },
+            ],
+            end: 200,
+            bounds: vec![BoundEntry { target: 1, level: 2, blob: vec![1, 2, 3] }],
         };
-        let inner = NodeRecord {
+        let inner = RecordDraft::Internal {
             node_id: 0,
-            aabb: [0.0, 0.0, 0.0, 9.0, 9.0, 9.0],
-            level: 0,
-            object_count: 6,
-            children: Some((
-                [
-                    ChildRef { block: 3, slot: 1, checksum: 0, aabb: [0.0, 1.0, 2.0, 3.0, 4.0, 5.0] },
-                    ChildRef { block: 4, slot: 0, checksum: 77, aabb: [1.0; 6] },
-                ],
-                SplitInfo { axis: Axis::Y, order: 1, overlap: 0.5, gap: 0.5 },
-            )),
-            lods: vec![[LodRef::Absent; 2], [LodRef::Spread { reads: 4 }; 2]],
+            object_count: 3,
+            split: SplitInfo { axis: Axis::Y, order: 1, overlap: 0.5, gap: -1.0 },
+            children: [
+                ChildEntry {
+                    qbox: [0, 0, 0, 9, 9, 9],
+                    at: RecordRef { block: 0, checksum: 0, offset: 24 + 84 },
+                    node_blocks: 0,
+                    geometry_blocks: 1,
+                },
+                ChildEntry {
+                    qbox: [9, 9, 9, 99, 99, 99],
+                    at: RecordRef { block: 5, checksum: 1234, offset: 24 },
+                    node_blocks: 1,
+                    geometry_blocks: 1,
+                },
+            ],
+            bounds: vec![],
         };
+        vec![inner, leaf]
+    }
+
+    #[test]
+    fn records_round_trip_in_place() {
         let mut block = vec![0u8; 1024];
-        encode_block(&[inner.clone(), leaf.clone()], 2, &mut block);
-        assert_eq!(decode_block(3, &block, 2).unwrap(), vec![inner, leaf]);
-        assert!(decode_block(3, &block, 3).is_err(), "record size follows M");
+        let offsets = encode_block(&drafts(), &mut block).unwrap();
+        assert_eq!(validate_block(3, &block, &limits()).unwrap(), offsets);
+        let NodeView::Internal(n) = NodeView::at(&block, offsets[0]).unwrap() else { panic!() };
+        assert_eq!(n.child_ref(1), RecordRef { block: 5, checksum: 1234, offset: 24 });
+        assert_eq!(n.split().axis, Axis::Y);
+        let NodeView::Leaf(l) = NodeView::at(&block, offsets[1]).unwrap() else { panic!() };
+        assert_eq!(l.len(), 2);
+        assert_eq!(l.object(1).unwrap().span, (100, 200));
+        assert_eq!(l.bounds().collect::<Vec<_>>(), vec![BoundView { target: 1, level: 2, blob: &[1, 2, 3] }]);
+        assert_eq!(l.geometry().1.collect::<Vec<_>>(), vec![77]);
+    }
+
+    #[test]
+    fn broken_rules_are_corruption() {
+        let mut block = vec![0u8; 1024];
+        let offsets = encode_block(&drafts(), &mut block).unwrap();
+        let cases: Vec<Box<dyn Fn(&mut Vec<u8>)>> = vec![
+            Box::new(|b| b[24] = 7),                                   // kind
+            Box::new(|b| b[16] = 1),                                   // used bytes
+            Box::new(|b| b[24 + 20 + 16] = 1),                         // in-block child offset
+            Box::new(|b| b[1000] = 1),                                 // reserved tail
+            Box::new(move |b| b[offsets[1] as usize + 20 + 4] = 99),  // object id
+        ];
+        for (i, damage) in cases.iter().enumerate() {
+            let mut b = block.clone();
+            damage(&mut b);
+            assert!(validate_block(3, &b, &limits()).is_err(), "case {i}");
+        }
     }
 }

@@ -1,0 +1,109 @@
+//! The levels of detail of a file: M levels, 1 the box, 2 the cuberille (a
+//! grid within a cell budget), 3 .. M-1 polyhedra (voxel sets at a fixed
+//! lattice level each), M the exact objects; the lattice every grid sits on,
+//! so levels nest (see `lattice.rs`), and the parameters that shape them.
+
+use super::{Lattice, LodError};
+use crate::scene::{Mesh, Scene};
+
+/// How a tree's levels of detail are built.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LodParams {
+    /// eps_k of the polyhedral levels k = 3 .. M-1, in mm, coarse to fine
+    /// (non-increasing); `None` takes them from the scene's object sizes.
+    pub eps: Option<Vec<f64>>,
+    /// Cells of a node's cuberille (level 2).
+    pub cuberille_bits: u32,
+    /// Cells of an object's cuberille.
+    pub cuberille_object_bits: u32,
+    /// Cells sampled per bound to measure its error.
+    pub error_samples: usize,
+    /// Query positions sampled per candidate bound to judge whether it pays.
+    pub model_samples: usize,
+}
+
+impl Default for LodParams {
+    fn default() -> LodParams {
+        LodParams {
+            eps: None,
+            cuberille_bits: 4096,
+            cuberille_object_bits: 512,
+            error_samples: 64,
+            model_samples: 64,
+        }
+    }
+}
+
+/// The lattice and the lattice level of each level's grids.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LodPlan {
+    /// M.
+    pub levels: u8,
+    pub lattice: Lattice,
+    /// Index k - 1: the lattice level of level k's grids (level 2: the
+    /// finest its per-node grids may use); 0 for levels 1 and M.
+    pub grid_level: Vec<u8>,
+}
+
+/// The finest polyhedral cell by default: a quarter of the median object's
+/// longest side, so a typical object is a few cells across.
+const DEFAULT_CELLS_PER_OBJECT: f64 = 4.0;
+
+impl LodPlan {
+    /// The plan for `scene` with M = `levels`.
+    pub fn new(scene: &Scene, levels: u8, params: &LodParams) -> Result<LodPlan, LodError> {
+        let polyhedral = usize::from(levels.saturating_sub(3));
+        let scene_box = scene.aabb();
+        let (cell, steps) = match &params.eps {
+            Some(eps) => {
+                if eps.len() != polyhedral {
+                    return Err(LodError::Params(format!(
+                        "{} eps values for {polyhedral} polyhedral levels (3 .. M-1 with M = {levels})",
+                        eps.len()
+                    )));
+                }
+                if eps.iter().any(|e| !(e.is_finite() && *e > 0.0)) || eps.windows(2).any(|w| w[1] > w[0]) {
+                    return Err(LodError::Params(format!(
+                        "eps {eps:?} must be positive and not increase with k"
+                    )));
+                }
+                let finest = eps.last().copied().unwrap_or(1.0);
+                // A level's error is its cell diagonal: round each cell down to a power-of-two multiple.
+                let steps: Vec<u8> =
+                    eps.iter().map(|e| (e / finest).log2().floor().clamp(0.0, 60.0) as u8).collect();
+                (finest / 3f64.sqrt(), steps)
+            }
+            None => {
+                let mut sides: Vec<f64> =
+                    scene.objects().iter().map(|o| longest_side(&o.mesh)).filter(|s| *s > 0.0).collect();
+                sides.sort_by(f64::total_cmp);
+                let median = sides.get(sides.len() / 2).copied().unwrap_or_else(|| {
+                    longest_side_of(&scene_box.extent().into()).max(1.0) // points only
+                });
+                let steps = (0..polyhedral).map(|i| (polyhedral - 1 - i) as u8).collect();
+                (median / DEFAULT_CELLS_PER_OBJECT, steps)
+            }
+        };
+        let mut grid_level = vec![0u8; usize::from(levels)];
+        for (i, s) in steps.iter().enumerate() {
+            grid_level[3 + i - 1] = *s;
+        }
+        if levels >= 3 {
+            grid_level[1] = if polyhedral > 0 { grid_level[2] } else { 0 };
+        }
+        Ok(LodPlan { levels, lattice: Lattice { origin: scene_box.min, cell }, grid_level })
+    }
+
+    /// Level k's guaranteed error for a grid at its lattice level (k >= 3).
+    pub fn eps(&self, k: u8) -> f64 {
+        self.lattice.cell_at(self.grid_level[usize::from(k) - 1]) * 3f64.sqrt()
+    }
+}
+
+fn longest_side(mesh: &Mesh) -> f64 {
+    longest_side_of(&mesh.aabb().extent().into())
+}
+
+fn longest_side_of(e: &[f64; 3]) -> f64 {
+    e[0].max(e[1]).max(e[2])
+}
