@@ -52,6 +52,17 @@ impl Aabb {
         Aabb::new(self.min.inf(&other.min), self.max.sup(&other.max))
     }
 
+    /// The eight corners.
+    pub fn corners(&self) -> [Point; 8] {
+        std::array::from_fn(|i| {
+            Point::new(
+                if i & 1 == 0 { self.min.x } else { self.max.x },
+                if i & 2 == 0 { self.min.y } else { self.max.y },
+                if i & 4 == 0 { self.min.z } else { self.max.z },
+            )
+        })
+    }
+
     /// The box grown by `d` on every side.
     pub fn grown(&self, d: f64) -> Aabb {
         let v = Vector::repeat(d);

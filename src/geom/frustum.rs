@@ -103,6 +103,24 @@ impl Frustum {
         self.overlaps(&box_corners, &axes, &axes)
     }
 
+    /// True when `p` lies in the frustum shrunk by a rounding margin (1e-9
+    /// of the coordinates' magnitude): between the planes of every pair of
+    /// opposite faces, which for a convex solid is inside it.
+    pub fn contains_point(&self, p: &Point) -> bool {
+        let mag = self.corners.iter().flat_map(|c| c.iter()).fold(0.0f64, |m, c| m.max(c.abs()));
+        self.normals.iter().all(|n| {
+            let len = n.norm();
+            if len == 0.0 {
+                return true;
+            }
+            let proj = |q: &Point| q.coords.dot(n) / len;
+            let (lo, hi) = self.corners.iter().map(proj).fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(x), b.max(x)));
+            let x = proj(p);
+            let slack = 1e-9 * mag;
+            x >= lo + slack && x <= hi - slack
+        })
+    }
+
     /// True when the closed frustum and the closed triangle share a point.
     pub fn intersects_triangle(&self, t: &[Point; 3]) -> bool {
         let e = [t[1] - t[0], t[2] - t[1], t[0] - t[2]];

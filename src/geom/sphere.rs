@@ -50,6 +50,14 @@ impl Sphere {
         d2 <= self.radius * self.radius
     }
 
+    /// True when `p` lies in the ball shrunk by a rounding margin (1e-9 of
+    /// the coordinates' magnitude): a yes holds for the exact ball.
+    pub fn contains_point(&self, p: &Point) -> bool {
+        let slack = 1e-9 * (self.center.iter().fold(0.0f64, |m, c| m.max(c.abs())) + self.radius);
+        let r = self.radius - slack;
+        r >= 0.0 && (p - self.center).norm_squared() <= r * r
+    }
+
     /// True when the closed ball and the closed triangle share a point.
     pub fn intersects_triangle(&self, t: &[Point; 3]) -> bool {
         distance_point_triangle(&self.center, t) <= self.radius

@@ -158,6 +158,13 @@ impl Voxels {
         self.grid.box_range(q).is_some_and(|r| self.any_in(r, |_, c| q.contains(&self.grid.cell_box(c).grown(tol))))
     }
 
+    /// Every set cell's box, grown by the voxelization tolerance: each holds
+    /// the surface piece that set it.
+    pub fn cell_boxes(&self) -> impl Iterator<Item = Aabb> + '_ {
+        let tol = self.grid.tolerance();
+        self.set_cells().map(move |i| self.grid.cell_box(self.grid.coords(i)).grown(tol))
+    }
+
     /// True when the triangle meets a set cell (grown by the tolerance:
     /// conservative, never a missed contact).
     pub fn intersects_triangle(&self, t: &[Point; 3]) -> bool {

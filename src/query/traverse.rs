@@ -1,35 +1,37 @@
-//! The one traversal every single-shape query runs (region, collide,
-//! navigate, tradeoff; clash runs the tree against itself in `clash.rs`).
+//! The one traversal every query runs (rstar's selection iterator, with the
+//! MKtree's multiresolution decisions, paper §1.5).
 //!
-//! Paper §1.5, the multiresolution query: descend from the root; at each
-//! node test the query against b(S_n,1) (the child's box, held by its
-//! parent, so a pruned child's block is never read), then against
-//! b(S_n,j) for 2 <= j <= k where this node stores it; at a leaf test its
-//! objects against B(S_n,j), j = 1 .. k, and at k = M exactly. A miss prunes:
-//! every bound contains what it bounds, so nothing below can meet the query.
-//! An entry that names another level (tag 4) is tested where it is stored;
-//! a spread entry (tag 3) is the children's, met on the way down.
+//! From the root, each child is tested against the query through its box as
+//! the parent stores it, so a pruned child's block is never read; a child
+//! whose box the query holds answers all its objects without further tests.
+//! At a leaf each object is decided by the coarsest bound that can: its box
+//! rules it out, or holds it, or has a face the query holds (the box is
+//! tight, so that face touches the object); then its finest stored voxel
+//! bound up to level k rules it out or holds a surface cell inside the query.
+//! Only objects still undecided at k = M have their geometry read.
 //!
-//! The work is a queue of candidates, each one step from its next test. With
-//! no budget it is a stack (depth first: a clustered node block is entered
-//! once). With a block budget it is a priority queue: the step that settles
-//! the most undecided objects per block it would read goes first; a step
-//! that would pass the budget is set aside, and what is left when nothing
-//! fits is the answer's `maybe` (objects known, not refined) and
-//! `unexplored` (subtrees not yet read).
+//! The work is a queue of steps. Without a budget it is a stack (depth
+//! first). With a block budget it is a priority queue: the step that settles
+//! the most objects per block it reads goes first; a step that would pass
+//! the budget is set aside, and what is left is the answer's `maybe`
+//! (objects not refined) and `unexplored` (subtrees not read).
 
-use std::collections::{BinaryHeap, HashSet};
+use std::collections::BinaryHeap;
 use std::sync::Arc;
 use std::time::Instant;
 
 use serde::Serialize;
 
 use super::QueryError;
-use super::shape::Probe;
-use crate::db::{Piece, ReadTransaction, TraversalGuard, entry_blocks, record_at};
+use super::select::Selection;
+use crate::db::{ReadTransaction, Reads, view};
+use crate::geom::Aabb;
+use crate::lod::Voxels;
 use crate::scene::ObjectId;
-use crate::store::format::node::{LodRef, NodeRecord};
-use crate::store::{BlockCache, ReadStats, StorageError};
+use crate::store::format::geometry;
+use crate::store::format::node::{BoundView, NodeView, RecordRef};
+use crate::store::format::quant::QuantBox;
+use crate::store::{Block, BlockCache, ReadStats, StorageError};
 
 /// Level and block budget of a query.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -40,30 +42,56 @@ pub struct QueryOptions {
     pub budget: Option<u64>,
 }
 
-/// What a traversal did besides its answer.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
-pub struct TraverseStats {
-    pub reads: ReadStats,
-    pub nodes_visited: u64,
-    pub leaves_visited: u64,
-    /// Tests of a bound (a node's or an object's) at level k = 1 .. M, index
-    /// k - 1; at M, the objects tested exactly.
-    pub tests_per_level: Vec<u64>,
-    pub triangles_tested: u64,
-    pub seconds: f64,
+/// How an object was decided.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Proof {
+    /// Its box (or a subtree's box holding it) misses the query.
+    BoxMisses,
+    /// A subtree's box holding it lies inside the query.
+    InsideNode,
+    /// The query holds a face of its tight box.
+    Face,
+    /// Its voxel bound misses the query.
+    VoxelsMiss,
+    /// The query holds a surface cell of its voxel bound.
+    Cell,
+    /// Its exact geometry (level M).
+    Exact,
+    /// Not decided: a candidate at the query's level k < M (or budget).
+    Candidate,
 }
 
 /// Where an object seen at a leaf was decided.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct ObjectLevel {
     pub object: ObjectId,
-    /// The level of the last bound it was tested against.
+    /// The level of the bound that decided it (or the last it passed).
     pub level: u8,
-    /// In the answer (confirmed at M, a candidate below), or rejected.
+    /// In the answer (confirmed, or a candidate below M), or rejected.
     pub accepted: bool,
+    pub proof: Proof,
 }
 
-/// A single-shape query's answer.
+/// What a traversal did besides its answer.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct TraverseStats {
+    pub reads: ReadStats,
+    pub nodes_visited: u64,
+    pub leaves_visited: u64,
+    /// Per level k = 1 .. M (index k - 1): objects confirmed there.
+    pub confirmed: Vec<u64>,
+    /// Per level k = 1 .. M: objects rejected there.
+    pub rejected: Vec<u64>,
+    /// Per level k = 1 .. M: subtrees pruned there (their objects are not counted above).
+    pub pruned: Vec<u64>,
+    /// Objects whose geometry was read and tested (the level-M decisions).
+    pub geometry_tests: u64,
+    pub triangles_tested: u64,
+    pub seconds: f64,
+}
+
+/// A query's answer.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct QueryAnswer {
     /// Sorted ids: exact at level M; below M a superset of the exact answer.
@@ -77,7 +105,7 @@ pub struct QueryAnswer {
     /// The coarsest level any undecided candidate stopped at (`level` when
     /// the budget sufficed).
     pub level_reached: u8,
-    /// Objects seen at leaves, with the level they were decided at (sorted).
+    /// Objects seen at leaves, with the level and proof of their decision (sorted).
     pub decided: Vec<ObjectLevel>,
     pub stats: TraverseStats,
 }
@@ -92,64 +120,6 @@ impl QueryAnswer {
     }
 }
 
-/// A node record in hand: its decoded block and slot.
-#[derive(Clone)]
-struct Held {
-    records: Arc<Vec<NodeRecord>>,
-    block: u32,
-    slot: u16,
-}
-
-impl Held {
-    fn rec(&self) -> Result<&NodeRecord, StorageError> {
-        record_at(&self.records, self.block, self.slot)
-    }
-}
-
-enum State {
-    /// A child whose box met the query; its block not read yet.
-    Unread { block: u32, slot: u16, checksum: Option<u32>, estimate: f64, root: bool },
-    /// A node whose group bounds passed up to `level`.
-    Node { at: Held, level: u8 },
-    /// A leaf's objects: `alive` passed B(S_n,·) up to `olevel` (None: not read yet).
-    Leaf { at: Held, level: u8, olevel: u8, alive: Option<Vec<ObjectId>> },
-}
-
-struct Cand {
-    priority: f64,
-    seq: u64,
-    state: State,
-}
-
-impl PartialEq for Cand {
-    fn eq(&self, o: &Cand) -> bool {
-        self.cmp(o) == std::cmp::Ordering::Equal
-    }
-}
-impl Eq for Cand {}
-impl PartialOrd for Cand {
-    fn partial_cmp(&self, o: &Cand) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(o))
-    }
-}
-impl Ord for Cand {
-    fn cmp(&self, o: &Cand) -> std::cmp::Ordering {
-        self.priority.total_cmp(&o.priority).then(self.seq.cmp(&o.seq))
-    }
-}
-
-/// The next stored entry of `rec` for levels after `after` up to `last`:
-/// group bounds (`objects` false) or per-object bounds. An entry that names
-/// another level is skipped: that level's own entry is the same blob.
-pub(crate) fn next_entry(rec: &NodeRecord, after: u8, last: u8, objects: bool) -> Option<(u8, LodRef)> {
-    (after.saturating_add(1)..=last).find_map(|j| match rec.entry(j, objects) {
-        Some((l, o, e @ (LodRef::InBlock { .. } | LodRef::Run { .. }))) if l == j && o == objects => {
-            Some((j, e))
-        }
-        _ => None,
-    })
-}
-
 /// The level k of a query on `txn`, checked, with M.
 pub(crate) fn levels(txn: &ReadTransaction, lod: Option<u8>) -> Result<(u8, u8), QueryError> {
     let m = txn.info().ok_or(QueryError::NoTree)?.lod_levels;
@@ -160,247 +130,261 @@ pub(crate) fn levels(txn: &ReadTransaction, lod: Option<u8>) -> Result<(u8, u8),
     Ok((k, m))
 }
 
-/// Per-object results of testing one leaf piece.
-pub(crate) fn test_piece<P: Probe + ?Sized>(
-    probe: &P,
-    piece: &Piece,
-    triangles_tested: &mut u64,
-) -> Vec<(ObjectId, bool)> {
-    match piece {
-        Piece::ObjectBoxes(v) => v.iter().map(|(id, b)| (*id, probe.meets_box(b))).collect(),
-        Piece::ObjectVoxels(v) => v.iter().map(|(id, s)| (*id, probe.meets_voxels(s))).collect(),
-        Piece::Objects(v) => v.iter().map(|(id, m)| (*id, probe.meets_mesh(m, triangles_tested))).collect(),
-        Piece::Box { .. } | Piece::Voxels { .. } => Vec::new(),
+enum Step {
+    /// A child in another block, not read yet.
+    Unread { at: RecordRef, frame: Aabb, inside: bool, estimate: f64 },
+    /// A record in hand.
+    Node { block: Arc<Block>, offset: u32, frame: Aabb, inside: bool },
+    /// An object whose geometry decides it: leaf `offset` of `block`, object `index`.
+    Exact { block: Arc<Block>, offset: u32, index: usize, level: u8 },
+}
+
+struct Queued {
+    priority: f64,
+    seq: u64,
+    step: Step,
+}
+
+impl PartialEq for Queued {
+    fn eq(&self, o: &Queued) -> bool {
+        self.cmp(o) == std::cmp::Ordering::Equal
+    }
+}
+impl Eq for Queued {}
+impl PartialOrd for Queued {
+    fn partial_cmp(&self, o: &Queued) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Queued {
+    fn cmp(&self, o: &Queued) -> std::cmp::Ordering {
+        self.priority.total_cmp(&o.priority).then(self.seq.cmp(&o.seq))
     }
 }
 
-/// True when a group piece (b(S_n,j)) may meet the probe.
-fn group_meets<P: Probe + ?Sized>(probe: &P, piece: &Piece, n: &mut u64) -> bool {
-    match piece {
-        Piece::Box { aabb, .. } => probe.meets_box(aabb),
-        Piece::Voxels { voxels, .. } => probe.meets_voxels(voxels),
-        other => test_piece(probe, other, n).iter().any(|x| x.1),
-    }
+/// The finest bound of `target` at a level <= k among `bounds`.
+fn finest<'a>(bounds: impl Iterator<Item = BoundView<'a>>, target: u16, k: u8) -> Option<BoundView<'a>> {
+    bounds.filter(|b| b.target == target && b.level <= k).max_by_key(|b| b.level)
 }
 
-struct Run<'a, P: ?Sized> {
-    txn: &'a ReadTransaction,
-    probe: &'a P,
+struct Run<'t, 'c, S: ?Sized> {
+    txn: &'t ReadTransaction,
+    sel: &'t S,
     k: u8,
     m: u8,
     budget: Option<u64>,
-    /// With the query's own unbounded pool a block is read at most once,
-    /// so a step costs its blocks not yet read; with a caller's pool, which
-    /// may evict, it costs all its blocks (an upper bound).
-    exact_cost: bool,
-    seen: HashSet<u32>,
-    heap: BinaryHeap<Cand>,
+    reads: Reads<'c>,
+    heap: BinaryHeap<Queued>,
     seq: u64,
+    visits: u64,
+    visit_limit: u64,
     stats: TraverseStats,
     objects: Vec<ObjectId>,
     decided: Vec<ObjectLevel>,
 }
 
-impl<P: Probe + ?Sized> Run<'_, P> {
-    fn push(&mut self, state: State) -> Result<(), StorageError> {
-        self.seq += 1;
-        let priority = match self.budget {
-            None => 0.0,
-            Some(_) => {
-                let gain = match &state {
-                    State::Unread { estimate, .. } => *estimate,
-                    State::Node { at, .. } => at.rec()?.object_count.into(),
-                    State::Leaf { alive: Some(a), .. } => a.len() as f64,
-                    State::Leaf { at, .. } => at.rec()?.object_count.into(),
-                };
-                let cost = self.cost(&self.blocks(&state)?) as f64;
-                if cost == 0.0 { f64::INFINITY } else { gain / cost }
-            }
-        };
-        self.heap.push(Cand { priority, seq: self.seq, state });
-        Ok(())
-    }
-
-    /// The blocks the candidate's next step reads.
-    fn blocks(&self, s: &State) -> Result<Vec<u32>, StorageError> {
-        Ok(match s {
-            State::Unread { block, .. } => vec![*block],
-            State::Node { at, level } => next_entry(at.rec()?, *level, self.k.min(self.m - 1), false)
-                .map_or(Vec::new(), |e| entry_blocks(&e.1)),
-            State::Leaf { at, olevel, .. } => {
-                next_entry(at.rec()?, *olevel, self.k, true).map_or(Vec::new(), |e| entry_blocks(&e.1))
+impl<S: Selection + ?Sized> Run<'_, '_, S> {
+    fn cost(&self, step: &Step) -> Result<u64, StorageError> {
+        Ok(match step {
+            Step::Unread { at, .. } => u64::from(!self.reads.holds(at.block)),
+            Step::Node { .. } => 0,
+            Step::Exact { block, offset, index, .. } => {
+                let NodeView::Leaf(leaf) = view(block, *offset)? else { return Ok(0) };
+                let Some(o) = leaf.object(*index) else { return Ok(0) };
+                let (first, _) = leaf.geometry();
+                geometry::blocks_of(o.span.0, o.span.1, self.txn.pager().block_size())
+                    .filter(|b| !self.reads.holds(first.saturating_add(*b as u32)))
+                    .count() as u64
             }
         })
     }
 
-    fn cost(&self, blocks: &[u32]) -> u64 {
-        blocks.iter().filter(|b| !self.exact_cost || !self.seen.contains(b)).count() as u64
+    fn push(&mut self, step: Step) -> Result<(), StorageError> {
+        self.seq += 1;
+        let priority = match self.budget {
+            // Depth first: the newest step first.
+            None => self.seq as f64,
+            Some(_) => {
+                let gain = match &step {
+                    Step::Unread { estimate, .. } => *estimate,
+                    Step::Node { .. } => f64::INFINITY,
+                    Step::Exact { .. } => 1.0,
+                };
+                let cost = self.cost(&step)? as f64;
+                if cost == 0.0 { f64::INFINITY } else { gain / cost }
+            }
+        };
+        self.heap.push(Queued { priority, seq: self.seq, step });
+        Ok(())
     }
 
-    fn test(&mut self, level: u8) {
-        if let Some(t) = self.stats.tests_per_level.get_mut(usize::from(level) - 1) {
-            *t += 1;
+    fn decide(&mut self, object: u32, level: u8, accepted: bool, proof: Proof) {
+        let i = usize::from(level) - 1;
+        match proof {
+            Proof::Candidate => {}
+            _ if accepted => self.stats.confirmed[i] += 1,
+            _ => self.stats.rejected[i] += 1,
+        }
+        if accepted {
+            self.objects.push(ObjectId(object));
+        }
+        self.decided.push(ObjectLevel { object: ObjectId(object), level, accepted, proof });
+    }
+
+    fn voxels(&self, block: u32, b: &BoundView) -> Result<Voxels, StorageError> {
+        let lattice = self.txn.lattice().ok_or_else(|| StorageError::corrupt(block, "bounds", "no lattice in the meta block"))?;
+        crate::lod::decode(b.blob, &lattice).map_err(|e| StorageError::corrupt(block, "bounds", e.to_string()))
+    }
+
+    fn step(&mut self, step: Step) -> Result<(), StorageError> {
+        match step {
+            Step::Unread { at, frame, inside, .. } => {
+                let block = self.txn.block(at.block, crate::store::format::frame::BlockType::Node, at.checksum, &mut self.reads)?;
+                self.push(Step::Node { block, offset: at.offset, frame, inside })
+            }
+            Step::Node { block, offset, frame, inside } => self.node(block, offset, frame, inside),
+            Step::Exact { block, offset, index, level } => {
+                let NodeView::Leaf(leaf) = view(&block, offset)? else { return Ok(()) };
+                let (id, mesh) = self.txn.read_object(block.id(), &leaf, index, &mut self.reads)?;
+                self.stats.geometry_tests += 1;
+                let hit = self.sel.meets_mesh(&mesh, &mut self.stats.triangles_tested);
+                let _ = level;
+                self.decide(id.0, self.m, hit, Proof::Exact);
+                Ok(())
+            }
         }
     }
 
-    fn step(
-        &mut self,
-        state: State,
-        cache: &mut BlockCache,
-        guard: &mut TraversalGuard,
-    ) -> Result<(), StorageError> {
-        let (txn, probe) = (self.txn, self.probe);
-        match state {
-            State::Unread { block, slot, checksum, root, .. } => {
-                let records = txn.read_node_block(block, checksum, &mut self.stats.reads, Some(cache))?;
-                let at = Held { records, block, slot };
-                if root {
-                    // The root has no parent holding its box: test it here.
-                    self.test(1);
-                    if !probe.meets_box(&at.rec()?.aabb()) {
-                        return Ok(());
-                    }
-                }
-                self.enter(at, guard)?;
-            }
-            State::Node { at, level } => {
-                let rec = at.rec()?;
-                if let Some((j, e)) = next_entry(rec, level, self.k.min(self.m - 1), false) {
-                    let piece = txn.read_entry(rec, j, false, e, &mut self.stats.reads, Some(cache))?;
-                    self.test(j);
-                    let pass = piece.is_none_or(|p| group_meets(probe, &p, &mut self.stats.triangles_tested));
-                    if pass {
-                        self.push(State::Node { at, level: j })?;
-                    }
-                    return Ok(());
-                }
-                match &rec.children {
-                    Some((kids, _)) => {
-                        let estimate = f64::from(rec.object_count) / 2.0;
-                        for c in kids.iter().rev() {
-                            self.test(1);
-                            if !probe.meets_box(&c.aabb()) {
+    fn node(&mut self, block: Arc<Block>, offset: u32, frame: Aabb, inside: bool) -> Result<(), StorageError> {
+        self.visits += 1;
+        if self.visits > self.visit_limit {
+            return Err(StorageError::corrupt(block.id(), "child_block", "more nodes than the meta block counts: the links loop"));
+        }
+        self.stats.nodes_visited += 1;
+        let bad = |d: &str| StorageError::corrupt(block.id(), "record", d.to_string());
+        match view(&block, offset)? {
+            NodeView::Internal(n) => {
+                let estimate = f64::from(n.child_blocks(0).1.max(1));
+                for i in (0..2).rev() {
+                    let qb = n.child_box(i, &frame).ok_or_else(|| bad("a child box is backwards"))?;
+                    let mut child_inside = inside;
+                    if !inside {
+                        if !self.sel.may_meet_box(&qb.outer) {
+                            self.stats.pruned[0] += 1;
+                            continue;
+                        }
+                        if let Some(b) = finest(n.bounds(), i as u16, self.k.min(self.m - 1)) {
+                            if !self.sel.may_meet_voxels(&self.voxels(block.id(), &b)?) {
+                                self.stats.pruned[usize::from(b.level) - 1] += 1;
                                 continue;
                             }
-                            if c.block == at.block {
-                                let held = Held { records: at.records.clone(), block: c.block, slot: c.slot };
-                                self.enter(held, guard)?;
-                            } else {
-                                self.push(State::Unread {
-                                    block: c.block,
-                                    slot: c.slot,
-                                    checksum: Some(c.checksum),
-                                    estimate,
-                                    root: false,
-                                })?;
-                            }
                         }
+                        child_inside = self.sel.holds_box(&qb.outer);
                     }
-                    None => {
-                        self.stats.leaves_visited += 1;
-                        self.push(State::Leaf { at, level, olevel: 0, alive: None })?;
+                    let at = n.child_ref(i);
+                    if at.block == 0 {
+                        self.push(Step::Node { block: block.clone(), offset: at.offset, frame: qb.outer, inside: child_inside })?;
+                    } else {
+                        self.push(Step::Unread { at, frame: qb.outer, inside: child_inside, estimate })?;
                     }
                 }
             }
-            State::Leaf { at, level, olevel, alive } => {
-                let rec = at.rec()?;
-                let Some((j, e)) = next_entry(rec, olevel, self.k, true) else {
-                    let Some(alive) = alive else {
-                        let detail = "a leaf stores no per-object bound".to_string();
-                        return Err(StorageError::corrupt_record(
-                            at.block,
-                            u32::from(at.slot),
-                            "lods",
-                            detail,
-                        ));
-                    };
-                    for &object in &alive {
-                        self.decided.push(ObjectLevel { object, level: olevel, accepted: true });
-                    }
-                    self.objects.extend(alive);
-                    return Ok(());
-                };
-                let piece = txn.read_entry(rec, j, true, e, &mut self.stats.reads, Some(cache))?;
-                let tested =
-                    piece.map_or(Vec::new(), |p| test_piece(probe, &p, &mut self.stats.triangles_tested));
-                let mut next = Vec::new();
-                for (object, pass) in tested {
-                    if alive.as_ref().is_some_and(|a| !a.contains(&object)) {
+            NodeView::Leaf(leaf) => {
+                self.stats.leaves_visited += 1;
+                for i in 0..leaf.len() {
+                    let o = leaf.object(i).ok_or_else(|| bad("an object is missing"))?;
+                    if inside {
+                        self.decide(o.object_id, 1, true, Proof::InsideNode);
                         continue;
                     }
-                    self.test(j);
-                    if pass {
-                        next.push(object);
-                    } else {
-                        self.decided.push(ObjectLevel { object, level: j, accepted: false });
+                    let qb = QuantBox::decode(&frame, o.qbox).ok_or_else(|| bad("an object box is backwards"))?;
+                    if !self.sel.may_meet_box(&qb.outer) {
+                        self.decide(o.object_id, 1, false, Proof::BoxMisses);
+                        continue;
                     }
-                }
-                if !next.is_empty() {
-                    self.push(State::Leaf { at, level, olevel: j, alive: Some(next) })?;
+                    if qb.face_slabs().iter().any(|f| self.sel.holds_box(f)) {
+                        self.decide(o.object_id, 1, true, Proof::Face);
+                        continue;
+                    }
+                    let mut level = 1;
+                    if let Some(b) = finest(leaf.bounds(), i as u16, self.k.min(self.m - 1)) {
+                        let v = self.voxels(block.id(), &b)?;
+                        level = b.level;
+                        if !self.sel.may_meet_voxels(&v) {
+                            self.decide(o.object_id, level, false, Proof::VoxelsMiss);
+                            continue;
+                        }
+                        if self.sel.confirms_voxels(&v) {
+                            self.decide(o.object_id, level, true, Proof::Cell);
+                            continue;
+                        }
+                    }
+                    if self.k == self.m {
+                        self.push(Step::Exact { block: block.clone(), offset, index: i, level })?;
+                    } else {
+                        self.decide(o.object_id, level, true, Proof::Candidate);
+                    }
                 }
             }
         }
         Ok(())
     }
-
-    fn enter(&mut self, at: Held, guard: &mut TraversalGuard) -> Result<(), StorageError> {
-        guard.visit(crate::db::NodeLocation { block: at.block, slot: at.slot, checksum: None })?;
-        self.stats.nodes_visited += 1;
-        self.push(State::Node { at, level: 1 })
-    }
 }
 
-/// Runs `probe` through `txn`'s tree at `opts`' level and budget, reading
-/// through `cache` (a pool kept across queries) or, when `None`, a pool of
-/// its own, so each block is read at most once.
-pub(crate) fn traverse<P: Probe + ?Sized>(
+/// Runs `sel` through `txn`'s tree at `opts`' level and budget, reading
+/// through `cache` (a pool shared across queries) when given. Each block is
+/// read at most once per query.
+pub fn traverse<S: Selection + ?Sized>(
     txn: &ReadTransaction,
-    probe: &P,
+    sel: &S,
     opts: &QueryOptions,
-    cache: Option<&mut BlockCache>,
+    cache: Option<&BlockCache>,
 ) -> Result<QueryAnswer, QueryError> {
     let started = Instant::now();
     let (k, m) = levels(txn, opts.lod)?;
     let root = txn.root().ok_or(QueryError::NoTree)?;
-    let mut own = BlockCache::new(usize::MAX);
-    let exact_cost = cache.is_none();
-    let cache = cache.unwrap_or(&mut own);
+    let info = txn.info().ok_or(QueryError::NoTree)?;
+    let levels = usize::from(m);
     let mut run = Run {
         txn,
-        probe,
+        sel,
         k,
         m,
         budget: opts.budget,
-        exact_cost,
-        seen: HashSet::new(),
+        reads: Reads::new(cache),
         heap: BinaryHeap::new(),
         seq: 0,
-        stats: TraverseStats { tests_per_level: vec![0; usize::from(m)], ..TraverseStats::default() },
+        visits: 0,
+        visit_limit: u64::from(info.nodes),
+        stats: TraverseStats {
+            confirmed: vec![0; levels],
+            rejected: vec![0; levels],
+            pruned: vec![0; levels],
+            ..TraverseStats::default()
+        },
         objects: Vec::new(),
         decided: Vec::new(),
     };
-    let objects = txn.info().map_or(0.0, |i| f64::from(i.objects));
-    let root_state = State::Unread {
-        block: root.block,
-        slot: root.slot,
-        checksum: root.checksum,
-        estimate: objects,
-        root: true,
-    };
-    run.push(root_state)?;
-    let mut guard = TraversalGuard::new(txn);
-    let mut deferred: Vec<Cand> = Vec::new();
+    let mut answer_level = k;
+    if sel.may_meet_box(&root.aabb) {
+        let inside = sel.holds_box(&root.aabb);
+        let at = RecordRef { block: root.block, checksum: root.checksum, offset: root.offset };
+        run.push(Step::Unread { at, frame: root.aabb, inside, estimate: f64::from(info.objects) })?;
+    } else {
+        run.stats.pruned[0] += 1;
+    }
+    let mut deferred: Vec<Queued> = Vec::new();
     loop {
-        let Some(c) = run.heap.pop() else {
+        let Some(q) = run.heap.pop() else {
             // Blocks read since a step was set aside may have made it affordable.
             let before = deferred.len();
             let mut still = Vec::new();
-            for c in deferred.drain(..) {
-                let cost = run.cost(&run.blocks(&c.state)?);
-                if opts.budget.is_some_and(|b| run.stats.reads.total() + cost > b) {
-                    still.push(c);
+            for q in deferred.drain(..) {
+                let cost = run.cost(&q.step)?;
+                if opts.budget.is_some_and(|b| run.reads.stats.total() + cost > b) {
+                    still.push(q);
                 } else {
-                    run.heap.push(c);
+                    run.heap.push(q);
                 }
             }
             deferred = still;
@@ -409,13 +393,12 @@ pub(crate) fn traverse<P: Probe + ?Sized>(
             }
             continue;
         };
-        let blocks = run.blocks(&c.state)?;
-        if opts.budget.is_some_and(|b| run.stats.reads.total() + run.cost(&blocks) > b) {
-            deferred.push(c);
+        let cost = run.cost(&q.step)?;
+        if opts.budget.is_some_and(|b| run.reads.stats.total() + cost > b) {
+            deferred.push(q);
             continue;
         }
-        run.step(c.state, cache, &mut guard)?;
-        run.seen.extend(blocks);
+        run.step(q.step)?;
     }
     let mut answer = QueryAnswer {
         objects: std::mem::take(&mut run.objects),
@@ -426,23 +409,24 @@ pub(crate) fn traverse<P: Probe + ?Sized>(
         decided: std::mem::take(&mut run.decided),
         stats: std::mem::take(&mut run.stats),
     };
-    for c in deferred {
-        let reached = match c.state {
-            State::Unread { .. } => {
+    for q in deferred {
+        match q.step {
+            Step::Unread { .. } | Step::Node { .. } => {
                 answer.unexplored_nodes += 1;
-                1
+                answer_level = 1;
             }
-            State::Node { level, .. } | State::Leaf { level, alive: None, .. } => {
-                answer.unexplored_nodes += 1;
-                level
+            Step::Exact { block, offset, index, level } => {
+                if let Ok(NodeView::Leaf(leaf)) = view(&block, offset)
+                    && let Some(o) = leaf.object(index)
+                {
+                    answer.maybe.push(ObjectId(o.object_id));
+                }
+                answer_level = answer_level.min(level);
             }
-            State::Leaf { olevel, alive: Some(alive), .. } => {
-                answer.maybe.extend(alive);
-                olevel
-            }
-        };
-        answer.level_reached = answer.level_reached.min(reached);
+        }
     }
+    answer.level_reached = answer_level;
+    answer.stats.reads = run.reads.stats;
     answer.objects.sort_unstable();
     answer.maybe.sort_unstable();
     answer.decided.sort_unstable_by_key(|d| d.object);

@@ -1,0 +1,197 @@
+//! What a query asks of the bounds it meets (rstar's `SelectionFunction`,
+//! here with the second question the MKtree's bounds can answer): may the
+//! shape meet what a bound holds (or is it ruled out), and does the bound
+//! prove that it does (a witness)? Every query kind implements [`Selection`]
+//! and runs the one traversal of `traverse.rs`.
+//!
+//! Witnesses hold for the true geometry, not for rounded bounds: a box face
+//! is tested as its quantized slab (which holds the true face), a voxel
+//! cell grown by its tolerance (which holds the surface piece that set it).
+
+use crate::geom::{
+    Aabb, Frustum, Point, Pose, ShapeError, Sphere, distance_point_triangle, distance_triangle_triangle,
+    intersects_triangle_box, intersects_triangle_triangle,
+};
+use crate::lod::Voxels;
+use crate::scene::Mesh;
+
+/// A query shape as the traversal sees it. Below M a "may meet" may say yes
+/// wrongly, never no wrongly; a "holds" or "confirms" may say no wrongly,
+/// never yes wrongly; at M (`meets_mesh`) the test is exact.
+pub trait Selection {
+    /// The shape may meet something inside the closed box `b`.
+    fn may_meet_box(&self, b: &Aabb) -> bool;
+    /// Every point of `b` meets the shape, so any geometry inside `b` does.
+    fn holds_box(&self, b: &Aabb) -> bool;
+    /// The shape may meet the surface that voxel set `v` bounds.
+    fn may_meet_voxels(&self, v: &Voxels) -> bool {
+        let tol = v.grid().tolerance();
+        self.may_meet_box(&v.grid().bounds().grown(tol))
+            && v.world_boxes().iter().any(|b| self.may_meet_box(&b.grown(tol)))
+    }
+    /// Some cell of `v` (a set of surface cells) proves contact.
+    fn confirms_voxels(&self, v: &Voxels) -> bool {
+        v.cell_boxes().any(|c| self.holds_box(&c))
+    }
+    /// The shape meets the exact surface of `mesh`; counts triangle tests.
+    fn meets_mesh(&self, mesh: &Mesh, triangles_tested: &mut u64) -> bool;
+}
+
+/// A region query's shape.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Region {
+    Box(Aabb),
+    Sphere(Sphere),
+    Frustum(Box<Frustum>),
+}
+
+impl Region {
+    fn contains_point(&self, p: &Point) -> bool {
+        match self {
+            Region::Box(q) => q.contains_point(p),
+            Region::Sphere(s) => s.contains_point(p),
+            Region::Frustum(f) => f.contains_point(p),
+        }
+    }
+}
+
+impl Selection for Region {
+    fn may_meet_box(&self, b: &Aabb) -> bool {
+        match self {
+            Region::Box(q) => q.intersects(b),
+            Region::Sphere(s) => s.intersects_aabb(b),
+            Region::Frustum(f) => f.intersects_aabb(b),
+        }
+    }
+
+    fn holds_box(&self, b: &Aabb) -> bool {
+        match self {
+            Region::Box(q) => q.contains(b),
+            // Convex regions hold a box when they hold its corners.
+            _ => b.corners().iter().all(|c| self.contains_point(c)),
+        }
+    }
+
+    fn confirms_voxels(&self, v: &Voxels) -> bool {
+        match self {
+            Region::Box(q) => v.holds_a_cell_in(q),
+            _ => v.cell_boxes().any(|c| self.holds_box(&c)),
+        }
+    }
+
+    fn meets_mesh(&self, mesh: &Mesh, n: &mut u64) -> bool {
+        if !self.may_meet_box(&mesh.aabb()) {
+            return false;
+        }
+        mesh.triangle_points().any(|t| {
+            *n += 1;
+            match self {
+                Region::Box(q) => intersects_triangle_box(&t, q),
+                Region::Sphere(s) => s.intersects_triangle(&t),
+                Region::Frustum(f) => f.intersects_triangle(&t),
+            }
+        })
+    }
+}
+
+/// A query object in world position: its triangles and their boxes, and the
+/// clearance d within which a scene object counts as touching it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Triangles {
+    triangles: Vec<[Point; 3]>,
+    boxes: Vec<Aabb>,
+    aabb: Aabb,
+    clearance: f64,
+}
+
+impl Triangles {
+    /// `mesh` under `pose` (rotated about its box centre, then moved), with
+    /// clearance `clearance` (finite, >= 0).
+    pub fn posed(mesh: &Mesh, pose: &Pose, clearance: f64) -> Result<Triangles, ShapeError> {
+        if !(clearance.is_finite() && clearance >= 0.0) {
+            return Err(ShapeError::Invalid { what: "a clearance", detail: format!("{clearance} mm") });
+        }
+        let c = mesh.aabb().center();
+        let triangles: Vec<[Point; 3]> = mesh.triangle_points().map(|t| t.map(|p| pose.apply(&c, &p))).collect();
+        let boxes: Vec<Aabb> = triangles.iter().map(|t| Aabb::from_points(t).grown(clearance)).collect();
+        let aabb = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(b));
+        Ok(Triangles { triangles, boxes, aabb, clearance })
+    }
+
+    /// The box holding every point within the clearance of the object.
+    pub fn aabb(&self) -> Aabb {
+        self.aabb
+    }
+
+    /// The clearance d, mm.
+    pub fn clearance(&self) -> f64 {
+        self.clearance
+    }
+}
+
+/// A relative margin for the conservative tests of a mesh probe: parry's
+/// GJK decides contact within a tolerance, so a bound that an exact contact
+/// only grazes must still count as met.
+fn slack(b: &Aabb) -> f64 {
+    let a = b.to_array();
+    1e-9 * a.iter().fold(1.0f64, |m, c| m.max(c.abs()))
+}
+
+impl Selection for Triangles {
+    fn may_meet_box(&self, b: &Aabb) -> bool {
+        let g = b.grown(self.clearance + slack(b));
+        g.intersects(&self.aabb)
+            && self
+                .triangles
+                .iter()
+                .zip(&self.boxes)
+                .any(|(t, tb)| tb.intersects(&g) && intersects_triangle_box(t, &g))
+    }
+
+    /// With a clearance d > 0: every point of `b` lies within d of the
+    /// surface when its centre does by d less half its diagonal (and the
+    /// slack parry's distances need).
+    fn holds_box(&self, b: &Aabb) -> bool {
+        let reach = self.clearance - b.extent().norm() / 2.0 - slack(b);
+        if reach <= 0.0 || !b.intersects(&self.aabb) {
+            return false;
+        }
+        let c = b.center();
+        self.triangles.iter().any(|t| distance_point_triangle(&c, t) <= reach)
+    }
+
+    fn meets_mesh(&self, mesh: &Mesh, n: &mut u64) -> bool {
+        let d = self.clearance;
+        if !mesh.aabb().intersects(&self.aabb) {
+            return false;
+        }
+        mesh.triangle_points().any(|t| {
+            let tb = Aabb::from_points(&t);
+            tb.intersects(&self.aabb)
+                && self.triangles.iter().zip(&self.boxes).any(|(q, qb)| {
+                    if !qb.intersects(&tb) {
+                        return false;
+                    }
+                    *n += 1;
+                    if d == 0.0 { intersects_triangle_triangle(q, &t) } else { distance_triangle_triangle(q, &t) <= d }
+                })
+        })
+    }
+}
+
+/// Everything: every node is entered, every object confirmed by its box
+/// (what walks of the whole tree run: `check`, clash's enumeration).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Everything;
+
+impl Selection for Everything {
+    fn may_meet_box(&self, _: &Aabb) -> bool {
+        true
+    }
+    fn holds_box(&self, _: &Aabb) -> bool {
+        true
+    }
+    fn meets_mesh(&self, _: &Mesh, _: &mut u64) -> bool {
+        true
+    }
+}
