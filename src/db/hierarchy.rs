@@ -1,55 +1,80 @@
 //! The stored tree read back as a [`Hierarchy`], so `stats` and `dump`
 //! report a file exactly as they report a tree built in memory (boxes are the
-//! stored f32 boxes, rounded outward; overlaps the stored f32 values).
+//! stored quantized boxes, which contain the true ones; overlaps the stored
+//! f32 values).
 
 use std::collections::HashMap;
+use std::sync::Arc;
 
-use super::ReadTransaction;
+use super::{ReadTransaction, Reads, view};
 use crate::build::{Hierarchy, Node, NodeId, NodeKind, Order, Split};
-use crate::store::{ReadStats, StorageError};
+use crate::geom::Aabb;
+use crate::query::{Everything, QueryError, QueryOptions, Visitor, walk};
+use crate::scene::ObjectId;
+use crate::store::format::node::NodeView;
+use crate::store::{Block, StorageError};
 
-/// Every node of the snapshot's tree, in preorder, with each leaf's objects
-/// (this reads the whole tree, geometry included).
-pub fn read_hierarchy(txn: &ReadTransaction) -> Result<Hierarchy, StorageError> {
-    let mut ids: HashMap<(u32, u16), u32> = HashMap::new();
-    let mut records = Vec::new();
-    txn.walk_nodes(&mut ReadStats::default(), |at, rec| {
-        if rec.node_id as usize != records.len() {
-            return Err(StorageError::corrupt_record(
-                at.block,
-                u32::from(at.slot),
-                "node_id",
-                format!("{} is not preorder position {}", rec.node_id, records.len()),
-            ));
-        }
-        ids.insert((at.block, at.slot), rec.node_id);
-        records.push(rec.clone());
-        Ok(())
-    })?;
-    let m = txn.pager().lod_levels() as usize;
-    let mut nodes = Vec::with_capacity(records.len());
-    for rec in records {
-        let kind = match rec.children {
-            Some((kids, s)) => NodeKind::Internal {
-                children: kids.map(|c| NodeId(ids.get(&(c.block, c.slot)).copied().unwrap_or(u32::MAX))),
-                split: Split {
+#[derive(Default)]
+struct Collect {
+    nodes: Vec<(Node, Option<[(u32, u32); 2]>)>,
+    at: HashMap<(u32, u32), u32>,
+    depth: HashMap<(u32, u32), u32>,
+}
+
+impl Visitor for Collect {
+    fn node(&mut self, block: &Arc<Block>, offset: u32, frame: &Aabb) -> Result<(), StorageError> {
+        let level = self.depth.get(&(block.id(), offset)).copied().unwrap_or(0);
+        self.at.insert((block.id(), offset), self.nodes.len() as u32);
+        let (kind, kids) = match view(block, offset)? {
+            NodeView::Internal(n) => {
+                let s = n.split();
+                let kids = [0, 1].map(|i| {
+                    let r = n.child_ref(i);
+                    (if r.block == 0 { block.id() } else { r.block }, r.offset)
+                });
+                for k in kids {
+                    self.depth.insert(k, level + 1);
+                }
+                let split = Split {
                     axis: s.axis,
                     order: [Order::Min, Order::Max, Order::Center][usize::from(s.order.min(2))],
                     overlap: s.overlap.into(),
                     gap: s.gap.into(),
-                },
-            },
-            None => {
-                let mut objects: Vec<_> = txn
-                    .read_objects(&rec.lods[m - 1][1], &mut ReadStats::default(), None)?
-                    .into_iter()
-                    .map(|(id, _)| id)
-                    .collect();
+                };
+                (NodeKind::Internal { children: [NodeId(u32::MAX); 2], split }, Some(kids))
+            }
+            NodeView::Leaf(l) => {
+                let mut objects: Vec<ObjectId> =
+                    (0..l.len()).filter_map(|i| l.object(i)).map(|o| ObjectId(o.object_id)).collect();
                 objects.sort_unstable();
-                NodeKind::Leaf { objects }
+                (NodeKind::Leaf { objects }, None)
             }
         };
-        nodes.push(Node { aabb: rec.aabb(), level: rec.level.into(), kind });
+        self.nodes.push((Node { aabb: *frame, level, kind }, kids));
+        Ok(())
     }
-    Ok(Hierarchy { nodes })
+}
+
+/// Every node of the snapshot's tree, in preorder, with each leaf's objects
+/// (this reads every node block, no geometry).
+pub fn read_hierarchy(txn: &ReadTransaction) -> Result<Hierarchy, StorageError> {
+    let Some(root) = txn.root() else { return Ok(Hierarchy { nodes: Vec::new() }) };
+    let mut c = Collect::default();
+    let all = QueryOptions { lod: Some(1), budget: None };
+    walk(txn, root, &Everything, &all, &mut Reads::new(None), &mut c).map_err(|e| match e {
+        QueryError::Storage(s) => s,
+        other => StorageError::Invalid(other.to_string()),
+    })?;
+    let Collect { nodes, at, .. } = c;
+    Ok(Hierarchy {
+        nodes: nodes
+            .into_iter()
+            .map(|(mut node, kids)| {
+                if let (NodeKind::Internal { children, .. }, Some(kids)) = (&mut node.kind, kids) {
+                    *children = kids.map(|k| NodeId(at.get(&k).copied().unwrap_or(u32::MAX)));
+                }
+                node
+            })
+            .collect(),
+    })
 }

@@ -1,30 +1,32 @@
-//! Reading levels of detail: a node's b(S_n,k) or B(S_n,k) fetched as the
-//! paper's queries do, with every block read once and counted, so the reads
-//! equal the count the record predicts (format-spec/node.md, lod.md).
+//! A node's levels of detail as the paper's queries ask for them (§1.4):
+//! b(S_n,k) or B(S_n,k) fetched with the number of block reads the records
+//! predict. In this format every bound below M lies inline in the leaf
+//! records, so a level is gathered from the node's subtree: its node blocks
+//! (level < M) and its geometry blocks too (level M), counts its parent's
+//! entry holds (format-spec/node.md).
 
-use super::{NodeLocation, ReadTransaction, TraversalGuard, record_at};
+use std::sync::Arc;
+
+use super::{NodeRef, ReadTransaction, Reads, view};
 use crate::geom::Aabb;
 use crate::lod::{Lattice, Voxels};
+use crate::query::{QueryOptions, Seen, Selection, Visitor, walk};
 use crate::scene::{Mesh, ObjectId};
 use crate::store::format::frame::BlockType;
-use crate::store::format::meta::{LOD_KEEP_IDENTITY, LOD_TABLE_LEN};
-use crate::store::format::node::LodRef;
-use crate::store::format::objboxes;
-use crate::store::format::{geometry, lodblock};
-use crate::store::{BlockCache, ReadStats, StorageError};
+use crate::store::format::meta::LOD_TABLE_LEN;
+use crate::store::format::node::NodeView;
+use crate::store::{Block, ReadStats, StorageError};
 
 /// One stored piece of a level of detail.
 #[derive(Debug, Clone)]
 pub enum Piece {
     /// b(S_n,1): node `node`'s box.
     Box { node: u32, aabb: Aabb },
-    /// B(S_n,1): a leaf's object boxes.
+    /// Objects bounded by their boxes at this level.
     ObjectBoxes(Vec<(ObjectId, Aabb)>),
-    /// b(S_n,k), 1 < k < M: node `node`'s voxel set.
-    Voxels { node: u32, voxels: Voxels },
-    /// B(S_n,k), 1 < k < M: a leaf's per-object voxel sets.
+    /// Objects bounded by a stored voxel set (its surface cells).
     ObjectVoxels(Vec<(ObjectId, Voxels)>),
-    /// Level M: a leaf's exact objects.
+    /// Level M: exact objects.
     Objects(Vec<(ObjectId, Mesh)>),
 }
 
@@ -35,29 +37,19 @@ impl Piece {
         match self {
             Piece::Box { .. } => 6,
             Piece::ObjectBoxes(b) => 6 * b.len() as u64,
-            Piece::Voxels { voxels, .. } => voxels.faces() as u64,
             Piece::ObjectVoxels(v) => v.iter().map(|(_, v)| v.faces() as u64).sum(),
             Piece::Objects(o) => o.iter().map(|(_, m)| m.triangle_count() as u64).sum(),
         }
     }
-
-    /// The objects this piece names, if it keeps their identity.
-    pub fn object_ids(&self) -> Option<Vec<ObjectId>> {
-        match self {
-            Piece::ObjectBoxes(b) => Some(b.iter().map(|x| x.0).collect()),
-            Piece::ObjectVoxels(v) => Some(v.iter().map(|x| x.0).collect()),
-            Piece::Objects(o) => Some(o.iter().map(|x| x.0).collect()),
-            Piece::Box { .. } | Piece::Voxels { .. } => None,
-        }
-    }
 }
 
-/// A fetched level: its pieces and the bytes they are stored in (blobs,
-/// or geometry records at level M; b(S_n,1) costs none).
+/// A fetched level: its pieces and the bytes they are stored in.
 #[derive(Debug, Clone, Default)]
 pub struct Level {
     pub pieces: Vec<Piece>,
     pub bytes: u64,
+    /// The reads the records predict for this fetch, with the node's record in hand.
+    pub predicted_reads: u64,
 }
 
 impl Level {
@@ -75,15 +67,22 @@ pub struct LodInfo {
     /// The voxel lattice (origin, level-0 cell in mm); `None` when no level holds voxels.
     #[serde(skip)]
     pub lattice: Option<Lattice>,
-    /// B(S_n,k) keeps object identity at every node.
-    pub keep_identity: bool,
-    /// Per level k = 1 .. M: the guaranteed error eps_k and the measured one (mm).
+    /// Per level k = 1 .. M: the guaranteed error eps_k and the largest
+    /// sampled one of the bounds stored (mm).
     pub eps: Vec<f64>,
     pub measured_error: Vec<f64>,
-    /// Per level k = 1 .. M: bytes of blobs stored and blocks holding them
-    /// (level M: the geometry runs).
+    /// Per level k = 1 .. M: bytes stored (level M: the geometry records).
     pub bytes: Vec<u64>,
+    /// Per level k = 1 .. M: bounds stored (level 1: the objects' boxes; M: the objects).
+    pub stored: Vec<u64>,
+    /// Per level k = 1 .. M: blocks of their own (only level M's geometry; bounds lie in node blocks).
     pub blocks: Vec<u64>,
+    /// Per level k = 1 .. M: the query model's expected geometry reads
+    /// saved and node reads cost per query by the bounds stored.
+    pub predicted_saving: Vec<f64>,
+    pub predicted_cost: Vec<f64>,
+    /// The query model's extents q (mm).
+    pub query_extent: [f64; 3],
 }
 
 impl ReadTransaction {
@@ -96,180 +95,154 @@ impl ReadTransaction {
     /// What levels of detail the snapshot's tree holds.
     pub fn lod_info(&self) -> Option<LodInfo> {
         let meta = self.snapshot.meta.as_ref()?;
-        let m = self.pager().lod_levels();
+        let m = usize::from(self.pager().lod_levels()).min(LOD_TABLE_LEN);
         let l = &meta.lods;
-        let per = |f: &dyn Fn(usize) -> f64| (0..usize::from(m).min(LOD_TABLE_LEN)).map(f).collect();
         let mut info = LodInfo {
-            levels: m,
+            levels: m as u8,
             lattice: self.lattice(),
-            keep_identity: l.flags & LOD_KEEP_IDENTITY != 0,
-            eps: per(&|k| meta.lod_table[k][0]),
-            measured_error: per(&|k| meta.lod_table[k][1]),
-            bytes: (0..usize::from(m)).map(|k| l.usage[k][0]).collect(),
-            blocks: (0..usize::from(m)).map(|k| l.usage[k][1]).collect(),
+            eps: (0..m).map(|k| meta.lod_table[k][0]).collect(),
+            measured_error: (0..m).map(|k| meta.lod_table[k][1]).collect(),
+            bytes: (0..m).map(|k| l.usage[k][0]).collect(),
+            stored: (0..m).map(|k| l.usage[k][1]).collect(),
+            blocks: vec![0; m],
+            predicted_saving: (0..m).map(|k| f64::from(l.predicted[k][0])).collect(),
+            predicted_cost: (0..m).map(|k| f64::from(l.predicted[k][1])).collect(),
+            query_extent: l.query_extent,
         };
-        // Level M is the geometry itself.
-        let last = usize::from(m) - 1;
-        info.blocks[last] = meta.geometry_blocks;
+        info.stored[0] = u64::from(meta.object_count);
+        info.bytes[0] = u64::from(meta.object_count) * crate::store::format::node::OBJECT_LEN as u64;
+        info.stored[m - 1] = u64::from(meta.object_count);
+        info.bytes[m - 1] = meta.geometry_bytes;
+        info.blocks[m - 1] = meta.geometry_blocks;
         Some(info)
     }
 
-    /// Fetches level `k` (1-based) of node `at` as the paper's queries do:
-    /// B(S_n,k) (`objects` = true) or b(S_n,k), following the node's entry:
-    /// the record itself, one block, a run, or the children's entries through
-    /// the subtree. From a cold cache with the node's record in hand, each
-    /// block is read once; the reads equal the entry's prediction
-    /// (`NodeRecord::predicted_reads`).
-    pub fn fetch_level(
-        &self,
-        at: NodeLocation,
-        k: u8,
-        objects: bool,
-        stats: &mut ReadStats,
-    ) -> Result<Level, StorageError> {
+    /// Node `node` (a preorder id): its record and the block counts its
+    /// parent's entry holds for it (the root's come from the meta block).
+    /// The reads to find it are not counted.
+    pub fn locate(&self, node: u32) -> Result<(NodeRef, (u64, u64)), StorageError> {
+        let meta = self.snapshot.meta.as_ref().ok_or_else(|| StorageError::Invalid("the file holds no tree".into()))?;
+        if node >= meta.node_count {
+            return Err(StorageError::Invalid(format!("no node {node}: the tree has {}", meta.node_count)));
+        }
+        let mut at = self.root().ok_or_else(|| StorageError::Invalid("the file holds no tree".into()))?;
+        // With the root's record in hand, its subtree is every other node block.
+        let mut below = (u64::from(meta.node_blocks) - 1, meta.geometry_blocks);
+        let mut reads = Reads::new(None);
+        for _ in 0..meta.node_count {
+            let block = self.block(at.block, BlockType::Node, at.checksum, &mut reads)?;
+            let NodeView::Internal(n) = view(&block, at.offset)? else { break };
+            let id = view(&block, at.offset)?.node_id();
+            if id == node {
+                break;
+            }
+            let second = n.child_ref(1);
+            let second_block = self.node_block(&block, second, &mut reads)?;
+            let second_id = view(&second_block, second.offset)?.node_id();
+            let i = usize::from(node >= second_id);
+            let r = n.child_ref(i);
+            let (nb, gb) = n.child_blocks(i);
+            let frame = n.child_box(i, &at.aabb).ok_or_else(|| StorageError::corrupt(at.block, "child_box", "backwards"))?.outer;
+            // The child's count excludes this block; with the child's own record in hand, its block too.
+            below = (u64::from(nb) - u64::from(r.block != 0), u64::from(gb));
+            at = if r.block == 0 {
+                NodeRef { block: at.block, checksum: at.checksum, offset: r.offset, aabb: frame }
+            } else {
+                NodeRef { block: r.block, checksum: r.checksum, offset: r.offset, aabb: frame }
+            };
+        }
+        Ok((at, below))
+    }
+
+    /// Fetches level `k` (1-based) of node `node` as the paper's queries do:
+    /// B(S_n,k) (`objects` = true: each object's bound, its finest stored
+    /// voxel set up to k or else its box) or b(S_n,k) (their union; at k = 1
+    /// the node's box). From a cold cache with the node's record in hand,
+    /// each block is read once; `stats` gets the reads, which equal the
+    /// returned level's `predicted_reads`.
+    pub fn fetch_level(&self, node: u32, k: u8, objects: bool, stats: &mut ReadStats) -> Result<Level, StorageError> {
         let m = self.pager().lod_levels();
         if k == 0 || k > m {
             return Err(StorageError::Invalid(format!("level {k} is not in 1..={m}")));
         }
-        let mut cache = BlockCache::new(usize::MAX);
-        // The record in hand is not counted.
-        let records =
-            self.read_node_block(at.block, at.checksum, &mut ReadStats::default(), Some(&mut cache))?;
-        let mut out = Level::default();
-        let mut stack = vec![(records, at, k, objects)];
-        let mut guard = TraversalGuard::new(self);
-        while let Some((records, at, k, objects)) = stack.pop() {
-            guard.visit(at)?;
-            let rec = record_at(&records, at.block, at.slot)?;
-            let bad =
-                |detail: String| StorageError::corrupt_record(at.block, u32::from(at.slot), "lods", detail);
-            let (k, objects, entry) = rec.entry(k, objects).ok_or_else(|| bad(format!("no level {k}")))?;
-            match entry {
-                LodRef::Absent => {
-                    return Err(StorageError::Invalid(format!(
-                        "level {k} is not stored for node {}",
-                        rec.node_id
-                    )));
-                }
-                LodRef::InRecord => out.pieces.push(Piece::Box { node: rec.node_id, aabb: rec.aabb() }),
-                LodRef::InBlock { .. } | LodRef::Run { .. } if k == m => {
-                    let objects = self.read_objects(&entry, stats, Some(&mut cache))?;
-                    out.bytes += objects.iter().map(|(_, o)| geometry::record_len(o)).sum::<u64>();
-                    out.pieces.push(Piece::Objects(objects))
-                }
-                LodRef::InBlock { block, offset, checksum } => {
-                    self.check_in_snapshot(block)?;
-                    let b =
-                        self.pager().read(block, BlockType::Lod, Some(checksum), stats, Some(&mut cache))?;
-                    let blob = lodblock::blob_at(block, &b, offset)?;
-                    out.bytes += blob.len() as u64;
-                    out.pieces.push(self.decode_piece(rec.node_id, k, objects, block, blob)?);
-                }
-                LodRef::Run { first, blocks, checksum } => {
-                    let (_, words, len) = self.read_run(
-                        first,
-                        checksum,
-                        Some(blocks),
-                        BlockType::LodRun,
-                        stats,
-                        Some(&mut cache),
-                    )?;
-                    let bytes: &[u8] = bytemuck::cast_slice(&words);
-                    out.bytes += len as u64;
-                    out.pieces.push(self.decode_piece(rec.node_id, k, objects, first, &bytes[..len])?);
-                }
-                LodRef::Spread { .. } => {
-                    let Some((kids, _)) = &rec.children else {
-                        return Err(bad("a leaf's entry is spread".into()));
-                    };
-                    for c in kids.iter().rev() {
-                        let loc = NodeLocation { block: c.block, slot: c.slot, checksum: None };
-                        let child = if c.block == at.block {
-                            records.clone()
-                        } else {
-                            self.read_node_block(c.block, Some(c.checksum), stats, Some(&mut cache))?
-                        };
-                        stack.push((child, loc, k, objects));
-                    }
-                }
-                LodRef::Same { .. } => return Err(bad("a level names a level that names another".into())),
-            }
+        let (at, (node_blocks, geometry_blocks)) = self.locate(node)?;
+        if k == 1 && !objects {
+            return Ok(Level { pieces: vec![Piece::Box { node, aabb: at.aabb }], bytes: 0, predicted_reads: 0 });
         }
-        Ok(out)
-    }
-
-    pub(crate) fn decode_piece(
-        &self,
-        node: u32,
-        k: u8,
-        objects: bool,
-        block: u32,
-        bytes: &[u8],
-    ) -> Result<Piece, StorageError> {
-        let bad = |detail: String| StorageError::corrupt(block, "lod blob", detail);
-        let count = self.snapshot.meta.as_ref().map_or(0, |m| m.object_count);
-        let check_ids = |ids: &[u32]| match ids.iter().find(|id| **id >= count) {
-            Some(id) => Err(bad(format!("object {id} >= {count} objects"))),
-            None => Ok(()),
-        };
-        if k == 1 {
-            if !objects {
-                return Err(bad("b(S_n,1) is the record's box, not a blob".into()));
-            }
-            let boxes = objboxes::decode(bytes).map_err(bad)?;
-            check_ids(&boxes.iter().map(|b| b.0).collect::<Vec<_>>())?;
-            return Ok(Piece::ObjectBoxes(boxes.into_iter().map(|(id, b)| (ObjectId(id), b)).collect()));
+        let mut reads = Reads::new(None);
+        let held = self.block(at.block, BlockType::Node, at.checksum, &mut Reads::new(None))?;
+        reads.hold(held);
+        let mut gather = Gather::default();
+        let opts = QueryOptions { lod: Some(k), budget: None };
+        walk(self, at, &Everything, &opts, &mut reads, &mut gather)
+            .map_err(|e| match e {
+                crate::query::QueryError::Storage(s) => s,
+                other => StorageError::Invalid(other.to_string()),
+            })?;
+        *stats += reads.stats;
+        let mut level = Level { predicted_reads: node_blocks + if k == m { geometry_blocks } else { 0 }, ..Level::default() };
+        if !gather.boxes.is_empty() {
+            level.bytes += gather.boxes.len() as u64 * crate::store::format::node::OBJECT_LEN as u64;
+            level.pieces.push(Piece::ObjectBoxes(gather.boxes));
         }
-        let lattice = self.lattice().ok_or_else(|| bad("the meta block has no lattice".into()))?;
-        if objects {
-            let sets = crate::lod::decode_objects(bytes, &lattice).map_err(|e| bad(e.to_string()))?;
-            check_ids(&sets.iter().map(|s| s.0).collect::<Vec<_>>())?;
-            Ok(Piece::ObjectVoxels(sets.into_iter().map(|(id, v)| (ObjectId(id), v)).collect()))
-        } else {
-            let (voxels, used) = crate::lod::decode(bytes, &lattice).map_err(|e| bad(e.to_string()))?;
-            if used != bytes.len() {
-                return Err(bad(format!("{} bytes after the voxel set", bytes.len() - used)));
-            }
-            Ok(Piece::Voxels { node, voxels })
+        if !gather.voxels.is_empty() {
+            level.bytes += gather.voxel_bytes;
+            level.pieces.push(Piece::ObjectVoxels(gather.voxels));
         }
+        if !gather.meshes.is_empty() {
+            level.bytes += gather.meshes.iter().map(|(_, m)| crate::store::format::geometry::record_len(m)).sum::<u64>();
+            level.pieces.push(Piece::Objects(gather.meshes));
+        }
+        Ok(level)
     }
 }
 
-/// The block reads of a cold fetch of entry (`k`, `objects`) of node `i`,
-/// with its record in hand, as `fetch_level` does them: the entry's own
-/// blocks, or for a spread entry every child record's node block and the
-/// children's entries, each distinct block once. The writer predicts with
-/// it and `check` verifies the stored predictions with it.
-pub(crate) fn fetch_reads(
-    i: usize,
-    k: u8,
-    objects: bool,
-    entry: impl Fn(usize, u8, bool) -> LodRef,
-    children: impl Fn(usize) -> Option<[usize; 2]>,
-    node_block: impl Fn(usize) -> u32,
-) -> u64 {
-    let mut blocks = std::collections::BTreeSet::new();
-    let mut stack = vec![(i, k, objects)];
-    while let Some((j, mut k, mut obj)) = stack.pop() {
-        let mut e = entry(j, k, obj);
-        if let LodRef::Same { level, objects } = e {
-            (k, obj) = (level, objects);
-            e = entry(j, k, obj);
-        }
-        match e {
-            LodRef::InBlock { block, .. } => {
-                blocks.insert(block);
-            }
-            LodRef::Run { first, blocks: count, .. } => blocks.extend(first..first.saturating_add(count)),
-            LodRef::Spread { .. } => {
-                for c in children(j).into_iter().flatten() {
-                    blocks.insert(node_block(c));
-                    stack.push((c, k, obj));
-                }
-            }
-            LodRef::Absent | LodRef::InRecord | LodRef::Same { .. } => {}
-        }
+/// Every object of a subtree with its bound at the walk's level: may meet
+/// anything, holds nothing, so every object reaches its finest bound up to
+/// k, and at M its geometry.
+struct Everything;
+
+impl Selection for Everything {
+    fn may_meet_box(&self, _: &Aabb) -> bool {
+        true
     }
-    blocks.remove(&node_block(i));
-    blocks.len() as u64
+    fn holds_box(&self, _: &Aabb) -> bool {
+        false
+    }
+    fn may_meet_voxels(&self, _: &Voxels) -> bool {
+        true
+    }
+    fn confirms_voxels(&self, _: &Voxels) -> bool {
+        false
+    }
+    fn meets_mesh(&self, _: &Mesh, _: &mut u64) -> bool {
+        true
+    }
+}
+
+#[derive(Default)]
+struct Gather {
+    boxes: Vec<(ObjectId, Aabb)>,
+    voxels: Vec<(ObjectId, Voxels)>,
+    voxel_bytes: u64,
+    meshes: Vec<(ObjectId, Mesh)>,
+}
+
+impl Visitor for Gather {
+    fn node(&mut self, _: &Arc<Block>, _: u32, _: &Aabb) -> Result<(), StorageError> {
+        Ok(())
+    }
+
+    fn object(&mut self, seen: &Seen) -> Result<(), StorageError> {
+        let id = seen.decision.object;
+        match (seen.mesh, seen.bound) {
+            (Some(mesh), _) => self.meshes.push((id, mesh.clone())),
+            (None, Some((_, v))) => {
+                self.voxel_bytes += crate::lod::encoded_len(v) as u64;
+                self.voxels.push((id, v.clone()));
+            }
+            (None, None) => self.boxes.push((id, seen.aabb)),
+        }
+        Ok(())
+    }
 }

@@ -5,10 +5,10 @@
 
 mod check;
 mod codes;
-mod entry;
 mod hierarchy;
 mod lod;
 mod read;
+mod tree_writer;
 mod write;
 
 use std::collections::BTreeMap;
@@ -18,11 +18,10 @@ use std::sync::{Arc, Mutex, MutexGuard};
 
 pub use check::{CheckReport, check};
 pub use codes::{method_from_code, method_to_code};
-pub use entry::entry_blocks;
 pub use hierarchy::read_hierarchy;
 pub use lod::{Level, LodInfo, Piece};
-pub use read::{NodeLocation, ReadTransaction, TreeInfo};
-pub(crate) use read::{TraversalGuard, record_at};
+pub use read::{NodeRef, ReadTransaction, Reads, TreeInfo};
+pub(crate) use read::view;
 pub use write::WriteTransaction;
 
 use crate::store::device::FileDevice;
@@ -31,12 +30,14 @@ use crate::store::format::freelist::FreeListBlock;
 use crate::store::format::header::{self, Commit, PREFIX_LEN, Slot, SlotRead, SlotState};
 use crate::store::format::meta::Meta;
 use crate::store::format::{validate_block_size, validate_lod_levels};
-use crate::store::{BlockDevice, Pager, ReadStats, StorageError};
+use crate::store::{BlockCache, BlockDevice, Pager, ReadStats, StorageError};
 
 /// Default block size, bytes. See the README's measurements.
 pub const DEFAULT_BLOCK_SIZE: u32 = 16 * 1024;
 /// Default number of levels of detail M.
 pub const DEFAULT_LOD_LEVELS: u8 = 4;
+/// Blocks the shared read cache holds by default (16 MiB of 16 KiB blocks).
+pub const DEFAULT_CACHE_BLOCKS: usize = 1024;
 
 /// Settings fixed when a file is created.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -87,6 +88,7 @@ struct State {
 
 pub(crate) struct Inner {
     pager: Pager,
+    cache: BlockCache,
     state: Mutex<State>,
     writer: Mutex<()>,
 }
@@ -216,7 +218,12 @@ impl Database {
             freed_at: Vec::new(),
         };
         Ok(Database {
-            inner: Arc::new(Inner { pager, state: Mutex::new(state), writer: Mutex::new(()) }),
+            inner: Arc::new(Inner {
+                pager,
+                cache: BlockCache::new(DEFAULT_CACHE_BLOCKS),
+                state: Mutex::new(state),
+                writer: Mutex::new(()),
+            }),
             recovery,
         })
     }
@@ -280,6 +287,10 @@ impl Inner {
     pub(crate) fn pager(&self) -> &Pager {
         &self.pager
     }
+
+    pub(crate) fn cache(&self) -> &BlockCache {
+        &self.cache
+    }
 }
 
 /// The free ranges the commit's free-list chain holds, checked against the spec.
@@ -293,7 +304,7 @@ pub(crate) fn read_free_list(pager: &Pager, c: &Commit) -> Result<Vec<(u32, u32)
         if block >= c.block_count || hops > u64::from(c.block_count) {
             return Err(StorageError::corrupt(block, "next_block", "the free list leaves the file or loops"));
         }
-        let b = pager.read(block, BlockType::FreeList, Some(sum), &mut stats, None)?;
+        let (b, _) = pager.read(block, BlockType::FreeList, Some(sum), &mut stats)?;
         let fl = FreeListBlock::decode(block, &b)?;
         for &(first, count) in &fl.ranges {
             let last = ranges.last().map_or(1, |&(f, n)| f + n + 1);
@@ -331,8 +342,7 @@ pub(crate) fn read_meta(pager: &Pager, c: &Commit) -> Result<Option<Meta>, Stora
             format!("block {} is past the end", c.meta_block),
         ));
     }
-    let b =
-        pager.read(c.meta_block, BlockType::Meta, Some(c.meta_checksum), &mut ReadStats::default(), None)?;
+    let (b, _) = pager.read(c.meta_block, BlockType::Meta, Some(c.meta_checksum), &mut ReadStats::default())?;
     let meta = Meta::decode(c.meta_block, &b)?;
     if meta.root_block == 0 || meta.root_block >= c.block_count {
         return Err(StorageError::corrupt(

@@ -86,6 +86,11 @@ impl<'c> Reads<'c> {
     pub fn held(&self) -> usize {
         self.held.len()
     }
+
+    /// Takes `block` in hand without reading it (a record already held).
+    pub(crate) fn hold(&mut self, block: std::sync::Arc<Block>) {
+        self.held.insert(block.id, block);
+    }
 }
 
 impl ReadTransaction {

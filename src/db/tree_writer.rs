@@ -62,7 +62,7 @@ pub(crate) fn write(
     let mut block = vec![0u8; bs as usize];
     let mut filled = 0u64; // stream bytes of blocks already written
     let mut record = Vec::new();
-    let mut flush = |block: &mut Vec<u8>, index: u64, sums: &mut Vec<u32>| -> Result<(), StorageError> {
+    let flush = |block: &mut Vec<u8>, index: u64, sums: &mut Vec<u32>| -> Result<(), StorageError> {
         let id = first_geometry + index as u32;
         sums.push(pager.write(id, block, BlockType::Geometry, txn)?);
         block.fill(0);

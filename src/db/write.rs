@@ -5,7 +5,7 @@ use std::sync::{Arc, MutexGuard};
 use std::time::Instant;
 
 use super::{Inner, Snapshot, codes, tree_writer};
-use crate::build::{BuildParams, BuildProgress, Hierarchy, build};
+use crate::build::{BuildParams, BuildProgress, CostModel, Hierarchy, build};
 use crate::lod::LodParams;
 use crate::scene::Scene;
 use crate::store::StorageError;
@@ -144,10 +144,12 @@ impl<'db> WriteTransaction<'db> {
         if tree.nodes.is_empty() {
             return Err(StorageError::Invalid("a tree holds at least one object".into()));
         }
-        let stored = crate::lod::plan_bounds(scene, tree, m, bs, &self.lod_params).map_err(lod_error)?;
+        let model = CostModel::of_boxes(&scene.object_boxes(), params.query_extent);
+        let stored = crate::lod::plan_bounds(scene, tree, m, bs, &self.lod_params, &model).map_err(lod_error)?;
+        let txn = self.txn;
         let written = {
             let mut allocate = |count: u32| self.allocate(count);
-            tree_writer::write(&pager, self.txn, scene, tree, &stored.bounds, &mut allocate)?
+            tree_writer::write(&pager, txn, scene, tree, &stored.bounds, &mut allocate)?
         };
         // Names, apart from geometry so queries never read them.
         let mut stream = Vec::new();
@@ -171,6 +173,10 @@ impl<'db> WriteTransaction<'db> {
         let mut usage = [[0u64; 2]; LOD_TABLE_LEN];
         for (row, u) in usage.iter_mut().zip(&stored.usage) {
             *row = *u;
+        }
+        let mut predicted = [[0f32; 2]; LOD_TABLE_LEN];
+        for (row, p) in predicted.iter_mut().zip(&stored.predicted) {
+            *row = p.map(|x| x as f32);
         }
         let mut grid_level = [0u8; LOD_TABLE_LEN];
         for (g, l) in grid_level.iter_mut().zip(&stored.grid_level) {
@@ -205,6 +211,7 @@ impl<'db> WriteTransaction<'db> {
                 grid_level,
                 usage,
                 query_extent: stored.query_extent,
+                predicted,
             },
         };
         let meta_block = self.allocate(1)?;

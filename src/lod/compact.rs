@@ -15,17 +15,17 @@ const FORM_BOXES16: u8 = 3;
 
 #[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
-struct Head {
-    level: u8,
-    form: u8,
-    reserved0: [u8; 2],
-    first: [I32; 3],
-    dims: [U16; 3],
-    reserved1: [u8; 2],
+pub(crate) struct BlobHead {
+    pub(crate) level: u8,
+    pub(crate) form: u8,
+    pub(crate) reserved0: [u8; 2],
+    pub(crate) first: [I32; 3],
+    pub(crate) dims: [U16; 3],
+    pub(crate) reserved1: [u8; 2],
 }
 /// Bytes of a blob's head.
 pub const HEAD_LEN: usize = 24;
-const _: () = assert!(size_of::<Head>() == HEAD_LEN);
+const _: () = assert!(size_of::<BlobHead>() == HEAD_LEN);
 
 /// The grid of whole cells of lattice level `level` that covers `b`: from
 /// the last plane at or below `b.min` to the first at or above `b.max`
@@ -65,22 +65,32 @@ pub fn aligned_grid(lattice: &Lattice, level: u8, b: &Aabb) -> Result<(Grid, [i6
     Ok((grid, first))
 }
 
+/// The form and payload bytes `v` encodes to: a bitmap or boxes, the smaller.
+fn form_of(v: &Voxels, boxes: usize) -> (u8, usize) {
+    let small = v.grid().dims().iter().all(|&d| d <= 255);
+    let box_bytes = 4 + boxes * if small { 6 } else { 12 };
+    let bitmap_bytes = (v.grid().cells() as usize).div_ceil(8);
+    if bitmap_bytes <= box_bytes {
+        (FORM_BITMAP, bitmap_bytes)
+    } else {
+        (if small { FORM_BOXES8 } else { FORM_BOXES16 }, box_bytes)
+    }
+}
+
+/// Bytes `v` encodes to.
+pub fn encoded_len(v: &Voxels) -> usize {
+    HEAD_LEN + form_of(v, v.boxes().len()).1
+}
+
 /// Encodes `v` (on a grid from [`aligned_grid`] whose first planes are `first`).
 pub fn encode(v: &Voxels, first: [i64; 3]) -> Vec<u8> {
     let dims = v.grid().dims();
     let cells = v.grid().cells() as usize;
     let boxes = v.boxes();
     let small = dims.iter().all(|&d| d <= 255);
-    let box_bytes = 4 + boxes.len() * if small { 6 } else { 12 };
+    let (form, _) = form_of(v, boxes.len());
     let bitmap_bytes = cells.div_ceil(8);
-    let form = if bitmap_bytes <= box_bytes {
-        FORM_BITMAP
-    } else if small {
-        FORM_BOXES8
-    } else {
-        FORM_BOXES16
-    };
-    let head = Head {
+    let head = BlobHead {
         level: v.grid().level(),
         form,
         reserved0: [0; 2],
@@ -114,7 +124,7 @@ pub fn encode(v: &Voxels, first: [i64; 3]) -> Vec<u8> {
 /// the grid's cells, which the head bounds by [`MAX_CELLS`].
 pub fn decode(bytes: &[u8], lattice: &Lattice) -> Result<Voxels, LodError> {
     let bad = |d: &str| LodError::Corrupt(d.to_string());
-    let (head, payload) = Head::ref_from_prefix(bytes).map_err(|_| bad("shorter than its head"))?;
+    let (head, payload) = BlobHead::ref_from_prefix(bytes).map_err(|_| bad("shorter than its head"))?;
     if head.reserved0 != [0; 2] || head.reserved1 != [0; 2] {
         return Err(bad("reserved bytes are not zero"));
     }

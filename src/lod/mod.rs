@@ -24,7 +24,8 @@ mod voxelize;
 mod voxels;
 
 pub use closed::is_closed;
-pub use compact::{aligned_grid, decode, encode};
+pub(crate) use compact::BlobHead;
+pub use compact::{aligned_grid, decode, encode, encoded_len};
 pub use error::LodError;
 pub use error_measure::{ErrorProbe, measured_error};
 pub use grid::{Grid, MAX_CELLS, MAX_DIM};

@@ -1,11 +1,11 @@
 //! The oracles of the tests: every query answered by testing every object
 //! (or pair) of the scene exactly, with no tree and no file.
 
-use super::shape::{Probe, Region, Triangles};
+use super::select::{Region, Selection, Triangles};
 use crate::geom::Pose;
 use crate::scene::{Mesh, ObjectId, Scene};
 
-fn all<P: Probe + ?Sized>(scene: &Scene, probe: &P) -> Vec<ObjectId> {
+fn all<P: Selection + ?Sized>(scene: &Scene, probe: &P) -> Vec<ObjectId> {
     let mut n = 0;
     (0..scene.len() as u32)
         .map(ObjectId)

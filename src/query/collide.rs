@@ -1,18 +1,18 @@
 //! Collision and proximity (clearance) of a query object under a rigid pose
-//! against the scene, through the traversal of `traverse.rs`: bounds grown
-//! by the clearance d below M, exact triangle contacts and distances (parry)
-//! at M.
+//! against the scene, through the one traversal: bounds grown by the
+//! clearance d below M, exact triangle contacts and distances (parry) at M.
+
+use std::collections::{HashMap, HashSet};
+use std::sync::Arc;
 
 use super::QueryError;
-use std::collections::{HashMap, HashSet};
-
-use super::shape::Triangles;
-use super::traverse::{QueryAnswer, QueryOptions, traverse};
-use crate::db::ReadTransaction;
-use crate::geom::Pose;
+use super::select::{Everything, Triangles};
+use super::traverse::{QueryAnswer, QueryOptions, Visitor, traverse, walk};
+use crate::db::{ReadTransaction, Reads, view};
+use crate::geom::{Aabb, Pose};
 use crate::scene::{Mesh, ObjectId};
-use crate::store::format::node::LodRef;
-use crate::store::{BlockCache, ReadStats};
+use crate::store::format::node::NodeView;
+use crate::store::{Block, BlockCache, StorageError};
 
 /// A collision or clearance query's settings.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -33,7 +33,7 @@ pub fn collide(
     mesh: &Mesh,
     pose: &Pose,
     opts: &CollideOptions,
-    cache: Option<&mut BlockCache>,
+    cache: Option<&BlockCache>,
 ) -> Result<QueryAnswer, QueryError> {
     let probe = Triangles::posed(mesh, pose, opts.clearance)?;
     let answer = traverse(txn, &probe, &opts.query, cache)?;
@@ -50,38 +50,40 @@ pub fn object_mesh(txn: &ReadTransaction, id: ObjectId) -> Result<Mesh, QueryErr
     meshes.pop().ok_or(QueryError::NoObject { id: id.0, objects: 0 })
 }
 
-/// The exact meshes of `ids`, in their order: each leaf's object boxes are
-/// read, and the geometry of the leaves holding a wanted object.
+/// Reads the meshes of the wanted objects from the leaves that hold them.
+struct Fetch<'t, 'c> {
+    txn: &'t ReadTransaction,
+    wanted: HashSet<ObjectId>,
+    reads: Reads<'c>,
+    found: HashMap<ObjectId, Mesh>,
+}
+
+impl Visitor for Fetch<'_, '_> {
+    fn node(&mut self, block: &Arc<Block>, offset: u32, _: &Aabb) -> Result<(), StorageError> {
+        let NodeView::Leaf(leaf) = view(block, offset)? else { return Ok(()) };
+        for i in 0..leaf.len() {
+            if leaf.object(i).is_some_and(|o| self.wanted.contains(&ObjectId(o.object_id))) {
+                let (id, mesh) = self.txn.read_object(block.id(), &leaf, i, &mut self.reads)?;
+                self.found.insert(id, mesh);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The exact meshes of `ids`, in their order: the tree's node blocks are
+/// walked and the geometry of the wanted objects read.
 pub fn object_meshes(txn: &ReadTransaction, ids: &[ObjectId]) -> Result<Vec<Mesh>, QueryError> {
     let info = txn.info().ok_or(QueryError::NoTree)?;
     if let Some(bad) = ids.iter().find(|id| id.0 >= info.objects) {
         return Err(QueryError::NoObject { id: bad.0, objects: info.objects });
     }
-    let wanted: HashSet<ObjectId> = ids.iter().copied().collect();
-    let mut cache = BlockCache::new(usize::MAX);
-    let mut stats = ReadStats::default();
-    let mut leaves = Vec::new();
-    txn.walk_nodes(&mut stats, |_, rec| {
-        if rec.is_leaf() {
-            leaves.push(rec.clone());
-        }
-        Ok(())
-    })?;
-    let mut found: HashMap<ObjectId, Mesh> = HashMap::new();
-    for rec in leaves {
-        let Some((level, objects, entry)) = rec.entry(1, true) else { continue };
-        let piece = txn.read_entry(&rec, level, objects, entry, &mut stats, Some(&mut cache))?;
-        if !piece.and_then(|p| p.object_ids()).is_some_and(|v| v.iter().any(|id| wanted.contains(id))) {
-            continue;
-        }
-        let exact = rec.lods.last().map_or(LodRef::Absent, |pair| pair[1]);
-        for (id, mesh) in txn.read_objects(&exact, &mut stats, Some(&mut cache))? {
-            if wanted.contains(&id) {
-                found.insert(id, mesh);
-            }
-        }
-    }
+    let root = txn.root().ok_or(QueryError::NoTree)?;
+    let mut fetch =
+        Fetch { txn, wanted: ids.iter().copied().collect(), reads: Reads::new(None), found: HashMap::new() };
+    let all = QueryOptions { lod: Some(1), budget: None };
+    walk(txn, root, &Everything, &all, &mut Reads::new(None), &mut fetch)?;
     ids.iter()
-        .map(|id| found.get(id).cloned().ok_or(QueryError::NoObject { id: id.0, objects: info.objects }))
+        .map(|id| fetch.found.get(id).cloned().ok_or(QueryError::NoObject { id: id.0, objects: info.objects }))
         .collect()
 }

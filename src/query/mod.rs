@@ -1,7 +1,9 @@
-//! Queries through the paged file. Each returns its answer and the blocks it
-//! read, counted by the pager where the reads happen. Every single-shape
-//! query (region, collide, navigate, tradeoff) runs `traverse.rs`; clash
-//! runs the tree against itself in `clash.rs` with the same tests.
+//! Queries through the paged file. Every query runs the one traversal of
+//! `traverse.rs` with a [`Selection`] (`select.rs`): region queries, the
+//! posed-mesh collide, clash (the tree against itself, one probe per
+//! object), navigation, the speed-accuracy trade-off, and the walks of
+//! `check`. Each returns its answer and the blocks it read, counted by the
+//! pager where the reads happen.
 
 mod bench_workload;
 mod brute_force;
@@ -10,7 +12,7 @@ mod collide;
 mod error;
 mod navigate;
 mod region;
-mod shape;
+mod select;
 mod tradeoff;
 mod traverse;
 mod workload;
@@ -23,8 +25,9 @@ pub use clash::{ClashAnswer, ClashOptions, clash};
 pub use collide::{CollideOptions, collide, object_mesh, object_meshes};
 pub use error::QueryError;
 pub use navigate::{NavigateStep, navigate, parse_path};
-pub use region::{BoxQuery, QueryStats, brute_force_box, query_box, query_region};
-pub use shape::{Region, Triangles};
+pub use region::query_region;
+pub use select::{Everything, Region, Selection, Triangles};
 pub use tradeoff::{TRADEOFF_SHIFT_MM, TradeoffRow, collision_workload, tradeoff};
-pub use traverse::{ObjectLevel, QueryAnswer, QueryOptions, TraverseStats};
+pub use traverse::{ObjectLevel, Proof, QueryAnswer, QueryOptions, Seen, TraverseStats, traverse};
+pub(crate) use traverse::{Visitor, walk};
 pub use workload::{WorkloadStats, random_boxes, run_boxes};

@@ -6,7 +6,7 @@
 use serde::Serialize;
 
 use super::QueryError;
-use super::shape::Region;
+use super::select::Region;
 use super::traverse::{QueryOptions, traverse};
 use crate::db::ReadTransaction;
 use crate::geom::{Camera, Frustum, Point};
@@ -32,13 +32,13 @@ pub fn navigate(
     opts: &QueryOptions,
     cache_blocks: usize,
 ) -> Result<Vec<NavigateStep>, QueryError> {
-    let mut cache = BlockCache::new(cache_blocks);
+    let cache = BlockCache::new(cache_blocks);
     cameras
         .iter()
         .enumerate()
         .map(|(step, camera)| {
             let region = Region::Frustum(Box::new(Frustum::from_camera(camera)?));
-            let a = traverse(txn, &region, opts, Some(&mut cache))?;
+            let a = traverse(txn, &region, opts, Some(&cache))?;
             Ok(NavigateStep { step, objects: a.objects, reads: a.stats.reads, seconds: a.stats.seconds })
         })
         .collect()

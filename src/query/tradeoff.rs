@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use super::QueryError;
 use super::collide::object_meshes;
-use super::shape::Triangles;
+use super::select::Triangles;
 use super::traverse::{QueryOptions, levels, traverse};
 use crate::db::ReadTransaction;
 use crate::geom::Pose;
@@ -23,7 +23,8 @@ pub struct TradeoffRow {
     pub level: u8,
     pub mean_reads: f64,
     pub mean_node_reads: f64,
-    pub mean_lod_reads: f64,
+    /// Bounds the file stores at this level (none: the level answers as the one below).
+    pub stored_bounds: u64,
     pub mean_geometry_reads: f64,
     pub mean_milliseconds: f64,
     /// Exact answers over reported ones, over all queries (1 when none reported).
@@ -63,13 +64,14 @@ pub fn tradeoff(txn: &ReadTransaction, queries: &[Triangles]) -> Result<Vec<Trad
     let exact: Vec<Vec<ObjectId>> =
         queries.iter().map(|q| Ok(at(m, q)?.objects)).collect::<Result<_, QueryError>>()?;
     let n = queries.len().max(1) as f64;
+    let stored: Vec<u64> = txn.lod_info().map_or(Vec::new(), |i| i.stored);
     (1..=m)
         .map(|k| {
             let mut row = TradeoffRow {
                 level: k,
                 mean_reads: 0.0,
                 mean_node_reads: 0.0,
-                mean_lod_reads: 0.0,
+                stored_bounds: stored.get(usize::from(k) - 1).copied().unwrap_or(0),
                 mean_geometry_reads: 0.0,
                 mean_milliseconds: 0.0,
                 precision: 1.0,
@@ -85,7 +87,6 @@ pub fn tradeoff(txn: &ReadTransaction, queries: &[Triangles]) -> Result<Vec<Trad
                 let r = &a.stats.reads;
                 row.mean_reads += r.total() as f64 / n;
                 row.mean_node_reads += r.node as f64 / n;
-                row.mean_lod_reads += r.lod as f64 / n;
                 row.mean_geometry_reads += r.geometry as f64 / n;
                 row.mean_milliseconds += a.stats.seconds * 1e3 / n;
                 reported += a.objects.len();

@@ -24,7 +24,7 @@ use serde::Serialize;
 
 use super::QueryError;
 use super::select::Selection;
-use crate::db::{ReadTransaction, Reads, view};
+use crate::db::{NodeRef, ReadTransaction, Reads, view};
 use crate::geom::Aabb;
 use crate::lod::Voxels;
 use crate::scene::ObjectId;
@@ -135,8 +135,9 @@ enum Step {
     Unread { at: RecordRef, frame: Aabb, inside: bool, estimate: f64 },
     /// A record in hand.
     Node { block: Arc<Block>, offset: u32, frame: Aabb, inside: bool },
-    /// An object whose geometry decides it: leaf `offset` of `block`, object `index`.
-    Exact { block: Arc<Block>, offset: u32, index: usize, level: u8 },
+    /// An object whose geometry decides it: leaf `offset` of `block` (whose
+    /// box is `frame`), object `index`, which passed bounds up to `level`.
+    Exact { block: Arc<Block>, offset: u32, index: usize, level: u8, frame: Aabb },
 }
 
 struct Queued {
@@ -162,18 +163,46 @@ impl Ord for Queued {
     }
 }
 
+/// An object as the traversal met it: its box as stored, the bound that
+/// decided it (or the finest it passed), its mesh when its geometry was
+/// read, and the decision.
+pub struct Seen<'a> {
+    pub aabb: Aabb,
+    pub bound: Option<(u8, &'a Voxels)>,
+    pub mesh: Option<&'a crate::scene::Mesh>,
+    pub decision: ObjectLevel,
+}
+
+/// Sees what a traversal meets: each record it enters (with the box its
+/// parent holds for it) and each object it decides. Walks that need more
+/// than an answer (`check`, fetching a level, clash) are visitors.
+pub(crate) trait Visitor {
+    /// Record `offset` of `block`, whose box is `frame`.
+    fn node(&mut self, _block: &Arc<Block>, _offset: u32, _frame: &Aabb) -> Result<(), StorageError> {
+        Ok(())
+    }
+    /// An object decided.
+    fn object(&mut self, _seen: &Seen) -> Result<(), StorageError> {
+        Ok(())
+    }
+}
+
+/// Sees nothing (plain queries).
+impl Visitor for () {}
+
 /// The finest bound of `target` at a level <= k among `bounds`.
 fn finest<'a>(bounds: impl Iterator<Item = BoundView<'a>>, target: u16, k: u8) -> Option<BoundView<'a>> {
     bounds.filter(|b| b.target == target && b.level <= k).max_by_key(|b| b.level)
 }
 
-struct Run<'t, 'c, S: ?Sized> {
+struct Run<'t, 'c, 'v, S: ?Sized> {
     txn: &'t ReadTransaction,
     sel: &'t S,
+    visitor: &'v mut dyn Visitor,
     k: u8,
     m: u8,
     budget: Option<u64>,
-    reads: Reads<'c>,
+    reads: &'v mut Reads<'c>,
     heap: BinaryHeap<Queued>,
     seq: u64,
     visits: u64,
@@ -183,7 +212,7 @@ struct Run<'t, 'c, S: ?Sized> {
     decided: Vec<ObjectLevel>,
 }
 
-impl<S: Selection + ?Sized> Run<'_, '_, S> {
+impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
     fn cost(&self, step: &Step) -> Result<u64, StorageError> {
         Ok(match step {
             Step::Unread { at, .. } => u64::from(!self.reads.holds(at.block)),
@@ -218,7 +247,17 @@ impl<S: Selection + ?Sized> Run<'_, '_, S> {
         Ok(())
     }
 
-    fn decide(&mut self, object: u32, level: u8, accepted: bool, proof: Proof) {
+    #[allow(clippy::too_many_arguments)]
+    fn decide(
+        &mut self,
+        object: u32,
+        level: u8,
+        accepted: bool,
+        proof: Proof,
+        aabb: Aabb,
+        bound: Option<(u8, &Voxels)>,
+        mesh: Option<&crate::scene::Mesh>,
+    ) -> Result<(), StorageError> {
         let i = usize::from(level) - 1;
         match proof {
             Proof::Candidate => {}
@@ -228,7 +267,9 @@ impl<S: Selection + ?Sized> Run<'_, '_, S> {
         if accepted {
             self.objects.push(ObjectId(object));
         }
-        self.decided.push(ObjectLevel { object: ObjectId(object), level, accepted, proof });
+        let decision = ObjectLevel { object: ObjectId(object), level, accepted, proof };
+        self.decided.push(decision);
+        self.visitor.object(&Seen { aabb, bound, mesh, decision })
     }
 
     fn voxels(&self, block: u32, b: &BoundView) -> Result<Voxels, StorageError> {
@@ -239,18 +280,17 @@ impl<S: Selection + ?Sized> Run<'_, '_, S> {
     fn step(&mut self, step: Step) -> Result<(), StorageError> {
         match step {
             Step::Unread { at, frame, inside, .. } => {
-                let block = self.txn.block(at.block, crate::store::format::frame::BlockType::Node, at.checksum, &mut self.reads)?;
+                let block = self.txn.block(at.block, crate::store::format::frame::BlockType::Node, at.checksum, self.reads)?;
                 self.push(Step::Node { block, offset: at.offset, frame, inside })
             }
             Step::Node { block, offset, frame, inside } => self.node(block, offset, frame, inside),
-            Step::Exact { block, offset, index, level } => {
+            Step::Exact { block, offset, index, frame, .. } => {
                 let NodeView::Leaf(leaf) = view(&block, offset)? else { return Ok(()) };
-                let (id, mesh) = self.txn.read_object(block.id(), &leaf, index, &mut self.reads)?;
+                let (id, mesh) = self.txn.read_object(block.id(), &leaf, index, self.reads)?;
                 self.stats.geometry_tests += 1;
                 let hit = self.sel.meets_mesh(&mesh, &mut self.stats.triangles_tested);
-                let _ = level;
-                self.decide(id.0, self.m, hit, Proof::Exact);
-                Ok(())
+                let aabb = leaf.object(index).and_then(|o| QuantBox::decode(&frame, o.qbox)).map_or(frame, |q| q.outer);
+                self.decide(id.0, self.m, hit, Proof::Exact, aabb, None, Some(&mesh))
             }
         }
     }
@@ -261,6 +301,7 @@ impl<S: Selection + ?Sized> Run<'_, '_, S> {
             return Err(StorageError::corrupt(block.id(), "child_block", "more nodes than the meta block counts: the links loop"));
         }
         self.stats.nodes_visited += 1;
+        self.visitor.node(&block, offset, &frame)?;
         let bad = |d: &str| StorageError::corrupt(block.id(), "record", d.to_string());
         match view(&block, offset)? {
             NodeView::Internal(n) => {
@@ -293,36 +334,40 @@ impl<S: Selection + ?Sized> Run<'_, '_, S> {
                 self.stats.leaves_visited += 1;
                 for i in 0..leaf.len() {
                     let o = leaf.object(i).ok_or_else(|| bad("an object is missing"))?;
+                    let qb = QuantBox::decode(&frame, o.qbox).ok_or_else(|| bad("an object box is backwards"))?;
+                    let aabb = qb.outer;
                     if inside {
-                        self.decide(o.object_id, 1, true, Proof::InsideNode);
+                        self.decide(o.object_id, 1, true, Proof::InsideNode, aabb, None, None)?;
                         continue;
                     }
-                    let qb = QuantBox::decode(&frame, o.qbox).ok_or_else(|| bad("an object box is backwards"))?;
-                    if !self.sel.may_meet_box(&qb.outer) {
-                        self.decide(o.object_id, 1, false, Proof::BoxMisses);
+                    if !self.sel.may_meet_box(&aabb) {
+                        self.decide(o.object_id, 1, false, Proof::BoxMisses, aabb, None, None)?;
                         continue;
                     }
                     if qb.face_slabs().iter().any(|f| self.sel.holds_box(f)) {
-                        self.decide(o.object_id, 1, true, Proof::Face);
+                        self.decide(o.object_id, 1, true, Proof::Face, aabb, None, None)?;
                         continue;
                     }
                     let mut level = 1;
+                    let mut voxels = None;
                     if let Some(b) = finest(leaf.bounds(), i as u16, self.k.min(self.m - 1)) {
                         let v = self.voxels(block.id(), &b)?;
                         level = b.level;
                         if !self.sel.may_meet_voxels(&v) {
-                            self.decide(o.object_id, level, false, Proof::VoxelsMiss);
+                            self.decide(o.object_id, level, false, Proof::VoxelsMiss, aabb, Some((level, &v)), None)?;
                             continue;
                         }
                         if self.sel.confirms_voxels(&v) {
-                            self.decide(o.object_id, level, true, Proof::Cell);
+                            self.decide(o.object_id, level, true, Proof::Cell, aabb, Some((level, &v)), None)?;
                             continue;
                         }
+                        voxels = Some(v);
                     }
                     if self.k == self.m {
-                        self.push(Step::Exact { block: block.clone(), offset, index: i, level })?;
+                        self.push(Step::Exact { block: block.clone(), offset, index: i, level, frame })?;
                     } else {
-                        self.decide(o.object_id, level, true, Proof::Candidate);
+                        let bound = voxels.as_ref().map(|v| (level, v));
+                        self.decide(o.object_id, level, true, Proof::Candidate, aabb, bound, None)?;
                     }
                 }
             }
@@ -340,18 +385,33 @@ pub fn traverse<S: Selection + ?Sized>(
     opts: &QueryOptions,
     cache: Option<&BlockCache>,
 ) -> Result<QueryAnswer, QueryError> {
+    let root = txn.root().ok_or(QueryError::NoTree)?;
+    walk(txn, root, sel, opts, &mut Reads::new(cache), &mut ())
+}
+
+/// The traversal from record `start` (its block read through `reads`
+/// unless `reads` holds it), showing `visitor` what it meets.
+pub(crate) fn walk<S: Selection + ?Sized>(
+    txn: &ReadTransaction,
+    start: NodeRef,
+    sel: &S,
+    opts: &QueryOptions,
+    reads: &mut Reads,
+    visitor: &mut dyn Visitor,
+) -> Result<QueryAnswer, QueryError> {
     let started = Instant::now();
     let (k, m) = levels(txn, opts.lod)?;
-    let root = txn.root().ok_or(QueryError::NoTree)?;
     let info = txn.info().ok_or(QueryError::NoTree)?;
     let levels = usize::from(m);
+    let before = reads.stats;
     let mut run = Run {
         txn,
         sel,
+        visitor,
         k,
         m,
         budget: opts.budget,
-        reads: Reads::new(cache),
+        reads,
         heap: BinaryHeap::new(),
         seq: 0,
         visits: 0,
@@ -366,40 +426,42 @@ pub fn traverse<S: Selection + ?Sized>(
         decided: Vec::new(),
     };
     let mut answer_level = k;
-    if sel.may_meet_box(&root.aabb) {
-        let inside = sel.holds_box(&root.aabb);
-        let at = RecordRef { block: root.block, checksum: root.checksum, offset: root.offset };
-        run.push(Step::Unread { at, frame: root.aabb, inside, estimate: f64::from(info.objects) })?;
+    if sel.may_meet_box(&start.aabb) {
+        let inside = sel.holds_box(&start.aabb);
+        let at = RecordRef { block: start.block, checksum: start.checksum, offset: start.offset };
+        run.push(Step::Unread { at, frame: start.aabb, inside, estimate: f64::from(info.objects) })?;
     } else {
         run.stats.pruned[0] += 1;
     }
     let mut deferred: Vec<Queued> = Vec::new();
+    let spent = |r: &Reads| r.stats.total() - before.total();
     loop {
         let Some(q) = run.heap.pop() else {
             // Blocks read since a step was set aside may have made it affordable.
-            let before = deferred.len();
+            let waiting = deferred.len();
             let mut still = Vec::new();
             for q in deferred.drain(..) {
                 let cost = run.cost(&q.step)?;
-                if opts.budget.is_some_and(|b| run.reads.stats.total() + cost > b) {
+                if opts.budget.is_some_and(|b| spent(run.reads) + cost > b) {
                     still.push(q);
                 } else {
                     run.heap.push(q);
                 }
             }
             deferred = still;
-            if deferred.len() == before {
+            if deferred.len() == waiting {
                 break;
             }
             continue;
         };
         let cost = run.cost(&q.step)?;
-        if opts.budget.is_some_and(|b| run.reads.stats.total() + cost > b) {
+        if opts.budget.is_some_and(|b| spent(run.reads) + cost > b) {
             deferred.push(q);
             continue;
         }
         run.step(q.step)?;
     }
+    let mut stats = std::mem::take(&mut run.stats);
     let mut answer = QueryAnswer {
         objects: std::mem::take(&mut run.objects),
         maybe: Vec::new(),
@@ -407,7 +469,7 @@ pub fn traverse<S: Selection + ?Sized>(
         level: k,
         level_reached: k,
         decided: std::mem::take(&mut run.decided),
-        stats: std::mem::take(&mut run.stats),
+        stats: TraverseStats::default(),
     };
     for q in deferred {
         match q.step {
@@ -415,7 +477,7 @@ pub fn traverse<S: Selection + ?Sized>(
                 answer.unexplored_nodes += 1;
                 answer_level = 1;
             }
-            Step::Exact { block, offset, index, level } => {
+            Step::Exact { block, offset, index, level, .. } => {
                 if let Ok(NodeView::Leaf(leaf)) = view(&block, offset)
                     && let Some(o) = leaf.object(index)
                 {
@@ -425,11 +487,17 @@ pub fn traverse<S: Selection + ?Sized>(
             }
         }
     }
+    let mut r = reads.stats;
+    r.node -= before.node;
+    r.geometry -= before.geometry;
+    r.other -= before.other;
+    r.cache_hits -= before.cache_hits;
+    stats.reads = r;
+    stats.seconds = started.elapsed().as_secs_f64();
+    answer.stats = stats;
     answer.level_reached = answer_level;
-    answer.stats.reads = run.reads.stats;
     answer.objects.sort_unstable();
     answer.maybe.sort_unstable();
     answer.decided.sort_unstable_by_key(|d| d.object);
-    answer.stats.seconds = started.elapsed().as_secs_f64();
     Ok(answer)
 }

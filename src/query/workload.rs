@@ -37,10 +37,10 @@ pub struct WorkloadStats {
 pub fn run_boxes(
     txn: &crate::db::ReadTransaction,
     queries: &[Aabb],
-) -> Result<WorkloadStats, crate::store::StorageError> {
+) -> Result<WorkloadStats, super::QueryError> {
     let mut s = WorkloadStats { queries: queries.len(), ..WorkloadStats::default() };
     for q in queries {
-        let r = txn.query_box(q)?;
+        let r = super::query_region(txn, &super::Region::Box(*q), &super::QueryOptions::default(), None)?;
         s.mean_node_reads += r.stats.reads.node as f64;
         s.mean_geometry_reads += r.stats.reads.geometry as f64;
         s.mean_total_reads += r.stats.reads.total() as f64;

@@ -149,7 +149,8 @@ pub fn encode_name(name: &str, stream: &mut Vec<u8>) {
 pub fn decode_names(id: u32, words: &[u32], len: usize, records: u32) -> Result<Vec<String>, StorageError> {
     let bytes: &[u8] = &bytemuck::cast_slice(words)[..len];
     let mut at = 0usize;
-    let mut names = Vec::with_capacity(records as usize);
+    // Each name takes at least 4 bytes: the stream bounds the allocation, not the count.
+    let mut names = Vec::with_capacity((records as usize).min(len / 4));
     for r in 0..records {
         let bad = |detail: &str| StorageError::corrupt_record(id, r, "name", detail.to_string());
         let n = bytes.get(at..at + 4).ok_or_else(|| bad("the stream ends inside a name"))?;
@@ -167,7 +168,6 @@ pub fn decode_names(id: u32, words: &[u32], len: usize, records: u32) -> Result<
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::store::format::run;
 
     #[test]
     fn an_object_round_trips_and_its_padding_is_checked() {

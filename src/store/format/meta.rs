@@ -1,6 +1,6 @@
 //! The meta block (format-spec/meta.md).
 
-use zerocopy::byteorder::little_endian::{F64, U32, U64};
+use zerocopy::byteorder::little_endian::{F32, F64, U32, U64};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
 use super::all_zero;
@@ -47,8 +47,9 @@ pub(crate) struct MetaRecord {
     pub(crate) node_bytes: U64,
     pub(crate) geometry_bytes: U64,
     pub(crate) query_extent: [F64; 3],
+    pub(crate) lod_predicted: [[F32; 2]; LOD_TABLE_LEN],
 }
-const _: () = assert!(FRAME_LEN + size_of::<MetaRecord>() == 776);
+const _: () = assert!(FRAME_LEN + size_of::<MetaRecord>() == 904);
 
 /// How the levels of detail below M were built (format-spec/meta.md).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -69,6 +70,9 @@ pub struct LodCodes {
     /// The query model the stored bounds were judged on: a box query of
     /// these extents (mm), placed uniformly (format-spec/lod.md, "What pays").
     pub query_extent: [f64; 3],
+    /// Per level k = 1 .. 16: the model's expected (saving, cost) in block
+    /// reads per query of the bounds stored.
+    pub predicted: [[f32; 2]; LOD_TABLE_LEN],
 }
 
 /// How the tree was built, as raw codes (the db layer maps them to `build` types).
@@ -155,6 +159,7 @@ impl Meta {
             node_bytes: self.node_bytes.into(),
             geometry_bytes: self.geometry_bytes.into(),
             query_extent: self.lods.query_extent.map(f),
+            lod_predicted: self.lods.predicted.map(|p| p.map(F32::new)),
         };
         let end = FRAME_LEN + size_of::<MetaRecord>();
         block[FRAME_LEN..end].copy_from_slice(r.as_bytes());
@@ -206,6 +211,9 @@ impl Meta {
         if r.lod_flags.get() != 0 {
             return bad("lod_flags", format!("unknown bits {:#x}", r.lod_flags.get()));
         }
+        if r.lod_predicted.iter().flatten().any(|x| !(x.get().is_finite() && x.get() >= 0.0)) {
+            return bad("lod_predicted", "a prediction is negative or not finite".into());
+        }
         if r.lod_table.iter().flatten().any(|x| !(x.get().is_finite() && x.get() >= 0.0)) {
             return bad("lod_table", "an error is negative or not finite".into());
         }
@@ -245,6 +253,7 @@ impl Meta {
                 grid_level: r.lod_grid_level,
                 usage: r.lod_usage.map(|p| p.map(|x| x.get())),
                 query_extent,
+                predicted: r.lod_predicted.map(|p| p.map(|x| x.get())),
             },
         })
     }

@@ -27,68 +27,68 @@ const KIND_LEAF: u8 = 2;
 
 #[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
-struct BlockHead {
-    used_bytes: U32,
-    record_count: U16,
-    reserved: [u8; 2],
+pub(crate) struct BlockHead {
+    pub(crate) used_bytes: U32,
+    pub(crate) record_count: U16,
+    pub(crate) reserved: [u8; 2],
 }
 
 /// A child entry of an internal record.
 #[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
-struct ChildRaw {
-    qbox: [U16; 6],
-    block: U32,
-    checksum: U32,
-    offset: U32,
-    node_blocks: U32,
-    geometry_blocks: U32,
+pub(crate) struct ChildRaw {
+    pub(crate) qbox: [U16; 6],
+    pub(crate) block: U32,
+    pub(crate) checksum: U32,
+    pub(crate) offset: U32,
+    pub(crate) node_blocks: U32,
+    pub(crate) geometry_blocks: U32,
 }
 
 #[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
-struct InternalRaw {
-    kind: u8,
-    split: u8,
-    bounds_bytes: U16,
-    node_id: U32,
-    object_count: U32,
-    split_overlap: F32,
-    split_gap: F32,
-    children: [ChildRaw; 2],
+pub(crate) struct InternalRaw {
+    pub(crate) kind: u8,
+    pub(crate) split: u8,
+    pub(crate) bounds_bytes: U16,
+    pub(crate) node_id: U32,
+    pub(crate) object_count: U32,
+    pub(crate) split_overlap: F32,
+    pub(crate) split_gap: F32,
+    pub(crate) children: [ChildRaw; 2],
 }
 const _: () = assert!(size_of::<InternalRaw>() == INTERNAL_LEN);
 
 #[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
-struct LeafRaw {
-    kind: u8,
-    reserved0: u8,
-    object_count: U16,
-    node_id: U32,
-    first_block: U32,
-    span: U16,
-    reserved1: [u8; 2],
-    bounds_bytes: U32,
+pub(crate) struct LeafRaw {
+    pub(crate) kind: u8,
+    pub(crate) reserved0: u8,
+    pub(crate) object_count: U16,
+    pub(crate) node_id: U32,
+    pub(crate) first_block: U32,
+    pub(crate) span: U16,
+    pub(crate) reserved1: [u8; 2],
+    pub(crate) bounds_bytes: U32,
 }
 const _: () = assert!(size_of::<LeafRaw>() == LEAF_HEAD_LEN);
 
 #[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
-struct ObjectRaw {
-    object_id: U32,
-    qbox: [U16; 6],
-    position: U32,
+pub(crate) struct ObjectRaw {
+    pub(crate) object_id: U32,
+    pub(crate) qbox: [U16; 6],
+    pub(crate) position: U32,
 }
 const _: () = assert!(size_of::<ObjectRaw>() == OBJECT_LEN);
 
 #[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
-struct BoundRaw {
-    target: U16,
-    level: u8,
-    reserved: u8,
-    blob_bytes: U32,
+pub(crate) struct BoundRaw {
+    pub(crate) target: U16,
+    pub(crate) level: u8,
+    pub(crate) reserved: u8,
+    pub(crate) blob_bytes: U32,
 }
 const _: () = assert!(size_of::<BoundRaw>() == BOUND_HEAD_LEN);
 

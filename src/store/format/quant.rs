@@ -45,8 +45,10 @@ pub fn quantize(frame: &Aabb, b: &Aabb) -> [u16; 6] {
     let mut q = [0u16; 6];
     for a in 0..3 {
         let (lo, hi) = (frame.min[a], frame.max[a]);
-        q[a] = floor_q(lo, hi, b.min[a]);
         q[a + 3] = ceil_q(lo, hi, b.max[a]);
+        // Where steps tie (a flat frame), the largest step at or below the
+        // lower face may pass the upper one: the upper one holds the face too.
+        q[a] = floor_q(lo, hi, b.min[a]).min(q[a + 3]);
     }
     q
 }
@@ -133,7 +135,7 @@ mod tests {
     #[test]
     fn a_flat_frame_and_the_frame_itself_quantize_exactly() {
         let frame = Aabb::from_array([1.0, 2.0, 3.0, 1.0, 5.0, 9.0]);
-        assert_eq!(quantize(&frame, &frame), [0, 0, 0, 0, STEPS, STEPS]);
+        assert_eq!(quantize(&frame, &frame), [STEPS, 0, 0, STEPS, STEPS, STEPS]);
         let q = QuantBox::decode(&frame, quantize(&frame, &frame)).unwrap();
         assert_eq!(q.outer, frame);
         assert!(QuantBox::decode(&frame, [5, 0, 0, 4, 0, 0]).is_none());

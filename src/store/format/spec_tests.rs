@@ -8,7 +8,7 @@ use super::freelist::FreeListHeader;
 use super::geometry::ObjectHeader;
 use super::header::{FixedHeader, Slot};
 use super::meta::MetaRecord;
-use super::node::{LodEntryRaw, NodeBlockHeader, NodeFixed};
+use super::node::{BlockHead, BoundRaw, ChildRaw, InternalRaw, LeafRaw, ObjectRaw};
 use super::run::RunHeader;
 
 /// (offset, size) of the row whose name column is `` `name` `` in the
@@ -71,7 +71,7 @@ fn spec_tables_match_the_records() {
     meta!(
         root_block,
         root_checksum,
-        root_slot,
+        root_offset,
         object_count,
         node_count,
         leaf_count,
@@ -90,42 +90,45 @@ fn spec_tables_match_the_records() {
         names_block,
         names_checksum,
         build_seconds,
-        lod_table
+        lod_table,
+        lattice_origin,
+        lattice_cell,
+        lod_flags,
+        cuberille_bits,
+        cuberille_object_bits,
+        lod_grid_level,
+        lod_usage,
+        node_bytes,
+        geometry_bytes,
+        query_extent,
+        lod_predicted
     );
 
     let node = include_str!("../../../format-spec/node.md");
-    field!(node, Some("## Block payload"), FRAME_LEN, NodeBlockHeader, record_count);
-    field!(node, Some("## Block payload"), FRAME_LEN, NodeBlockHeader, record_size);
-    macro_rules! rec { ($($f:ident),*) => { $( field!(node, Some("## Node record"), 0, NodeFixed, $f); )* } }
-    rec!(
-        node_id,
-        kind,
-        split_axis,
-        split_order,
-        split_overlap,
-        split_gap,
-        level,
-        object_count,
-        child0_block,
-        child0_checksum,
-        child1_block,
-        child1_checksum,
-        child0_slot,
-        child1_slot,
-        child0_box,
-        child1_box
-    );
-    assert_eq!(row(node, Some("## Node record"), "box"), (offset_of!(NodeFixed, aabb), 24));
-    let lod = Some("## LOD entry");
-    field!(node, lod, 0, LodEntryRaw, tag);
-    field!(node, lod, 0, LodEntryRaw, value);
-    field!(node, lod, 0, LodEntryRaw, aux);
-    field!(node, lod, 0, LodEntryRaw, checksum);
+    let payload = Some("## Block payload");
+    field!(node, payload, FRAME_LEN, BlockHead, used_bytes);
+    field!(node, payload, FRAME_LEN, BlockHead, record_count);
+    field!(node, payload, FRAME_LEN, BlockHead, reserved);
+    macro_rules! internal { ($($f:ident),*) => { $( field!(node, Some("## Internal record"), 0, InternalRaw, $f); )* } }
+    internal!(kind, split, bounds_bytes, node_id, object_count, split_overlap, split_gap, children);
+    macro_rules! child { ($($f:ident),*) => { $( field!(node, Some("### Child entry"), 0, ChildRaw, $f); )* } }
+    child!(qbox, block, checksum, offset, node_blocks, geometry_blocks);
+    macro_rules! leaf { ($($f:ident),*) => { $( field!(node, Some("## Leaf record"), 0, LeafRaw, $f); )* } }
+    leaf!(kind, reserved0, object_count, node_id, first_block, span, reserved1, bounds_bytes);
+    macro_rules! object { ($($f:ident),*) => { $( field!(node, Some("### Object entry"), 0, ObjectRaw, $f); )* } }
+    object!(object_id, qbox, position);
+    macro_rules! bound { ($($f:ident),*) => { $( field!(node, Some("## Bounds"), 0, BoundRaw, $f); )* } }
+    bound!(target, level, reserved, blob_bytes);
 
+    let lod = include_str!("../../../format-spec/lod.md");
+    macro_rules! blob { ($($f:ident),*) => { $( field!(lod, Some("## Inline voxel blob"), 0, crate::lod::BlobHead, $f); )* } }
+    blob!(level, form, reserved0, first, dims, reserved1);
+
+    let runs = include_str!("../../../format-spec/runs.md");
+    field!(runs, Some("## First block"), FRAME_LEN, RunHeader, run_blocks);
+    field!(runs, Some("## First block"), FRAME_LEN, RunHeader, record_count);
+    field!(runs, Some("## First block"), FRAME_LEN, RunHeader, data_bytes);
     let geometry = include_str!("../../../format-spec/geometry.md");
-    field!(geometry, Some("## First block"), FRAME_LEN, RunHeader, run_blocks);
-    field!(geometry, Some("## First block"), FRAME_LEN, RunHeader, record_count);
-    field!(geometry, Some("## First block"), FRAME_LEN, RunHeader, data_bytes);
     macro_rules! obj { ($($f:ident),*) => { $( field!(geometry, Some("## Object record"), 0, ObjectHeader, $f); )* } }
     obj!(object_id, vertex_count, triangle_count, anchor);
 
