@@ -35,9 +35,9 @@ proptest! {
         region in arb_region(),
         m in 2u8..=5,
         cap in 1u32..6,
-        keep_identity in any::<bool>(),
+        store_all in any::<bool>(),
     ) {
-        let db = lod_db(&scene, m, 2048, cap, LodParams { keep_identity, ..LodParams::default() });
+        let db = lod_db(&scene, m, 2048, cap, LodParams { store_all, ..LodParams::default() });
         let r = db.begin_read().unwrap();
         let exact = brute_force_region(&scene, &region);
         for k in 1..=m {
@@ -50,7 +50,7 @@ proptest! {
                     prop_assert!(got.objects.contains(o), "level {} missed object {}", k, o);
                 }
             }
-            prop_assert_eq!(got.stats.tests_per_level.len(), usize::from(m));
+            prop_assert_eq!(got.stats.confirmed.len(), usize::from(m));
         }
     }
 
@@ -60,7 +60,7 @@ proptest! {
         region in arb_region(),
         budget in 0u64..12,
     ) {
-        let db = lod_db(&scene, 4, 1024, 3, LodParams::default());
+        let db = lod_db(&scene, 4, 1024, 3, LodParams { store_all: true, ..LodParams::default() });
         let r = db.begin_read().unwrap();
         let exact = brute_force_region(&scene, &region);
         let got = query_region(&r, &region, &QueryOptions { lod: None, budget: Some(budget) }, None).unwrap();

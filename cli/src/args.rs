@@ -260,16 +260,16 @@ pub struct LodArgs {
     /// eps of the polyhedral levels 3 .. M-1 in mm, coarse to fine (default: from the scene).
     #[arg(long, value_delimiter = ',')]
     pub lod_eps: Option<Vec<f64>>,
-    /// Keep per-object bounds B(S_n,k) at every node instead of pointing to b(S_n,k).
+    /// Store every object's bound at every level below M, whether it pays or not.
     #[arg(long)]
-    pub lod_keep_identity: bool,
+    pub lod_store_all: bool,
 }
 
 impl LodArgs {
     pub fn params(&self) -> mktree::lod::LodParams {
         mktree::lod::LodParams {
             eps: self.lod_eps.clone(),
-            keep_identity: self.lod_keep_identity,
+            store_all: self.lod_store_all,
             ..mktree::lod::LodParams::default()
         }
     }

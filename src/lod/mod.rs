@@ -24,6 +24,7 @@ mod voxelize;
 mod voxels;
 
 pub use closed::is_closed;
+#[cfg(test)]
 pub(crate) use compact::BlobHead;
 pub use compact::{aligned_grid, decode, encode, encoded_len};
 pub use error::LodError;

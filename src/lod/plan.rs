@@ -20,6 +20,9 @@ pub struct LodParams {
     pub error_samples: usize,
     /// Query positions sampled per candidate bound to judge whether it pays.
     pub model_samples: usize,
+    /// Store every object's bound at every level 2 .. M-1, paying or not
+    /// (to measure what each level could give, and in tests).
+    pub store_all: bool,
 }
 
 impl Default for LodParams {
@@ -30,6 +33,7 @@ impl Default for LodParams {
             cuberille_object_bits: 512,
             error_samples: 64,
             model_samples: 64,
+            store_all: false,
         }
     }
 }

@@ -18,7 +18,8 @@
 //! - cost = P(meets the leaf's box) x bytes(V) / (bytes a node block holds):
 //!   every query that reads the leaf's block reads that share of a block more.
 //!
-//! The level with the largest saving - cost > 0 is stored; none otherwise.
+//! The level with the largest saving - cost > 0 is stored; none otherwise
+//! (`LodParams::store_all` stores every level, to measure them).
 
 use rayon::prelude::*;
 
@@ -101,16 +102,19 @@ pub fn plan_bounds(
                 let Some(o) = scene.object(*id) else { continue };
                 let g = (record_len(&o.mesh) as f64 / geometry_payload).ceil().max(1.0);
                 let qb = QuantBox::decode(&frames[i], quantize(&frames[i], &o.mesh.aabb()));
-                let best = (2..m)
+                let all = (2..m)
                     .filter_map(|k| {
                         candidate(&plan, params, k, &o.mesh, qb.as_ref(), model, g, leaf_p, node_capacity)
                             .transpose()
                     })
-                    .collect::<Result<Vec<_>, LodError>>()?
+                    .collect::<Result<Vec<_>, LodError>>()?;
+                if params.store_all {
+                    picked.extend(all.into_iter().map(|c| (j as u16, c)));
+                } else if let Some(c) = all
                     .into_iter()
                     .filter(|c| c.saving > c.cost)
-                    .max_by(|a, b| (a.saving - a.cost).total_cmp(&(b.saving - b.cost)));
-                if let Some(c) = best {
+                    .max_by(|a, b| (a.saving - a.cost).total_cmp(&(b.saving - b.cost)))
+                {
                     picked.push((j as u16, c));
                 }
             }

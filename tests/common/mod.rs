@@ -5,12 +5,11 @@
 use std::sync::Arc;
 
 use mktree::build::BuildParams;
-use mktree::db::{CreateOptions, Database, NodeLocation, ReadTransaction};
+use mktree::db::{CreateOptions, Database};
 use mktree::geom::Aabb;
 use mktree::scene::{Mesh, Object, Scene};
 use mktree::store::BlockDevice;
 use mktree::store::device::MemDevice;
-use mktree::store::format::node::NodeRecord;
 use proptest::prelude::*;
 
 /// A closed box mesh (12 triangles) from `lo` to `hi`.
@@ -116,15 +115,4 @@ pub fn lod_db(scene: &Scene, m: u8, block_size: u32, cap: u32, lod: mktree::lod:
     w.bulk_load(scene, &params, &|_| {}).expect("bulk_load");
     w.commit().expect("commit");
     db
-}
-
-/// Every node of the snapshot's tree, in preorder, with its location.
-pub fn all_nodes(r: &ReadTransaction) -> Vec<(NodeLocation, NodeRecord)> {
-    let mut nodes = Vec::new();
-    r.walk_nodes(&mut mktree::store::ReadStats::default(), |at, rec| {
-        nodes.push((at, rec.clone()));
-        Ok(())
-    })
-    .expect("walk the tree");
-    nodes
 }

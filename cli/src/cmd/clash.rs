@@ -21,13 +21,15 @@ pub fn run(file: &Path, clearance: f64, lod: Option<u8>, as_json: bool) -> Resul
             "level": a.level,
             "clearance": clearance,
             "block_reads": {
-                "node": s.reads.node, "geometry": s.reads.geometry, "lod": s.reads.lod, "total": s.reads.total()
+                "node": s.reads.node, "geometry": s.reads.geometry, "total": s.reads.total()
             },
             "cache_hits": s.reads.cache_hits,
             "file_blocks": a.file_blocks,
             "nodes_visited": s.nodes_visited,
             "leaves_visited": s.leaves_visited,
-            "tests_per_level": s.tests_per_level,
+            "confirmed_per_level": s.confirmed,
+            "rejected_per_level": s.rejected,
+            "geometry_tests": s.geometry_tests,
             "triangles_tested": s.triangles_tested,
             "seconds": s.seconds,
         }));
@@ -37,13 +39,12 @@ pub fn run(file: &Path, clearance: f64, lod: Option<u8>, as_json: bool) -> Resul
         println!("{x} {y}");
     }
     println!(
-        "block reads: {} node + {} lod + {} geometry = {} of the file's {} blocks; tests per level {:?}; {:.1} ms",
+        "block reads: {} node + {} geometry = {} of the file's {} blocks; geometry tests {}; {:.1} ms",
         s.reads.node,
-        s.reads.lod,
         s.reads.geometry,
         s.reads.total(),
         a.file_blocks,
-        s.tests_per_level,
+        s.geometry_tests,
         s.seconds * 1e3
     );
     Ok(())

@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use mktree::build::{BuildParams, LeafRule, LookAhead, Method, Report};
+use mktree::query::{QueryOptions, Region, query_region};
 use mktree::db::{CreateOptions, Database, check};
 use mktree::geom::Aabb;
 use mktree::scene::generate::{GenOptions, Preset, generate_scene};
@@ -111,7 +112,7 @@ fn demo(dir: &Path) -> Result<()> {
             let mut row = vec![format!("{:.0}% at ({:.0}, {:.0}, {:.0})", frac * 100.0, p.x, p.y, p.z)];
             let mut answers = Vec::new();
             for db in &dbs {
-                let res = db.begin_read()?.query_box(&q)?;
+                let res = query_region(&db.begin_read()?, &Region::Box(q), &QueryOptions::default(), None)?;
                 row.push(format!(
                     "{} ({}+{})",
                     res.stats.reads.total(),

@@ -5,10 +5,9 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use anyhow::{Context, Result, bail};
-use mktree::db::{Database, NodeLocation, Piece, ReadTransaction};
+use mktree::db::{Database, Piece, ReadTransaction};
 use mktree::scene::{Mesh, ObjWriter, Object};
 use mktree::store::ReadStats;
-use mktree::store::format::node::NodeRecord;
 use serde_json::json;
 
 use crate::output;
@@ -21,7 +20,7 @@ fn open(file: &Path) -> Result<(Database, ReadTransaction)> {
 
 pub fn table(file: &Path, as_json: bool) -> Result<()> {
     let (_db, r) = open(file)?;
-    let (Some(root), Some(info), Some(tree)) = (r.root(), r.lod_info(), r.info()) else {
+    let (Some(info), Some(tree)) = (r.lod_info(), r.info()) else {
         bail!("{} holds no tree", file.display())
     };
     let mut levels = Vec::new();
@@ -29,10 +28,10 @@ pub fn table(file: &Path, as_json: bool) -> Result<()> {
         let i = usize::from(k) - 1;
         // Faces at the root; level M is the objects themselves (no need to read them all).
         let (faces_b, faces_obj, bytes) = if k == info.levels {
-            (tree.triangles, tree.triangles, tree.geometry_blocks * u64::from(tree.block_size))
+            (tree.triangles, tree.triangles, info.bytes[i])
         } else {
-            let b = r.fetch_level(root, k, false, &mut ReadStats::default())?;
-            let o = r.fetch_level(root, k, true, &mut ReadStats::default())?;
+            let b = r.fetch_level(0, k, false, &mut ReadStats::default())?;
+            let o = r.fetch_level(0, k, true, &mut ReadStats::default())?;
             (b.faces(), o.faces(), info.bytes[i])
         };
         levels.push(json!({
@@ -43,23 +42,28 @@ pub fn table(file: &Path, as_json: bool) -> Result<()> {
             "measured_error": info.measured_error[i],
             "bytes": bytes,
             "blocks": info.blocks[i],
+            "stored": info.stored[i],
+            "predicted_saving": info.predicted_saving[i],
+            "predicted_cost": info.predicted_cost[i],
         }));
     }
     if as_json {
-        return output::json(&json!({ "levels": levels }));
+        return output::json(&json!({ "levels": levels, "query_extent": info.query_extent }));
     }
     println!(
-        "{}: {} objects, {} triangles, M = {}{}",
+        "{}: {} objects, {} triangles, M = {}; bounds judged on box queries of {:.0} x {:.0} x {:.0} mm",
         file.display(),
         tree.objects,
         tree.triangles,
         info.levels,
-        if info.keep_identity { ", B keeps object identity" } else { "" }
+        info.query_extent[0],
+        info.query_extent[1],
+        info.query_extent[2]
     );
     let rows: Vec<Vec<String>> = levels
         .iter()
         .map(|l| {
-            ["k", "faces_b", "faces_B", "eps", "measured_error", "bytes", "blocks"]
+            ["k", "faces_b", "faces_B", "eps", "measured_error", "bytes", "blocks", "stored", "predicted_saving", "predicted_cost"]
                 .iter()
                 .map(|key| match &l[*key] {
                     serde_json::Value::Number(n) if n.is_f64() => format!("{:.1}", n.as_f64().unwrap_or(0.0)),
@@ -69,22 +73,21 @@ pub fn table(file: &Path, as_json: bool) -> Result<()> {
         })
         .collect();
     output::table(
-        &["k", "Faces(b(S,k))", "Faces(B(S,k))", "eps mm", "measured mm", "bytes", "blocks"],
+        &[
+            "k",
+            "Faces(b(S,k))",
+            "Faces(B(S,k))",
+            "eps mm",
+            "measured mm",
+            "bytes",
+            "blocks",
+            "bounds stored",
+            "saves reads/query",
+            "costs reads/query",
+        ],
         &rows,
     );
     Ok(())
-}
-
-/// Node `id`'s location and record (walks the node blocks).
-fn find(r: &ReadTransaction, id: u32) -> Result<(NodeLocation, NodeRecord)> {
-    let mut found = None;
-    r.walk_nodes(&mut ReadStats::default(), |at, rec| {
-        if rec.node_id == id {
-            found = Some((at, rec.clone()));
-        }
-        Ok(())
-    })?;
-    found.with_context(|| format!("no node {id}"))
 }
 
 pub fn node(file: &Path, id: u32, k: u8, objects: bool, export: Option<&Path>, as_json: bool) -> Result<()> {
@@ -93,10 +96,9 @@ pub fn node(file: &Path, id: u32, k: u8, objects: bool, export: Option<&Path>, a
     if k == 0 || k > info.levels {
         bail!("--lod {k} is not a level of this file (1 ..= {})", info.levels);
     }
-    let (at, rec) = find(&r, id)?;
-    let predicted = rec.predicted_reads(k, objects).context("the record has no such level")?;
     let mut stats = ReadStats::default();
-    let level = r.fetch_level(at, k, objects, &mut stats)?;
+    let level = r.fetch_level(id, k, objects, &mut stats)?;
+    let predicted = level.predicted_reads;
     if let Some(path) = export {
         write_obj(path, id, k, &level.pieces).with_context(|| format!("writing {}", path.display()))?;
     }
@@ -116,7 +118,7 @@ pub fn node(file: &Path, id: u32, k: u8, objects: bool, export: Option<&Path>, a
         return output::json(&value);
     }
     println!(
-        "node {id}, {} at level {k}: {} pieces, {} faces, {} bytes, eps {:.1} mm; reads predicted {predicted}, actual {} ({} node, {} lod, {} geometry)",
+        "node {id}, {} at level {k}: {} pieces, {} faces, {} bytes, eps {:.1} mm; reads predicted {predicted}, actual {} ({} node, {} geometry)",
         if objects { "B(S_n,k)" } else { "b(S_n,k)" },
         level.pieces.len(),
         level.faces(),
@@ -124,7 +126,6 @@ pub fn node(file: &Path, id: u32, k: u8, objects: bool, export: Option<&Path>, a
         info.eps[usize::from(k) - 1],
         stats.total(),
         stats.node,
-        stats.lod,
         stats.geometry
     );
     Ok(())
@@ -148,7 +149,6 @@ fn write_obj(path: &Path, node: u32, k: u8, pieces: &[Piece]) -> Result<()> {
                     put(format!("object{id}_k{k}"), Mesh::of_box(aabb))?;
                 }
             }
-            Piece::Voxels { node, voxels } => put(format!("node{node}_k{k}"), Some(voxels.boundary_mesh()))?,
             Piece::ObjectVoxels(v) => {
                 for (id, voxels) in v {
                     put(format!("object{id}_k{k}"), Some(voxels.boundary_mesh()))?;

@@ -46,7 +46,7 @@ pub fn run(
                     "step": s.step,
                     "objects": s.objects,
                     "block_reads": {
-                        "node": s.reads.node, "geometry": s.reads.geometry, "lod": s.reads.lod, "total": s.reads.total()
+                        "node": s.reads.node, "geometry": s.reads.geometry, "total": s.reads.total()
                     },
                     "cache_hits": s.reads.cache_hits,
                     "seconds": s.seconds,
@@ -64,7 +64,6 @@ pub fn run(
                 s.step.to_string(),
                 s.objects.len().to_string(),
                 s.reads.node.to_string(),
-                s.reads.lod.to_string(),
                 s.reads.geometry.to_string(),
                 s.reads.total().to_string(),
                 s.reads.cache_hits.to_string(),
@@ -72,7 +71,7 @@ pub fn run(
             ]
         })
         .collect();
-    output::table(&["step", "objects", "node", "lod", "geometry", "reads", "hits", "ms"], &rows);
+    output::table(&["step", "objects", "node", "geometry", "reads", "hits", "ms"], &rows);
     println!("{} steps: {total} reads, {hits} hits, pool of {cache_blocks} blocks", steps.len());
     Ok(())
 }

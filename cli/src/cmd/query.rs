@@ -38,7 +38,6 @@ pub fn run(file: &Path, region: &Region, opts: &QueryOptions, as_json: bool) -> 
 /// An answer's JSON: the keys, then the traversal's statistics.
 pub fn answer_json(a: &QueryAnswer) -> Value {
     let s = &a.stats;
-    let m = s.tests_per_level.len();
     json!({
         "objects": a.objects,
         "maybe": a.maybe,
@@ -46,13 +45,15 @@ pub fn answer_json(a: &QueryAnswer) -> Value {
         "level": a.level,
         "level_reached": a.level_reached,
         "block_reads": {
-            "node": s.reads.node, "geometry": s.reads.geometry, "lod": s.reads.lod, "total": s.reads.total()
+            "node": s.reads.node, "geometry": s.reads.geometry, "total": s.reads.total()
         },
         "cache_hits": s.reads.cache_hits,
         "nodes_visited": s.nodes_visited,
         "leaves_visited": s.leaves_visited,
-        "objects_tested": if usize::from(a.level) == m { s.tests_per_level.last().copied().unwrap_or(0) } else { 0 },
-        "tests_per_level": s.tests_per_level,
+        "confirmed_per_level": s.confirmed,
+        "rejected_per_level": s.rejected,
+        "pruned_per_level": s.pruned,
+        "geometry_tests": s.geometry_tests,
         "triangles_tested": s.triangles_tested,
         "decided": a.decided,
         "seconds": s.seconds,
@@ -81,15 +82,17 @@ pub fn print(a: &QueryAnswer, as_json: bool) -> Result<()> {
         );
     }
     println!(
-        "block reads: {} node + {} lod + {} geometry = {}; {} nodes, {} leaves; tests per level {:?}; {:.3} ms",
+        "block reads: {} node + {} geometry = {}; {} nodes, {} leaves; {:.3} ms",
         s.reads.node,
-        s.reads.lod,
         s.reads.geometry,
         s.reads.total(),
         s.nodes_visited,
         s.leaves_visited,
-        s.tests_per_level,
         s.seconds * 1e3
+    );
+    println!(
+        "decided per level k = 1 ..: confirmed {:?}, rejected {:?}, subtrees pruned {:?}; geometry read for {}",
+        s.confirmed, s.rejected, s.pruned, s.geometry_tests
     );
     Ok(())
 }

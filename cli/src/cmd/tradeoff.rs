@@ -50,7 +50,7 @@ pub fn run(files: &[PathBuf], queries: usize, seed: u64, out: &Path, as_json: bo
                     r.level.to_string(),
                     format!("{:.2}", r.mean_reads),
                     format!("{:.2}", r.mean_node_reads),
-                    format!("{:.2}", r.mean_lod_reads),
+                    r.stored_bounds.to_string(),
                     format!("{:.2}", r.mean_geometry_reads),
                     format!("{:.3}", r.mean_milliseconds),
                     format!("{:.2}", r.mean_reported),
@@ -60,7 +60,7 @@ pub fn run(files: &[PathBuf], queries: usize, seed: u64, out: &Path, as_json: bo
             })
             .collect();
         output::table(
-            &["k", "reads", "node", "lod", "geometry", "ms", "reported", "exact", "precision"],
+            &["k", "reads", "node", "bounds stored", "geometry", "ms", "reported", "exact", "precision"],
             &table,
         );
     }
