@@ -10,7 +10,7 @@ use common::mem_db;
 use mktree::build::{BuildParams, Hierarchy, LeafRule, Method};
 use mktree::db::CreateOptions;
 use mktree::geom::Aabb;
-use mktree::query::{QueryKind, TreeQueryCount, brute_force_box, count_in_tree};
+use mktree::query::{QueryKind, Region, TreeQueryCount, brute_force_region, count_in_tree};
 use mktree::scene::generate::{GenOptions, Preset, generate_scene};
 
 /// Every leaf and object tested, no pruning: a leaf whose box meets the
@@ -47,7 +47,7 @@ fn bench_queries_equal_brute_force_in_memory_and_through_the_file() {
                     "{method} {kind:?} {q:?}"
                 );
                 let got = txn.query_box(&q).unwrap();
-                assert_eq!(got.objects, brute_force_box(&scene, &q), "{method} {kind:?} {q:?}");
+                assert_eq!(got.objects, brute_force_region(&scene, &Region::Box(q)), "{method} {kind:?} {q:?}");
             }
         }
     }

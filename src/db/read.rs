@@ -242,6 +242,12 @@ impl ReadTransaction {
         Ok((id, mesh))
     }
 
+    /// The objects whose exact geometry (their triangles) meets `query`,
+    /// with the reads it took: the one traversal from a cold start.
+    pub fn query_box(&self, query: &Aabb) -> Result<crate::query::QueryAnswer, crate::query::QueryError> {
+        crate::query::query_region(self, &crate::query::Region::Box(*query), &Default::default(), None)
+    }
+
     /// Every object's name, by id (reads the names run).
     pub fn names(&self) -> Result<Vec<String>, StorageError> {
         let Some(m) = self.snapshot.meta.as_ref() else { return Ok(Vec::new()) };

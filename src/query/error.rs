@@ -24,3 +24,10 @@ pub enum QueryError {
     #[error("level {k} missed object {object} of query {query}: a bound lost containment")]
     Missed { k: u8, query: usize, object: u32 },
 }
+
+impl QueryError {
+    /// True for errors that mean the file's bytes are damaged.
+    pub fn is_corruption(&self) -> bool {
+        matches!(self, QueryError::Storage(e) if e.is_corruption())
+    }
+}

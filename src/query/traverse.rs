@@ -122,7 +122,7 @@ impl QueryAnswer {
 
 /// The level k of a query on `txn`, checked, with M.
 pub(crate) fn levels(txn: &ReadTransaction, lod: Option<u8>) -> Result<(u8, u8), QueryError> {
-    let m = txn.info().ok_or(QueryError::NoTree)?.lod_levels;
+    let m = txn.pager().lod_levels();
     let k = lod.unwrap_or(m);
     if k == 0 || k > m {
         return Err(QueryError::Level { k, m });
@@ -385,8 +385,29 @@ pub fn traverse<S: Selection + ?Sized>(
     opts: &QueryOptions,
     cache: Option<&BlockCache>,
 ) -> Result<QueryAnswer, QueryError> {
-    let root = txn.root().ok_or(QueryError::NoTree)?;
-    walk(txn, root, sel, opts, &mut Reads::new(cache), &mut ())
+    match txn.root() {
+        Some(root) => walk(txn, root, sel, opts, &mut Reads::new(cache), &mut ()),
+        // An empty database answers every query with nothing.
+        None => {
+            let (k, m) = levels(txn, opts.lod)?;
+            let per_level = vec![0; usize::from(m)];
+            let stats = TraverseStats {
+                confirmed: per_level.clone(),
+                rejected: per_level.clone(),
+                pruned: per_level,
+                ..TraverseStats::default()
+            };
+            Ok(QueryAnswer {
+                objects: Vec::new(),
+                maybe: Vec::new(),
+                unexplored_nodes: 0,
+                level: k,
+                level_reached: k,
+                decided: Vec::new(),
+                stats,
+            })
+        }
+    }
 }
 
 /// The traversal from record `start` (its block read through `reads`
