@@ -37,7 +37,7 @@ pub fn decode_block(data: &[u8]) {
     let _ = Meta::decode(7, &block);
     let _ = FreeListBlock::decode(7, &block);
     let lattice = crate::lod::Lattice { origin: crate::geom::Point::origin(), cell: 1.0 };
-    let _ = crate::lod::decode(rest, &lattice);
+    let _ = crate::lod::decode(rest, &lattice, &Aabb::from_array([0.0, 0.0, 0.0, 40.0, 30.0, 20.0]));
     let _ = geometry::decode_object(7, rest);
     if let Ok((_, words, len)) = run::assemble(7, &[&block]) {
         let (records, _, _) = run::header(7, &block).unwrap_or_default();

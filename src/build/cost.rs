@@ -19,7 +19,7 @@
 //! reading 13% more node blocks; with it, 17% fewer blocks.
 
 use super::{Hierarchy, QueryExtent};
-use crate::geom::Aabb;
+use crate::geom::{Aabb, Vector};
 
 /// Added to the mean object extent by [`QueryExtent::Auto`], in mm.
 const AUTO_MARGIN_MM: f64 = 100.0;
@@ -107,6 +107,76 @@ impl CostModel {
     pub fn expected_cost(&self, tree: &Hierarchy) -> f64 {
         tree.nodes.iter().map(|n| self.node_cost(&n.aabb, n.objects().is_some())).sum()
     }
+}
+
+/// Scene-relative query sides of [`QueryMix`]: 1%, 5% and 20% of the
+/// scene's extent on each axis.
+pub const MIX_SHARES: [f64; 3] = [0.01, 0.05, 0.2];
+
+/// The read model a file's layout and levels of detail are judged on: box
+/// queries at four scales, equally likely, each placed uniformly so that it
+/// meets the scene: the collision-sized query of extent q (refine's
+/// [`QueryExtent`]), and boxes of [`MIX_SHARES`] of the scene's extent. A
+/// layout tuned to one scale can lose at another; the mix keeps all four in
+/// view (format-spec/lod.md, "What pays").
+#[derive(Debug, Clone, PartialEq)]
+pub struct QueryMix {
+    scene: Aabb,
+    extents: Vec<[f64; 3]>,
+}
+
+impl QueryMix {
+    /// The mix over `scene` with collision-sized queries of extent `q`.
+    pub fn new(scene: &Aabb, q: [f64; 3]) -> QueryMix {
+        let e = scene.extent();
+        let mut extents = vec![q];
+        extents.extend(MIX_SHARES.iter().map(|s| [e.x * s, e.y * s, e.z * s]));
+        QueryMix { scene: *scene, extents }
+    }
+
+    /// The query extents, one per scale.
+    pub fn extents(&self) -> &[[f64; 3]] {
+        &self.extents
+    }
+
+    /// The probability that a query of the mix meets box `b`.
+    pub fn probability(&self, b: &Aabb) -> f64 {
+        let n = self.extents.len() as f64;
+        self.extents.iter().map(|q| CostModel::new(&self.scene, *q).access_probability(b)).sum::<f64>() / n
+    }
+
+    /// `per_scale` queries of each scale, evenly spread (a Halton sequence)
+    /// over the positions where they meet `zone` (the scene, or a box in it).
+    pub fn sample(&self, zone: &Aabb, per_scale: usize) -> Vec<Aabb> {
+        let mut out = Vec::with_capacity(per_scale * self.extents.len());
+        for q in &self.extents {
+            let half = Vector::new(q[0], q[1], q[2]) / 2.0;
+            let lo = zone.min - half;
+            let e = zone.extent() + 2.0 * half;
+            for s in 1..=per_scale {
+                let u = [halton(s, 2), halton(s, 3), halton(s, 5)];
+                let c = lo + Vector::new(u[0] * e.x, u[1] * e.y, u[2] * e.z);
+                out.push(Aabb::new(c - half, c + half));
+            }
+        }
+        out
+    }
+
+    /// The probability that a query of scale `i` meets `b`.
+    pub fn scale_probability(&self, i: usize, b: &Aabb) -> f64 {
+        self.extents.get(i).map_or(0.0, |q| CostModel::new(&self.scene, *q).access_probability(b))
+    }
+}
+
+/// The i-th point (i >= 1) of the van der Corput sequence in `base`.
+fn halton(mut i: usize, base: usize) -> f64 {
+    let (mut f, mut r) = (1.0, 0.0);
+    while i > 0 {
+        f /= base as f64;
+        r += f * (i % base) as f64;
+        i /= base;
+    }
+    r
 }
 
 #[cfg(test)]

@@ -28,7 +28,7 @@ mod sah;
 mod validate;
 mod walk;
 
-pub use cost::CostModel;
+pub use cost::{CostModel, MIX_SHARES, QueryMix};
 pub use driver::build;
 pub use error::BuildError;
 pub use hierarchy::{Hierarchy, Node, NodeId, NodeKind, Order, Split};

@@ -1,9 +1,12 @@
 //! Lays a built tree out in blocks (format-spec/node.md, geometry.md):
 //! geometry records packed into geometry blocks in leaf order, node records
 //! with quantized boxes packed into node blocks as connected pieces, and
-//! each child entry's counts of the blocks below it.
+//! each child entry's counts of the blocks below it. The packing is chosen
+//! among a few piece sizes by the node reads it gives the read model's
+//! sample queries ([`QueryMix`]).
 
-use crate::build::{Hierarchy, Order};
+use crate::build::{Hierarchy, Order, QueryMix};
+use crate::lod::StoredBounds;
 use crate::geom::Aabb;
 use crate::scene::Scene;
 use crate::store::format::frame::{BlockType, FRAME_LEN};
@@ -12,7 +15,14 @@ use crate::store::format::node::{
     self, BoundEntry, ChildEntry, ObjectEntry, RecordDraft, RecordRef, SplitInfo, leaf_len,
 };
 use crate::store::format::quant::{QuantBox, quantize};
-use crate::store::{Pager, StorageError, layout};
+use crate::store::layout::{self, Packing};
+use crate::store::{Pager, StorageError};
+
+/// Sample queries per scale of the read model.
+const SAMPLES_PER_SCALE: usize = 64;
+
+/// Piece sizes tried, as shares of a block (`store/layout.rs`).
+const PIECE_SHARES: [f64; 5] = [0.25, 0.35, 0.5, 0.7, 1.0];
 
 /// What the layout wrote, for the meta block.
 #[derive(Debug, Clone, Default)]
@@ -24,44 +34,241 @@ pub(crate) struct Written {
     pub geometry_bytes: u64,
 }
 
-/// Writes `tree` over `scene` with the inline `bounds` of each node
-/// (internal: its children's group bounds; leaf: its objects'), allocating
-/// blocks through `allocate` (count -> first block of a run).
+/// Everything about a tree's layout that does not depend on its bounds:
+/// each node's box as stored, where each object's record goes, and what a
+/// layout without bounds costs the read model's queries (the levels of
+/// detail's cost is judged on it).
+#[derive(Debug, Clone)]
+pub(crate) struct Plan {
+    /// Per node: its box as its parent's entry stores it (the root's exact).
+    pub frames: Vec<Aabb>,
+    child_q: Vec<[u16; 6]>,
+    /// Per leaf: each object's stream position and record length.
+    positions: Vec<Vec<(u64, u64)>>,
+    payload: u64,
+    stream_end: u64,
+    samples: Vec<Aabb>,
+    /// Per node: the share of the model's queries that read the node block
+    /// holding it, when the tree is laid out without bounds.
+    pub read_share: Vec<f64>,
+}
+
+impl Plan {
+    /// The plan of `tree` over `scene` in blocks of `block_size` bytes.
+    pub fn new(scene: &Scene, tree: &Hierarchy, block_size: u32, mix: &QueryMix) -> Result<Plan, StorageError> {
+        let nodes = &tree.nodes;
+        let n = nodes.len();
+        let invalid = StorageError::Invalid;
+        let mut placement = Placement::new(block_size);
+        let mut positions: Vec<Vec<(u64, u64)>> = vec![Vec::new(); n];
+        for (i, node) in nodes.iter().enumerate() {
+            for id in node.objects().unwrap_or_default() {
+                let o = scene.object(*id).ok_or_else(|| invalid(format!("no object {id}")))?;
+                let len = geometry::record_len(&o.mesh);
+                positions[i].push((placement.place(len), len));
+            }
+        }
+        let mut frames = vec![Aabb::EMPTY; n];
+        frames[0] = nodes[0].aabb;
+        let mut child_q = vec![[0u16; 6]; n];
+        for i in 0..n {
+            for c in nodes[i].children().into_iter().flatten() {
+                let q = quantize(&frames[i], &nodes[c.index()].aabb);
+                let qb = QuantBox::decode(&frames[i], q).ok_or_else(|| invalid("a box quantized backwards".into()))?;
+                if !qb.outer.contains(&nodes[c.index()].aabb) {
+                    return Err(invalid(format!("node {} does not lie in its parent's box", c.0)));
+                }
+                child_q[c.index()] = q;
+                frames[c.index()] = qb.outer;
+            }
+        }
+        let mut plan = Plan {
+            frames,
+            child_q,
+            positions,
+            payload: geometry::payload(block_size),
+            stream_end: placement.end(),
+            samples: mix.sample(&nodes[0].aabb, SAMPLES_PER_SCALE),
+            read_share: Vec::new(),
+        };
+        let sizes = plan.sizes(tree, &vec![Vec::new(); n]);
+        let capacity = node::capacity(block_size);
+        if let Some(i) = (0..n).find(|&i| sizes[i] > capacity) {
+            return Err(invalid(format!(
+                "node {i}'s record takes {} bytes and a node block holds {capacity}: use smaller leaves or larger blocks",
+                sizes[i]
+            )));
+        }
+        let (packing, reads) = plan.choose(tree, &sizes, capacity);
+        let q = plan.samples.len().max(1) as f64;
+        plan.read_share = packing.place.iter().map(|p| f64::from(reads[p.0 as usize]) / q).collect();
+        Ok(plan)
+    }
+
+    /// The global geometry blocks (from the first of the stream) holding
+    /// object `j` of leaf `leaf`.
+    pub fn object_blocks(&self, leaf: usize, j: usize) -> std::ops::RangeInclusive<u64> {
+        let (pos, len) = self.positions[leaf].get(j).copied().unwrap_or((0, 1));
+        pos / self.payload..=(pos + len.max(1) - 1) / self.payload
+    }
+
+    /// First and last global geometry block of leaf `i`.
+    fn leaf_span(&self, i: usize) -> (u64, u64) {
+        let first = self.positions[i].first().map_or(0, |p| p.0) / self.payload;
+        let end = self.positions[i].last().map_or(1, |p| p.0 + p.1.max(1));
+        (first, (end - 1) / self.payload)
+    }
+
+    /// Record bytes of every node with `bounds`.
+    fn sizes(&self, tree: &Hierarchy, bounds: &[Vec<BoundEntry>]) -> Vec<usize> {
+        (0..tree.nodes.len())
+            .map(|i| {
+                let extra = node::bounds_len(&bounds[i]);
+                match tree.nodes[i].objects() {
+                    Some(objs) => {
+                        let (a, b) = self.leaf_span(i);
+                        leaf_len(objs.len(), (b - a + 1) as usize, extra)
+                    }
+                    None => node::INTERNAL_LEN + extra,
+                }
+            })
+            .collect()
+    }
+
+    /// The packing, among the piece sizes tried, whose blocks the model's
+    /// sample queries read least (then the fullest); with each block's reads.
+    fn choose(&self, tree: &Hierarchy, sizes: &[usize], capacity: usize) -> (Packing, Vec<u32>) {
+        let children = |i: usize| tree.nodes[i].children().map(|c| c.map(|x| x.index()));
+        PIECE_SHARES
+            .iter()
+            .map(|share| {
+                let p = layout::pack(sizes, children, capacity, (capacity as f64 * share) as usize);
+                let reads = block_reads(tree, &p, &self.samples);
+                (p, reads)
+            })
+            .min_by_key(|(p, reads)| (reads.iter().map(|&r| u64::from(r)).sum::<u64>(), p.blocks.len()))
+            .unwrap_or_else(|| (layout::pack(sizes, children, capacity, capacity), Vec::new()))
+    }
+}
+
+impl Plan {
+    /// The model's expected block reads per query for an exact answer, per
+    /// scale of the mix, when the tree is laid out with `stored`'s bounds:
+    /// the node blocks the chosen packing makes it read, and the geometry
+    /// blocks of the objects no box, face or bound decides (as the traversal
+    /// decides them).
+    pub fn expected_reads(&self, scene: &Scene, tree: &Hierarchy, stored: &StoredBounds, block_size: u32) -> Vec<f64> {
+        let sizes = self.sizes(tree, &stored.bounds);
+        let (packing, _) = self.choose(tree, &sizes, node::capacity(block_size));
+        // Every object's box as its leaf stores it.
+        let boxes: Vec<Vec<Option<QuantBox>>> = (0..tree.nodes.len())
+            .map(|i| {
+                tree.nodes[i]
+                    .objects()
+                    .unwrap_or_default()
+                    .iter()
+                    .map(|id| {
+                        let b = scene.object(*id)?.mesh.aabb();
+                        QuantBox::decode(&self.frames[i], quantize(&self.frames[i], &b))
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut reads = vec![0usize; self.samples.len().div_ceil(SAMPLES_PER_SCALE)];
+        let mut blocks = std::collections::HashSet::new();
+        let mut stack = Vec::new();
+        for (qi, q) in self.samples.iter().enumerate() {
+            let scale = &mut reads[qi / SAMPLES_PER_SCALE];
+            *scale += query_node_reads(tree, &packing, q);
+            blocks.clear();
+            stack.clear();
+            if self.frames[0].intersects(q) && !q.contains(&self.frames[0]) {
+                stack.push(0usize);
+            }
+            while let Some(i) = stack.pop() {
+                for c in tree.nodes[i].children().into_iter().flatten() {
+                    let f = &self.frames[c.index()];
+                    // A child the query holds is answered without geometry.
+                    if f.intersects(q) && !q.contains(f) {
+                        stack.push(c.index());
+                    }
+                }
+                for (j, b) in boxes[i].iter().enumerate() {
+                    let Some(b) = b else { continue };
+                    if !b.outer.intersects(q) || b.face_slabs().iter().any(|f| q.contains(f)) {
+                        continue;
+                    }
+                    let bound = stored.finest[i].iter().find(|(t, _)| usize::from(*t) == j);
+                    if bound.is_some_and(|(_, v)| !v.may_meet(q) || v.holds_a_cell_in(q)) {
+                        continue;
+                    }
+                    blocks.extend(self.object_blocks(i, j));
+                }
+            }
+            *scale += blocks.len();
+        }
+        reads.iter().map(|&r| r as f64 / SAMPLES_PER_SCALE as f64).collect()
+    }
+}
+
+/// The distinct blocks of `p` one query `q` reads (the nodes whose boxes it meets).
+fn query_node_reads(tree: &Hierarchy, p: &Packing, q: &Aabb) -> usize {
+    block_reads(tree, p, std::slice::from_ref(q)).iter().filter(|&&r| r > 0).count()
+}
+
+/// Per block of `p`, how many of `queries` read it: a query reads the
+/// block of every node whose box it meets (as the traversal does, which
+/// tests a child's box before reading its block).
+fn block_reads(tree: &Hierarchy, p: &Packing, queries: &[Aabb]) -> Vec<u32> {
+    let mut reads = vec![0u32; p.blocks.len()];
+    let mut seen = vec![u32::MAX; p.blocks.len()];
+    let mut stack = Vec::new();
+    for (qi, q) in queries.iter().enumerate() {
+        stack.clear();
+        if tree.nodes.first().is_some_and(|r| r.aabb.intersects(q)) {
+            stack.push(0usize);
+        }
+        while let Some(i) = stack.pop() {
+            let b = p.place[i].0 as usize;
+            if seen[b] != qi as u32 {
+                seen[b] = qi as u32;
+                reads[b] += 1;
+            }
+            for c in tree.nodes[i].children().into_iter().flatten() {
+                if tree.nodes[c.index()].aabb.intersects(q) {
+                    stack.push(c.index());
+                }
+            }
+        }
+    }
+    reads
+}
+
+/// Writes `tree` over `scene` as `plan` lays it out, with the inline
+/// `bounds` of each node (internal: its children's group bounds; leaf: its
+/// objects'), allocating blocks through `allocate` (count -> first block).
 pub(crate) fn write(
     pager: &Pager,
     txn: u64,
     scene: &Scene,
     tree: &Hierarchy,
+    plan: &Plan,
     bounds: &[Vec<BoundEntry>],
     allocate: &mut dyn FnMut(u32) -> Result<u32, StorageError>,
 ) -> Result<Written, StorageError> {
     let bs = pager.block_size();
     let nodes = &tree.nodes;
     let n = nodes.len();
-    let invalid = |d: String| StorageError::Invalid(d);
-    // Geometry: every leaf's objects in preorder, packed into one run of blocks.
-    let mut placement = Placement::new(bs);
-    let mut positions: Vec<Vec<u64>> = vec![Vec::new(); n];
-    let mut geometry_bytes = 0u64;
-    for (i, node) in nodes.iter().enumerate() {
-        if let Some(objects) = node.objects() {
-            for id in objects {
-                let o = scene.object(*id).ok_or_else(|| invalid(format!("no object {id}")))?;
-                let len = geometry::record_len(&o.mesh);
-                geometry_bytes += len;
-                positions[i].push(placement.place(len));
-            }
-        }
-    }
-    let stream_end = placement.end();
-    let geometry_blocks = placement.blocks();
+    let invalid = StorageError::Invalid;
+    let p = plan.payload;
+    let geometry_blocks = plan.stream_end.div_ceil(p);
     let count = u32::try_from(geometry_blocks).map_err(|_| StorageError::FileTooLarge)?;
     let first_geometry = allocate(count)?;
-    let p = geometry::payload(bs);
     let mut sums = Vec::with_capacity(count as usize);
     let mut block = vec![0u8; bs as usize];
     let mut filled = 0u64; // stream bytes of blocks already written
     let mut record = Vec::new();
+    let mut geometry_bytes = 0u64;
     let flush = |block: &mut Vec<u8>, index: u64, sums: &mut Vec<u32>| -> Result<(), StorageError> {
         let id = first_geometry + index as u32;
         sums.push(pager.write(id, block, BlockType::Geometry, txn)?);
@@ -70,10 +277,11 @@ pub(crate) fn write(
     };
     for (i, node) in nodes.iter().enumerate() {
         let Some(objects) = node.objects() else { continue };
-        for (id, &pos) in objects.iter().zip(&positions[i]) {
+        for (id, &(pos, _)) in objects.iter().zip(&plan.positions[i]) {
             let o = scene.object(*id).ok_or_else(|| invalid(format!("no object {id}")))?;
             record.clear();
             geometry::encode_object(*id, &o.mesh, &mut record);
+            geometry_bytes += record.len() as u64;
             let mut at = pos;
             let mut rest = &record[..];
             while !rest.is_empty() {
@@ -89,60 +297,22 @@ pub(crate) fn write(
             }
         }
     }
-    while filled < stream_end {
+    while filled < plan.stream_end {
         flush(&mut block, filled / p, &mut sums)?;
         filled += p;
     }
-    // Frames: each node's box as its parent's entry stores it (the root's is exact).
-    let mut frame = vec![Aabb::EMPTY; n];
-    frame[0] = nodes[0].aabb;
-    let mut child_q = vec![[0u16; 6]; n];
-    for i in 0..n {
-        if let Some(kids) = nodes[i].children() {
-            for c in kids {
-                let q = quantize(&frame[i], &nodes[c.index()].aabb);
-                let qb = QuantBox::decode(&frame[i], q).ok_or_else(|| invalid("a box quantized backwards".into()))?;
-                if !qb.outer.contains(&nodes[c.index()].aabb) {
-                    return Err(invalid(format!("node {} does not lie in its parent's box", c.0)));
-                }
-                child_q[c.index()] = q;
-                frame[c.index()] = qb.outer;
-            }
-        }
-    }
-    // Leaf drafts (block references are fixed below) and record sizes.
-    let leaf_span = |i: usize| -> (u64, u64) {
-        let first = positions[i].first().copied().unwrap_or(0) / p;
-        let last_end = match nodes[i].objects() {
-            Some(objs) => {
-                let last = *objs.last().unwrap_or(&crate::scene::ObjectId(0));
-                let len = scene.object(last).map_or(0, |o| geometry::record_len(&o.mesh));
-                positions[i].last().copied().unwrap_or(0) + len
-            }
-            None => 0,
-        };
-        (first, (last_end - 1) / p)
-    };
-    let sizes: Vec<usize> = (0..n)
-        .map(|i| {
-            let extra: usize = bounds[i].iter().map(|b| node::BOUND_HEAD_LEN + b.blob.len().next_multiple_of(4)).sum();
-            match nodes[i].objects() {
-                Some(objs) => {
-                    let (a, b) = leaf_span(i);
-                    leaf_len(objs.len(), (b - a + 1) as usize, extra)
-                }
-                None => node::INTERNAL_LEN + extra,
-            }
-        })
-        .collect();
+    let frame = &plan.frames;
+    let child_q = &plan.child_q;
+    let leaf_span = |i: usize| plan.leaf_span(i);
+    let sizes = plan.sizes(tree, bounds);
     let capacity = node::capacity(bs);
     if let Some(i) = (0..n).find(|&i| sizes[i] > capacity) {
         return Err(invalid(format!(
-            "node {i}'s record takes {} bytes and a node block holds {capacity}: use smaller leaves or larger blocks",
+            "node {i}'s record with its bounds takes {} bytes and a node block holds {capacity}",
             sizes[i]
         )));
     }
-    let packing = layout::pack(&sizes, |i| nodes[i].children().map(|c| c.map(|x| x.index())), capacity);
+    let (packing, _) = plan.choose(tree, &sizes, capacity);
     let block_count = u32::try_from(packing.blocks.len()).map_err(|_| StorageError::FileTooLarge)?;
     let first_node = allocate(block_count)?;
     // Offsets of every record in its block.
@@ -212,14 +382,13 @@ pub(crate) fn write(
                         let base = a * p;
                         let objects = objs
                             .iter()
-                            .zip(&positions[i])
-                            .map(|(id, &pos)| {
+                            .zip(&plan.positions[i])
+                            .map(|(id, &(pos, _))| {
                                 let aabb = scene.object(*id).map_or(Aabb::EMPTY, |o| o.mesh.aabb());
                                 ObjectEntry { object_id: id.0, qbox: quantize(&frame[i], &aabb), position: pos - base }
                             })
                             .collect();
-                        let end = positions[i].last().copied().unwrap_or(0)
-                            + objs.last().and_then(|id| scene.object(*id)).map_or(0, |o| geometry::record_len(&o.mesh));
+                        let end = plan.positions[i].last().map_or(0, |&(pos, len)| pos + len);
                         RecordDraft::Leaf {
                             node_id: i as u32,
                             first_block: first_geometry + a as u32,

@@ -5,8 +5,8 @@ use std::sync::{Arc, MutexGuard};
 use std::time::Instant;
 
 use super::{Inner, Snapshot, codes, tree_writer};
-use crate::build::{BuildParams, BuildProgress, CostModel, Hierarchy, build};
-use crate::lod::LodParams;
+use crate::build::{BuildParams, BuildProgress, CostModel, Hierarchy, QueryMix, build};
+use crate::lod::{Layout, LodParams, plan_bounds};
 use crate::scene::Scene;
 use crate::store::StorageError;
 use crate::store::alloc::FreeSpace;
@@ -144,12 +144,26 @@ impl<'db> WriteTransaction<'db> {
         if tree.nodes.is_empty() {
             return Err(StorageError::Invalid("a tree holds at least one object".into()));
         }
-        let model = CostModel::of_boxes(&scene.object_boxes(), params.query_extent);
-        let stored = crate::lod::plan_bounds(scene, tree, m, bs, &self.lod_params, &model).map_err(lod_error)?;
+        let q = CostModel::of_boxes(&scene.object_boxes(), params.query_extent).query_extent();
+        let mix = QueryMix::new(&tree.nodes[0].aabb, q);
+        let plan = tree_writer::Plan::new(scene, tree, bs, &mix)?;
+        let object_blocks = |i: usize, j: usize| plan.object_blocks(i, j);
+        let layout = Layout { frames: &plan.frames, read_share: &plan.read_share, object_blocks: &object_blocks };
+        let mut stored = plan_bounds(scene, tree, m, bs, &self.lod_params, &mix, &layout).map_err(lod_error)?;
+        // Bounds chosen one by one may still not pay as a whole: the blocks
+        // they add change the packing. Keep them only if the model's queries
+        // read no more with them at any scale, and less in all.
+        if !self.lod_params.store_all && !stored.is_empty() {
+            let without = stored.none();
+            let (a, b) = (plan.expected_reads(scene, tree, &stored, bs), plan.expected_reads(scene, tree, &without, bs));
+            if a.iter().zip(&b).any(|(x, y)| x > y) || a.iter().sum::<f64>() >= b.iter().sum::<f64>() {
+                stored = without;
+            }
+        }
         let txn = self.txn;
         let written = {
             let mut allocate = |count: u32| self.allocate(count);
-            tree_writer::write(&pager, txn, scene, tree, &stored.bounds, &mut allocate)?
+            tree_writer::write(&pager, txn, scene, tree, &plan, &stored.bounds, &mut allocate)?
         };
         // Names, apart from geometry so queries never read them.
         let mut stream = Vec::new();

@@ -1,36 +1,48 @@
 //! Which levels of detail a file stores: only those that pay (format-spec/
 //! lod.md, "What pays"). Paper §1.5 stores every level of every node; here a
 //! bound is stored inline in its leaf's record, where a query meets it with
-//! no read of its own, and only when, under the query model, the geometry
-//! reads it is expected to save exceed the node-block reads its bytes cost.
+//! no read of its own, and only when, under the read model ([`QueryMix`]),
+//! the geometry reads it is expected to save exceed the node-block reads
+//! its bytes cost.
 //!
-//! The query model is refine's (`build/cost.rs`): a box query of extents q
-//! placed uniformly; it meets a box W with probability ∏ (W_i + q_i) /
-//! (S_i + q_i). For an object o with geometry over g blocks and a candidate
-//! voxel bound V at level k (surface cells only: each holds a piece of the
-//! surface, so it can witness contact as well as rule it out):
+//! For an object o and a candidate voxel bound V at level k (surface cells
+//! only: each holds a piece of the surface, so it can witness contact as
+//! well as rule it out), the model's queries that meet o's box are sampled
+//! (`model_samples`, spread over the scales). In each sample where o's box
+//! alone leaves o undecided (no face of it held) and V decides it (the query
+//! misses every cell, or holds one), V saves the reads of o's geometry
+//! blocks that no other object's box leaves undecided in that query (a
+//! block another undecided object needs is read anyway). So:
 //!
-//! - saving = P(meets box(o)) x P(V decides | meets box(o)) x g, where V
-//!   decides when the query misses every cell of V (reject), or holds a
-//!   whole cell without holding a face of the box (confirm: the box alone
-//!   would have confirmed it). The conditional probability is sampled at
-//!   `model_samples` query positions that meet the box.
-//! - cost = P(meets the leaf's box) x bytes(V) / (bytes a node block holds):
-//!   every query that reads the leaf's block reads that share of a block more.
+//! - saving = Σ over scales of P(meets box(o)) x mean saved blocks, / scales;
+//! - cost = bytes(V) / (bytes a node block holds) x the share of the model's
+//!   queries that read o's leaf's node block (in the layout without bounds).
 //!
 //! The level with the largest saving - cost > 0 is stored; none otherwise
 //! (`LodParams::store_all` stores every level, to measure them).
+
+use std::collections::HashMap;
+use std::ops::RangeInclusive;
 
 use rayon::prelude::*;
 
 use super::compact::{aligned_grid, encode};
 use super::{ErrorProbe, Grid, Lattice, LodError, LodParams, LodPlan, Voxels};
-use crate::build::{CostModel, Hierarchy};
-use crate::geom::{Aabb, Vector};
-use crate::scene::{Mesh, Scene};
-use crate::store::format::geometry::{payload, record_len};
+use crate::build::{Hierarchy, QueryMix};
+use crate::geom::Aabb;
+use crate::scene::{Mesh, ObjectId, Scene};
 use crate::store::format::node::{BoundEntry, capacity};
 use crate::store::format::quant::{QuantBox, quantize};
+
+/// What the bounds' cost and saving depend on of the tree's layout.
+pub struct Layout<'a> {
+    /// Per node: its box as stored (objects' boxes are quantized in their leaf's).
+    pub frames: &'a [Aabb],
+    /// Per node: the share of the model's queries that read its node block.
+    pub read_share: &'a [f64],
+    /// The geometry blocks holding object `j` of leaf `i`.
+    pub object_blocks: &'a (dyn Fn(usize, usize) -> RangeInclusive<u64> + Sync),
+}
 
 /// The bounds a tree stores, and what the meta block records of them.
 #[derive(Debug, Clone, Default)]
@@ -49,6 +61,30 @@ pub struct StoredBounds {
     /// Per level k = 1 .. M: the model's expected saving and cost, in block
     /// reads per query, summed over the bounds stored (what `mktree lods` shows).
     pub predicted: Vec<[f64; 2]>,
+    /// Per node: the finest bound stored for each object (object index, set).
+    pub finest: Vec<Vec<(u16, Voxels)>>,
+}
+
+impl StoredBounds {
+    /// The same levels with no bound stored (what a file whose bounds do
+    /// not pay as a whole keeps).
+    pub fn none(&self) -> StoredBounds {
+        let n = self.bounds.len();
+        let levels = self.usage.len();
+        StoredBounds {
+            bounds: vec![Vec::new(); n],
+            errors: vec![[0.0; 2]; levels],
+            usage: vec![[0; 2]; levels],
+            predicted: vec![[0.0; 2]; levels],
+            finest: vec![Vec::new(); n],
+            ..self.clone()
+        }
+    }
+
+    /// True when no bound is stored.
+    pub fn is_empty(&self) -> bool {
+        self.bounds.iter().all(Vec::is_empty)
+    }
 }
 
 /// One candidate: an object's bound at a level, with its model value.
@@ -60,15 +96,29 @@ struct Candidate {
     cost: f64,
 }
 
+/// An object as the model's queries see it in a geometry block.
+struct Sharer {
+    object: ObjectId,
+    qbox: QuantBox,
+}
+
+impl Sharer {
+    /// True when `q` meets the box and holds none of its faces.
+    fn undecided(&self, q: &Aabb) -> bool {
+        self.qbox.outer.intersects(q) && !self.qbox.face_slabs().iter().any(|f| q.contains(f))
+    }
+}
+
 /// Decides and encodes the bounds of `tree` over `scene` for M = `m`
-/// levels and blocks of `block_size` bytes, judged on `model`.
+/// levels and blocks of `block_size` bytes, judged on `mix` over `layout`.
 pub fn plan_bounds(
     scene: &Scene,
     tree: &Hierarchy,
     m: u8,
     block_size: u32,
     params: &LodParams,
-    model: &CostModel,
+    mix: &QueryMix,
+    layout: &Layout,
 ) -> Result<StoredBounds, LodError> {
     let levels = usize::from(m);
     let mut out = StoredBounds {
@@ -77,8 +127,9 @@ pub fn plan_bounds(
         usage: vec![[0; 2]; levels],
         grid_level: vec![0; levels],
         lattice: None,
-        query_extent: model.query_extent(),
+        query_extent: mix.extents().first().copied().unwrap_or_default(),
         predicted: vec![[0.0; 2]; levels],
+        finest: vec![Vec::new(); tree.nodes.len()],
     };
     if m < 3 {
         return Ok(out);
@@ -87,26 +138,31 @@ pub fn plan_bounds(
     out.grid_level = plan.grid_level.clone();
     out.lattice = Some(plan.lattice);
     let node_capacity = capacity(block_size) as f64;
-    let geometry_payload = payload(block_size) as f64;
-    // Leaves in parallel; each object's frame is its leaf's box as stored.
-    let frames = leaf_frames(tree);
+    // Every object of every geometry block, with its box as its leaf stores it.
+    let mut sharers: HashMap<u64, Vec<Sharer>> = HashMap::new();
+    for (i, node) in tree.nodes.iter().enumerate() {
+        for (j, id) in node.objects().unwrap_or_default().iter().enumerate() {
+            let Some(o) = scene.object(*id) else { continue };
+            let Some(qbox) = QuantBox::decode(&layout.frames[i], quantize(&layout.frames[i], &o.mesh.aabb())) else {
+                continue;
+            };
+            for b in (layout.object_blocks)(i, j) {
+                sharers.entry(b).or_default().push(Sharer { object: *id, qbox });
+            }
+        }
+    }
+    let ctx = Ctx { plan: &plan, params, mix, layout, sharers: &sharers, node_capacity };
     let chosen: Vec<(usize, Vec<(u16, Candidate)>)> = tree
         .nodes
         .par_iter()
         .enumerate()
         .filter_map(|(i, node)| node.objects().map(|objs| (i, objs)))
         .map(|(i, objs)| {
-            let leaf_p = model.access_probability(&frames[i]);
             let mut picked = Vec::new();
             for (j, id) in objs.iter().enumerate() {
                 let Some(o) = scene.object(*id) else { continue };
-                let g = (record_len(&o.mesh) as f64 / geometry_payload).ceil().max(1.0);
-                let qb = QuantBox::decode(&frames[i], quantize(&frames[i], &o.mesh.aabb()));
                 let all = (2..m)
-                    .filter_map(|k| {
-                        candidate(&plan, params, k, &o.mesh, qb.as_ref(), model, g, leaf_p, node_capacity)
-                            .transpose()
-                    })
+                    .filter_map(|k| ctx.candidate(k, i, j, *id, &o.mesh).transpose())
                     .collect::<Result<Vec<_>, LodError>>()?;
                 if params.store_all {
                     picked.extend(all.into_iter().map(|c| (j as u16, c)));
@@ -124,6 +180,11 @@ pub fn plan_bounds(
     for (i, picked) in chosen {
         let objs = tree.nodes[i].objects().unwrap_or_default();
         for (j, c) in picked {
+            // Candidates come level by level: a later one of the same object is finer.
+            match out.finest[i].last_mut() {
+                Some(last) if last.0 == j => last.1 = c.voxels.clone(),
+                _ => out.finest[i].push((j, c.voxels.clone())),
+            }
             let k = usize::from(c.level) - 1;
             out.usage[k][0] += c.blob.len() as u64;
             out.usage[k][1] += 1;
@@ -140,32 +201,70 @@ pub fn plan_bounds(
     Ok(out)
 }
 
-/// Every node's box as its parent's entry stores it (the root's exact).
-fn leaf_frames(tree: &Hierarchy) -> Vec<Aabb> {
-    let mut frame = vec![Aabb::EMPTY; tree.nodes.len()];
-    if let Some(root) = tree.nodes.first() {
-        frame[0] = root.aabb;
-    }
-    for i in 0..tree.nodes.len() {
-        if let Some(kids) = tree.nodes[i].children() {
-            for c in kids {
-                let q = quantize(&frame[i], &tree.nodes[c.index()].aabb);
-                frame[c.index()] = QuantBox::decode(&frame[i], q).map_or(frame[i], |b| b.outer);
-            }
+struct Ctx<'a> {
+    plan: &'a LodPlan,
+    params: &'a LodParams,
+    mix: &'a QueryMix,
+    layout: &'a Layout<'a>,
+    sharers: &'a HashMap<u64, Vec<Sharer>>,
+    node_capacity: f64,
+}
+
+impl Ctx<'_> {
+    /// Object `j` (id `id`) of leaf `i` bounded at level k, with its model
+    /// value; `None` when the level's grid is too large or its blob too long.
+    fn candidate(&self, k: u8, i: usize, j: usize, id: ObjectId, mesh: &Mesh) -> Result<Option<Candidate>, LodError> {
+        let frame = &self.layout.frames[i];
+        let Some(qbox) = QuantBox::decode(frame, quantize(frame, &mesh.aabb())) else { return Ok(None) };
+        // The grid over the box the reader holds: the decoded quantized box.
+        let Some(grid) = grid(self.plan, self.params, k, &qbox.outer)? else { return Ok(None) };
+        if grid.cells() > u64::from(u16::MAX) {
+            return Ok(None);
         }
+        let voxels = Voxels::of_surfaces(grid, [mesh]);
+        let blob = encode(&voxels);
+        if blob.len() > usize::from(u8::MAX) {
+            return Ok(None);
+        }
+        let cost = self.layout.read_share[i] * (crate::store::format::node::BOUND_HEAD_LEN + blob.len()) as f64
+            / self.node_capacity;
+        let blocks: Vec<u64> = (self.layout.object_blocks)(i, j).collect();
+        let scales = self.mix.extents().len();
+        let per_scale = self.params.model_samples.div_ceil(scales).max(1);
+        let samples = self.mix.sample(&qbox.outer, per_scale);
+        let mut saving = 0.0;
+        for (c, chunk) in samples.chunks(per_scale).enumerate() {
+            let mut saved = 0u64;
+            for q in chunk {
+                if qbox.face_slabs().iter().any(|f| q.contains(f)) {
+                    continue;
+                }
+                if voxels.may_meet(q) && !voxels.holds_a_cell_in(q) {
+                    continue;
+                }
+                saved += blocks
+                    .iter()
+                    .filter(|b| {
+                        self.sharers.get(b).is_none_or(|v| v.iter().all(|s| s.object == id || !s.undecided(q)))
+                    })
+                    .count() as u64;
+            }
+            saving += self.mix.scale_probability(c, &qbox.outer) * saved as f64 / per_scale as f64;
+        }
+        saving /= scales as f64;
+        Ok(Some(Candidate { level: k, blob, voxels, saving, cost }))
     }
-    frame
 }
 
 /// The grid of level k over `b`: the cuberille's within its cell budget,
 /// a polyhedral level's at its lattice level; `None` when too large.
-fn grid(plan: &LodPlan, params: &LodParams, k: u8, b: &Aabb) -> Result<Option<(Grid, [i64; 3])>, LodError> {
+fn grid(plan: &LodPlan, params: &LodParams, k: u8, b: &Aabb) -> Result<Option<Grid>, LodError> {
     let finest = plan.grid_level[usize::from(k) - 1];
     if k == 2 {
         for level in finest..=u8::MAX {
             match aligned_grid(&plan.lattice, level, b) {
-                Ok((g, first)) if g.cells() <= u64::from(params.cuberille_object_bits) => {
-                    return Ok(Some((g, first)));
+                Ok(g) if g.cells() <= u64::from(params.cuberille_object_bits) => {
+                    return Ok(Some(g));
                 }
                 Ok(_) | Err(LodError::TooLarge { .. }) => {}
                 Err(e) => return Err(e),
@@ -178,71 +277,4 @@ fn grid(plan: &LodPlan, params: &LodParams, k: u8, b: &Aabb) -> Result<Option<(G
         Err(LodError::TooLarge { .. }) => Ok(None),
         Err(e) => Err(e),
     }
-}
-
-#[allow(clippy::too_many_arguments)]
-fn candidate(
-    plan: &LodPlan,
-    params: &LodParams,
-    k: u8,
-    mesh: &Mesh,
-    qb: Option<&QuantBox>,
-    model: &CostModel,
-    g: f64,
-    leaf_p: f64,
-    node_capacity: f64,
-) -> Result<Option<Candidate>, LodError> {
-    let b = mesh.aabb();
-    let Some((grid, first)) = grid(plan, params, k, &b)? else { return Ok(None) };
-    if grid.cells() > u64::from(u16::MAX) {
-        return Ok(None);
-    }
-    let voxels = Voxels::of_surfaces(grid, [mesh]);
-    let blob = encode(&voxels, first);
-    let cost = leaf_p * blob.len() as f64 / node_capacity;
-    let p_box = model.access_probability(&b);
-    let decides = sampled_decisions(&voxels, &b, qb, model.query_extent(), params.model_samples);
-    Ok(Some(Candidate { level: k, blob, voxels, saving: p_box * decides * g, cost }))
-}
-
-/// The share of queries meeting box `b` that `v` decides (misses every
-/// cell, or holds a whole cell without holding a face of the box),
-/// sampled at `n` query positions from a fixed stream.
-fn sampled_decisions(v: &Voxels, b: &Aabb, qb: Option<&QuantBox>, q: [f64; 3], n: usize) -> f64 {
-    if n == 0 {
-        return 0.0;
-    }
-    let half = Vector::new(q[0], q[1], q[2]) / 2.0;
-    let zone = b.grown(0.0);
-    let e = zone.extent() + 2.0 * half;
-    let tol = v.grid().tolerance();
-    let cells: Vec<Aabb> = v.world_boxes();
-    let slabs = qb.map(|q| q.face_slabs());
-    let mut decided = 0usize;
-    // Halton points (bases 2, 3, 5): deterministic and evenly spread.
-    for s in 1..=n {
-        let u = [halton(s, 2), halton(s, 3), halton(s, 5)];
-        let c = zone.min - half + Vector::new(u[0] * e.x, u[1] * e.y, u[2] * e.z);
-        let query = Aabb::new(c - half, c + half);
-        let meets = cells.iter().any(|cb| cb.grown(tol).intersects(&query));
-        if !meets {
-            decided += 1;
-            continue;
-        }
-        let box_confirms = slabs.is_some_and(|s| s.iter().any(|f| query.contains(f)));
-        if !box_confirms && v.holds_a_cell_in(&query) {
-            decided += 1;
-        }
-    }
-    decided as f64 / n as f64
-}
-
-fn halton(mut i: usize, base: usize) -> f64 {
-    let (mut f, mut r) = (1.0, 0.0);
-    while i > 0 {
-        f /= base as f64;
-        r += f * (i % base) as f64;
-        i /= base;
-    }
-    r
 }

@@ -272,9 +272,10 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
         self.visitor.object(&Seen { aabb, bound, mesh, decision })
     }
 
-    fn voxels(&self, block: u32, b: &BoundView) -> Result<Voxels, StorageError> {
+    /// The voxel set of bound `b`, whose target's box is `outer`.
+    fn voxels(&self, block: u32, b: &BoundView, outer: &Aabb) -> Result<Voxels, StorageError> {
         let lattice = self.txn.lattice().ok_or_else(|| StorageError::corrupt(block, "bounds", "no lattice in the meta block"))?;
-        crate::lod::decode(b.blob, &lattice).map_err(|e| StorageError::corrupt(block, "bounds", e.to_string()))
+        crate::lod::decode(b.blob, &lattice, outer).map_err(|e| StorageError::corrupt(block, "bounds", e.to_string()))
     }
 
     fn step(&mut self, step: Step) -> Result<(), StorageError> {
@@ -315,7 +316,7 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
                             continue;
                         }
                         if let Some(b) = finest(n.bounds(), i as u16, self.k.min(self.m - 1)) {
-                            if !self.sel.may_meet_voxels(&self.voxels(block.id(), &b)?) {
+                            if !self.sel.may_meet_voxels(&self.voxels(block.id(), &b, &qb.outer)?) {
                                 self.stats.pruned[usize::from(b.level) - 1] += 1;
                                 continue;
                             }
@@ -351,7 +352,7 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
                     let mut level = 1;
                     let mut voxels = None;
                     if let Some(b) = finest(leaf.bounds(), i as u16, self.k.min(self.m - 1)) {
-                        let v = self.voxels(block.id(), &b)?;
+                        let v = self.voxels(block.id(), &b, &aabb)?;
                         level = b.level;
                         if !self.sel.may_meet_voxels(&v) {
                             self.decide(o.object_id, level, false, Proof::VoxelsMiss, aabb, Some((level, &v)), None)?;

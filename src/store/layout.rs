@@ -1,11 +1,15 @@
 //! Packing a binary tree's records into node blocks (format-spec/node.md,
 //! "Packing"). Two steps:
 //!
-//! 1. Cut the tree into the fewest connected pieces of at most a block's
+//! 1. Cut the tree into the fewest connected pieces of at most `piece`
 //!    bytes (Kundu and Misra's bottom-up greedy, 1977: at each node, cut
 //!    away the heaviest child pieces until the node's piece fits). A piece
 //!    is a subtree with some of its descendants cut away, so its records lie
-//!    within its root's box, and a query enters it once.
+//!    within its root's box, and a query enters it once. Pieces of a whole
+//!    block leave blocks 66-78% full (two pieces of 60% cannot share one);
+//!    pieces of a third fill them 90% and more (`blocks_are_mostly_full`),
+//!    at the price of more pieces a query may cross. The writer chooses the
+//!    size by the reads of its read model (`db/tree_writer.rs`).
 //! 2. Fill blocks with whole pieces in preorder of their roots: the next
 //!    piece that fits and whose parent piece is already placed, looking a
 //!    few pieces ahead, so small pieces of one neighbourhood share a block.
@@ -14,11 +18,6 @@
 
 /// How far ahead a block looks for a piece that fits.
 const LOOK_AHEAD: usize = 64;
-
-/// Pieces are cut at this share of a block: pieces of up to a whole block
-/// leave blocks 66-78% full (two pieces of 60% cannot share one), pieces of
-/// at most 30-40% fill them 92% (`blocks_are_mostly_full`, random trees).
-const PIECE_SHARE: f64 = 0.35;
 
 /// Where each node went: `place[i]` = (block index, position in the
 /// block); `blocks[b]` lists block b's nodes in record order.
@@ -29,13 +28,15 @@ pub struct Packing {
 }
 
 /// Packs a tree of `sizes.len()` nodes rooted at node 0 (nodes in preorder),
-/// `children(i)` giving node i's children, into blocks of `capacity` bytes.
-/// Every size must be at most `capacity`.
-pub fn pack(sizes: &[usize], children: impl Fn(usize) -> Option<[usize; 2]>, capacity: usize) -> Packing {
-    pack_with(sizes, children, capacity, (capacity as f64 * PIECE_SHARE) as usize)
-}
-
-fn pack_with(sizes: &[usize], children: impl Fn(usize) -> Option<[usize; 2]>, capacity: usize, piece: usize) -> Packing {
+/// `children(i)` giving node i's children, into blocks of `capacity` bytes,
+/// cutting pieces of at most `piece` bytes (a node larger than that is a
+/// piece of its own). Every size must be at most `capacity`.
+pub fn pack(
+    sizes: &[usize],
+    children: impl Fn(usize) -> Option<[usize; 2]>,
+    capacity: usize,
+    piece: usize,
+) -> Packing {
     let n = sizes.len();
     // Step 1: bottom-up (reverse preorder visits children before parents).
     let mut residual = vec![0usize; n];
@@ -162,7 +163,7 @@ mod tests {
         #[test]
         fn packing_is_complete_bounded_and_ordered(leaves in 1usize..400, seed in any::<u64>(), cap in 500usize..4000) {
             let (kids, sizes) = random_tree(leaves, seed);
-            let p = pack(&sizes, |i| kids[i], cap);
+            let p = pack(&sizes, |i| kids[i], cap, cap / 3);
             let mut seen = vec![false; sizes.len()];
             for (b, members) in p.blocks.iter().enumerate() {
                 prop_assert!(members.iter().map(|&m| sizes[m as usize]).sum::<usize>() <= cap);
@@ -185,7 +186,7 @@ mod tests {
     fn blocks_are_mostly_full() {
         let (kids, sizes) = random_tree(5000, 7);
         let cap = 16_000;
-            let p = pack(&sizes, |i| kids[i], cap);
+            let p = pack(&sizes, |i| kids[i], cap, cap / 3);
         let total: usize = sizes.iter().sum();
         let fill = total as f64 / (p.blocks.len() * cap) as f64;
         assert!(fill > 0.85, "fill {fill}");

@@ -196,7 +196,7 @@ impl Visitor for Walker<'_> {
                     for bound in leaf.bounds().filter(|x| usize::from(x.target) == i) {
                         let k = bound.level;
                         let v = match self.txn.lattice().ok_or_else(|| "no lattice".to_string()).and_then(|l| {
-                            crate::lod::decode(bound.blob, &l).map_err(|e| e.to_string())
+                            crate::lod::decode(bound.blob, &l, &q.outer).map_err(|e| e.to_string())
                         }) {
                             Ok(v) => v,
                             Err(e) => {

@@ -20,7 +20,7 @@ pub const LEAF_HEAD_LEN: usize = 20;
 /// Bytes of one object entry of a leaf.
 pub const OBJECT_LEN: usize = 20;
 /// Bytes of a bound entry's head (before its blob).
-pub const BOUND_HEAD_LEN: usize = 8;
+pub const BOUND_HEAD_LEN: usize = 4;
 
 const KIND_INTERNAL: u8 = 1;
 const KIND_LEAF: u8 = 2;
@@ -87,8 +87,7 @@ const _: () = assert!(size_of::<ObjectRaw>() == OBJECT_LEN);
 pub(crate) struct BoundRaw {
     pub(crate) target: U16,
     pub(crate) level: u8,
-    pub(crate) reserved: u8,
-    pub(crate) blob_bytes: U32,
+    pub(crate) blob_bytes: u8,
 }
 const _: () = assert!(size_of::<BoundRaw>() == BOUND_HEAD_LEN);
 
@@ -166,8 +165,9 @@ pub enum RecordDraft {
     },
 }
 
-fn bounds_len(bounds: &[BoundEntry]) -> usize {
-    bounds.iter().map(|b| BOUND_HEAD_LEN + b.blob.len().next_multiple_of(4)).sum()
+/// Bytes of a record's bounds area: the entries, then zero padding to a multiple of 4.
+pub fn bounds_len(bounds: &[BoundEntry]) -> usize {
+    bounds.iter().map(|b| BOUND_HEAD_LEN + b.blob.len()).sum::<usize>().next_multiple_of(4)
 }
 
 /// Bytes of a leaf record with `objects` objects over `span` geometry
@@ -217,7 +217,7 @@ impl RecordDraft {
                     children: [child(&children[0]), child(&children[1])],
                 };
                 out.extend_from_slice(raw.as_bytes());
-                encode_bounds(bounds, out);
+                encode_bounds(bounds, out)?;
             }
             RecordDraft::Leaf { node_id, first_block, checksums, objects, end, bounds } => {
                 let raw = LeafRaw {
@@ -247,7 +247,7 @@ impl RecordDraft {
                     out.extend_from_slice(raw.as_bytes());
                 }
                 out.extend_from_slice(&words(*end)?.to_le_bytes());
-                encode_bounds(bounds, out);
+                encode_bounds(bounds, out)?;
             }
         }
         debug_assert_eq!(out.len() - start, self.len());
@@ -255,14 +255,15 @@ impl RecordDraft {
     }
 }
 
-fn encode_bounds(bounds: &[BoundEntry], out: &mut Vec<u8>) {
+fn encode_bounds(bounds: &[BoundEntry], out: &mut Vec<u8>) -> Result<(), String> {
     for b in bounds {
-        let raw =
-            BoundRaw { target: b.target.into(), level: b.level, reserved: 0, blob_bytes: (b.blob.len() as u32).into() };
+        let len = u8::try_from(b.blob.len()).map_err(|_| format!("a bound of {} bytes (at most 255)", b.blob.len()))?;
+        let raw = BoundRaw { target: b.target.into(), level: b.level, blob_bytes: len };
         out.extend_from_slice(raw.as_bytes());
         out.extend_from_slice(&b.blob);
-        out.resize(out.len().next_multiple_of(4), 0);
     }
+    out.resize(out.len().next_multiple_of(4), 0);
+    Ok(())
 }
 
 /// Record bytes a node block holds.
@@ -439,10 +440,11 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
 
 fn validate_bounds(mut area: &[u8], targets: usize, limits: &Limits) -> Result<(), String> {
     let mut last: Option<(u16, u8)> = None;
-    while !area.is_empty() {
+    // Entries while a head fits; fewer than 4 bytes left are the zero padding.
+    while area.len() >= BOUND_HEAD_LEN {
         let (raw, rest) = BoundRaw::ref_from_prefix(area).map_err(|_| "a bound's head is cut".to_string())?;
         let (t, k) = (raw.target.get(), raw.level);
-        if usize::from(t) >= targets || k < 2 || k >= limits.lod_levels || raw.reserved != 0 {
+        if usize::from(t) >= targets || k < 2 || k >= limits.lod_levels {
             return Err(format!("a bound of target {t} at level {k}"));
         }
         // One bound per target and level, in order: a reader finds them by scanning once.
@@ -450,13 +452,14 @@ fn validate_bounds(mut area: &[u8], targets: usize, limits: &Limits) -> Result<(
             return Err("bounds are not in (target, level) order".into());
         }
         last = Some((t, k));
-        let n = raw.blob_bytes.get() as usize;
-        let padded = n.checked_next_multiple_of(4).filter(|&p| p <= rest.len());
-        let Some(padded) = padded else { return Err(format!("a bound of {n} bytes overruns its record")) };
-        if !all_zero(&rest[n..padded]) {
-            return Err("a bound's padding is not zero".into());
+        let n = usize::from(raw.blob_bytes);
+        if n > rest.len() {
+            return Err(format!("a bound of {n} bytes overruns its record"));
         }
-        area = &rest[padded..];
+        area = &rest[n..];
+    }
+    if !all_zero(area) {
+        return Err("the bounds' padding is not zero".into());
     }
     Ok(())
 }
@@ -538,9 +541,9 @@ pub struct BoundView<'a> {
 fn bounds_iter(mut area: &[u8]) -> impl Iterator<Item = BoundView<'_>> {
     std::iter::from_fn(move || {
         let (raw, rest) = BoundRaw::ref_from_prefix(area).ok()?;
-        let n = raw.blob_bytes.get() as usize;
+        let n = usize::from(raw.blob_bytes);
         let blob = rest.get(..n)?;
-        area = rest.get(n.next_multiple_of(4)..).unwrap_or_default();
+        area = &rest[n..];
         Some(BoundView { target: raw.target.get(), level: raw.level, blob })
     })
 }
