@@ -3,7 +3,6 @@
 //! query (region, collide, navigate, tradeoff) runs `traverse.rs`; clash
 //! runs the tree against itself in `clash.rs` with the same tests.
 
-mod bench_workload;
 mod brute_force;
 mod clash;
 mod collide;
@@ -13,11 +12,7 @@ mod region;
 mod shape;
 mod tradeoff;
 mod traverse;
-mod workload;
 
-pub use bench_workload::{
-    COLLISION_MARGIN_MM, QueryKind, TreeQueryCount, collision_boxes, count_in_tree, random_cubes,
-};
 pub use brute_force::{brute_force_clash, brute_force_collide, brute_force_region};
 pub use clash::{ClashAnswer, ClashOptions, clash};
 pub use collide::{CollideOptions, collide, object_mesh, object_meshes};
@@ -27,4 +22,3 @@ pub use region::{BoxQuery, QueryStats, brute_force_box, query_box, query_region}
 pub use shape::{Region, Triangles};
 pub use tradeoff::{TRADEOFF_SHIFT_MM, TradeoffRow, collision_workload, tradeoff};
 pub use traverse::{ObjectLevel, QueryAnswer, QueryOptions, TraverseStats};
-pub use workload::{WorkloadStats, random_boxes, run_boxes};

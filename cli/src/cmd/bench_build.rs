@@ -13,10 +13,10 @@ use mktree::build::{
 };
 use mktree::db::{CreateOptions, Database};
 use mktree::geom::Aabb;
-use mktree::query::{QueryKind, TreeQueryCount, count_in_tree, run_boxes};
 use mktree::scene::Scene;
 use mktree::store::format::geometry::record_len;
 use mktree::store::format::run;
+use mktree_bench::{QueryKind, TreeQueryCount, count_in_tree, run_boxes};
 use serde::Serialize;
 
 use crate::args::BenchBuildArgs;
