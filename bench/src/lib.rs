@@ -3,15 +3,21 @@
 //! Benchmark scaffolding for mktree, kept out of the engine's public API:
 //! the query workloads of `mktree bench-build` and `mktree bench-queries`
 //! (random boxes, cubes and collision boxes from a seed, and the leaves a
-//! box query reaches in a tree held in memory).
+//! box query reaches in a tree held in memory), and the peer benchmark of
+//! `mktree bench-peers`.
 
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
 
+mod error;
+mod hilbert;
+pub mod peers;
 mod query_sets;
+pub mod record;
 mod rng;
 mod workload;
 
+pub use error::BenchError;
 pub use query_sets::{
     COLLISION_MARGIN_MM, QueryKind, TreeQueryCount, collision_boxes, count_in_tree, random_cubes,
 };
