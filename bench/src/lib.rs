@@ -9,6 +9,7 @@
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
 
+mod bench_peers;
 mod error;
 mod hilbert;
 pub mod peers;
@@ -17,6 +18,9 @@ pub mod record;
 mod rng;
 mod workload;
 
+pub use bench_peers::{
+    DEFAULT_QUERIES, PeerOptions, PeerRow, QuerySet, bench_scene, parse_query_file, standard_sets,
+};
 pub use error::BenchError;
 pub use query_sets::{
     COLLISION_MARGIN_MM, QueryKind, TreeQueryCount, collision_boxes, count_in_tree, random_cubes,
