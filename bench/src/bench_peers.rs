@@ -19,7 +19,7 @@ use serde::Serialize;
 use crate::error::{BenchError, io};
 use crate::peers::mktree::{MktreePeer, build_file};
 use crate::peers::rstar::RstarPeer;
-use crate::peers::sqlite::SqlitePeer;
+use crate::peers::sqlite::{SqlitePeer, check_page_size};
 use crate::query_sets::{COLLISION_MARGIN_MM, QueryKind};
 
 /// Queries per generated set when none is asked for.
@@ -183,6 +183,8 @@ pub fn bench_scene(
     if scene.is_empty() {
         return Err(BenchError::Invalid(format!("{name}: the scene has no objects")));
     }
+    // Before any file is built: the block size is also SQLite's page size.
+    check_page_size(options.block_size)?;
     let boxes = scene.object_boxes();
     let sets = match &options.query_sets {
         Some(sets) => sets.clone(),

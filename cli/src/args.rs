@@ -225,6 +225,8 @@ pub enum Command {
     /// Every bulk loader on the same scenes and queries: leaves visited (and
     /// block reads with --block-size) per query for boxes, cubes and collisions.
     BenchBuild(BenchBuildArgs),
+    /// mktree against SQLite's R*Tree with geometry blobs (and rstar): reads per query, file sizes, warm time.
+    BenchPeers(crate::cmd::bench_peers::BenchPeersArgs),
     /// The main job on the built-in scene: tanker2 built with MOA and LAA, stats side by side, box queries.
     Demo {
         /// Keep the .mkt files here (default: a temporary directory, removed after).

@@ -64,11 +64,7 @@ impl SqlitePeer {
     /// Writes `scene` into a new SQLite file at `path` (which must not
     /// exist) with `page_size`-byte pages, then VACUUMs it.
     pub fn load(scene: &Scene, path: &Path, page_size: u32) -> Result<SqlitePeer, BenchError> {
-        if !(512..=65536).contains(&page_size) || !page_size.is_power_of_two() {
-            return Err(BenchError::Invalid(format!(
-                "SQLite pages are powers of two from 512 to 65536 bytes, not {page_size}"
-            )));
-        }
+        check_page_size(page_size)?;
         if path.exists() {
             return Err(BenchError::Invalid(format!("{} exists already", path.display())));
         }
@@ -202,6 +198,16 @@ impl WarmSqlite<'_> {
             (self.conn.prepare_cached(FILTER_SQL)?, self.conn.prepare_cached(BLOB_SQL)?);
         self.peer.exact_on(&mut filter, &mut blob, query)
     }
+}
+
+/// Refuses a page size SQLite does not have (it would keep its own).
+pub(crate) fn check_page_size(page_size: u32) -> Result<(), BenchError> {
+    if (512..=65536).contains(&page_size) && page_size.is_power_of_two() {
+        return Ok(());
+    }
+    Err(BenchError::Invalid(format!(
+        "SQLite pages are powers of two from 512 to 65536 bytes, not {page_size}"
+    )))
 }
 
 /// The rowids the R*Tree returns for `query`.
