@@ -248,7 +248,8 @@ fn panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, rows: &[PeerRow], te
         ("exact answers", points(rows, |r| r.exact_reads_ratio), Palette99::pick(0).to_rgba()),
         ("box filter", points(rows, |r| r.filter_reads_ratio), Palette99::pick(1).to_rgba()),
     ];
-    let top = lines.iter().flat_map(|l| l.1.iter().map(|p| p.1)).fold(1.1f64, f64::max) * 1.05;
+    // Headroom above the highest point for the legend.
+    let top = lines.iter().flat_map(|l| l.1.iter().map(|p| p.1)).fold(1.1f64, f64::max) * 1.3;
     let sets = rows.len().max(1) as f64;
     let mut builder = ChartBuilder::on(area);
     builder.margin(12);
