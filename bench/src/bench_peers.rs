@@ -174,6 +174,18 @@ pub fn parse_query_file(text: &str) -> Result<Vec<QuerySet>, BenchError> {
 /// Runs the benchmark on one scene named `name`: builds both files, runs
 /// every query set (the options' own, or the standard ones) and returns a
 /// row per set. `progress` hears each step.
+///
+/// ```
+/// use mktree::scene::generate::{GenOptions, Preset, generate_scene};
+/// use mktree_bench::{PeerOptions, bench_scene};
+///
+/// let scene = generate_scene(&GenOptions { preset: Preset::Tanker1, objects: None, seed: 0 })?;
+/// let options = PeerOptions { queries: 3, seed: 1, block_size: 16384, query_sets: None, files_dir: None };
+/// let rows = bench_scene("tanker1", &scene, &options, &|step| eprintln!("{step}"))?;
+/// assert_eq!(rows.len(), 4); // boxes of 1%, 5%, 20%, collisions
+/// assert!(rows.iter().all(|r| r.sqlite_exact_reads > 0.0 && r.mktree_exact_reads > 0.0));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn bench_scene(
     name: &str,
     scene: &Scene,

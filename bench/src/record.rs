@@ -53,17 +53,15 @@ pub enum RecordError {
     },
 }
 
-/// One decoded object record: the object's exact geometry as stored.
+/// One decoded object record: the object's exact geometry as stored. Its
+/// fields are private so that every record has passed [`decode`]'s checks
+/// (triangle indices in range).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Record {
-    /// `object_id`.
-    pub object_id: u32,
-    /// The f64 point the offsets are relative to (the object's lower box corner).
-    pub anchor: Point,
-    /// Vertex i = `anchor` + `offsets[i]`, computed in f64.
-    pub offsets: Vec<[f32; 3]>,
-    /// Vertex index triples, each index below `offsets.len()`.
-    pub triangles: Vec<[u32; 3]>,
+    object_id: u32,
+    anchor: Point,
+    offsets: Vec<[f32; 3]>,
+    triangles: Vec<[u32; 3]>,
 }
 
 /// The record of object `object_id` with geometry `mesh`: 40 + 12 v + 12 t bytes.
@@ -128,6 +126,26 @@ pub fn decode(bytes: &[u8]) -> Result<Record, RecordError> {
 }
 
 impl Record {
+    /// `object_id`.
+    pub fn object_id(&self) -> u32 {
+        self.object_id
+    }
+
+    /// The f64 point the offsets are relative to (the object's lower box corner).
+    pub fn anchor(&self) -> Point {
+        self.anchor
+    }
+
+    /// Vertex i = anchor + `offsets()[i]`, computed in f64.
+    pub fn offsets(&self) -> &[[f32; 3]] {
+        &self.offsets
+    }
+
+    /// Vertex index triples, each index below `offsets().len()`.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
     /// Vertex `i` in world coordinates, as mktree computes it (f32 offset
     /// widened, then added in f64).
     fn vertex(&self, i: u32) -> Point {

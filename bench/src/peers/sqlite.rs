@@ -175,11 +175,11 @@ impl SqlitePeer {
                 .ok_or_else(|| bad("is missing"))?
                 .ok_or_else(|| bad("holds no blob"))?
                 .map_err(|source| BenchError::Record { rank, source })?;
-            if self.object_of_rank.get(rank as usize) != Some(&rec.object_id) {
-                return Err(bad(&format!("holds object {}, not the object of its rank", rec.object_id)));
+            if self.object_of_rank.get(rank as usize) != Some(&rec.object_id()) {
+                return Err(bad(&format!("holds object {}, not the object of its rank", rec.object_id())));
             }
             if rec.meets_box(query) {
-                hits.push(rec.object_id);
+                hits.push(rec.object_id());
             }
         }
         hits.sort_unstable();

@@ -26,6 +26,7 @@ pub struct BenchPeersArgs {
     /// Queries per generated set (boxes of 1%, 5% and 20% of the extent, collisions).
     #[arg(long, default_value_t = mktree_bench::DEFAULT_QUERIES)]
     pub queries: usize,
+    /// Seed of the generated query sets.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// mktree's block size and SQLite's page size, bytes (a power of two, 1024 to 65536).
@@ -34,6 +35,7 @@ pub struct BenchPeersArgs {
     /// Query boxes instead of the generated sets: one per line, x0,y0,z0,x1,y1,z1[,LABEL] in mm.
     #[arg(long)]
     pub query_file: Option<PathBuf>,
+    /// Print the rows as JSON instead of tables.
     #[arg(long)]
     pub json: bool,
     /// Write bench-peers.json, bench-peers.svg and bench-peers.png here, and
@@ -55,6 +57,7 @@ struct Bench {
     rows: Vec<PeerRow>,
 }
 
+/// Runs the benchmark on every scene and prints (and with --out, writes) the result.
 pub fn run(o: &BenchPeersArgs) -> Result<()> {
     let query_sets = match &o.query_file {
         Some(f) => {
