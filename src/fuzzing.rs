@@ -25,7 +25,8 @@ pub fn decode_block(data: &[u8]) {
     let mut block = rest.to_vec();
     block.resize(1024, 0);
     let _ = frame::open(7, &block);
-    if let Ok(offsets) = node::validate_block(7, &block, &Limits { block_size: 1024, lod_levels: m, object_count: 1 << 20 })
+    if let Ok(offsets) =
+        node::validate_block(7, &block, &Limits { block_size: 1024, lod_levels: m, object_count: 1 << 20 })
     {
         // A validated block must be readable in place without failing.
         for o in offsets {
@@ -52,11 +53,17 @@ pub fn open_and_query(data: &[u8]) {
         return;
     };
     if let Ok(r) = db.begin_read() {
-        for (b, lod) in [([-1e12, -1e12, -1e12, 1e12, 1e12, 1e12], None), ([0.0, 0.0, 0.0, 100.0, 100.0, 100.0], None)]
-            .into_iter()
-            .chain([([0.0, 0.0, 0.0, 100.0, 100.0, 100.0], Some(1))])
+        for (b, lod) in
+            [([-1e12, -1e12, -1e12, 1e12, 1e12, 1e12], None), ([0.0, 0.0, 0.0, 100.0, 100.0, 100.0], None)]
+                .into_iter()
+                .chain([([0.0, 0.0, 0.0, 100.0, 100.0, 100.0], Some(1))])
         {
-            let _ = query_region(&r, &Region::Box(Aabb::from_array(b)), &QueryOptions { lod, budget: None }, None);
+            let _ = query_region(
+                &r,
+                &Region::Box(Aabb::from_array(b)),
+                &QueryOptions { lod, budget: None },
+                None,
+            );
         }
         let _ = read_hierarchy(&r);
         let _ = r.names();

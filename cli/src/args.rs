@@ -4,7 +4,6 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 use mktree::build::{BuildParams, LeafRule, LookAhead, Method, QueryExtent, TieBreak};
-use mktree::store::format::run;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -225,6 +224,8 @@ pub enum Command {
     /// Every bulk loader on the same scenes and queries: leaves visited (and
     /// block reads with --block-size) per query for boxes, cubes and collisions.
     BenchBuild(BenchBuildArgs),
+    /// mktree against SQLite's R*Tree with geometry blobs (and rstar): reads per query, file sizes, warm time.
+    BenchPeers(crate::cmd::bench_peers::BenchPeersArgs),
     /// The main job on the built-in scene: tanker2 built with MOA and LAA, stats side by side, box queries.
     Demo {
         /// Keep the .mkt files here (default: a temporary directory, removed after).
@@ -363,12 +364,12 @@ impl BuildArgs {
     }
 
     /// The library's parameters. The leaf rule: MemPage objects if given, else
-    /// bytes (explicit, or what the first block of a geometry run holds).
+    /// bytes (explicit, or what a geometry block holds).
     pub fn params(&self) -> BuildParams {
         let leaf = match (self.page_objects, self.leaf_bytes) {
             (Some(n), _) => LeafRule::Objects(n),
             (None, Some(b)) => LeafRule::Bytes { capacity: b },
-            (None, None) => LeafRule::Bytes { capacity: run::first_capacity(self.block_size()) },
+            (None, None) => BuildParams::for_blocks(self.block_size()).leaf,
         };
         BuildParams {
             method: self.method,

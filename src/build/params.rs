@@ -46,6 +46,17 @@ impl Default for BuildParams {
 }
 
 impl BuildParams {
+    /// What `mktree build` uses for blocks of `block_size` bytes, and what
+    /// the README measures as best: `refine` with R 0.2, and leaves whose
+    /// geometry fills one geometry block.
+    pub fn for_blocks(block_size: u32) -> BuildParams {
+        BuildParams {
+            method: Method::Refine,
+            leaf: LeafRule::Bytes { capacity: crate::store::format::geometry::payload(block_size) },
+            ..BuildParams::default()
+        }
+    }
+
     /// Checks the options alone: R in [0, 0.5] and a non-zero capacity.
     pub fn validate(&self) -> Result<(), BuildError> {
         if !(0.0..=0.5).contains(&self.rate) {

@@ -121,7 +121,11 @@ impl ReadTransaction {
     /// parent's entry holds for it (the root's come from the meta block).
     /// The reads to find it are not counted.
     pub fn locate(&self, node: u32) -> Result<(NodeRef, (u64, u64)), StorageError> {
-        let meta = self.snapshot.meta.as_ref().ok_or_else(|| StorageError::Invalid("the file holds no tree".into()))?;
+        let meta = self
+            .snapshot
+            .meta
+            .as_ref()
+            .ok_or_else(|| StorageError::Invalid("the file holds no tree".into()))?;
         if node >= meta.node_count {
             return Err(StorageError::Invalid(format!("no node {node}: the tree has {}", meta.node_count)));
         }
@@ -142,7 +146,10 @@ impl ReadTransaction {
             let i = usize::from(node >= second_id);
             let r = n.child_ref(i);
             let (nb, gb) = n.child_blocks(i);
-            let frame = n.child_box(i, &at.aabb).ok_or_else(|| StorageError::corrupt(at.block, "child_box", "backwards"))?.outer;
+            let frame = n
+                .child_box(i, &at.aabb)
+                .ok_or_else(|| StorageError::corrupt(at.block, "child_box", "backwards"))?
+                .outer;
             // The child's count excludes this block; with the child's own record in hand, its block too.
             below = (u64::from(nb) - u64::from(r.block != 0), u64::from(gb));
             at = if r.block == 0 {
@@ -160,27 +167,39 @@ impl ReadTransaction {
     /// the node's box). From a cold cache with the node's record in hand,
     /// each block is read once; `stats` gets the reads, which equal the
     /// returned level's `predicted_reads`.
-    pub fn fetch_level(&self, node: u32, k: u8, objects: bool, stats: &mut ReadStats) -> Result<Level, StorageError> {
+    pub fn fetch_level(
+        &self,
+        node: u32,
+        k: u8,
+        objects: bool,
+        stats: &mut ReadStats,
+    ) -> Result<Level, StorageError> {
         let m = self.pager().lod_levels();
         if k == 0 || k > m {
             return Err(StorageError::Invalid(format!("level {k} is not in 1..={m}")));
         }
         let (at, (node_blocks, geometry_blocks)) = self.locate(node)?;
         if k == 1 && !objects {
-            return Ok(Level { pieces: vec![Piece::Box { node, aabb: at.aabb }], bytes: 0, predicted_reads: 0 });
+            return Ok(Level {
+                pieces: vec![Piece::Box { node, aabb: at.aabb }],
+                bytes: 0,
+                predicted_reads: 0,
+            });
         }
         let mut reads = Reads::new(None);
         let held = self.block(at.block, BlockType::Node, at.checksum, &mut Reads::new(None))?;
         reads.hold(held);
         let mut gather = Gather::default();
         let opts = QueryOptions { lod: Some(k), budget: None };
-        walk(self, at, &Everything, &opts, &mut reads, &mut gather)
-            .map_err(|e| match e {
-                crate::query::QueryError::Storage(s) => s,
-                other => StorageError::Invalid(other.to_string()),
-            })?;
+        walk(self, at, &Everything, &opts, &mut reads, &mut gather).map_err(|e| match e {
+            crate::query::QueryError::Storage(s) => s,
+            other => StorageError::Invalid(other.to_string()),
+        })?;
         *stats += reads.stats;
-        let mut level = Level { predicted_reads: node_blocks + if k == m { geometry_blocks } else { 0 }, ..Level::default() };
+        let mut level = Level {
+            predicted_reads: node_blocks + if k == m { geometry_blocks } else { 0 },
+            ..Level::default()
+        };
         if !gather.boxes.is_empty() {
             level.bytes += gather.boxes.len() as u64 * crate::store::format::node::OBJECT_LEN as u64;
             level.pieces.push(Piece::ObjectBoxes(gather.boxes));
@@ -190,7 +209,8 @@ impl ReadTransaction {
             level.pieces.push(Piece::ObjectVoxels(gather.voxels));
         }
         if !gather.meshes.is_empty() {
-            level.bytes += gather.meshes.iter().map(|(_, m)| crate::store::format::geometry::record_len(m)).sum::<u64>();
+            level.bytes +=
+                gather.meshes.iter().map(|(_, m)| crate::store::format::geometry::record_len(m)).sum::<u64>();
             level.pieces.push(Piece::Objects(gather.meshes));
         }
         Ok(level)

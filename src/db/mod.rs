@@ -20,8 +20,8 @@ pub use check::{CheckReport, check};
 pub use codes::{method_from_code, method_to_code};
 pub use hierarchy::read_hierarchy;
 pub use lod::{Level, LodInfo, Piece};
-pub use read::{NodeRef, ReadTransaction, Reads, TreeInfo};
 pub(crate) use read::view;
+pub use read::{NodeRef, ReadTransaction, Reads, TreeInfo};
 pub use write::WriteTransaction;
 
 use crate::store::device::FileDevice;
@@ -342,7 +342,8 @@ pub(crate) fn read_meta(pager: &Pager, c: &Commit) -> Result<Option<Meta>, Stora
             format!("block {} is past the end", c.meta_block),
         ));
     }
-    let (b, _) = pager.read(c.meta_block, BlockType::Meta, Some(c.meta_checksum), &mut ReadStats::default())?;
+    let (b, _) =
+        pager.read(c.meta_block, BlockType::Meta, Some(c.meta_checksum), &mut ReadStats::default())?;
     let meta = Meta::decode(c.meta_block, &b)?;
     if meta.root_block == 0 || meta.root_block >= c.block_count {
         return Err(StorageError::corrupt(

@@ -111,7 +111,8 @@ impl ReadTransaction {
     pub fn info(&self) -> Option<TreeInfo> {
         let m = self.snapshot.meta.as_ref()?;
         let bs = f64::from(self.pager().block_size());
-        let fill = |bytes: u64, blocks: u64| if blocks == 0 { 0.0 } else { bytes as f64 / (blocks as f64 * bs) };
+        let fill =
+            |bytes: u64, blocks: u64| if blocks == 0 { 0.0 } else { bytes as f64 / (blocks as f64 * bs) };
         Some(TreeInfo {
             txn: self.snapshot.txn,
             block_size: self.pager().block_size(),
@@ -170,7 +171,8 @@ impl ReadTransaction {
             }
             return Ok(b.clone());
         }
-        let hit = reads.shared.and_then(|c| c.get(id, checksum)).filter(|b| b.bytes.get(4) == Some(&(t as u8)));
+        let hit =
+            reads.shared.and_then(|c| c.get(id, checksum)).filter(|b| b.bytes.get(4) == Some(&(t as u8)));
         let b = match hit {
             Some(b) => {
                 reads.stats.cache_hits += 1;
@@ -204,8 +206,17 @@ impl ReadTransaction {
 
     /// The node block a child reference names (`from`: the block holding
     /// the reference, for a reference within it).
-    pub(crate) fn node_block(&self, from: &Arc<Block>, at: RecordRef, reads: &mut Reads) -> Result<Arc<Block>, StorageError> {
-        if at.block == 0 { Ok(from.clone()) } else { self.block(at.block, BlockType::Node, at.checksum, reads) }
+    pub(crate) fn node_block(
+        &self,
+        from: &Arc<Block>,
+        at: RecordRef,
+        reads: &mut Reads,
+    ) -> Result<Arc<Block>, StorageError> {
+        if at.block == 0 {
+            Ok(from.clone())
+        } else {
+            self.block(at.block, BlockType::Node, at.checksum, reads)
+        }
     }
 
     /// The exact object `i` of `leaf` (in block `block`): its geometry
@@ -228,7 +239,8 @@ impl ReadTransaction {
             let sum = *sums.get(b as usize).ok_or_else(|| {
                 StorageError::corrupt(block, "position", "an object's record lies past its leaf's span")
             })?;
-            let id = u32::try_from(u64::from(first) + b).map_err(|_| StorageError::corrupt(block, "first_block", "overflows"))?;
+            let id = u32::try_from(u64::from(first) + b)
+                .map_err(|_| StorageError::corrupt(block, "first_block", "overflows"))?;
             let g = self.block(id, BlockType::Geometry, sum, reads)?;
             let from = if b == start / p { start % p } else { 0 };
             let to = if b == (end - 1) / p { (end - 1) % p + 1 } else { p };
@@ -237,7 +249,11 @@ impl ReadTransaction {
         }
         let (id, mesh) = geometry::decode_object(first, &bytes)?;
         if id.0 != o.object_id {
-            return Err(StorageError::corrupt(first, "object_id", format!("the leaf says {}, the record {id}", o.object_id)));
+            return Err(StorageError::corrupt(
+                first,
+                "object_id",
+                format!("the leaf says {}, the record {id}", o.object_id),
+            ));
         }
         Ok((id, mesh))
     }
@@ -268,9 +284,14 @@ impl ReadTransaction {
         }
         // A name takes at least 4 bytes: the stream's length bounds the reads and the allocation.
         if bytes < 4 * u64::from(records) {
-            return Err(StorageError::corrupt(first, "data_bytes", format!("{bytes} bytes for {records} names")));
+            return Err(StorageError::corrupt(
+                first,
+                "data_bytes",
+                format!("{bytes} bytes for {records} names"),
+            ));
         }
-        let last = first.checked_add(blocks - 1).ok_or_else(|| StorageError::corrupt(first, "run", "overflows"))?;
+        let last =
+            first.checked_add(blocks - 1).ok_or_else(|| StorageError::corrupt(first, "run", "overflows"))?;
         self.check_in_snapshot(last)?;
         let mut all = vec![head];
         for id in first + 1..=last {
@@ -285,7 +306,11 @@ impl ReadTransaction {
 /// The record at `offset` of a validated node block.
 pub(crate) fn view(block: &Block, offset: u32) -> Result<NodeView<'_>, StorageError> {
     if block.records.binary_search(&offset).is_err() {
-        return Err(StorageError::corrupt(block.id, "child_offset", format!("{offset} is not a record of the block")));
+        return Err(StorageError::corrupt(
+            block.id,
+            "child_offset",
+            format!("{offset} is not a record of the block"),
+        ));
     }
     NodeView::at(&block.bytes, offset).map_err(|d| StorageError::corrupt(block.id, "record", d))
 }

@@ -6,8 +6,8 @@
 //! sample queries ([`QueryMix`]).
 
 use crate::build::{Hierarchy, Order, QueryMix};
-use crate::lod::StoredBounds;
 use crate::geom::Aabb;
+use crate::lod::StoredBounds;
 use crate::scene::Scene;
 use crate::store::format::frame::{BlockType, FRAME_LEN};
 use crate::store::format::geometry::{self, Placement};
@@ -55,7 +55,12 @@ pub(crate) struct Plan {
 
 impl Plan {
     /// The plan of `tree` over `scene` in blocks of `block_size` bytes.
-    pub fn new(scene: &Scene, tree: &Hierarchy, block_size: u32, mix: &QueryMix) -> Result<Plan, StorageError> {
+    pub fn new(
+        scene: &Scene,
+        tree: &Hierarchy,
+        block_size: u32,
+        mix: &QueryMix,
+    ) -> Result<Plan, StorageError> {
         let nodes = &tree.nodes;
         let n = nodes.len();
         let invalid = StorageError::Invalid;
@@ -74,7 +79,8 @@ impl Plan {
         for i in 0..n {
             for c in nodes[i].children().into_iter().flatten() {
                 let q = quantize(&frames[i], &nodes[c.index()].aabb);
-                let qb = QuantBox::decode(&frames[i], q).ok_or_else(|| invalid("a box quantized backwards".into()))?;
+                let qb = QuantBox::decode(&frames[i], q)
+                    .ok_or_else(|| invalid("a box quantized backwards".into()))?;
                 if !qb.outer.contains(&nodes[c.index()].aabb) {
                     return Err(invalid(format!("node {} does not lie in its parent's box", c.0)));
                 }
@@ -157,7 +163,13 @@ impl Plan {
     /// the node blocks the chosen packing makes it read, and the geometry
     /// blocks of the objects no box, face or bound decides (as the traversal
     /// decides them).
-    pub fn expected_reads(&self, scene: &Scene, tree: &Hierarchy, stored: &StoredBounds, block_size: u32) -> Vec<f64> {
+    pub fn expected_reads(
+        &self,
+        scene: &Scene,
+        tree: &Hierarchy,
+        stored: &StoredBounds,
+        block_size: u32,
+    ) -> Vec<f64> {
         let sizes = self.sizes(tree, &stored.bounds);
         let (packing, _) = self.choose(tree, &sizes, node::capacity(block_size));
         // Every object's box as its leaf stores it.
@@ -352,14 +364,24 @@ pub(crate) fn write(
                             let at = if cb as usize == b {
                                 RecordRef { block: 0, checksum: 0, offset: offset[c] }
                             } else {
-                                RecordRef { block: first_node + cb, checksum: checksums[cb as usize], offset: offset[c] }
+                                RecordRef {
+                                    block: first_node + cb,
+                                    checksum: checksums[cb as usize],
+                                    offset: offset[c],
+                                }
                             };
                             let (fl, ll) = subtree_leaves(c);
                             let geometry_blocks = (leaf_span(ll).1 - leaf_span(fl).0 + 1) as u32;
                             ChildEntry {
                                 qbox: child_q[c],
                                 at,
-                                node_blocks: below[c] - u32::from(block_in_subtree(&packing.place, b as u32, c, subtree_end(c, &subtree_leaves))),
+                                node_blocks: below[c]
+                                    - u32::from(block_in_subtree(
+                                        &packing.place,
+                                        b as u32,
+                                        c,
+                                        subtree_end(c, &subtree_leaves),
+                                    )),
                                 geometry_blocks,
                             }
                         };
@@ -371,7 +393,12 @@ pub(crate) fn write(
                         RecordDraft::Internal {
                             node_id: i as u32,
                             object_count: object_count(tree, i),
-                            split: SplitInfo { axis: s.axis, order, overlap: s.overlap as f32, gap: s.gap as f32 },
+                            split: SplitInfo {
+                                axis: s.axis,
+                                order,
+                                overlap: s.overlap as f32,
+                                gap: s.gap as f32,
+                            },
                             children: [child(kids[0].index()), child(kids[1].index())],
                             bounds: bounds[i].clone(),
                         }
@@ -385,7 +412,11 @@ pub(crate) fn write(
                             .zip(&plan.positions[i])
                             .map(|(id, &(pos, _))| {
                                 let aabb = scene.object(*id).map_or(Aabb::EMPTY, |o| o.mesh.aabb());
-                                ObjectEntry { object_id: id.0, qbox: quantize(&frame[i], &aabb), position: pos - base }
+                                ObjectEntry {
+                                    object_id: id.0,
+                                    qbox: quantize(&frame[i], &aabb),
+                                    position: pos - base,
+                                }
                             })
                             .collect();
                         let end = plan.positions[i].last().map_or(0, |&(pos, len)| pos + len);
@@ -442,7 +473,11 @@ fn block_in_subtree(place: &[(u32, u32)], b: u32, c: usize, end: usize) -> bool 
 /// For each node, the distinct node blocks of its subtree (nodes in
 /// preorder: a subtree is a range of ids), by the offline distinct-count of
 /// ranges with a Fenwick tree.
-fn node_blocks_below(n: usize, place: &[(u32, u32)], children: impl Fn(usize) -> Option<[usize; 2]>) -> Vec<u32> {
+fn node_blocks_below(
+    n: usize,
+    place: &[(u32, u32)],
+    children: impl Fn(usize) -> Option<[usize; 2]>,
+) -> Vec<u32> {
     // Subtree ranges [i, end_i).
     let mut end = vec![0usize; n];
     for i in (0..n).rev() {

@@ -148,14 +148,19 @@ impl<'db> WriteTransaction<'db> {
         let mix = QueryMix::new(&tree.nodes[0].aabb, q);
         let plan = tree_writer::Plan::new(scene, tree, bs, &mix)?;
         let object_blocks = |i: usize, j: usize| plan.object_blocks(i, j);
-        let layout = Layout { frames: &plan.frames, read_share: &plan.read_share, object_blocks: &object_blocks };
-        let mut stored = plan_bounds(scene, tree, m, bs, &self.lod_params, &mix, &layout).map_err(lod_error)?;
+        let layout =
+            Layout { frames: &plan.frames, read_share: &plan.read_share, object_blocks: &object_blocks };
+        let mut stored =
+            plan_bounds(scene, tree, m, bs, &self.lod_params, &mix, &layout).map_err(lod_error)?;
         // Bounds chosen one by one may still not pay as a whole: the blocks
         // they add change the packing. Keep them only if the model's queries
         // read no more with them at any scale, and less in all.
         if !self.lod_params.store_all && !stored.is_empty() {
             let without = stored.none();
-            let (a, b) = (plan.expected_reads(scene, tree, &stored, bs), plan.expected_reads(scene, tree, &without, bs));
+            let (a, b) = (
+                plan.expected_reads(scene, tree, &stored, bs),
+                plan.expected_reads(scene, tree, &without, bs),
+            );
             if a.iter().zip(&b).any(|(x, y)| x > y) || a.iter().sum::<f64>() >= b.iter().sum::<f64>() {
                 stored = without;
             }

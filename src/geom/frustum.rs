@@ -114,7 +114,8 @@ impl Frustum {
                 return true;
             }
             let proj = |q: &Point| q.coords.dot(n) / len;
-            let (lo, hi) = self.corners.iter().map(proj).fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(x), b.max(x)));
+            let (lo, hi) =
+                self.corners.iter().map(proj).fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(x), b.max(x)));
             let x = proj(p);
             let slack = 1e-9 * mag;
             x >= lo + slack && x <= hi - slack

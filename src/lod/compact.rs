@@ -93,7 +93,11 @@ pub fn encode(v: &Voxels) -> Vec<u8> {
             for b in &boxes {
                 for &c in b {
                     // Corners lie in 0 ..= dims: u8 when every axis has at most 255 cells.
-                    if form == FORM_BOXES8 { out.push(c as u8) } else { out.extend_from_slice(&c.to_le_bytes()) }
+                    if form == FORM_BOXES8 {
+                        out.push(c as u8)
+                    } else {
+                        out.extend_from_slice(&c.to_le_bytes())
+                    }
                 }
             }
         }
@@ -136,7 +140,11 @@ pub fn decode(bytes: &[u8], lattice: &Lattice, outer: &Aabb) -> Result<Voxels, L
             // work is bounded by the grid's cells, not by what the blob claims.
             for raw in payload.chunks_exact(size) {
                 let c: [u16; 6] = std::array::from_fn(|i| {
-                    if size == 6 { u16::from(raw[i]) } else { u16::from_le_bytes([raw[2 * i], raw[2 * i + 1]]) }
+                    if size == 6 {
+                        u16::from(raw[i])
+                    } else {
+                        u16::from_le_bytes([raw[2 * i], raw[2 * i + 1]])
+                    }
                 });
                 if !v.fill_box(c) {
                     return Err(bad("a box outside the grid or over another"));

@@ -143,7 +143,8 @@ pub fn plan_bounds(
     for (i, node) in tree.nodes.iter().enumerate() {
         for (j, id) in node.objects().unwrap_or_default().iter().enumerate() {
             let Some(o) = scene.object(*id) else { continue };
-            let Some(qbox) = QuantBox::decode(&layout.frames[i], quantize(&layout.frames[i], &o.mesh.aabb())) else {
+            let Some(qbox) = QuantBox::decode(&layout.frames[i], quantize(&layout.frames[i], &o.mesh.aabb()))
+            else {
                 continue;
             };
             for b in (layout.object_blocks)(i, j) {
@@ -213,7 +214,14 @@ struct Ctx<'a> {
 impl Ctx<'_> {
     /// Object `j` (id `id`) of leaf `i` bounded at level k, with its model
     /// value; `None` when the level's grid is too large or its blob too long.
-    fn candidate(&self, k: u8, i: usize, j: usize, id: ObjectId, mesh: &Mesh) -> Result<Option<Candidate>, LodError> {
+    fn candidate(
+        &self,
+        k: u8,
+        i: usize,
+        j: usize,
+        id: ObjectId,
+        mesh: &Mesh,
+    ) -> Result<Option<Candidate>, LodError> {
         let frame = &self.layout.frames[i];
         let Some(qbox) = QuantBox::decode(frame, quantize(frame, &mesh.aabb())) else { return Ok(None) };
         // The grid over the box the reader holds: the decoded quantized box.
@@ -226,7 +234,8 @@ impl Ctx<'_> {
         if blob.len() > usize::from(u8::MAX) {
             return Ok(None);
         }
-        let cost = self.layout.read_share[i] * (crate::store::format::node::BOUND_HEAD_LEN + blob.len()) as f64
+        let cost = self.layout.read_share[i]
+            * (crate::store::format::node::BOUND_HEAD_LEN + blob.len()) as f64
             / self.node_capacity;
         let blocks: Vec<u64> = (self.layout.object_blocks)(i, j).collect();
         let scales = self.mix.extents().len();
@@ -245,7 +254,9 @@ impl Ctx<'_> {
                 saved += blocks
                     .iter()
                     .filter(|b| {
-                        self.sharers.get(b).is_none_or(|v| v.iter().all(|s| s.object == id || !s.undecided(q)))
+                        self.sharers
+                            .get(b)
+                            .is_none_or(|v| v.iter().all(|s| s.object == id || !s.undecided(q)))
                     })
                     .count() as u64;
             }

@@ -155,7 +155,9 @@ impl Voxels {
     /// set of surface cells (`of_surfaces`), `q` then meets the surface.
     pub fn holds_a_cell_in(&self, q: &Aabb) -> bool {
         let tol = self.grid.tolerance();
-        self.grid.box_range(q).is_some_and(|r| self.any_in(r, |_, c| q.contains(&self.grid.cell_box(c).grown(tol))))
+        self.grid
+            .box_range(q)
+            .is_some_and(|r| self.any_in(r, |_, c| q.contains(&self.grid.cell_box(c).grown(tol))))
     }
 
     /// Every set cell's box, grown by the voxelization tolerance: each holds

@@ -77,7 +77,11 @@ fn add(total: &mut TraverseStats, s: &TraverseStats) {
     total.reads += s.reads;
     total.nodes_visited += s.nodes_visited;
     total.leaves_visited += s.leaves_visited;
-    for (t, x) in [(&mut total.confirmed, &s.confirmed), (&mut total.rejected, &s.rejected), (&mut total.pruned, &s.pruned)] {
+    for (t, x) in [
+        (&mut total.confirmed, &s.confirmed),
+        (&mut total.rejected, &s.rejected),
+        (&mut total.pruned, &s.pruned),
+    ] {
         t.resize(t.len().max(x.len()), 0);
         for (a, b) in t.iter_mut().zip(x) {
             *a += b;
@@ -89,7 +93,11 @@ fn add(total: &mut TraverseStats, s: &TraverseStats) {
 
 /// Every pair of objects of `txn`'s tree within `opts.clearance`, at level k.
 /// Reads go through `cache`, or a pool of the run's own when `None`.
-pub fn clash(txn: &ReadTransaction, opts: &ClashOptions, cache: Option<&BlockCache>) -> Result<ClashAnswer, QueryError> {
+pub fn clash(
+    txn: &ReadTransaction,
+    opts: &ClashOptions,
+    cache: Option<&BlockCache>,
+) -> Result<ClashAnswer, QueryError> {
     let started = Instant::now();
     let d = opts.clearance;
     if !(d.is_finite() && d >= 0.0) {
@@ -120,7 +128,8 @@ pub fn clash(txn: &ReadTransaction, opts: &ClashOptions, cache: Option<&BlockCac
             let (_, mesh) = txn.read_object(block.id, &leaf, *index, &mut reads)?;
             total.reads += reads.stats;
             let probe = Triangles::posed(&mesh, &Pose::default(), d)?;
-            let exact = walk(txn, root, &probe, &QueryOptions::default(), &mut Reads::new(Some(pool)), &mut ())?;
+            let exact =
+                walk(txn, root, &probe, &QueryOptions::default(), &mut Reads::new(Some(pool)), &mut ())?;
             add(&mut total, &exact.stats);
             hits = exact.objects.into_iter().filter(|&b| b > a.id).collect();
         }

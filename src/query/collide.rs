@@ -84,6 +84,8 @@ pub fn object_meshes(txn: &ReadTransaction, ids: &[ObjectId]) -> Result<Vec<Mesh
     let all = QueryOptions { lod: Some(1), budget: None };
     walk(txn, root, &Everything, &all, &mut Reads::new(None), &mut fetch)?;
     ids.iter()
-        .map(|id| fetch.found.get(id).cloned().ok_or(QueryError::NoObject { id: id.0, objects: info.objects }))
+        .map(|id| {
+            fetch.found.get(id).cloned().ok_or(QueryError::NoObject { id: id.0, objects: info.objects })
+        })
         .collect()
 }

@@ -5,7 +5,6 @@
 //! `check`. Each returns its answer and the blocks it read, counted by the
 //! pager where the reads happen.
 
-mod bench_workload;
 mod brute_force;
 mod clash;
 mod collide;
@@ -15,11 +14,7 @@ mod region;
 mod select;
 mod tradeoff;
 mod traverse;
-mod workload;
 
-pub use bench_workload::{
-    COLLISION_MARGIN_MM, QueryKind, TreeQueryCount, collision_boxes, count_in_tree, random_cubes,
-};
 pub use brute_force::{brute_force_clash, brute_force_collide, brute_force_region};
 pub use clash::{ClashAnswer, ClashOptions, clash};
 pub use collide::{CollideOptions, collide, object_mesh, object_meshes};
@@ -30,4 +25,3 @@ pub use select::{Everything, Region, Selection, Triangles};
 pub use tradeoff::{TRADEOFF_SHIFT_MM, TradeoffRow, collision_workload, tradeoff};
 pub use traverse::{ObjectLevel, Proof, QueryAnswer, QueryOptions, Seen, TraverseStats, traverse};
 pub(crate) use traverse::{Visitor, walk};
-pub use workload::{WorkloadStats, random_boxes, run_boxes};

@@ -112,7 +112,8 @@ impl Triangles {
             return Err(ShapeError::Invalid { what: "a clearance", detail: format!("{clearance} mm") });
         }
         let c = mesh.aabb().center();
-        let triangles: Vec<[Point; 3]> = mesh.triangle_points().map(|t| t.map(|p| pose.apply(&c, &p))).collect();
+        let triangles: Vec<[Point; 3]> =
+            mesh.triangle_points().map(|t| t.map(|p| pose.apply(&c, &p))).collect();
         let boxes: Vec<Aabb> = triangles.iter().map(|t| Aabb::from_points(t).grown(clearance)).collect();
         let aabb = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(b));
         Ok(Triangles { triangles, boxes, aabb, clearance })
@@ -173,7 +174,11 @@ impl Selection for Triangles {
                         return false;
                     }
                     *n += 1;
-                    if d == 0.0 { intersects_triangle_triangle(q, &t) } else { distance_triangle_triangle(q, &t) <= d }
+                    if d == 0.0 {
+                        intersects_triangle_triangle(q, &t)
+                    } else {
+                        distance_triangle_triangle(q, &t) <= d
+                    }
                 })
         })
     }

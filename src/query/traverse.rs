@@ -274,14 +274,23 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
 
     /// The voxel set of bound `b`, whose target's box is `outer`.
     fn voxels(&self, block: u32, b: &BoundView, outer: &Aabb) -> Result<Voxels, StorageError> {
-        let lattice = self.txn.lattice().ok_or_else(|| StorageError::corrupt(block, "bounds", "no lattice in the meta block"))?;
-        crate::lod::decode(b.blob, &lattice, outer).map_err(|e| StorageError::corrupt(block, "bounds", e.to_string()))
+        let lattice = self
+            .txn
+            .lattice()
+            .ok_or_else(|| StorageError::corrupt(block, "bounds", "no lattice in the meta block"))?;
+        crate::lod::decode(b.blob, &lattice, outer)
+            .map_err(|e| StorageError::corrupt(block, "bounds", e.to_string()))
     }
 
     fn step(&mut self, step: Step) -> Result<(), StorageError> {
         match step {
             Step::Unread { at, frame, inside, .. } => {
-                let block = self.txn.block(at.block, crate::store::format::frame::BlockType::Node, at.checksum, self.reads)?;
+                let block = self.txn.block(
+                    at.block,
+                    crate::store::format::frame::BlockType::Node,
+                    at.checksum,
+                    self.reads,
+                )?;
                 self.push(Step::Node { block, offset: at.offset, frame, inside })
             }
             Step::Node { block, offset, frame, inside } => self.node(block, offset, frame, inside),
@@ -290,16 +299,29 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
                 let (id, mesh) = self.txn.read_object(block.id(), &leaf, index, self.reads)?;
                 self.stats.geometry_tests += 1;
                 let hit = self.sel.meets_mesh(&mesh, &mut self.stats.triangles_tested);
-                let aabb = leaf.object(index).and_then(|o| QuantBox::decode(&frame, o.qbox)).map_or(frame, |q| q.outer);
+                let aabb = leaf
+                    .object(index)
+                    .and_then(|o| QuantBox::decode(&frame, o.qbox))
+                    .map_or(frame, |q| q.outer);
                 self.decide(id.0, self.m, hit, Proof::Exact, aabb, None, Some(&mesh))
             }
         }
     }
 
-    fn node(&mut self, block: Arc<Block>, offset: u32, frame: Aabb, inside: bool) -> Result<(), StorageError> {
+    fn node(
+        &mut self,
+        block: Arc<Block>,
+        offset: u32,
+        frame: Aabb,
+        inside: bool,
+    ) -> Result<(), StorageError> {
         self.visits += 1;
         if self.visits > self.visit_limit {
-            return Err(StorageError::corrupt(block.id(), "child_block", "more nodes than the meta block counts: the links loop"));
+            return Err(StorageError::corrupt(
+                block.id(),
+                "child_block",
+                "more nodes than the meta block counts: the links loop",
+            ));
         }
         self.stats.nodes_visited += 1;
         self.visitor.node(&block, offset, &frame)?;
@@ -325,7 +347,12 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
                     }
                     let at = n.child_ref(i);
                     if at.block == 0 {
-                        self.push(Step::Node { block: block.clone(), offset: at.offset, frame: qb.outer, inside: child_inside })?;
+                        self.push(Step::Node {
+                            block: block.clone(),
+                            offset: at.offset,
+                            frame: qb.outer,
+                            inside: child_inside,
+                        })?;
                     } else {
                         self.push(Step::Unread { at, frame: qb.outer, inside: child_inside, estimate })?;
                     }
@@ -335,7 +362,8 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
                 self.stats.leaves_visited += 1;
                 for i in 0..leaf.len() {
                     let o = leaf.object(i).ok_or_else(|| bad("an object is missing"))?;
-                    let qb = QuantBox::decode(&frame, o.qbox).ok_or_else(|| bad("an object box is backwards"))?;
+                    let qb =
+                        QuantBox::decode(&frame, o.qbox).ok_or_else(|| bad("an object box is backwards"))?;
                     let aabb = qb.outer;
                     if inside {
                         self.decide(o.object_id, 1, true, Proof::InsideNode, aabb, None, None)?;
@@ -355,11 +383,27 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
                         let v = self.voxels(block.id(), &b, &aabb)?;
                         level = b.level;
                         if !self.sel.may_meet_voxels(&v) {
-                            self.decide(o.object_id, level, false, Proof::VoxelsMiss, aabb, Some((level, &v)), None)?;
+                            self.decide(
+                                o.object_id,
+                                level,
+                                false,
+                                Proof::VoxelsMiss,
+                                aabb,
+                                Some((level, &v)),
+                                None,
+                            )?;
                             continue;
                         }
                         if self.sel.confirms_voxels(&v) {
-                            self.decide(o.object_id, level, true, Proof::Cell, aabb, Some((level, &v)), None)?;
+                            self.decide(
+                                o.object_id,
+                                level,
+                                true,
+                                Proof::Cell,
+                                aabb,
+                                Some((level, &v)),
+                                None,
+                            )?;
                             continue;
                         }
                         voxels = Some(v);

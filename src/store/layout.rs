@@ -83,7 +83,8 @@ pub fn pack(
         }
     }
     // Step 2: fill blocks.
-    let bytes: Vec<usize> = pieces.iter().map(|(_, nodes)| nodes.iter().map(|&i| sizes[i as usize]).sum()).collect();
+    let bytes: Vec<usize> =
+        pieces.iter().map(|(_, nodes)| nodes.iter().map(|&i| sizes[i as usize]).sum()).collect();
     let mut block_of_piece = vec![u32::MAX; pieces.len()];
     let mut blocks: Vec<Vec<u32>> = Vec::new();
     let mut next = 0usize; // first piece not yet placed
@@ -137,7 +138,12 @@ mod tests {
         let mut kids = Vec::new();
         let mut sizes = Vec::new();
         let mut rng = seed;
-        fn build(n: usize, kids: &mut Vec<Option<[usize; 2]>>, sizes: &mut Vec<usize>, rng: &mut u64) -> usize {
+        fn build(
+            n: usize,
+            kids: &mut Vec<Option<[usize; 2]>>,
+            sizes: &mut Vec<usize>,
+            rng: &mut u64,
+        ) -> usize {
             let me = kids.len();
             *rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             kids.push(None);
@@ -186,7 +192,7 @@ mod tests {
     fn blocks_are_mostly_full() {
         let (kids, sizes) = random_tree(5000, 7);
         let cap = 16_000;
-            let p = pack(&sizes, |i| kids[i], cap, cap / 3);
+        let p = pack(&sizes, |i| kids[i], cap, cap / 3);
         let total: usize = sizes.iter().sum();
         let fill = total as f64 / (p.blocks.len() * cap) as f64;
         assert!(fill > 0.85, "fill {fill}");

@@ -123,7 +123,13 @@ impl Pager {
     }
 
     /// Seals (frame + checksum) and writes block `id`; returns its checksum.
-    pub fn write(&self, id: u32, block: &mut [u8], block_type: BlockType, txn: u64) -> Result<u32, StorageError> {
+    pub fn write(
+        &self,
+        id: u32,
+        block: &mut [u8],
+        block_type: BlockType,
+        txn: u64,
+    ) -> Result<u32, StorageError> {
         let sum = frame::seal(id, block, block_type, txn);
         self.device.write_at(self.offset(id), block)?;
         Ok(sum)

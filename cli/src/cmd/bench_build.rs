@@ -13,10 +13,9 @@ use mktree::build::{
 };
 use mktree::db::{CreateOptions, Database};
 use mktree::geom::Aabb;
-use mktree::query::{QueryKind, TreeQueryCount, count_in_tree, run_boxes};
 use mktree::scene::Scene;
 use mktree::store::format::geometry::record_len;
-use mktree::store::format::run;
+use mktree_bench::{QueryKind, TreeQueryCount, count_in_tree, run_boxes};
 use serde::Serialize;
 
 use crate::args::BenchBuildArgs;
@@ -104,7 +103,7 @@ pub fn run(o: &BenchBuildArgs) -> Result<()> {
     anyhow::ensure!(o.queries > 0, "--queries must be at least 1");
     let methods = o.methods.clone().unwrap_or_else(|| Method::ALL.to_vec());
     let leaf = match (o.block_size, o.page_objects) {
-        (Some(b), _) => LeafRule::Bytes { capacity: run::first_capacity(b) },
+        (Some(b), _) => mktree::build::BuildParams::for_blocks(b).leaf,
         (None, p) => LeafRule::Objects(p.unwrap_or(DEFAULT_PAGE_OBJECTS)),
     };
     let tty = std::io::stderr().is_terminal();

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use mktree::db::Database;
 use mktree::geom::Aabb;
-use mktree::query::{WorkloadStats, random_boxes, run_boxes};
+use mktree_bench::{WorkloadStats, random_boxes, run_boxes};
 use serde::Serialize;
 
 use crate::output;

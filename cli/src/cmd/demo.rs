@@ -8,9 +8,9 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use mktree::build::{BuildParams, LeafRule, LookAhead, Method, Report};
-use mktree::query::{QueryOptions, Region, query_region};
 use mktree::db::{CreateOptions, Database, check};
 use mktree::geom::Aabb;
+use mktree::query::{QueryOptions, Region, query_region};
 use mktree::scene::generate::{GenOptions, Preset, generate_scene};
 
 use crate::output::{self, opt};

@@ -63,13 +63,24 @@ pub fn table(file: &Path, as_json: bool) -> Result<()> {
     let rows: Vec<Vec<String>> = levels
         .iter()
         .map(|l| {
-            ["k", "faces_b", "faces_B", "eps", "measured_error", "bytes", "blocks", "stored", "predicted_saving", "predicted_cost"]
-                .iter()
-                .map(|key| match &l[*key] {
-                    serde_json::Value::Number(n) if n.is_f64() => format!("{:.1}", n.as_f64().unwrap_or(0.0)),
-                    v => v.to_string(),
-                })
-                .collect()
+            [
+                "k",
+                "faces_b",
+                "faces_B",
+                "eps",
+                "measured_error",
+                "bytes",
+                "blocks",
+                "stored",
+                "predicted_saving",
+                "predicted_cost",
+            ]
+            .iter()
+            .map(|key| match &l[*key] {
+                serde_json::Value::Number(n) if n.is_f64() => format!("{:.1}", n.as_f64().unwrap_or(0.0)),
+                v => v.to_string(),
+            })
+            .collect()
         })
         .collect();
     output::table(

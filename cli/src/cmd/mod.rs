@@ -1,6 +1,7 @@
 //! One file per subcommand; `run` dispatches.
 
 pub mod bench_build;
+pub mod bench_peers;
 mod bench_queries;
 mod build;
 mod check;
@@ -61,6 +62,7 @@ pub fn run(cli: Cli) -> Result<()> {
             bench_queries::run(&files, queries, &shares, seed, json)
         }
         Command::BenchBuild(args) => bench_build::run(&args),
+        Command::BenchPeers(args) => bench_peers::run(&args),
     }
 }
 

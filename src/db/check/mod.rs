@@ -175,7 +175,9 @@ impl Visitor for Walker<'_> {
                     self.vertices += mesh.vertex_count() as u64;
                     match self.seen.get_mut(id.index()) {
                         Some(s) if !*s => *s = true,
-                        _ => self.faults.push(format!("{here}: object {id} appears twice or is out of range")),
+                        _ => {
+                            self.faults.push(format!("{here}: object {id} appears twice or is out of range"))
+                        }
                     }
                     let Some(q) = QuantBox::decode(frame, o.qbox) else {
                         self.faults.push(format!("{here}: object {id}'s box is backwards"));
@@ -191,22 +193,27 @@ impl Visitor for Walker<'_> {
                             && (q.upper_face[a].0..=q.upper_face[a].1).contains(&b.max[a])
                     });
                     if !tight {
-                        self.faults.push(format!("{here}: object {id}'s stored box is not tight on its surface"));
+                        self.faults
+                            .push(format!("{here}: object {id}'s stored box is not tight on its surface"));
                     }
                     for bound in leaf.bounds().filter(|x| usize::from(x.target) == i) {
                         let k = bound.level;
-                        let v = match self.txn.lattice().ok_or_else(|| "no lattice".to_string()).and_then(|l| {
-                            crate::lod::decode(bound.blob, &l, &q.outer).map_err(|e| e.to_string())
-                        }) {
-                            Ok(v) => v,
-                            Err(e) => {
-                                self.faults.push(format!("{here}: object {id}'s bound at level {k}: {e}"));
-                                continue;
-                            }
-                        };
+                        let v =
+                            match self.txn.lattice().ok_or_else(|| "no lattice".to_string()).and_then(|l| {
+                                crate::lod::decode(bound.blob, &l, &q.outer).map_err(|e| e.to_string())
+                            }) {
+                                Ok(v) => v,
+                                Err(e) => {
+                                    self.faults
+                                        .push(format!("{here}: object {id}'s bound at level {k}: {e}"));
+                                    continue;
+                                }
+                            };
                         let exact = Voxels::of_surfaces(v.grid().clone(), [&mesh]);
                         if !exact.is_subset_of(&v).unwrap_or(false) {
-                            self.faults.push(format!("{here}: object {id}'s bound at level {k} does not hold its surface"));
+                            self.faults.push(format!(
+                                "{here}: object {id}'s bound at level {k} does not hold its surface"
+                            ));
                         }
                         let eps = self.eps.get(usize::from(k) - 1).copied().unwrap_or(0.0);
                         if v.grid().max_cell_diagonal() > eps * (1.0 + 1e-9) {
@@ -233,8 +240,12 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
         c.fault(format!("{} names for {} objects", names.len(), info.objects));
     }
     if meta.names_block != 0 {
-        let (head, _) =
-            txn.pager().read(meta.names_block, BlockType::Names, Some(meta.names_checksum), &mut ReadStats::default())?;
+        let (head, _) = txn.pager().read(
+            meta.names_block,
+            BlockType::Names,
+            Some(meta.names_checksum),
+            &mut ReadStats::default(),
+        )?;
         let (blocks, _, _) = run::header(meta.names_block, &head)?;
         c.claim(meta.names_block, Owner::Used(BlockType::Names));
         for b in meta.names_block + 1..meta.names_block.saturating_add(blocks) {

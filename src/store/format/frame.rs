@@ -38,9 +38,7 @@ impl BlockType {
     /// The type with this code, if any.
     pub fn from_code(code: u8) -> Option<BlockType> {
         use BlockType::*;
-        [Meta, Node, Geometry, Continuation, FreeList, Names, Free]
-            .into_iter()
-            .find(|t| *t as u8 == code)
+        [Meta, Node, Geometry, Continuation, FreeList, Names, Free].into_iter().find(|t| *t as u8 == code)
     }
 
     /// Lower-case name for reports.

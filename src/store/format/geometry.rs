@@ -3,9 +3,9 @@
 use zerocopy::byteorder::little_endian::{F64, U32};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
+use super::frame::FRAME_LEN;
 use crate::geom::Point;
 use crate::scene::{Mesh, ObjectId};
-use super::frame::FRAME_LEN;
 use crate::store::StorageError;
 
 #[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
@@ -123,11 +123,15 @@ pub fn decode_object(id: u32, bytes: &[u8]) -> Result<(ObjectId, Mesh), StorageE
     let arrays = &bytes[HEADER_LEN..end];
     let offsets: Vec<[f32; 3]> = arrays[..12 * v]
         .chunks_exact(12)
-        .map(|c| std::array::from_fn(|i| f32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]])))
+        .map(|c| {
+            std::array::from_fn(|i| f32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]]))
+        })
         .collect();
     let triangles: Vec<[u32; 3]> = arrays[12 * v..]
         .chunks_exact(12)
-        .map(|c| std::array::from_fn(|i| u32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]])))
+        .map(|c| {
+            std::array::from_fn(|i| u32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]]))
+        })
         .collect();
     if let Some(i) = offsets.iter().position(|o| !o.iter().all(|c| c.is_finite())) {
         return Err(bad("offsets", format!("vertex {i} is not finite")));

@@ -229,7 +229,9 @@ impl RecordDraft {
                     node_id: (*node_id).into(),
                     first_block: (*first_block).into(),
                     span: u16::try_from(checksums.len())
-                        .map_err(|_| format!("a leaf over {} geometry blocks (at most 65,535)", checksums.len()))?
+                        .map_err(|_| {
+                            format!("a leaf over {} geometry blocks (at most 65,535)", checksums.len())
+                        })?
                         .into(),
                     reserved1: [0; 2],
                     bounds_bytes: (bounds_len(bounds) as u32).into(),
@@ -242,8 +244,11 @@ impl RecordDraft {
                     u32::try_from(p / 4).map_err(|_| format!("a geometry span of {p} bytes (at most 16 GiB)"))
                 };
                 for o in objects {
-                    let raw =
-                        ObjectRaw { object_id: o.object_id.into(), qbox: o.qbox.map(U16::new), position: words(o.position)?.into() };
+                    let raw = ObjectRaw {
+                        object_id: o.object_id.into(),
+                        qbox: o.qbox.map(U16::new),
+                        position: words(o.position)?.into(),
+                    };
                     out.extend_from_slice(raw.as_bytes());
                 }
                 out.extend_from_slice(&words(*end)?.to_le_bytes());
@@ -257,7 +262,8 @@ impl RecordDraft {
 
 fn encode_bounds(bounds: &[BoundEntry], out: &mut Vec<u8>) -> Result<(), String> {
     for b in bounds {
-        let len = u8::try_from(b.blob.len()).map_err(|_| format!("a bound of {} bytes (at most 255)", b.blob.len()))?;
+        let len = u8::try_from(b.blob.len())
+            .map_err(|_| format!("a bound of {} bytes (at most 255)", b.blob.len()))?;
         let raw = BoundRaw { target: b.target.into(), level: b.level, blob_bytes: len };
         out.extend_from_slice(raw.as_bytes());
         out.extend_from_slice(&b.blob);
@@ -383,7 +389,9 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
                 }
             }
             let len = INTERNAL_LEN + usize::from(raw.bounds_bytes.get());
-            let area = bytes.get(INTERNAL_LEN..len).ok_or_else(|| bad("bounds_bytes", "overruns the block".into()))?;
+            let area = bytes
+                .get(INTERNAL_LEN..len)
+                .ok_or_else(|| bad("bounds_bytes", "overruns the block".into()))?;
             validate_bounds(area, 2, limits).map_err(|d| bad("bounds", d))?;
             Ok(len)
         }
@@ -394,26 +402,38 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
             }
             let (n, span) = (usize::from(raw.object_count.get()), usize::from(raw.span.get()));
             if n == 0 || span == 0 || raw.first_block.get() == 0 {
-                return Err(bad("object_count", format!("{n} objects over {span} blocks from {}", raw.first_block)));
+                return Err(bad(
+                    "object_count",
+                    format!("{n} objects over {span} blocks from {}", raw.first_block),
+                ));
             }
             let bounds = raw.bounds_bytes.get() as usize;
             let len = bounds.checked_add(leaf_len(n, span, 0)).filter(|&l| l <= bytes.len());
-            let Some(len) = len else { return Err(bad("bounds_bytes", "the record overruns the block".into())) };
+            let Some(len) = len else {
+                return Err(bad("bounds_bytes", "the record overruns the block".into()));
+            };
             let payload = limits.block_size as u64 - FRAME_LEN as u64;
             let objects_at = LEAF_HEAD_LEN + 4 * span;
             let mut prev: Option<u64> = None;
             for i in 0..n {
                 let at = objects_at + i * OBJECT_LEN;
-                let (o, _) = ObjectRaw::ref_from_prefix(&bytes[at..]).map_err(|_| bad("objects", "short".into()))?;
+                let (o, _) =
+                    ObjectRaw::ref_from_prefix(&bytes[at..]).map_err(|_| bad("objects", "short".into()))?;
                 if o.object_id.get() >= limits.object_count {
-                    return Err(bad("object_id", format!("{} >= {} objects", o.object_id, limits.object_count)));
+                    return Err(bad(
+                        "object_id",
+                        format!("{} >= {} objects", o.object_id, limits.object_count),
+                    ));
                 }
                 if !qbox_ok(&o.qbox) {
                     return Err(bad("object_box", "a lower step exceeds the upper one".into()));
                 }
                 let p = u64::from(o.position.get()) * 4;
                 if i == 0 && p >= payload {
-                    return Err(bad("position", "the first object does not start in the span's first block".into()));
+                    return Err(bad(
+                        "position",
+                        "the first object does not start in the span's first block".into(),
+                    ));
                 }
                 if prev.is_some_and(|q| p < q + super::geometry::HEADER_LEN as u64) {
                     return Err(bad("position", format!("object {i} starts inside the one before")));
@@ -424,8 +444,13 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
             let end = u64::from(u32::from_le_bytes(
                 bytes[end_at..end_at + 4].try_into().map_err(|_| bad("end", "short".into()))?,
             )) * 4;
-            if prev.is_some_and(|q| end < q + super::geometry::HEADER_LEN as u64) || end > payload * span as u64 {
-                return Err(bad("end", format!("the span's records end at {end} bytes, past its {span} blocks")));
+            if prev.is_some_and(|q| end < q + super::geometry::HEADER_LEN as u64)
+                || end > payload * span as u64
+            {
+                return Err(bad(
+                    "end",
+                    format!("the span's records end at {end} bytes, past its {span} blocks"),
+                ));
             }
             if (end - 1) / payload + 1 != span as u64 {
                 return Err(bad("span", format!("{span} blocks for records ending at byte {end}")));
@@ -501,13 +526,20 @@ impl<'a> NodeView<'a> {
             Some(&KIND_LEAF) => {
                 let (raw, rest) = LeafRaw::ref_from_prefix(bytes).map_err(|_| "short record")?;
                 let (checksums, rest) =
-                    <[U32]>::ref_from_prefix_with_elems(rest, usize::from(raw.span.get())).map_err(|_| "short")?;
+                    <[U32]>::ref_from_prefix_with_elems(rest, usize::from(raw.span.get()))
+                        .map_err(|_| "short")?;
                 let (objects, rest) =
                     <[ObjectRaw]>::ref_from_prefix_with_elems(rest, usize::from(raw.object_count.get()))
                         .map_err(|_| "short")?;
                 let (end, rest) = U32::ref_from_prefix(rest).map_err(|_| "short")?;
                 let bounds = rest.get(..raw.bounds_bytes.get() as usize).ok_or("bounds overrun")?;
-                Ok(NodeView::Leaf(LeafView { raw, checksums, objects, end: u64::from(end.get()) * 4, bounds }))
+                Ok(NodeView::Leaf(LeafView {
+                    raw,
+                    checksums,
+                    objects,
+                    end: u64::from(end.get()) * 4,
+                    bounds,
+                }))
             }
             _ => Err("not a record".into()),
         }
@@ -688,11 +720,11 @@ mod tests {
         let mut block = vec![0u8; 1024];
         let offsets = encode_block(&drafts(), &mut block).unwrap();
         let cases: Vec<Box<dyn Fn(&mut Vec<u8>)>> = vec![
-            Box::new(|b| b[24] = 7),                                   // kind
-            Box::new(|b| b[16] = 1),                                   // used bytes
-            Box::new(|b| b[24 + 20 + 16] = 1),                         // in-block child offset
-            Box::new(|b| b[1000] = 1),                                 // reserved tail
-            Box::new(move |b| b[offsets[1] as usize + 20 + 4] = 99),  // object id
+            Box::new(|b| b[24] = 7),                                 // kind
+            Box::new(|b| b[16] = 1),                                 // used bytes
+            Box::new(|b| b[24 + 20 + 16] = 1),                       // in-block child offset
+            Box::new(|b| b[1000] = 1),                               // reserved tail
+            Box::new(move |b| b[offsets[1] as usize + 20 + 4] = 99), // object id
         ];
         for (i, damage) in cases.iter().enumerate() {
             let mut b = block.clone();

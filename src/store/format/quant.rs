@@ -76,7 +76,8 @@ impl QuantBox {
             Point::new(d(0, q[3]), d(1, q[4]), d(2, q[5])),
         );
         let lower_face = std::array::from_fn(|a| (d(a, q[a]), d(a, q[a].saturating_add(1).min(q[a + 3]))));
-        let upper_face = std::array::from_fn(|a| (d(a, q[a + 3].saturating_sub(1).max(q[a])), d(a, q[a + 3])));
+        let upper_face =
+            std::array::from_fn(|a| (d(a, q[a + 3].saturating_sub(1).max(q[a])), d(a, q[a + 3])));
         Some(QuantBox { outer, lower_face, upper_face })
     }
 

@@ -9,14 +9,16 @@
 
 use serde::Serialize;
 
-use crate::build::Hierarchy;
-use crate::geom::{Aabb, Vector};
-use crate::rng::Rng;
+use mktree::build::{Hierarchy, NodeId};
+use mktree::geom::{Aabb, Vector};
 
-use super::random_boxes;
+use crate::rng::Rng;
+use crate::workload::random_boxes;
 
 /// Seeds cubes apart from the boxes of the same share.
 const CUBE_STREAM: u64 = 0xC0BE;
+/// Tags collision draws apart from boxes whose share has the margin's bits.
+const COLLISION_STREAM: u64 = 0xC011;
 
 /// The growth of an object's box in a collision-like query, in mm.
 pub const COLLISION_MARGIN_MM: f64 = 50.0;
@@ -110,7 +112,7 @@ pub fn collision_boxes(boxes: &[Aabb], count: usize, margin_mm: f64, seed: u64) 
     if boxes.is_empty() {
         return Vec::new();
     }
-    let mut rng = Rng::derive(seed, margin_mm.to_bits() ^ 0xC011);
+    let mut rng = Rng::new(seed, margin_mm.to_bits() ^ COLLISION_STREAM);
     (0..count).map(|_| boxes[rng.below(boxes.len() as u64) as usize].grown(margin_mm)).collect()
 }
 
@@ -132,7 +134,7 @@ pub struct TreeQueryCount {
 pub fn count_in_tree(tree: &Hierarchy, boxes: &[Aabb], query: &Aabb) -> TreeQueryCount {
     let mut count = TreeQueryCount::default();
     let mut stack = match tree.root() {
-        Some(root) if root.aabb.intersects(query) => vec![crate::build::NodeId::ROOT],
+        Some(root) if root.aabb.intersects(query) => vec![NodeId::ROOT],
         _ => return count,
     };
     while let Some(id) = stack.pop() {

@@ -1,12 +1,14 @@
 //! Random query workloads for measurements: boxes of a given share of the
 //! scene's extent, centred uniformly in the scene box, from a seed.
 
-use crate::geom::{Aabb, Point};
+use mktree::geom::{Aabb, Point};
+
+use crate::rng::Rng;
 
 /// `count` boxes whose sides are `share` of the scene's extent on each axis,
 /// centred uniformly at random in `scene` (deterministic for a seed).
 pub fn random_boxes(scene: &Aabb, count: usize, share: f64, seed: u64) -> Vec<Aabb> {
-    let mut rng = crate::rng::Rng::new(seed ^ share.to_bits());
+    let mut rng = Rng::new(seed, share.to_bits());
     let e = scene.extent();
     let half = e * share / 2.0;
     (0..count)
@@ -24,23 +26,30 @@ pub fn random_boxes(scene: &Aabb, count: usize, share: f64, seed: u64) -> Vec<Aa
 /// Means over a set of queries.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct WorkloadStats {
+    /// Queries run.
     pub queries: usize,
+    /// Node blocks read.
     pub mean_node_reads: f64,
+    /// Geometry blocks read.
     pub mean_geometry_reads: f64,
+    /// All blocks read.
     pub mean_total_reads: f64,
+    /// Objects in the answer.
     pub mean_objects: f64,
+    /// Leaves reached.
     pub mean_leaves_visited: f64,
+    /// Wall time.
     pub mean_milliseconds: f64,
 }
 
 /// Runs `queries` against `txn` and averages their statistics.
 pub fn run_boxes(
-    txn: &crate::db::ReadTransaction,
+    txn: &mktree::db::ReadTransaction,
     queries: &[Aabb],
-) -> Result<WorkloadStats, super::QueryError> {
+) -> Result<WorkloadStats, mktree::query::QueryError> {
     let mut s = WorkloadStats { queries: queries.len(), ..WorkloadStats::default() };
     for q in queries {
-        let r = super::query_region(txn, &super::Region::Box(*q), &super::QueryOptions::default(), None)?;
+        let r = txn.query_box(q)?;
         s.mean_node_reads += r.stats.reads.node as f64;
         s.mean_geometry_reads += r.stats.reads.geometry as f64;
         s.mean_total_reads += r.stats.reads.total() as f64;
@@ -65,7 +74,7 @@ pub fn run_boxes(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::Vector;
+    use mktree::geom::Vector;
 
     #[test]
     fn boxes_are_deterministic_and_sized() {

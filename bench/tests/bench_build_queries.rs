@@ -4,14 +4,25 @@
 //! through the file returns exactly the brute-force answer, on trees of
 //! the new methods (`vsah`, `refine`) and a paper method.
 
-mod common;
+use std::sync::Arc;
 
-use common::mem_db;
 use mktree::build::{BuildParams, Hierarchy, LeafRule, Method};
-use mktree::db::CreateOptions;
+use mktree::db::{CreateOptions, Database};
 use mktree::geom::Aabb;
-use mktree::query::{QueryKind, Region, TreeQueryCount, brute_force_region, count_in_tree};
+use mktree::query::{Region, brute_force_region};
+use mktree::scene::Scene;
 use mktree::scene::generate::{GenOptions, Preset, generate_scene};
+use mktree::store::device::MemDevice;
+use mktree_bench::{QueryKind, TreeQueryCount, count_in_tree};
+
+/// `scene` bulk-loaded by `params` into a fresh in-memory database.
+fn mem_db(scene: &Scene, params: &BuildParams, options: CreateOptions) -> Database {
+    let db = Database::create_on(Arc::new(MemDevice::new()), options).expect("create");
+    let mut w = db.begin_write().expect("begin_write");
+    w.bulk_load(scene, params, &|_| {}).expect("bulk_load");
+    w.commit().expect("commit");
+    db
+}
 
 /// Every leaf and object tested, no pruning: a leaf whose box meets the
 /// query is reached (its ancestors' boxes contain its box).
@@ -36,7 +47,7 @@ fn bench_queries_equal_brute_force_in_memory_and_through_the_file() {
     let boxes = scene.object_boxes();
     for method in [Method::Moa, Method::Vsah, Method::Refine] {
         let params = BuildParams { method, leaf: LeafRule::Objects(12), ..BuildParams::default() };
-        let (db, _) = mem_db(&scene, &params, CreateOptions { block_size: 4096, lod_levels: 2 });
+        let db = mem_db(&scene, &params, CreateOptions { block_size: 4096, lod_levels: 2 });
         let txn = db.begin_read().unwrap();
         let tree = mktree::db::read_hierarchy(&txn).unwrap();
         for kind in QueryKind::STANDARD {
@@ -47,7 +58,11 @@ fn bench_queries_equal_brute_force_in_memory_and_through_the_file() {
                     "{method} {kind:?} {q:?}"
                 );
                 let got = txn.query_box(&q).unwrap();
-                assert_eq!(got.objects, brute_force_region(&scene, &Region::Box(q)), "{method} {kind:?} {q:?}");
+                assert_eq!(
+                    got.objects,
+                    brute_force_region(&scene, &Region::Box(q)),
+                    "{method} {kind:?} {q:?}"
+                );
             }
         }
     }

@@ -1,0 +1,28 @@
+//! # mktree-bench
+//!
+//! Benchmark scaffolding for mktree, kept out of the engine's public API:
+//! the query workloads of `mktree bench-build` and `mktree bench-queries`
+//! (random boxes, cubes and collision boxes from a seed, and the leaves a
+//! box query reaches in a tree held in memory), and the peer benchmark of
+//! `mktree bench-peers`.
+
+#![deny(unsafe_code)]
+#![deny(missing_docs)]
+
+mod bench_peers;
+mod error;
+mod hilbert;
+pub mod peers;
+mod query_sets;
+pub mod record;
+mod rng;
+mod workload;
+
+pub use bench_peers::{
+    DEFAULT_QUERIES, PeerOptions, PeerRow, QuerySet, bench_scene, parse_query_file, standard_sets,
+};
+pub use error::BenchError;
+pub use query_sets::{
+    COLLISION_MARGIN_MM, QueryKind, TreeQueryCount, collision_boxes, count_in_tree, random_cubes,
+};
+pub use workload::{WorkloadStats, random_boxes, run_boxes};

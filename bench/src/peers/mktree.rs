@@ -1,0 +1,147 @@
+//! The mktree side of the peer benchmark: the scene built into a file as
+//! `mktree build` builds it by default, and the queries the other peers
+//! answer, cold or through a cache that holds the whole file.
+//!
+//! Every call into the engine's build and query API is in this file, behind
+//! a few small functions: that API is being rewritten, and this is the one
+//! place the bench adapts to it.
+
+use std::path::{Path, PathBuf};
+
+use mktree::build::BuildParams;
+use mktree::db::{CreateOptions, DEFAULT_LOD_LEVELS, Database, ReadTransaction};
+use mktree::geom::Aabb;
+use mktree::lod::LodParams;
+use mktree::query::{QueryAnswer, QueryOptions, Region, query_region};
+use mktree::scene::Scene;
+use mktree::store::BlockCache;
+
+use crate::error::{BenchError, io};
+
+/// A built mktree file, open for reading.
+pub struct MktreePeer {
+    path: PathBuf,
+    block_size: u32,
+    txn: ReadTransaction,
+    // Held for its file lock while the snapshot is read.
+    _db: Database,
+}
+
+/// Block reads of one query, by kind.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Reads {
+    /// Node blocks.
+    pub node: u64,
+    /// Geometry blocks (exact object records).
+    pub geometry: u64,
+    /// Every block read.
+    pub total: u64,
+}
+
+/// One query's answer and the blocks it read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Counted {
+    /// Sorted object ids.
+    pub objects: Vec<u32>,
+    /// Blocks read, the file's opening left out.
+    pub reads: Reads,
+}
+
+/// A block cache that holds every block once warm.
+pub struct WarmCache(BlockCache);
+
+/// Builds `scene` into a new file at `path` with `mktree build`'s defaults
+/// (cli/src/args.rs): method refine (R 0.2, query extent auto), leaves
+/// whose geometry fits one block, the default levels of detail.
+pub fn build_file(scene: &Scene, path: &Path, block_size: u32) -> Result<MktreePeer, BenchError> {
+    let db = Database::create(path, CreateOptions { block_size, lod_levels: DEFAULT_LOD_LEVELS })?;
+    let params = BuildParams::for_blocks(block_size);
+    let mut w = db.begin_write()?;
+    w.set_lod_params(LodParams::default());
+    w.bulk_load(scene, &params, &|_| {})?;
+    w.commit()?;
+    let txn = db.begin_read()?;
+    Ok(MktreePeer { path: path.to_path_buf(), block_size, txn, _db: db })
+}
+
+impl MktreePeer {
+    /// Bytes per block.
+    pub fn block_size(&self) -> u32 {
+        self.block_size
+    }
+
+    /// The file's size in bytes.
+    pub fn file_bytes(&self) -> Result<u64, BenchError> {
+        Ok(std::fs::metadata(&self.path).map_err(io(format!("reading {}", self.path.display())))?.len())
+    }
+
+    /// The objects whose triangles meet `query` (level M), from a cold cache.
+    pub fn exact(&self, query: &Aabb) -> Result<Counted, BenchError> {
+        Ok(counted(self.region(query, None, None)?))
+    }
+
+    /// The objects whose boxes meet `query` (level 1), from a cold cache.
+    pub fn filter(&self, query: &Aabb) -> Result<Counted, BenchError> {
+        Ok(counted(self.region(query, Some(1), None)?))
+    }
+
+    /// An empty cache with room for every block of the file.
+    pub fn warm_cache(&self) -> WarmCache {
+        WarmCache(BlockCache::new(usize::MAX))
+    }
+
+    /// The exact answer to `query` through `cache`, and the blocks it read
+    /// from the file (none once warm).
+    pub fn warm_exact(&self, cache: &WarmCache, query: &Aabb) -> Result<Counted, BenchError> {
+        Ok(counted(self.region(query, None, Some(&cache.0))?))
+    }
+
+    fn region(
+        &self,
+        query: &Aabb,
+        lod: Option<u8>,
+        cache: Option<&BlockCache>,
+    ) -> Result<QueryAnswer, BenchError> {
+        // Without a cache of the caller's, the query reads through a pool of
+        // its own: each block at most once, every read counted.
+        Ok(query_region(&self.txn, &Region::Box(*query), &QueryOptions { lod, budget: None }, cache)?)
+    }
+}
+
+fn counted(answer: QueryAnswer) -> Counted {
+    let r = answer.stats.reads;
+    Counted {
+        objects: answer.objects.iter().map(|o| o.0).collect(),
+        reads: Reads { node: r.node, geometry: r.geometry, total: r.total() },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mktree::scene::generate::{GenOptions, Preset, generate_scene};
+
+    #[test]
+    fn answers_are_exact_at_level_m_and_by_box_at_level_1() {
+        let scene = generate_scene(&GenOptions { preset: Preset::Tanker1, objects: None, seed: 0 }).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let peer = build_file(&scene, &dir.path().join("t1.mkt"), 4096).unwrap();
+        assert!(peer.file_bytes().unwrap() > 0 && peer.file_bytes().unwrap().is_multiple_of(4096));
+        let cache = peer.warm_cache();
+        let boxes = scene.object_boxes();
+        for q in crate::random_boxes(&scene.aabb(), 10, 0.2, 1) {
+            let region = mktree::query::Region::Box(q);
+            let exact: Vec<u32> =
+                mktree::query::brute_force_region(&scene, &region).iter().map(|o| o.0).collect();
+            let (e, f) = (peer.exact(&q).unwrap(), peer.filter(&q).unwrap());
+            assert_eq!(e.objects, exact);
+            assert!(f.objects.iter().all(|&o| boxes[o as usize].grown(1.0).intersects(&q)));
+            assert!(exact.iter().all(|o| f.objects.contains(o)));
+            assert_eq!(e.reads.total, e.reads.node + e.reads.geometry);
+            assert!(e.reads.total >= f.reads.total && f.reads.node > 0);
+            peer.warm_exact(&cache, &q).unwrap();
+            let warm = peer.warm_exact(&cache, &q).unwrap();
+            assert_eq!((warm.objects, warm.reads.total), (exact, 0));
+        }
+    }
+}
