@@ -14,9 +14,13 @@ use crate::scene::ObjectId;
 use crate::store::format::node::NodeView;
 use crate::store::{Block, StorageError};
 
+/// A record's (block, offset).
+type At = (u32, u32);
+
 #[derive(Default)]
 struct Collect {
-    nodes: Vec<(Node, Option<[(u32, u32); 2]>)>,
+    /// Each node in preorder, with its children's records when internal.
+    nodes: Vec<(Node, Option<[At; 2]>)>,
     at: HashMap<(u32, u32), u32>,
     depth: HashMap<(u32, u32), u32>,
 }

@@ -38,7 +38,11 @@ pub fn aligned_grid(lattice: &Lattice, level: u8, b: &Aabb) -> Result<Grid, LodE
         let guess = ((b.min[a] - lattice.origin[a]) / s).floor();
         let span = (b.max[a] - b.min[a]) / s;
         // Plane indices stay exact below 2^50; a grid is at most 65,535 cells wide.
-        if !guess.is_finite() || guess.abs() >= (1u64 << 50) as f64 || !(span <= f64::from(u16::MAX)) {
+        if !guess.is_finite()
+            || guess.abs() >= (1u64 << 50) as f64
+            || span.is_nan()
+            || span > f64::from(u16::MAX)
+        {
             return Err(LodError::TooLarge { level, dims: [0; 3], cells: u64::MAX });
         }
         let mut n = guess as i64;

@@ -337,11 +337,11 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
                             self.stats.pruned[0] += 1;
                             continue;
                         }
-                        if let Some(b) = finest(n.bounds(), i as u16, self.k.min(self.m - 1)) {
-                            if !self.sel.may_meet_voxels(&self.voxels(block.id(), &b, &qb.outer)?) {
-                                self.stats.pruned[usize::from(b.level) - 1] += 1;
-                                continue;
-                            }
+                        if let Some(b) = finest(n.bounds(), i as u16, self.k.min(self.m - 1))
+                            && !self.sel.may_meet_voxels(&self.voxels(block.id(), &b, &qb.outer)?)
+                        {
+                            self.stats.pruned[usize::from(b.level) - 1] += 1;
+                            continue;
                         }
                         child_inside = self.sel.holds_box(&qb.outer);
                     }

@@ -385,7 +385,9 @@ mod tests {
             Aabb::from_array([100.0, 300.0, -1.0, 200.0, 400.0, 1.0]),
             Aabb::from_array([1e5, 0.0, 0.0, 1e5 + 1.0, 1.0, 1.0]),
         ] {
-            let exact: Vec<u32> = mktree::query::brute_force_box(&scene, &q).iter().map(|o| o.0).collect();
+            let region = mktree::query::Region::Box(q);
+            let exact: Vec<u32> =
+                mktree::query::brute_force_region(&scene, &region).iter().map(|o| o.0).collect();
             let by_box: Vec<u32> = (0..scene.len() as u32)
                 .filter(|&i| scene.objects()[i as usize].mesh.aabb().intersects(&q))
                 .collect();

@@ -114,12 +114,16 @@ struct NodeFacts {
     id: u32,
     block: u32,
     depth: u32,
-    /// Internal: the children's (block, offset) and the counts the entries claim.
-    children: Option<[((u32, u32), (u32, u32)); 2]>,
+    /// Internal: the children's records and the counts the entries claim.
+    children: Option<[ChildFacts; 2]>,
     /// Leaf: its geometry blocks.
     geometry: Vec<u32>,
     objects: u32,
 }
+
+/// A child entry: where its record is (block, offset), and the (node,
+/// geometry) block counts it claims.
+type ChildFacts = ((u32, u32), (u32, u32));
 
 /// Checks each record as the one traversal meets it.
 struct Walker<'t> {

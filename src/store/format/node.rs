@@ -318,7 +318,7 @@ pub fn validate_block(id: u32, block: &[u8], limits: &Limits) -> Result<Vec<u32>
         .and_then(|b| BlockHead::read_from_bytes(b).ok())
         .ok_or_else(|| bad("node block", "too small".into()))?;
     let used = head.used_bytes.get() as usize;
-    let end = RECORDS_START.checked_add(used).filter(|&e| e <= block.len() && used % 4 == 0);
+    let end = RECORDS_START.checked_add(used).filter(|&e| e <= block.len() && used.is_multiple_of(4));
     let Some(end) = end else { return Err(bad("used_bytes", format!("{used} bytes do not fit the block"))) };
     if head.reserved != [0; 2] || !all_zero(&block[end..]) {
         return Err(bad("reserved", "reserved bytes are not zero".into()));
@@ -719,16 +719,12 @@ mod tests {
     fn broken_rules_are_corruption() {
         let mut block = vec![0u8; 1024];
         let offsets = encode_block(&drafts(), &mut block).unwrap();
-        let cases: Vec<Box<dyn Fn(&mut Vec<u8>)>> = vec![
-            Box::new(|b| b[24] = 7),                                 // kind
-            Box::new(|b| b[16] = 1),                                 // used bytes
-            Box::new(|b| b[24 + 20 + 16] = 1),                       // in-block child offset
-            Box::new(|b| b[1000] = 1),                               // reserved tail
-            Box::new(move |b| b[offsets[1] as usize + 20 + 4] = 99), // object id
-        ];
-        for (i, damage) in cases.iter().enumerate() {
+        // (byte, value): the kind, the used bytes, an in-block child offset,
+        // the reserved tail, an object id.
+        let cases = [(24, 7), (16, 1), (24 + 20 + 16, 1), (1000, 1), (offsets[1] as usize + 20 + 4, 99)];
+        for (i, (at, value)) in cases.into_iter().enumerate() {
             let mut b = block.clone();
-            damage(&mut b);
+            b[at] = value;
             assert!(validate_block(3, &b, &limits()).is_err(), "case {i}");
         }
     }
