@@ -61,3 +61,62 @@ fn a_query_over_everything_returns_everything_from_the_node_blocks_alone() {
     assert!(none.objects.is_empty());
     assert_eq!(none.stats.reads.total(), 0, "the root's box, in the meta block, rules it out");
 }
+
+/// Scenes of wavy strips of 60 to 400 triangles: each is larger than a
+/// 1,024-byte block, so the file stores it as parts.
+fn arb_big_scene() -> impl Strategy<Value = mktree::scene::Scene> {
+    let strip = (prop::array::uniform3(0.0f64..800.0), 30usize..200, 1.0f64..8.0, any::<u64>());
+    prop::collection::vec(strip, 1..8).prop_map(|v| {
+        mktree::scene::Scene::new(
+            v.into_iter()
+                .enumerate()
+                .map(|(i, (o, n, step, seed))| {
+                    let points: Vec<mktree::geom::Point> = (0..2 * n)
+                        .map(|j| {
+                            let t = (j / 2) as f64 * step;
+                            let wave = ((seed % 7) as f64 + 1.0) * (t / 40.0).sin() * 10.0;
+                            [o[0] + t, o[1] + wave + (j % 2) as f64 * 20.0, o[2] + (t / 30.0).cos() * 15.0]
+                                .into()
+                        })
+                        .collect();
+                    let tris = (0..2 * n as u32 - 2).map(|j| [j, j + 1, j + 2]).collect();
+                    mktree::scene::Object::new(
+                        format!("strip{i}"),
+                        mktree::scene::Mesh::from_world(&points, tris).expect("a strip"),
+                    )
+                })
+                .collect(),
+        )
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+    /// Objects larger than a block are stored as parts: box queries and
+    /// `check` see each object once, and answers equal brute force.
+    #[test]
+    fn objects_stored_as_parts_answer_exactly(
+        scene in arb_big_scene(),
+        q in (prop::array::uniform3(-100.0f64..1100.0), prop::array::uniform3(0.0f64..300.0)),
+    ) {
+        let params = BuildParams { leaf: LeafRule::Objects(3), ..BuildParams::default() };
+        let (db, _) = mem_db(&scene, &params, CreateOptions { block_size: 1024, lod_levels: 3 });
+        let report = mktree::db::check(&db).unwrap();
+        prop_assert!(report.ok(), "{:?}", report.faults);
+        let r = db.begin_read().unwrap();
+        prop_assert_eq!(r.info().unwrap().triangles, scene.triangle_count() as u64);
+        let query = Aabb::from_array([q.0[0], q.0[1], q.0[2], q.0[0] + q.1[0], q.0[1] + q.1[1], q.0[2] + q.1[2]]);
+        let got = query_region(&r, &Region::Box(query), &QueryOptions::default(), None).unwrap();
+        prop_assert_eq!(&got.objects, &brute_force_region(&scene, &Region::Box(query)));
+        prop_assert_eq!(got.decided.len(), got.decided.iter().map(|d| d.object).collect::<std::collections::BTreeSet<_>>().len());
+        let meshes = mktree::query::object_meshes(&r, &[mktree::scene::ObjectId(0)]).unwrap();
+        prop_assert_eq!(meshes[0].triangle_count(), scene.objects()[0].mesh.triangle_count());
+        prop_assert_eq!(meshes[0].aabb(), scene.objects()[0].mesh.aabb());
+        // A collision probe made of parts, against objects made of parts.
+        let pose = mktree::geom::Pose::from_degrees([q.1[0] / 10.0, 0.0, q.1[2] / 10.0], [0.0, 0.0, q.1[1] / 10.0]).unwrap();
+        let opts = mktree::query::CollideOptions { clearance: q.1[0] / 100.0, ..Default::default() };
+        let got = mktree::query::collide(&r, &meshes[0], &pose, &opts, None).unwrap();
+        let want = mktree::query::brute_force_collide(&scene, &scene.objects()[0].mesh, &pose, opts.clearance, None).unwrap();
+        prop_assert_eq!(got.objects, want);
+    }
+}

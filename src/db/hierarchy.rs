@@ -51,6 +51,8 @@ impl Visitor for Collect {
                 let mut objects: Vec<ObjectId> =
                     (0..l.len()).filter_map(|i| l.object(i)).map(|o| ObjectId(o.object_id)).collect();
                 objects.sort_unstable();
+                // The parts of an object larger than a block share its id.
+                objects.dedup();
                 (NodeKind::Leaf { objects }, None)
             }
         };

@@ -191,7 +191,7 @@ impl ReadTransaction {
         reads.hold(held);
         let mut gather = Gather::default();
         let opts = QueryOptions { lod: Some(k), budget: None };
-        walk(self, at, &Everything, &opts, &mut reads, &mut gather).map_err(|e| match e {
+        walk(self, at, &Gathering, &opts, &mut reads, &mut gather).map_err(|e| match e {
             crate::query::QueryError::Storage(s) => s,
             other => StorageError::Invalid(other.to_string()),
         })?;
@@ -219,10 +219,11 @@ impl ReadTransaction {
 
 /// Every object of a subtree with its bound at the walk's level: may meet
 /// anything, holds nothing, so every object reaches its finest bound up to
-/// k, and at M its geometry.
-struct Everything;
+/// k; at M its geometry, every part of it (a part never meets, so none
+/// decides its object before the others are read).
+struct Gathering;
 
-impl Selection for Everything {
+impl Selection for Gathering {
     fn may_meet_box(&self, _: &Aabb) -> bool {
         true
     }
@@ -236,7 +237,7 @@ impl Selection for Everything {
         false
     }
     fn meets_mesh(&self, _: &Mesh, _: &mut u64) -> bool {
-        true
+        false
     }
 }
 

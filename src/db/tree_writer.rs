@@ -7,8 +7,9 @@
 
 use crate::build::{Hierarchy, Order, QueryMix};
 use crate::geom::Aabb;
+use crate::lod::LeafEntry;
 use crate::lod::StoredBounds;
-use crate::scene::Scene;
+use crate::scene::{Mesh, ObjectId, Scene};
 use crate::store::format::frame::{BlockType, FRAME_LEN};
 use crate::store::format::geometry::{self, Placement};
 use crate::store::format::node::{
@@ -32,6 +33,8 @@ pub(crate) struct Written {
     pub node_bytes: u64,
     pub geometry_blocks: u64,
     pub geometry_bytes: u64,
+    /// Vertices as stored (a vertex two parts of an object share counts twice).
+    pub vertices: u64,
 }
 
 /// Everything about a tree's layout that does not depend on its bounds:
@@ -43,14 +46,32 @@ pub(crate) struct Plan {
     /// Per node: its box as its parent's entry stores it (the root's exact).
     pub frames: Vec<Aabb>,
     child_q: Vec<[u16; 6]>,
-    /// Per leaf: each object's stream position and record length.
-    positions: Vec<Vec<(u64, u64)>>,
+    /// Per leaf: its entries, each an object or a part of one.
+    entries: Vec<Vec<Entry>>,
     payload: u64,
     stream_end: u64,
     samples: Vec<Aabb>,
     /// Per node: the share of the model's queries that read the node block
     /// holding it, when the tree is laid out without bounds.
     pub read_share: Vec<f64>,
+}
+
+/// A leaf's entry: an object, or a part of one too large for a geometry
+/// block (format-spec/geometry.md, "Parts"), and where its record goes.
+#[derive(Debug, Clone)]
+struct Entry {
+    id: ObjectId,
+    /// The part's mesh; `None` for a whole object (the scene's mesh).
+    part: Option<Mesh>,
+    /// Stream position and record length.
+    pos: u64,
+    len: u64,
+}
+
+impl Entry {
+    fn mesh<'a>(&'a self, scene: &'a Scene) -> Option<&'a Mesh> {
+        self.part.as_ref().or_else(|| scene.object(self.id).map(|o| &o.mesh))
+    }
 }
 
 impl Plan {
@@ -65,12 +86,18 @@ impl Plan {
         let n = nodes.len();
         let invalid = StorageError::Invalid;
         let mut placement = Placement::new(block_size);
-        let mut positions: Vec<Vec<(u64, u64)>> = vec![Vec::new(); n];
+        let payload = geometry::payload(block_size);
+        let mut entries: Vec<Vec<Entry>> = vec![Vec::new(); n];
         for (i, node) in nodes.iter().enumerate() {
             for id in node.objects().unwrap_or_default() {
                 let o = scene.object(*id).ok_or_else(|| invalid(format!("no object {id}")))?;
-                let len = geometry::record_len(&o.mesh);
-                positions[i].push((placement.place(len), len));
+                let parts = geometry::parts(&o.mesh, payload);
+                let whole = parts.len() == 1;
+                for part in parts {
+                    let len = geometry::record_len(&part);
+                    let pos = placement.place(len);
+                    entries[i].push(Entry { id: *id, part: (!whole).then_some(part), pos, len });
+                }
             }
         }
         let mut frames = vec![Aabb::EMPTY; n];
@@ -91,8 +118,8 @@ impl Plan {
         let mut plan = Plan {
             frames,
             child_q,
-            positions,
-            payload: geometry::payload(block_size),
+            entries,
+            payload,
             stream_end: placement.end(),
             samples: mix.sample(&nodes[0].aabb, SAMPLES_PER_SCALE),
             read_share: Vec::new(),
@@ -112,16 +139,33 @@ impl Plan {
     }
 
     /// The global geometry blocks (from the first of the stream) holding
-    /// object `j` of leaf `leaf`.
-    pub fn object_blocks(&self, leaf: usize, j: usize) -> std::ops::RangeInclusive<u64> {
-        let (pos, len) = self.positions[leaf].get(j).copied().unwrap_or((0, 1));
+    /// entry `j` of leaf `leaf`.
+    fn entry_blocks(&self, leaf: usize, j: usize) -> std::ops::RangeInclusive<u64> {
+        let (pos, len) = self.entries[leaf].get(j).map_or((0, 1), |e| (e.pos, e.len));
         pos / self.payload..=(pos + len.max(1) - 1) / self.payload
+    }
+
+    /// Every leaf's entries as the levels of detail judge them: the object
+    /// (or part) with its mesh and its geometry blocks.
+    pub fn leaf_entries<'a>(&'a self, scene: &'a Scene) -> Vec<Vec<LeafEntry<'a>>> {
+        self.entries
+            .iter()
+            .enumerate()
+            .map(|(i, es)| {
+                es.iter()
+                    .enumerate()
+                    .filter_map(|(j, e)| {
+                        Some(LeafEntry { id: e.id, mesh: e.mesh(scene)?, blocks: self.entry_blocks(i, j) })
+                    })
+                    .collect()
+            })
+            .collect()
     }
 
     /// First and last global geometry block of leaf `i`.
     fn leaf_span(&self, i: usize) -> (u64, u64) {
-        let first = self.positions[i].first().map_or(0, |p| p.0) / self.payload;
-        let end = self.positions[i].last().map_or(1, |p| p.0 + p.1.max(1));
+        let first = self.entries[i].first().map_or(0, |e| e.pos) / self.payload;
+        let end = self.entries[i].last().map_or(1, |e| e.pos + e.len.max(1));
         (first, (end - 1) / self.payload)
     }
 
@@ -131,9 +175,9 @@ impl Plan {
             .map(|i| {
                 let extra = node::bounds_len(&bounds[i]);
                 match tree.nodes[i].objects() {
-                    Some(objs) => {
+                    Some(_) => {
                         let (a, b) = self.leaf_span(i);
-                        leaf_len(objs.len(), (b - a + 1) as usize, extra)
+                        leaf_len(self.entries[i].len(), (b - a + 1) as usize, extra)
                     }
                     None => node::INTERNAL_LEN + extra,
                 }
@@ -175,12 +219,10 @@ impl Plan {
         // Every object's box as its leaf stores it.
         let boxes: Vec<Vec<Option<QuantBox>>> = (0..tree.nodes.len())
             .map(|i| {
-                tree.nodes[i]
-                    .objects()
-                    .unwrap_or_default()
+                self.entries[i]
                     .iter()
-                    .map(|id| {
-                        let b = scene.object(*id)?.mesh.aabb();
+                    .map(|e| {
+                        let b = e.mesh(scene)?.aabb();
                         QuantBox::decode(&self.frames[i], quantize(&self.frames[i], &b))
                     })
                     .collect()
@@ -205,16 +247,36 @@ impl Plan {
                         stack.push(c.index());
                     }
                 }
-                for (j, b) in boxes[i].iter().enumerate() {
-                    let Some(b) = b else { continue };
-                    if !b.outer.intersects(q) || b.face_slabs().iter().any(|f| q.contains(f)) {
-                        continue;
+                // An object's entries are consecutive: one confirmed part
+                // answers it, else every part not ruled out is read.
+                let mut j = 0;
+                while j < boxes[i].len() {
+                    let id = self.entries[i][j].id;
+                    let end = j + self.entries[i][j..].iter().take_while(|e| e.id == id).count();
+                    let mut pending = Vec::new();
+                    let mut confirmed = false;
+                    for (e, b) in boxes[i].iter().enumerate().take(end).skip(j) {
+                        let Some(b) = b else { continue };
+                        if !b.outer.intersects(q) {
+                            continue;
+                        }
+                        let bound = stored.finest[i].iter().find(|(t, _)| usize::from(*t) == e).map(|x| &x.1);
+                        if b.face_slabs().iter().any(|f| q.contains(f))
+                            || bound.is_some_and(|v| v.holds_a_cell_in(q))
+                        {
+                            confirmed = true;
+                            break;
+                        }
+                        if bound.is_none_or(|v| v.may_meet(q)) {
+                            pending.push(e);
+                        }
                     }
-                    let bound = stored.finest[i].iter().find(|(t, _)| usize::from(*t) == j);
-                    if bound.is_some_and(|(_, v)| !v.may_meet(q) || v.holds_a_cell_in(q)) {
-                        continue;
+                    if !confirmed {
+                        for e in pending {
+                            blocks.extend(self.entry_blocks(i, e));
+                        }
                     }
-                    blocks.extend(self.object_blocks(i, j));
+                    j = end;
                 }
             }
             *scale += blocks.len();
@@ -281,19 +343,22 @@ pub(crate) fn write(
     let mut filled = 0u64; // stream bytes of blocks already written
     let mut record = Vec::new();
     let mut geometry_bytes = 0u64;
+    let mut vertices = 0u64;
     let flush = |block: &mut Vec<u8>, index: u64, sums: &mut Vec<u32>| -> Result<(), StorageError> {
         let id = first_geometry + index as u32;
         sums.push(pager.write(id, block, BlockType::Geometry, txn)?);
         block.fill(0);
         Ok(())
     };
-    for (i, node) in nodes.iter().enumerate() {
-        let Some(objects) = node.objects() else { continue };
-        for (id, &(pos, _)) in objects.iter().zip(&plan.positions[i]) {
-            let o = scene.object(*id).ok_or_else(|| invalid(format!("no object {id}")))?;
+    for entries in &plan.entries {
+        for e in entries {
+            let mesh = e.mesh(scene).ok_or_else(|| invalid(format!("no object {}", e.id)))?;
+            let (id, pos) = (&e.id, e.pos);
+            let o = mesh;
             record.clear();
-            geometry::encode_object(*id, &o.mesh, &mut record);
+            geometry::encode_object(*id, o, &mut record);
             geometry_bytes += record.len() as u64;
+            vertices += o.vertex_count() as u64;
             let mut at = pos;
             let mut rest = &record[..];
             while !rest.is_empty() {
@@ -404,22 +469,20 @@ pub(crate) fn write(
                         }
                     }
                     _ => {
-                        let objs = node.objects().unwrap_or_default();
                         let (a, last) = leaf_span(i);
                         let base = a * p;
-                        let objects = objs
+                        let objects = plan.entries[i]
                             .iter()
-                            .zip(&plan.positions[i])
-                            .map(|(id, &(pos, _))| {
-                                let aabb = scene.object(*id).map_or(Aabb::EMPTY, |o| o.mesh.aabb());
+                            .map(|e| {
+                                let aabb = e.mesh(scene).map_or(Aabb::EMPTY, |m| m.aabb());
                                 ObjectEntry {
-                                    object_id: id.0,
+                                    object_id: e.id.0,
                                     qbox: quantize(&frame[i], &aabb),
-                                    position: pos - base,
+                                    position: e.pos - base,
                                 }
                             })
                             .collect();
-                        let end = plan.positions[i].last().map_or(0, |&(pos, len)| pos + len);
+                        let end = plan.entries[i].last().map_or(0, |e| e.pos + e.len);
                         RecordDraft::Leaf {
                             node_id: i as u32,
                             first_block: first_geometry + a as u32,
@@ -444,6 +507,7 @@ pub(crate) fn write(
         node_bytes,
         geometry_blocks,
         geometry_bytes,
+        vertices,
     })
 }
 

@@ -147,9 +147,8 @@ impl<'db> WriteTransaction<'db> {
         let q = CostModel::of_boxes(&scene.object_boxes(), params.query_extent).query_extent();
         let mix = QueryMix::new(&tree.nodes[0].aabb, q);
         let plan = tree_writer::Plan::new(scene, tree, bs, &mix)?;
-        let object_blocks = |i: usize, j: usize| plan.object_blocks(i, j);
-        let layout =
-            Layout { frames: &plan.frames, read_share: &plan.read_share, object_blocks: &object_blocks };
+        let entries = plan.leaf_entries(scene);
+        let layout = Layout { frames: &plan.frames, read_share: &plan.read_share, entries: &entries };
         let mut stored =
             plan_bounds(scene, tree, m, bs, &self.lod_params, &mix, &layout).map_err(lod_error)?;
         // Bounds chosen one by one may still not pay as a whole: the blocks
@@ -213,7 +212,7 @@ impl<'db> WriteTransaction<'db> {
             node_blocks: written.node_blocks,
             geometry_blocks: written.geometry_blocks,
             triangle_count: scene.triangle_count() as u64,
-            vertex_count: scene.vertex_count() as u64,
+            vertex_count: written.vertices,
             scene_box: tree.nodes[0].aabb.to_array(),
             build: codes::encode(params, build_seconds),
             names_block,

@@ -34,14 +34,23 @@ use crate::scene::{Mesh, ObjectId, Scene};
 use crate::store::format::node::{BoundEntry, capacity};
 use crate::store::format::quant::{QuantBox, quantize};
 
+/// An entry of a leaf: an object, or a part of one (format-spec/
+/// geometry.md, "Parts"), with the geometry blocks its record lies in.
+#[derive(Debug, Clone)]
+pub struct LeafEntry<'a> {
+    pub id: ObjectId,
+    pub mesh: &'a Mesh,
+    pub blocks: RangeInclusive<u64>,
+}
+
 /// What the bounds' cost and saving depend on of the tree's layout.
 pub struct Layout<'a> {
     /// Per node: its box as stored (objects' boxes are quantized in their leaf's).
     pub frames: &'a [Aabb],
     /// Per node: the share of the model's queries that read its node block.
     pub read_share: &'a [f64],
-    /// The geometry blocks holding object `j` of leaf `i`.
-    pub object_blocks: &'a (dyn Fn(usize, usize) -> RangeInclusive<u64> + Sync),
+    /// Per node: a leaf's entries, in record order (empty for internal nodes).
+    pub entries: &'a [Vec<LeafEntry<'a>>],
 }
 
 /// The bounds a tree stores, and what the meta block records of them.
@@ -138,32 +147,30 @@ pub fn plan_bounds(
     out.grid_level = plan.grid_level.clone();
     out.lattice = Some(plan.lattice);
     let node_capacity = capacity(block_size) as f64;
-    // Every object of every geometry block, with its box as its leaf stores it.
+    // Every entry of every geometry block, with its box as its leaf stores it.
     let mut sharers: HashMap<u64, Vec<Sharer>> = HashMap::new();
-    for (i, node) in tree.nodes.iter().enumerate() {
-        for (j, id) in node.objects().unwrap_or_default().iter().enumerate() {
-            let Some(o) = scene.object(*id) else { continue };
-            let Some(qbox) = QuantBox::decode(&layout.frames[i], quantize(&layout.frames[i], &o.mesh.aabb()))
+    for (i, entries) in layout.entries.iter().enumerate() {
+        for e in entries {
+            let Some(qbox) = QuantBox::decode(&layout.frames[i], quantize(&layout.frames[i], &e.mesh.aabb()))
             else {
                 continue;
             };
-            for b in (layout.object_blocks)(i, j) {
-                sharers.entry(b).or_default().push(Sharer { object: *id, qbox });
+            for b in e.blocks.clone() {
+                sharers.entry(b).or_default().push(Sharer { object: e.id, qbox });
             }
         }
     }
     let ctx = Ctx { plan: &plan, params, mix, layout, sharers: &sharers, node_capacity };
-    let chosen: Vec<(usize, Vec<(u16, Candidate)>)> = tree
-        .nodes
+    let chosen: Vec<(usize, Vec<(u16, Candidate)>)> = layout
+        .entries
         .par_iter()
         .enumerate()
-        .filter_map(|(i, node)| node.objects().map(|objs| (i, objs)))
-        .map(|(i, objs)| {
+        .filter(|(_, entries)| !entries.is_empty())
+        .map(|(i, entries)| {
             let mut picked = Vec::new();
-            for (j, id) in objs.iter().enumerate() {
-                let Some(o) = scene.object(*id) else { continue };
+            for (j, e) in entries.iter().enumerate() {
                 let all = (2..m)
-                    .filter_map(|k| ctx.candidate(k, i, j, *id, &o.mesh).transpose())
+                    .filter_map(|k| ctx.candidate(k, i, e).transpose())
                     .collect::<Result<Vec<_>, LodError>>()?;
                 if params.store_all {
                     picked.extend(all.into_iter().map(|c| (j as u16, c)));
@@ -179,7 +186,6 @@ pub fn plan_bounds(
         })
         .collect::<Result<_, LodError>>()?;
     for (i, picked) in chosen {
-        let objs = tree.nodes[i].objects().unwrap_or_default();
         for (j, c) in picked {
             // Candidates come level by level: a later one of the same object is finer.
             match out.finest[i].last_mut() {
@@ -192,8 +198,8 @@ pub fn plan_bounds(
             out.predicted[k][0] += c.saving;
             out.predicted[k][1] += c.cost;
             out.errors[k][0] = out.errors[k][0].max(c.voxels.grid().max_cell_diagonal());
-            if let Some(o) = objs.get(usize::from(j)).and_then(|id| scene.object(*id)) {
-                let probe = ErrorProbe::new([&o.mesh]);
+            if let Some(e) = layout.entries[i].get(usize::from(j)) {
+                let probe = ErrorProbe::new([e.mesh]);
                 out.errors[k][1] = out.errors[k][1].max(probe.measure(&c.voxels, params.error_samples));
             }
             out.bounds[i].push(BoundEntry { target: j, level: c.level, blob: c.blob });
@@ -212,16 +218,10 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    /// Object `j` (id `id`) of leaf `i` bounded at level k, with its model
-    /// value; `None` when the level's grid is too large or its blob too long.
-    fn candidate(
-        &self,
-        k: u8,
-        i: usize,
-        j: usize,
-        id: ObjectId,
-        mesh: &Mesh,
-    ) -> Result<Option<Candidate>, LodError> {
+    /// Entry `e` of leaf `i` bounded at level k, with its model value;
+    /// `None` when the level's grid is too large or its blob too long.
+    fn candidate(&self, k: u8, i: usize, e: &LeafEntry) -> Result<Option<Candidate>, LodError> {
+        let (id, mesh) = (e.id, e.mesh);
         let frame = &self.layout.frames[i];
         let Some(qbox) = QuantBox::decode(frame, quantize(frame, &mesh.aabb())) else { return Ok(None) };
         // The grid over the box the reader holds: the decoded quantized box.
@@ -237,7 +237,7 @@ impl Ctx<'_> {
         let cost = self.layout.read_share[i]
             * (crate::store::format::node::BOUND_HEAD_LEN + blob.len()) as f64
             / self.node_capacity;
-        let blocks: Vec<u64> = (self.layout.object_blocks)(i, j).collect();
+        let blocks: Vec<u64> = e.blocks.clone().collect();
         let scales = self.mix.extents().len();
         let per_scale = self.params.model_samples.div_ceil(scales).max(1);
         let samples = self.mix.sample(&qbox.outer, per_scale);

@@ -19,6 +19,7 @@ use super::traverse::{QueryOptions, Seen, TraverseStats, Visitor, levels, walk};
 use crate::db::{ReadTransaction, Reads, view};
 use crate::geom::{Aabb, Pose};
 use crate::scene::ObjectId;
+use crate::store::format::geometry;
 use crate::store::format::node::NodeView;
 use crate::store::format::quant::QuantBox;
 use crate::store::{Block, BlockCache, StorageError};
@@ -115,25 +116,32 @@ pub fn clash(
     add(&mut total, &listing.stats);
     list.objects.sort_by_key(|o| o.id);
     let mut pairs = Vec::new();
-    for a in &list.objects {
-        let near = Region::Box(a.aabb.grown(d));
+    // An object larger than a block is listed once per part: one probe each.
+    for group in list.objects.chunk_by(|x, y| x.id == y.id) {
+        let id = group[0].id;
+        let aabb = group.iter().fold(Aabb::EMPTY, |b, p| b.union(&p.aabb));
+        let near = Region::Box(aabb.grown(d));
         let at = QueryOptions { lod: Some(if k == m { 1 } else { k }), budget: None };
         let found = walk(txn, root, &near, &at, &mut Reads::new(Some(pool)), &mut ())?;
         add(&mut total, &found.stats);
-        let mut hits: Vec<ObjectId> = found.objects.into_iter().filter(|&b| b > a.id).collect();
+        let mut hits: Vec<ObjectId> = found.objects.into_iter().filter(|&b| b > id).collect();
         if k == m && !hits.is_empty() {
-            let (block, offset, index) = &a.leaf;
-            let NodeView::Leaf(leaf) = view(block, *offset)? else { continue };
             let mut reads = Reads::new(Some(pool));
-            let (_, mesh) = txn.read_object(block.id, &leaf, *index, &mut reads)?;
+            let mut parts = Vec::with_capacity(group.len());
+            for p in group {
+                let (block, offset, index) = &p.leaf;
+                let NodeView::Leaf(leaf) = view(block, *offset)? else { continue };
+                parts.push(txn.read_object(block.id, &leaf, *index, &mut reads)?.1);
+            }
             total.reads += reads.stats;
+            let Some(mesh) = geometry::join(&parts) else { continue };
             let probe = Triangles::posed(&mesh, &Pose::default(), d)?;
             let exact =
                 walk(txn, root, &probe, &QueryOptions::default(), &mut Reads::new(Some(pool)), &mut ())?;
             add(&mut total, &exact.stats);
-            hits = exact.objects.into_iter().filter(|&b| b > a.id).collect();
+            hits = exact.objects.into_iter().filter(|&b| b > id).collect();
         }
-        pairs.extend(hits.into_iter().map(|b| (a.id, b)));
+        pairs.extend(hits.into_iter().map(|b| (id, b)));
     }
     pairs.sort_unstable();
     total.seconds = started.elapsed().as_secs_f64();

@@ -11,6 +11,7 @@ use super::traverse::{QueryAnswer, QueryOptions, Visitor, traverse, walk};
 use crate::db::{ReadTransaction, Reads, view};
 use crate::geom::{Aabb, Pose};
 use crate::scene::{Mesh, ObjectId};
+use crate::store::format::geometry;
 use crate::store::format::node::NodeView;
 use crate::store::{Block, BlockCache, StorageError};
 
@@ -55,7 +56,8 @@ struct Fetch<'t, 'c> {
     txn: &'t ReadTransaction,
     wanted: HashSet<ObjectId>,
     reads: Reads<'c>,
-    found: HashMap<ObjectId, Mesh>,
+    /// Each wanted object's parts, in record order.
+    found: HashMap<ObjectId, Vec<Mesh>>,
 }
 
 impl Visitor for Fetch<'_, '_> {
@@ -64,7 +66,7 @@ impl Visitor for Fetch<'_, '_> {
         for i in 0..leaf.len() {
             if leaf.object(i).is_some_and(|o| self.wanted.contains(&ObjectId(o.object_id))) {
                 let (id, mesh) = self.txn.read_object(block.id(), &leaf, i, &mut self.reads)?;
-                self.found.insert(id, mesh);
+                self.found.entry(id).or_default().push(mesh);
             }
         }
         Ok(())
@@ -85,7 +87,11 @@ pub fn object_meshes(txn: &ReadTransaction, ids: &[ObjectId]) -> Result<Vec<Mesh
     walk(txn, root, &Everything, &all, &mut Reads::new(None), &mut fetch)?;
     ids.iter()
         .map(|id| {
-            fetch.found.get(id).cloned().ok_or(QueryError::NoObject { id: id.0, objects: info.objects })
+            fetch
+                .found
+                .get(id)
+                .and_then(|parts| geometry::join(parts))
+                .ok_or(QueryError::NoObject { id: id.0, objects: info.objects })
         })
         .collect()
 }

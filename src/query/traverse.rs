@@ -207,6 +207,10 @@ struct Run<'t, 'c, 'v, S: ?Sized> {
     seq: u64,
     visits: u64,
     visit_limit: u64,
+    /// Objects decided so far (a part still queued of one is not read).
+    done: std::collections::HashSet<u32>,
+    /// Objects whose parts are queued for their geometry: parts left.
+    parts: std::collections::HashMap<u32, u32>,
     stats: TraverseStats,
     objects: Vec<ObjectId>,
     decided: Vec<ObjectLevel>,
@@ -220,6 +224,9 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
             Step::Exact { block, offset, index, .. } => {
                 let NodeView::Leaf(leaf) = view(block, *offset)? else { return Ok(0) };
                 let Some(o) = leaf.object(*index) else { return Ok(0) };
+                if self.done.contains(&o.object_id) {
+                    return Ok(0);
+                }
                 let (first, _) = leaf.geometry();
                 geometry::blocks_of(o.span.0, o.span.1, self.txn.pager().block_size())
                     .filter(|b| !self.reads.holds(first.saturating_add(*b as u32)))
@@ -247,17 +254,22 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
         Ok(())
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn decide(
+    /// Shows the visitor an entry (an object, or a part of one) as decided.
+    fn seen(
         &mut self,
-        object: u32,
-        level: u8,
-        accepted: bool,
-        proof: Proof,
-        aabb: Aabb,
+        entry: (u32, Aabb),
+        decision: (u8, bool, Proof),
         bound: Option<(u8, &Voxels)>,
         mesh: Option<&crate::scene::Mesh>,
     ) -> Result<(), StorageError> {
+        let (object, aabb) = entry;
+        let (level, accepted, proof) = decision;
+        let decision = ObjectLevel { object: ObjectId(object), level, accepted, proof };
+        self.visitor.object(&Seen { aabb, bound, mesh, decision })
+    }
+
+    /// Records an object's decision (once per object, whatever its parts).
+    fn decide(&mut self, object: u32, level: u8, accepted: bool, proof: Proof) {
         let i = usize::from(level) - 1;
         match proof {
             Proof::Candidate => {}
@@ -267,9 +279,8 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
         if accepted {
             self.objects.push(ObjectId(object));
         }
-        let decision = ObjectLevel { object: ObjectId(object), level, accepted, proof };
-        self.decided.push(decision);
-        self.visitor.object(&Seen { aabb, bound, mesh, decision })
+        self.done.insert(object);
+        self.decided.push(ObjectLevel { object: ObjectId(object), level, accepted, proof });
     }
 
     /// The voxel set of bound `b`, whose target's box is `outer`.
@@ -296,14 +307,22 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
             Step::Node { block, offset, frame, inside } => self.node(block, offset, frame, inside),
             Step::Exact { block, offset, index, frame, .. } => {
                 let NodeView::Leaf(leaf) = view(&block, offset)? else { return Ok(()) };
+                let Some(o) = leaf.object(index) else { return Ok(()) };
+                // Another part of the object already met the query: this one need not be read.
+                if self.done.contains(&o.object_id) {
+                    return Ok(());
+                }
                 let (id, mesh) = self.txn.read_object(block.id(), &leaf, index, self.reads)?;
                 self.stats.geometry_tests += 1;
                 let hit = self.sel.meets_mesh(&mesh, &mut self.stats.triangles_tested);
-                let aabb = leaf
-                    .object(index)
-                    .and_then(|o| QuantBox::decode(&frame, o.qbox))
-                    .map_or(frame, |q| q.outer);
-                self.decide(id.0, self.m, hit, Proof::Exact, aabb, None, Some(&mesh))
+                let aabb = QuantBox::decode(&frame, o.qbox).map_or(frame, |q| q.outer);
+                self.seen((id.0, aabb), (self.m, hit, Proof::Exact), None, Some(&mesh))?;
+                let left = self.parts.entry(id.0).or_insert(1);
+                *left = left.saturating_sub(1);
+                if hit || *left == 0 {
+                    self.decide(id.0, self.m, hit, Proof::Exact);
+                }
+                Ok(())
             }
         }
     }
@@ -360,62 +379,91 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
             }
             NodeView::Leaf(leaf) => {
                 self.stats.leaves_visited += 1;
-                for i in 0..leaf.len() {
-                    let o = leaf.object(i).ok_or_else(|| bad("an object is missing"))?;
-                    let qb =
-                        QuantBox::decode(&frame, o.qbox).ok_or_else(|| bad("an object box is backwards"))?;
-                    let aabb = qb.outer;
-                    if inside {
-                        self.decide(o.object_id, 1, true, Proof::InsideNode, aabb, None, None)?;
-                        continue;
+                // An object larger than a geometry block is stored as parts:
+                // consecutive entries of one id. One part proves contact for
+                // the object; it misses only when every part does.
+                let mut j = 0;
+                while j < leaf.len() {
+                    let id = leaf.object(j).ok_or_else(|| bad("an object is missing"))?.object_id;
+                    let mut end = j + 1;
+                    while leaf.object(end).is_some_and(|o| o.object_id == id) {
+                        end += 1;
                     }
-                    if !self.sel.may_meet_box(&aabb) {
-                        self.decide(o.object_id, 1, false, Proof::BoxMisses, aabb, None, None)?;
-                        continue;
-                    }
-                    if qb.face_slabs().iter().any(|f| self.sel.holds_box(f)) {
-                        self.decide(o.object_id, 1, true, Proof::Face, aabb, None, None)?;
-                        continue;
-                    }
-                    let mut level = 1;
-                    let mut voxels = None;
-                    if let Some(b) = finest(leaf.bounds(), i as u16, self.k.min(self.m - 1)) {
-                        let v = self.voxels(block.id(), &b, &aabb)?;
-                        level = b.level;
-                        if !self.sel.may_meet_voxels(&v) {
-                            self.decide(
-                                o.object_id,
-                                level,
-                                false,
-                                Proof::VoxelsMiss,
-                                aabb,
-                                Some((level, &v)),
-                                None,
-                            )?;
-                            continue;
-                        }
-                        if self.sel.confirms_voxels(&v) {
-                            self.decide(
-                                o.object_id,
-                                level,
-                                true,
-                                Proof::Cell,
-                                aabb,
-                                Some((level, &v)),
-                                None,
-                            )?;
-                            continue;
-                        }
-                        voxels = Some(v);
-                    }
-                    if self.k == self.m {
-                        self.push(Step::Exact { block: block.clone(), offset, index: i, level, frame })?;
-                    } else {
-                        let bound = voxels.as_ref().map(|v| (level, v));
-                        self.decide(o.object_id, level, true, Proof::Candidate, aabb, bound, None)?;
-                    }
+                    self.object(&block, offset, &leaf, (j, end), &frame, inside)?;
+                    j = end;
                 }
             }
+        }
+        Ok(())
+    }
+
+    /// Decides the object of entries `parts` of `leaf` (record `offset` of
+    /// `block`, box `frame`): by its boxes and bounds, or by queuing the
+    /// parts whose geometry must be read.
+    fn object(
+        &mut self,
+        block: &Arc<Block>,
+        offset: u32,
+        leaf: &crate::store::format::node::LeafView,
+        parts: (usize, usize),
+        frame: &Aabb,
+        inside: bool,
+    ) -> Result<(), StorageError> {
+        let bad = |d: &str| StorageError::corrupt(block.id(), "record", d.to_string());
+        let mut pending: Vec<(usize, u8, Aabb, Option<Voxels>)> = Vec::new();
+        let (mut rejected_at, mut reject_proof) = (1u8, Proof::BoxMisses);
+        let mut id = 0;
+        for i in parts.0..parts.1 {
+            let o = leaf.object(i).ok_or_else(|| bad("an object is missing"))?;
+            id = o.object_id;
+            let qb = QuantBox::decode(frame, o.qbox).ok_or_else(|| bad("an object box is backwards"))?;
+            let aabb = qb.outer;
+            if inside {
+                self.seen((id, aabb), (1, true, Proof::InsideNode), None, None)?;
+                self.decide(id, 1, true, Proof::InsideNode);
+                return Ok(());
+            }
+            if !self.sel.may_meet_box(&aabb) {
+                self.seen((id, aabb), (1, false, Proof::BoxMisses), None, None)?;
+                continue;
+            }
+            if qb.face_slabs().iter().any(|f| self.sel.holds_box(f)) {
+                self.seen((id, aabb), (1, true, Proof::Face), None, None)?;
+                self.decide(id, 1, true, Proof::Face);
+                return Ok(());
+            }
+            let mut level = 1;
+            let mut voxels = None;
+            if let Some(b) = finest(leaf.bounds(), i as u16, self.k.min(self.m - 1)) {
+                let v = self.voxels(block.id(), &b, &aabb)?;
+                level = b.level;
+                if !self.sel.may_meet_voxels(&v) {
+                    self.seen((id, aabb), (level, false, Proof::VoxelsMiss), Some((level, &v)), None)?;
+                    (rejected_at, reject_proof) = (rejected_at.max(level), Proof::VoxelsMiss);
+                    continue;
+                }
+                if self.sel.confirms_voxels(&v) {
+                    self.seen((id, aabb), (level, true, Proof::Cell), Some((level, &v)), None)?;
+                    self.decide(id, level, true, Proof::Cell);
+                    return Ok(());
+                }
+                voxels = Some(v);
+            }
+            pending.push((i, level, aabb, voxels));
+        }
+        if pending.is_empty() {
+            self.decide(id, rejected_at, false, reject_proof);
+        } else if self.k == self.m {
+            self.parts.insert(id, pending.len() as u32);
+            for (i, level, _, _) in pending {
+                self.push(Step::Exact { block: block.clone(), offset, index: i, level, frame: *frame })?;
+            }
+        } else {
+            let level = pending.iter().map(|p| p.1).max().unwrap_or(1);
+            for (_, l, aabb, v) in &pending {
+                self.seen((id, *aabb), (*l, true, Proof::Candidate), v.as_ref().map(|v| (*l, v)), None)?;
+            }
+            self.decide(id, level, true, Proof::Candidate);
         }
         Ok(())
     }
@@ -482,6 +530,8 @@ pub(crate) fn walk<S: Selection + ?Sized>(
         seq: 0,
         visits: 0,
         visit_limit: u64::from(info.nodes),
+        done: Default::default(),
+        parts: Default::default(),
         stats: TraverseStats {
             confirmed: vec![0; levels],
             rejected: vec![0; levels],
@@ -546,10 +596,11 @@ pub(crate) fn walk<S: Selection + ?Sized>(
             Step::Exact { block, offset, index, level, .. } => {
                 if let Ok(NodeView::Leaf(leaf)) = view(&block, offset)
                     && let Some(o) = leaf.object(index)
+                    && !run.done.contains(&o.object_id)
                 {
                     answer.maybe.push(ObjectId(o.object_id));
+                    answer_level = answer_level.min(level);
                 }
-                answer_level = answer_level.min(level);
             }
         }
     }
@@ -564,6 +615,7 @@ pub(crate) fn walk<S: Selection + ?Sized>(
     answer.level_reached = answer_level;
     answer.objects.sort_unstable();
     answer.maybe.sort_unstable();
+    answer.maybe.dedup();
     answer.decided.sort_unstable_by_key(|d| d.object);
     Ok(answer)
 }

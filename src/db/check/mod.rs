@@ -177,8 +177,11 @@ impl Visitor for Walker<'_> {
                     };
                     self.triangles += mesh.triangle_count() as u64;
                     self.vertices += mesh.vertex_count() as u64;
+                    // An object's parts are consecutive entries of one leaf.
+                    let part_of_previous = i > 0 && leaf.object(i - 1).is_some_and(|p| p.object_id == id.0);
                     match self.seen.get_mut(id.index()) {
                         Some(s) if !*s => *s = true,
+                        Some(_) if part_of_previous => {}
                         _ => {
                             self.faults.push(format!("{here}: object {id} appears twice or is out of range"))
                         }

@@ -41,6 +41,75 @@ pub fn encode_object(id: ObjectId, mesh: &Mesh, stream: &mut Vec<u8>) {
     stream.extend_from_slice(bytemuck::cast_slice(mesh.triangles()));
 }
 
+/// `mesh` as parts whose records are at most `max_bytes` each (at least
+/// one triangle each): its triangles split in halves along the longest
+/// axis of their centres until each half fits, so each part is compact in
+/// space and a query reads only the parts it may meet (format-spec/
+/// geometry.md, "Parts"). Every part keeps the mesh's anchor and its
+/// vertices' exact offsets, so each vertex is the same f64 point in every
+/// part. A mesh that fits is its own single part.
+pub fn parts(mesh: &Mesh, max_bytes: u64) -> Vec<Mesh> {
+    if record_len(mesh) <= max_bytes {
+        return vec![mesh.clone()];
+    }
+    let centre = |t: &[u32; 3]| {
+        let [a, b, c] = t.map(|i| mesh.vertex(i as usize));
+        [(a.x + b.x + c.x) / 3.0, (a.y + b.y + c.y) / 3.0, (a.z + b.z + c.z) / 3.0]
+    };
+    let mut out = Vec::new();
+    let mut stack: Vec<Vec<[u32; 3]>> = vec![mesh.triangles().to_vec()];
+    while let Some(mut tris) = stack.pop() {
+        let part = sub_mesh(mesh, &tris);
+        if record_len(&part) <= max_bytes || tris.len() == 1 {
+            out.push(part);
+            continue;
+        }
+        let (lo, hi) = tris.iter().map(centre).fold(([f64::MAX; 3], [f64::MIN; 3]), |(lo, hi), c| {
+            (std::array::from_fn(|a| lo[a].min(c[a])), std::array::from_fn(|a| hi[a].max(c[a])))
+        });
+        let axis = (0..3).max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b]))).unwrap_or(0);
+        tris.sort_by(|x, y| centre(x)[axis].total_cmp(&centre(y)[axis]));
+        let right = tris.split_off(tris.len() / 2);
+        stack.push(right);
+        stack.push(tris);
+    }
+    out
+}
+
+/// The object whose parts are `parts` (as [`parts`] made them, one anchor):
+/// their vertices and triangles in order. A vertex two parts share appears
+/// twice, at the same point.
+pub fn join(parts: &[Mesh]) -> Option<Mesh> {
+    let first = parts.first()?;
+    let mut offsets = Vec::new();
+    let mut triangles = Vec::new();
+    for p in parts {
+        let base = offsets.len() as u32;
+        offsets.extend_from_slice(p.offsets());
+        triangles.extend(p.triangles().iter().map(|t| t.map(|v| v + base)));
+    }
+    Some(Mesh::from_parts(first.anchor(), offsets, triangles))
+}
+
+/// The part of `mesh` made of `tris`: the vertices they use, with the
+/// mesh's anchor and offsets.
+fn sub_mesh(mesh: &Mesh, tris: &[[u32; 3]]) -> Mesh {
+    let mut index = std::collections::HashMap::new();
+    let mut offsets = Vec::new();
+    let triangles = tris
+        .iter()
+        .map(|t| {
+            t.map(|v| {
+                *index.entry(v).or_insert_with(|| {
+                    offsets.push(mesh.offsets()[v as usize]);
+                    (offsets.len() - 1) as u32
+                })
+            })
+        })
+        .collect();
+    Mesh::from_parts(mesh.anchor(), offsets, triangles)
+}
+
 /// Where geometry records go in the stream of geometry blocks' payloads
 /// (format-spec/geometry.md, "Placement"): a record that fits a block never
 /// straddles two; a larger one starts in the current block when that costs
@@ -186,6 +255,28 @@ mod tests {
         *stream.last_mut().unwrap() = 1;
         assert!(decode_object(7, &stream).is_err());
         assert!(decode_object(7, &stream[..100]).is_err());
+    }
+
+    #[test]
+    fn parts_fit_keep_every_triangle_and_every_point_exactly() {
+        let p: Vec<Point> = (0..400)
+            .map(|i| Point::new(i as f64 * 1.37, (i * 7 % 13) as f64, 1e6 + (i % 5) as f64))
+            .collect();
+        let tris: Vec<[u32; 3]> = (0..398).map(|i| [i, i + 1, i + 2]).collect();
+        let m = Mesh::from_world(&p, tris).unwrap();
+        let split = parts(&m, 1024);
+        assert!(split.len() > 1);
+        assert!(split.iter().all(|x| record_len(x) <= 1024));
+        let mut all: Vec<[Point; 3]> = split.iter().flat_map(|x| x.triangle_points()).collect();
+        let mut want: Vec<[Point; 3]> = m.triangle_points().collect();
+        let key = |t: &[Point; 3]| t.map(|p| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits()));
+        all.sort_by_key(key);
+        want.sort_by_key(key);
+        assert_eq!(all, want, "the same triangles, bit for bit");
+        let joined = join(&split).unwrap();
+        assert_eq!(joined.aabb(), m.aabb());
+        assert_eq!(joined.triangle_count(), m.triangle_count());
+        assert_eq!(parts(&m, u64::MAX), vec![m]);
     }
 
     #[test]

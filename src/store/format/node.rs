@@ -557,7 +557,7 @@ impl<'a> NodeView<'a> {
     pub fn object_count(&self) -> u32 {
         match self {
             NodeView::Internal(n) => n.raw.object_count.get(),
-            NodeView::Leaf(l) => l.objects.len() as u32,
+            NodeView::Leaf(l) => l.object_count(),
         }
     }
 }
@@ -625,9 +625,17 @@ pub struct ObjectView {
 }
 
 impl<'a> LeafView<'a> {
-    /// Objects.
+    /// Entries: objects, and the parts of objects larger than a geometry
+    /// block (consecutive entries of one id).
     pub fn len(&self) -> usize {
         self.objects.len()
+    }
+
+    /// Distinct objects.
+    pub fn object_count(&self) -> u32 {
+        let ids = self.objects.iter().map(|o| o.object_id.get());
+        ids.clone().zip(ids.skip(1)).filter(|(a, b)| a != b).count() as u32
+            + u32::from(!self.objects.is_empty())
     }
 
     /// Never true for a valid record.
