@@ -91,7 +91,14 @@ impl Plan {
         for (i, node) in nodes.iter().enumerate() {
             for id in node.objects().unwrap_or_default() {
                 let o = scene.object(*id).ok_or_else(|| invalid(format!("no object {id}")))?;
-                let parts = geometry::parts(&o.mesh, payload);
+                let len = geometry::record_len(&o.mesh);
+                let parts = if len <= payload {
+                    vec![o.mesh.clone()]
+                } else {
+                    // A room of less than 1/16 of a block is not worth a part's header.
+                    let room = placement.room();
+                    geometry::parts(&o.mesh, if room < payload / 16 { payload } else { room }, payload)
+                };
                 let whole = parts.len() == 1;
                 for part in parts {
                     let len = geometry::record_len(&part);

@@ -41,39 +41,63 @@ pub fn encode_object(id: ObjectId, mesh: &Mesh, stream: &mut Vec<u8>) {
     stream.extend_from_slice(bytemuck::cast_slice(mesh.triangles()));
 }
 
-/// `mesh` as parts whose records are at most `max_bytes` each (at least
-/// one triangle each): its triangles split in halves along the longest
-/// axis of their centres until each half fits, so each part is compact in
-/// space and a query reads only the parts it may meet (format-spec/
-/// geometry.md, "Parts"). Every part keeps the mesh's anchor and its
-/// vertices' exact offsets, so each vertex is the same f64 point in every
-/// part. A mesh that fits is its own single part.
-pub fn parts(mesh: &Mesh, max_bytes: u64) -> Vec<Mesh> {
-    if record_len(mesh) <= max_bytes {
-        return vec![mesh.clone()];
-    }
-    let centre = |t: &[u32; 3]| {
-        let [a, b, c] = t.map(|i| mesh.vertex(i as usize));
-        [(a.x + b.x + c.x) / 3.0, (a.y + b.y + c.y) / 3.0, (a.z + b.z + c.z) / 3.0]
+/// `mesh`, larger than a geometry block, as parts that fill blocks (format-
+/// spec/geometry.md, "Parts"): its triangles in Morton order of their
+/// centres, cut so that the first part fills `room` bytes (what is left of
+/// the current block) and each next part a whole block of `payload` bytes.
+/// So no part straddles two blocks, blocks stay full, and each part is a
+/// compact piece of the surface whose box a query tests before reading it.
+/// Every part keeps the mesh's anchor and its vertices' exact offsets, so
+/// each vertex is the same f64 point in every part.
+pub fn parts(mesh: &Mesh, room: u64, payload: u64) -> Vec<Mesh> {
+    let b = mesh.aabb();
+    let e = b.extent();
+    let key = |t: &[u32; 3]| {
+        let [p, q, r] = t.map(|i| mesh.vertex(i as usize));
+        let cell = |a: usize, c: f64| {
+            let x = if e[a] > 0.0 { (c / 3.0 - b.min[a]) / e[a] } else { 0.0 };
+            (x.clamp(0.0, 1.0) * f64::from((1u32 << 21) - 1)) as u64
+        };
+        let c = [p.x + q.x + r.x, p.y + q.y + r.y, p.z + q.z + r.z];
+        morton(cell(0, c[0]), cell(1, c[1]), cell(2, c[2]))
     };
+    let mut tris = mesh.triangles().to_vec();
+    tris.sort_by_cached_key(key);
     let mut out = Vec::new();
-    let mut stack: Vec<Vec<[u32; 3]>> = vec![mesh.triangles().to_vec()];
-    while let Some(mut tris) = stack.pop() {
-        let part = sub_mesh(mesh, &tris);
-        if record_len(&part) <= max_bytes || tris.len() == 1 {
-            out.push(part);
-            continue;
+    let mut room = room;
+    let mut start = 0;
+    let mut used = std::collections::HashSet::new();
+    while start < tris.len() {
+        used.clear();
+        let mut end = start;
+        while end < tris.len() {
+            let new = tris[end].iter().filter(|v| !used.contains(*v)).collect::<std::collections::HashSet<_>>().len();
+            let len = HEADER_LEN as u64 + 12 * (used.len() + new) as u64 + 12 * (end - start + 1) as u64;
+            // A part holds at least one triangle, even in a room too small for it.
+            if len > room && end > start {
+                break;
+            }
+            used.extend(tris[end]);
+            end += 1;
         }
-        let (lo, hi) = tris.iter().map(centre).fold(([f64::MAX; 3], [f64::MIN; 3]), |(lo, hi), c| {
-            (std::array::from_fn(|a| lo[a].min(c[a])), std::array::from_fn(|a| hi[a].max(c[a])))
-        });
-        let axis = (0..3).max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b]))).unwrap_or(0);
-        tris.sort_by(|x, y| centre(x)[axis].total_cmp(&centre(y)[axis]));
-        let right = tris.split_off(tris.len() / 2);
-        stack.push(right);
-        stack.push(tris);
+        out.push(sub_mesh(mesh, &tris[start..end]));
+        start = end;
+        room = payload;
     }
     out
+}
+
+/// Interleaves the low 21 bits of x, y and z.
+fn morton(x: u64, y: u64, z: u64) -> u64 {
+    let spread = |mut v: u64| {
+        v &= 0x1f_ffff;
+        v = (v | v << 32) & 0x1f_0000_0000_ffff;
+        v = (v | v << 16) & 0x1f_0000_ff00_00ff;
+        v = (v | v << 8) & 0x100f_00f0_0f00_f00f;
+        v = (v | v << 4) & 0x10c3_0c30_c30c_30c3;
+        (v | v << 2) & 0x1249_2492_4924_9249
+    };
+    spread(x) | spread(y) << 1 | spread(z) << 2
 }
 
 /// The object whose parts are `parts` (as [`parts`] made them, one anchor):
@@ -138,6 +162,11 @@ impl Placement {
         let pos = self.at;
         self.at += len;
         pos
+    }
+
+    /// Bytes left in the current block (a whole block at a block's start).
+    pub fn room(&self) -> u64 {
+        self.payload - self.at % self.payload
     }
 
     /// Bytes of the stream so far.
@@ -264,9 +293,12 @@ mod tests {
             .collect();
         let tris: Vec<[u32; 3]> = (0..398).map(|i| [i, i + 1, i + 2]).collect();
         let m = Mesh::from_world(&p, tris).unwrap();
-        let split = parts(&m, 1024);
+        let split = parts(&m, 300, 1024);
         assert!(split.len() > 1);
+        assert!(record_len(&split[0]) <= 300);
         assert!(split.iter().all(|x| record_len(x) <= 1024));
+        // Blocks are filled: every part but the last leaves less than a triangle's bytes.
+        assert!(split[1..split.len() - 1].iter().all(|x| record_len(x) > 1024 - 48));
         let mut all: Vec<[Point; 3]> = split.iter().flat_map(|x| x.triangle_points()).collect();
         let mut want: Vec<[Point; 3]> = m.triangle_points().collect();
         let key = |t: &[Point; 3]| t.map(|p| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits()));
@@ -276,7 +308,7 @@ mod tests {
         let joined = join(&split).unwrap();
         assert_eq!(joined.aabb(), m.aabb());
         assert_eq!(joined.triangle_count(), m.triangle_count());
-        assert_eq!(parts(&m, u64::MAX), vec![m]);
+        assert_eq!(parts(&m, u64::MAX, u64::MAX).len(), 1);
     }
 
     #[test]
