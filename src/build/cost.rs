@@ -162,6 +162,22 @@ impl QueryMix {
         out
     }
 
+    /// `per_scale` queries of each scale centred evenly (a Halton sequence)
+    /// in `zone`: how a workload over the scene places them.
+    pub fn sample_centred(&self, zone: &Aabb, per_scale: usize) -> Vec<Aabb> {
+        let mut out = Vec::with_capacity(per_scale * self.extents.len());
+        for q in &self.extents {
+            let half = Vector::new(q[0], q[1], q[2]) / 2.0;
+            let e = zone.extent();
+            for s in 1..=per_scale {
+                let u = [halton(s, 2), halton(s, 3), halton(s, 5)];
+                let c = zone.min + Vector::new(u[0] * e.x, u[1] * e.y, u[2] * e.z);
+                out.push(Aabb::new(c - half, c + half));
+            }
+        }
+        out
+    }
+
     /// The probability that a query of scale `i` meets `b`.
     pub fn scale_probability(&self, i: usize, b: &Aabb) -> f64 {
         self.extents.get(i).map_or(0.0, |q| CostModel::new(&self.scene, *q).access_probability(b))

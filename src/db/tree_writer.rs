@@ -20,7 +20,7 @@ use crate::store::layout::{self, Packing};
 use crate::store::{Pager, StorageError};
 
 /// Sample queries per scale of the read model.
-const SAMPLES_PER_SCALE: usize = 64;
+const SAMPLES_PER_SCALE: usize = 128;
 
 /// Piece sizes tried, as shares of a block (`store/layout.rs`).
 const PIECE_SHARES: [f64; 5] = [0.25, 0.35, 0.5, 0.7, 1.0];
@@ -128,7 +128,7 @@ impl Plan {
             entries,
             payload,
             stream_end: placement.end(),
-            samples: mix.sample(&nodes[0].aabb, SAMPLES_PER_SCALE),
+            samples: mix.sample_centred(&nodes[0].aabb, SAMPLES_PER_SCALE),
             read_share: Vec::new(),
         };
         let sizes = plan.sizes(tree, &vec![Vec::new(); n]);

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use super::{Inner, Snapshot, codes, tree_writer};
 use crate::build::{BuildParams, BuildProgress, CostModel, Hierarchy, QueryMix, build};
-use crate::lod::{Layout, LodParams, plan_bounds};
+use crate::lod::{Layout, LodParams, StoredBounds, plan_bounds};
 use crate::scene::Scene;
 use crate::store::StorageError;
 use crate::store::alloc::FreeSpace;
@@ -151,18 +151,8 @@ impl<'db> WriteTransaction<'db> {
         let layout = Layout { frames: &plan.frames, read_share: &plan.read_share, entries: &entries };
         let mut stored =
             plan_bounds(scene, tree, m, bs, &self.lod_params, &mix, &layout).map_err(lod_error)?;
-        // Bounds chosen one by one may still not pay as a whole: the blocks
-        // they add change the packing. Keep them only if the model's queries
-        // read no more with them at any scale, and less in all.
         if !self.lod_params.store_all && !stored.is_empty() {
-            let without = stored.none();
-            let (a, b) = (
-                plan.expected_reads(scene, tree, &stored, bs),
-                plan.expected_reads(scene, tree, &without, bs),
-            );
-            if a.iter().zip(&b).any(|(x, y)| x > y) || a.iter().sum::<f64>() >= b.iter().sum::<f64>() {
-                stored = without;
-            }
+            stored = worth_keeping(&plan, scene, tree, &stored, bs);
         }
         let txn = self.txn;
         let written = {
@@ -338,4 +328,33 @@ impl Drop for WriteTransaction<'_> {
 
 fn lod_error(e: crate::lod::LodError) -> StorageError {
     StorageError::Invalid(format!("levels of detail: {e}"))
+}
+
+/// The bounds to store: chosen block by block, they may still not pay as a
+/// whole, since the bytes they add change the packing. Of the best-valued
+/// bounds (all, half, a quarter, ... by value), the most the model's
+/// queries read no more with at any scale than with none, and less in all;
+/// none if no share passes.
+fn worth_keeping(
+    plan: &tree_writer::Plan,
+    scene: &Scene,
+    tree: &Hierarchy,
+    stored: &StoredBounds,
+    block_size: u32,
+) -> StoredBounds {
+    let without = stored.none();
+    let base = plan.expected_reads(scene, tree, &without, block_size);
+    let values = stored.values();
+    let mut count = values.len();
+    while count > 0 {
+        let kept = stored.keep(values[count - 1]);
+        let reads = plan.expected_reads(scene, tree, &kept, block_size);
+        if reads.iter().zip(&base).all(|(x, y)| x <= y)
+            && reads.iter().sum::<f64>() < base.iter().sum::<f64>()
+        {
+            return kept;
+        }
+        count /= 2;
+    }
+    without
 }

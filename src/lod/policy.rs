@@ -5,21 +5,26 @@
 //! the geometry reads it is expected to save exceed the node-block reads
 //! its bytes cost.
 //!
-//! For an object o and a candidate voxel bound V at level k (surface cells
-//! only: each holds a piece of the surface, so it can witness contact as
-//! well as rule it out), the model's queries that meet o's box are sampled
-//! (`model_samples`, spread over the scales). In each sample where o's box
-//! alone leaves o undecided (no face of it held) and V decides it (the query
-//! misses every cell, or holds one), V saves the reads of o's geometry
-//! blocks that no other object's box leaves undecided in that query (a
-//! block another undecided object needs is read anyway). So:
+//! A bound saves a read only when it decides every object that would have
+//! made a query read a geometry block: deciding one object of several in a
+//! block saves nothing. So bounds are judged block by block. For a geometry
+//! block b and a level k, the model's queries that meet the box around b's
+//! entries (objects, or parts of larger ones) are sampled (`model_samples`,
+//! spread over the scales); a query needs b when one of its entries is
+//! undecided: its box meets the query and no face of it is held, and (with
+//! bounds) its level-k bound neither misses the query nor has a cell held
+//! by it (surface cells: each holds a piece of the surface, so a bound can
+//! witness contact as well as rule it out).
 //!
-//! - saving = Σ over scales of P(meets box(o)) x mean saved blocks, / scales;
-//! - cost = bytes(V) / (bytes a node block holds) x the share of the model's
-//!   queries that read o's leaf's node block (in the layout without bounds).
+//! - saving(b, k) = Σ over scales of P(meets the box around b) x (share of
+//!   samples needing b without bounds - share needing it with them), / scales;
+//! - cost(b, k) = Σ over the bounds stored of their bytes / (bytes a node
+//!   block holds) x the share of the model's queries that read their leaf's
+//!   node block (in the layout without bounds).
 //!
-//! The level with the largest saving - cost > 0 is stored; none otherwise
-//! (`LodParams::store_all` stores every level, to measure them).
+//! The level with the largest saving - cost > 0 is stored for b's entries
+//! whose bound decides some sample; none otherwise (`LodParams::store_all`
+//! stores every level of every entry, to measure them).
 
 use std::collections::HashMap;
 use std::ops::RangeInclusive;
@@ -31,7 +36,7 @@ use super::{ErrorProbe, Grid, Lattice, LodError, LodParams, LodPlan, Voxels};
 use crate::build::{Hierarchy, QueryMix};
 use crate::geom::Aabb;
 use crate::scene::{Mesh, ObjectId, Scene};
-use crate::store::format::node::{BoundEntry, capacity};
+use crate::store::format::node::{BOUND_HEAD_LEN, BoundEntry, MAX_BOUND_BYTES, capacity};
 use crate::store::format::quant::{QuantBox, quantize};
 
 /// An entry of a leaf: an object, or a part of one (format-spec/
@@ -72,6 +77,20 @@ pub struct StoredBounds {
     pub predicted: Vec<[f64; 2]>,
     /// Per node: the finest bound stored for each object (object index, set).
     pub finest: Vec<Vec<(u16, Voxels)>>,
+    /// Per node, beside `bounds`: what each bound was judged worth.
+    worth: Vec<Vec<Worth>>,
+}
+
+/// What a stored bound was judged worth, and measured to err.
+#[derive(Debug, Clone)]
+struct Worth {
+    /// saving - cost of the group of bounds it was chosen with (block reads per query).
+    value: f64,
+    saving: f64,
+    cost: f64,
+    eps: f64,
+    measured: f64,
+    voxels: Voxels,
 }
 
 impl StoredBounds {
@@ -86,8 +105,47 @@ impl StoredBounds {
             usage: vec![[0; 2]; levels],
             predicted: vec![[0.0; 2]; levels],
             finest: vec![Vec::new(); n],
+            worth: vec![Vec::new(); n],
             ..self.clone()
         }
+    }
+
+    fn push(&mut self, node: usize, bound: BoundEntry, w: Worth) {
+        let k = usize::from(bound.level) - 1;
+        // Bounds come level by level: a later one of the same target is finer.
+        match self.finest[node].last_mut() {
+            Some(last) if last.0 == bound.target => last.1 = w.voxels.clone(),
+            _ => self.finest[node].push((bound.target, w.voxels.clone())),
+        }
+        self.usage[k][0] += bound.blob.len() as u64;
+        self.usage[k][1] += 1;
+        self.predicted[k][0] += w.saving;
+        self.predicted[k][1] += w.cost;
+        self.errors[k][0] = self.errors[k][0].max(w.eps);
+        self.errors[k][1] = self.errors[k][1].max(w.measured);
+        self.bounds[node].push(bound);
+        self.worth[node].push(w);
+    }
+
+    /// The bounds judged worth at least `min_value` reads per query (with
+    /// the group they were chosen in).
+    pub fn keep(&self, min_value: f64) -> StoredBounds {
+        let mut out = self.none();
+        for (i, (bounds, worth)) in self.bounds.iter().zip(&self.worth).enumerate() {
+            for (b, w) in bounds.iter().zip(worth) {
+                if w.value >= min_value {
+                    out.push(i, b.clone(), w.clone());
+                }
+            }
+        }
+        out
+    }
+
+    /// What every stored bound's group was judged worth, high to low.
+    pub fn values(&self) -> Vec<f64> {
+        let mut v: Vec<f64> = self.worth.iter().flatten().map(|w| w.value).collect();
+        v.sort_by(|a, b| b.total_cmp(a));
+        v
     }
 
     /// True when no bound is stored.
@@ -96,26 +154,15 @@ impl StoredBounds {
     }
 }
 
-/// One candidate: an object's bound at a level, with its model value.
+/// One candidate: an entry's bound at a level, with its model value once judged.
 struct Candidate {
     level: u8,
     blob: Vec<u8>,
     voxels: Voxels,
     saving: f64,
     cost: f64,
-}
-
-/// An object as the model's queries see it in a geometry block.
-struct Sharer {
-    object: ObjectId,
-    qbox: QuantBox,
-}
-
-impl Sharer {
-    /// True when `q` meets the box and holds none of its faces.
-    fn undecided(&self, q: &Aabb) -> bool {
-        self.qbox.outer.intersects(q) && !self.qbox.face_slabs().iter().any(|f| q.contains(f))
-    }
+    /// saving - cost of the group it was judged in.
+    value: f64,
 }
 
 /// Decides and encodes the bounds of `tree` over `scene` for M = `m`
@@ -139,6 +186,7 @@ pub fn plan_bounds(
         query_extent: mix.extents().first().copied().unwrap_or_default(),
         predicted: vec![[0.0; 2]; levels],
         finest: vec![Vec::new(); tree.nodes.len()],
+        worth: vec![Vec::new(); tree.nodes.len()],
     };
     if m < 3 {
         return Ok(out);
@@ -146,63 +194,62 @@ pub fn plan_bounds(
     let plan = LodPlan::new(scene, m, params)?;
     out.grid_level = plan.grid_level.clone();
     out.lattice = Some(plan.lattice);
-    let node_capacity = capacity(block_size) as f64;
-    // Every entry of every geometry block, with its box as its leaf stores it.
-    let mut sharers: HashMap<u64, Vec<Sharer>> = HashMap::new();
-    for (i, entries) in layout.entries.iter().enumerate() {
-        for e in entries {
-            let Some(qbox) = QuantBox::decode(&layout.frames[i], quantize(&layout.frames[i], &e.mesh.aabb()))
-            else {
-                continue;
-            };
-            for b in e.blocks.clone() {
-                sharers.entry(b).or_default().push(Sharer { object: e.id, qbox });
-            }
-        }
-    }
-    let ctx = Ctx { plan: &plan, params, mix, layout, sharers: &sharers, node_capacity };
-    let chosen: Vec<(usize, Vec<(u16, Candidate)>)> = layout
+    // Every entry's candidate bounds, level by level.
+    let ctx = Ctx { plan: &plan, params, layout };
+    let candidates: Vec<Vec<Vec<Candidate>>> = layout
         .entries
         .par_iter()
         .enumerate()
-        .filter(|(_, entries)| !entries.is_empty())
         .map(|(i, entries)| {
-            let mut picked = Vec::new();
-            for (j, e) in entries.iter().enumerate() {
-                let all = (2..m)
-                    .filter_map(|k| ctx.candidate(k, i, e).transpose())
-                    .collect::<Result<Vec<_>, LodError>>()?;
-                if params.store_all {
-                    picked.extend(all.into_iter().map(|c| (j as u16, c)));
-                } else if let Some(c) = all
-                    .into_iter()
-                    .filter(|c| c.saving > c.cost)
-                    .max_by(|a, b| (a.saving - a.cost).total_cmp(&(b.saving - b.cost)))
-                {
-                    picked.push((j as u16, c));
-                }
-            }
-            Ok((i, picked))
+            entries
+                .iter()
+                .map(|e| (2..m).filter_map(|k| ctx.candidate(k, i, e).transpose()).collect())
+                .collect::<Result<Vec<Vec<Candidate>>, LodError>>()
         })
         .collect::<Result<_, LodError>>()?;
+    // Entries by geometry block: each lies in one (a part never straddles two).
+    let mut blocks: HashMap<u64, Vec<(usize, usize)>> = HashMap::new();
+    for (i, entries) in layout.entries.iter().enumerate() {
+        for (j, e) in entries.iter().enumerate() {
+            blocks.entry(*e.blocks.start()).or_default().push((i, j));
+        }
+    }
+    let groups: Vec<Vec<(usize, usize)>> = blocks.into_values().collect();
+    let node_capacity = capacity(block_size) as f64;
+    let judged: Vec<Vec<Judged>> = groups
+        .par_iter()
+        .map(|group| judge(group, &candidates, layout, mix, params, m, node_capacity))
+        .collect();
+    let mut chosen: Vec<(usize, Vec<(u16, Candidate)>)> = Vec::new();
+    let mut picked: HashMap<usize, Vec<(u16, Candidate)>> = HashMap::new();
+    let mut candidates = candidates;
+    for (i, j, k, saving, cost, value) in judged.into_iter().flatten() {
+        let list = &mut candidates[i][j];
+        if let Some(at) = list.iter().position(|c| c.level == k) {
+            let mut c = list.swap_remove(at);
+            (c.saving, c.cost, c.value) = (saving, cost, value);
+            picked.entry(i).or_default().push((j as u16, c));
+        }
+    }
+    for (i, mut list) in picked {
+        list.sort_by_key(|(j, c)| (*j, c.level));
+        chosen.push((i, list));
+    }
+    chosen.sort_by_key(|(i, _)| *i);
     for (i, picked) in chosen {
         for (j, c) in picked {
-            // Candidates come level by level: a later one of the same object is finer.
-            match out.finest[i].last_mut() {
-                Some(last) if last.0 == j => last.1 = c.voxels.clone(),
-                _ => out.finest[i].push((j, c.voxels.clone())),
-            }
-            let k = usize::from(c.level) - 1;
-            out.usage[k][0] += c.blob.len() as u64;
-            out.usage[k][1] += 1;
-            out.predicted[k][0] += c.saving;
-            out.predicted[k][1] += c.cost;
-            out.errors[k][0] = out.errors[k][0].max(c.voxels.grid().max_cell_diagonal());
-            if let Some(e) = layout.entries[i].get(usize::from(j)) {
-                let probe = ErrorProbe::new([e.mesh]);
-                out.errors[k][1] = out.errors[k][1].max(probe.measure(&c.voxels, params.error_samples));
-            }
-            out.bounds[i].push(BoundEntry { target: j, level: c.level, blob: c.blob });
+            let measured = layout.entries[i]
+                .get(usize::from(j))
+                .map_or(0.0, |e| ErrorProbe::new([e.mesh]).measure(&c.voxels, params.error_samples));
+            let w = Worth {
+                value: c.value,
+                saving: c.saving,
+                cost: c.cost,
+                eps: c.voxels.grid().max_cell_diagonal(),
+                measured,
+                voxels: c.voxels,
+            };
+            out.push(i, BoundEntry { target: j, level: c.level, blob: c.blob }, w);
         }
     }
     Ok(out)
@@ -211,60 +258,115 @@ pub fn plan_bounds(
 struct Ctx<'a> {
     plan: &'a LodPlan,
     params: &'a LodParams,
-    mix: &'a QueryMix,
     layout: &'a Layout<'a>,
-    sharers: &'a HashMap<u64, Vec<Sharer>>,
-    node_capacity: f64,
 }
 
 impl Ctx<'_> {
-    /// Entry `e` of leaf `i` bounded at level k, with its model value;
-    /// `None` when the level's grid is too large or its blob too long.
+    /// Entry `e` of leaf `i` bounded at level k; `None` when the level's
+    /// grid is too large or its blob too long for an inline bound.
     fn candidate(&self, k: u8, i: usize, e: &LeafEntry) -> Result<Option<Candidate>, LodError> {
-        let (id, mesh) = (e.id, e.mesh);
         let frame = &self.layout.frames[i];
-        let Some(qbox) = QuantBox::decode(frame, quantize(frame, &mesh.aabb())) else { return Ok(None) };
+        let Some(qbox) = QuantBox::decode(frame, quantize(frame, &e.mesh.aabb())) else { return Ok(None) };
         // The grid over the box the reader holds: the decoded quantized box.
         let Some(grid) = grid(self.plan, self.params, k, &qbox.outer)? else { return Ok(None) };
         if grid.cells() > u64::from(u16::MAX) {
             return Ok(None);
         }
-        let voxels = Voxels::of_surfaces(grid, [mesh]);
+        let voxels = Voxels::of_surfaces(grid, [e.mesh]);
         let blob = encode(&voxels);
-        if blob.len() > usize::from(u8::MAX) {
+        if blob.len() > MAX_BOUND_BYTES {
             return Ok(None);
         }
-        let cost = self.layout.read_share[i]
-            * (crate::store::format::node::BOUND_HEAD_LEN + blob.len()) as f64
-            / self.node_capacity;
-        let blocks: Vec<u64> = e.blocks.clone().collect();
-        let scales = self.mix.extents().len();
-        let per_scale = self.params.model_samples.div_ceil(scales).max(1);
-        let samples = self.mix.sample(&qbox.outer, per_scale);
+        Ok(Some(Candidate { level: k, blob, voxels, saving: 0.0, cost: 0.0, value: 0.0 }))
+    }
+}
+
+/// A bound judged worth storing: (leaf, entry, level, saving, cost, the
+/// group's saving - cost).
+type Judged = (usize, usize, u8, f64, f64, f64);
+
+/// The bounds worth storing for the entries `group` of one geometry block,
+/// all at the level that pays best, or every candidate with `store_all`.
+fn judge(
+    group: &[(usize, usize)],
+    candidates: &[Vec<Vec<Candidate>>],
+    layout: &Layout,
+    mix: &QueryMix,
+    params: &LodParams,
+    m: u8,
+    node_capacity: f64,
+) -> Vec<Judged> {
+    let cands = |&(i, j): &(usize, usize)| candidates.get(i).and_then(|c| c.get(j));
+    if params.store_all {
+        return group
+            .iter()
+            .flat_map(|e| cands(e).into_iter().flatten().map(move |c| (e.0, e.1, c.level, 0.0, 0.0, 0.0)))
+            .collect();
+    }
+    let boxes: Vec<Option<QuantBox>> = group
+        .iter()
+        .map(|&(i, j)| {
+            let f = &layout.frames[i];
+            QuantBox::decode(f, quantize(f, &layout.entries[i][j].mesh.aabb()))
+        })
+        .collect();
+    let zone = boxes.iter().flatten().fold(Aabb::EMPTY, |z, b| z.union(&b.outer));
+    if zone.is_empty() {
+        return Vec::new();
+    }
+    let scales = mix.extents().len();
+    let per_scale = params.model_samples.div_ceil(scales).max(1);
+    let samples = mix.sample(&zone, per_scale);
+    // Undecided by its box alone: meets the box, holds no face of it.
+    let open =
+        |b: &QuantBox, q: &Aabb| b.outer.intersects(q) && !b.face_slabs().iter().any(|f| q.contains(f));
+    let mut best: Option<(f64, Vec<Judged>)> = None;
+    for k in 2..m {
+        let at_k: Vec<Option<&Candidate>> =
+            group.iter().map(|e| cands(e).and_then(|c| c.iter().find(|c| c.level == k))).collect();
+        let mut deciding = vec![false; group.len()];
         let mut saving = 0.0;
-        for (c, chunk) in samples.chunks(per_scale).enumerate() {
-            let mut saved = 0u64;
+        for (s, chunk) in samples.chunks(per_scale).enumerate() {
+            let (mut without, mut with) = (0u32, 0u32);
             for q in chunk {
-                if qbox.face_slabs().iter().any(|f| q.contains(f)) {
-                    continue;
+                let mut need_without = false;
+                let mut need_with = false;
+                for (x, b) in boxes.iter().enumerate() {
+                    let Some(b) = b else { continue };
+                    if !open(b, q) {
+                        continue;
+                    }
+                    need_without = true;
+                    match at_k[x] {
+                        Some(c) if !c.voxels.may_meet(q) || c.voxels.holds_a_cell_in(q) => deciding[x] = true,
+                        _ => need_with = true,
+                    }
                 }
-                if voxels.may_meet(q) && !voxels.holds_a_cell_in(q) {
-                    continue;
-                }
-                saved += blocks
-                    .iter()
-                    .filter(|b| {
-                        self.sharers
-                            .get(b)
-                            .is_none_or(|v| v.iter().all(|s| s.object == id || !s.undecided(q)))
-                    })
-                    .count() as u64;
+                without += u32::from(need_without);
+                with += u32::from(need_with);
             }
-            saving += self.mix.scale_probability(c, &qbox.outer) * saved as f64 / per_scale as f64;
+            saving += mix.scale_probability(s, &zone) * f64::from(without - with) / per_scale as f64;
         }
         saving /= scales as f64;
-        Ok(Some(Candidate { level: k, blob, voxels, saving, cost }))
+        let stored: Vec<(usize, usize, f64)> = group
+            .iter()
+            .zip(&at_k)
+            .zip(&deciding)
+            .filter_map(|((&(i, j), c), &d)| {
+                let c = c.filter(|_| d)?;
+                let cost = layout.read_share[i] * (BOUND_HEAD_LEN + c.blob.len()) as f64 / node_capacity;
+                Some((i, j, cost))
+            })
+            .collect();
+        let cost: f64 = stored.iter().map(|x| x.2).sum();
+        if stored.is_empty() || saving <= cost || best.as_ref().is_some_and(|b| b.0 >= saving - cost) {
+            continue;
+        }
+        let share = saving / stored.len() as f64;
+        let value = saving - cost;
+        best = Some((value, stored.into_iter().map(|(i, j, c)| (i, j, k, share, c, value)).collect()));
     }
+    best.map_or_else(Vec::new, |b| b.1)
 }
 
 /// The grid of level k over `b`: the cuberille's within its cell budget,

@@ -71,7 +71,11 @@ pub fn parts(mesh: &Mesh, room: u64, payload: u64) -> Vec<Mesh> {
         used.clear();
         let mut end = start;
         while end < tris.len() {
-            let new = tris[end].iter().filter(|v| !used.contains(*v)).collect::<std::collections::HashSet<_>>().len();
+            let new = tris[end]
+                .iter()
+                .filter(|v| !used.contains(*v))
+                .collect::<std::collections::HashSet<_>>()
+                .len();
             let len = HEADER_LEN as u64 + 12 * (used.len() + new) as u64 + 12 * (end - start + 1) as u64;
             // A part holds at least one triangle, even in a room too small for it.
             if len > room && end > start {

@@ -86,10 +86,23 @@ const _: () = assert!(size_of::<ObjectRaw>() == OBJECT_LEN);
 #[repr(C)]
 pub(crate) struct BoundRaw {
     pub(crate) target: U16,
-    pub(crate) level: u8,
-    pub(crate) blob_bytes: u8,
+    /// Bits 0-3 the level k, bits 4-15 the blob's bytes.
+    pub(crate) level_bytes: U16,
 }
 const _: () = assert!(size_of::<BoundRaw>() == BOUND_HEAD_LEN);
+
+/// The largest inline bound, bytes (12 bits of its head).
+pub const MAX_BOUND_BYTES: usize = 4095;
+
+impl BoundRaw {
+    fn level(&self) -> u8 {
+        (self.level_bytes.get() & 0xf) as u8
+    }
+
+    fn blob_bytes(&self) -> usize {
+        usize::from(self.level_bytes.get() >> 4)
+    }
+}
 
 /// Where a child record lives: this block (`block` 0) or another one, whose
 /// checksum the parent holds.
@@ -262,9 +275,17 @@ impl RecordDraft {
 
 fn encode_bounds(bounds: &[BoundEntry], out: &mut Vec<u8>) -> Result<(), String> {
     for b in bounds {
-        let len = u8::try_from(b.blob.len())
-            .map_err(|_| format!("a bound of {} bytes (at most 255)", b.blob.len()))?;
-        let raw = BoundRaw { target: b.target.into(), level: b.level, blob_bytes: len };
+        if b.blob.len() > MAX_BOUND_BYTES || b.level > 15 {
+            return Err(format!(
+                "a bound of {} bytes at level {} (at most {MAX_BOUND_BYTES}, 15)",
+                b.blob.len(),
+                b.level
+            ));
+        }
+        let raw = BoundRaw {
+            target: b.target.into(),
+            level_bytes: (u16::from(b.level) | (b.blob.len() as u16) << 4).into(),
+        };
         out.extend_from_slice(raw.as_bytes());
         out.extend_from_slice(&b.blob);
     }
@@ -468,7 +489,7 @@ fn validate_bounds(mut area: &[u8], targets: usize, limits: &Limits) -> Result<(
     // Entries while a head fits; fewer than 4 bytes left are the zero padding.
     while area.len() >= BOUND_HEAD_LEN {
         let (raw, rest) = BoundRaw::ref_from_prefix(area).map_err(|_| "a bound's head is cut".to_string())?;
-        let (t, k) = (raw.target.get(), raw.level);
+        let (t, k) = (raw.target.get(), raw.level());
         if usize::from(t) >= targets || k < 2 || k >= limits.lod_levels {
             return Err(format!("a bound of target {t} at level {k}"));
         }
@@ -477,7 +498,7 @@ fn validate_bounds(mut area: &[u8], targets: usize, limits: &Limits) -> Result<(
             return Err("bounds are not in (target, level) order".into());
         }
         last = Some((t, k));
-        let n = usize::from(raw.blob_bytes);
+        let n = raw.blob_bytes();
         if n > rest.len() {
             return Err(format!("a bound of {n} bytes overruns its record"));
         }
@@ -573,10 +594,10 @@ pub struct BoundView<'a> {
 fn bounds_iter(mut area: &[u8]) -> impl Iterator<Item = BoundView<'_>> {
     std::iter::from_fn(move || {
         let (raw, rest) = BoundRaw::ref_from_prefix(area).ok()?;
-        let n = usize::from(raw.blob_bytes);
+        let n = raw.blob_bytes();
         let blob = rest.get(..n)?;
         area = &rest[n..];
-        Some(BoundView { target: raw.target.get(), level: raw.level, blob })
+        Some(BoundView { target: raw.target.get(), level: raw.level(), blob })
     })
 }
 

@@ -118,7 +118,7 @@ fn spec_tables_match_the_records() {
     macro_rules! object { ($($f:ident),*) => { $( field!(node, Some("### Object entry"), 0, ObjectRaw, $f); )* } }
     object!(object_id, qbox, position);
     macro_rules! bound { ($($f:ident),*) => { $( field!(node, Some("## Bounds"), 0, BoundRaw, $f); )* } }
-    bound!(target, level, blob_bytes);
+    bound!(target, level_bytes);
 
     let lod = include_str!("../../../format-spec/lod.md");
     macro_rules! blob { ($($f:ident),*) => { $( field!(lod, Some("## Inline voxel blob"), 0, crate::lod::BlobHead, $f); )* } }
