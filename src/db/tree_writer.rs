@@ -472,7 +472,6 @@ pub(crate) fn write(
                                 gap: s.gap as f32,
                             },
                             children: [child(kids[0].index()), child(kids[1].index())],
-                            bounds: bounds[i].clone(),
                         }
                     }
                     _ => {

@@ -78,11 +78,8 @@ fn add(total: &mut TraverseStats, s: &TraverseStats) {
     total.reads += s.reads;
     total.nodes_visited += s.nodes_visited;
     total.leaves_visited += s.leaves_visited;
-    for (t, x) in [
-        (&mut total.confirmed, &s.confirmed),
-        (&mut total.rejected, &s.rejected),
-        (&mut total.pruned, &s.pruned),
-    ] {
+    total.pruned += s.pruned;
+    for (t, x) in [(&mut total.confirmed, &s.confirmed), (&mut total.rejected, &s.rejected)] {
         t.resize(t.len().max(x.len()), 0);
         for (a, b) in t.iter_mut().zip(x) {
             *a += b;

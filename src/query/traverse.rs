@@ -83,8 +83,8 @@ pub struct TraverseStats {
     pub confirmed: Vec<u64>,
     /// Per level k = 1 .. M: objects rejected there.
     pub rejected: Vec<u64>,
-    /// Per level k = 1 .. M: subtrees pruned there (their objects are not counted above).
-    pub pruned: Vec<u64>,
+    /// Subtrees ruled out by their boxes (their objects are not counted above).
+    pub pruned: u64,
     /// Objects whose geometry was read and tested (the level-M decisions).
     pub geometry_tests: u64,
     pub triangles_tested: u64,
@@ -353,13 +353,7 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
                     let mut child_inside = inside;
                     if !inside {
                         if !self.sel.may_meet_box(&qb.outer) {
-                            self.stats.pruned[0] += 1;
-                            continue;
-                        }
-                        if let Some(b) = finest(n.bounds(), i as u16, self.k.min(self.m - 1))
-                            && !self.sel.may_meet_voxels(&self.voxels(block.id(), &b, &qb.outer)?)
-                        {
-                            self.stats.pruned[usize::from(b.level) - 1] += 1;
+                            self.stats.pruned += 1;
                             continue;
                         }
                         child_inside = self.sel.holds_box(&qb.outer);
@@ -486,8 +480,7 @@ pub fn traverse<S: Selection + ?Sized>(
             let per_level = vec![0; usize::from(m)];
             let stats = TraverseStats {
                 confirmed: per_level.clone(),
-                rejected: per_level.clone(),
-                pruned: per_level,
+                rejected: per_level,
                 ..TraverseStats::default()
             };
             Ok(QueryAnswer {
@@ -535,7 +528,6 @@ pub(crate) fn walk<S: Selection + ?Sized>(
         stats: TraverseStats {
             confirmed: vec![0; levels],
             rejected: vec![0; levels],
-            pruned: vec![0; levels],
             ..TraverseStats::default()
         },
         objects: Vec::new(),
@@ -547,7 +539,7 @@ pub(crate) fn walk<S: Selection + ?Sized>(
         let at = RecordRef { block: start.block, checksum: start.checksum, offset: start.offset };
         run.push(Step::Unread { at, frame: start.aabb, inside, estimate: f64::from(info.objects) })?;
     } else {
-        run.stats.pruned[0] += 1;
+        run.stats.pruned += 1;
     }
     let mut deferred: Vec<Queued> = Vec::new();
     let spent = |r: &Reads| r.stats.total() - before.total();

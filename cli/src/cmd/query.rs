@@ -52,7 +52,7 @@ pub fn answer_json(a: &QueryAnswer) -> Value {
         "leaves_visited": s.leaves_visited,
         "confirmed_per_level": s.confirmed,
         "rejected_per_level": s.rejected,
-        "pruned_per_level": s.pruned,
+        "subtrees_pruned": s.pruned,
         "geometry_tests": s.geometry_tests,
         "triangles_tested": s.triangles_tested,
         "decided": a.decided,
@@ -91,7 +91,7 @@ pub fn print(a: &QueryAnswer, as_json: bool) -> Result<()> {
         s.seconds * 1e3
     );
     println!(
-        "decided per level k = 1 ..: confirmed {:?}, rejected {:?}, subtrees pruned {:?}; geometry read for {}",
+        "decided per level k = 1 ..: confirmed {:?}, rejected {:?}; {} subtrees pruned; geometry read for {}",
         s.confirmed, s.rejected, s.pruned, s.geometry_tests
     );
     Ok(())

@@ -13,7 +13,7 @@ use crate::store::StorageError;
 
 /// Offset of the first record in a node block.
 pub const RECORDS_START: usize = FRAME_LEN + 8;
-/// Bytes of an internal record before its inline bounds.
+/// Bytes of an internal record.
 pub const INTERNAL_LEN: usize = 84;
 /// Bytes of a leaf record's fixed head.
 pub const LEAF_HEAD_LEN: usize = 20;
@@ -50,7 +50,7 @@ pub(crate) struct ChildRaw {
 pub(crate) struct InternalRaw {
     pub(crate) kind: u8,
     pub(crate) split: u8,
-    pub(crate) bounds_bytes: U16,
+    pub(crate) reserved: [u8; 2],
     pub(crate) node_id: U32,
     pub(crate) object_count: U32,
     pub(crate) split_overlap: F32,
@@ -164,7 +164,6 @@ pub enum RecordDraft {
         object_count: u32,
         split: SplitInfo,
         children: [ChildEntry; 2],
-        bounds: Vec<BoundEntry>,
     },
     Leaf {
         node_id: u32,
@@ -193,7 +192,7 @@ impl RecordDraft {
     /// Encoded bytes (a multiple of 4).
     pub fn len(&self) -> usize {
         match self {
-            RecordDraft::Internal { bounds, .. } => INTERNAL_LEN + bounds_len(bounds),
+            RecordDraft::Internal { .. } => INTERNAL_LEN,
             RecordDraft::Leaf { checksums, objects, bounds, .. } => {
                 leaf_len(objects.len(), checksums.len(), bounds_len(bounds))
             }
@@ -208,7 +207,7 @@ impl RecordDraft {
     fn encode(&self, out: &mut Vec<u8>) -> Result<(), String> {
         let start = out.len();
         match self {
-            RecordDraft::Internal { node_id, object_count, split, children, bounds } => {
+            RecordDraft::Internal { node_id, object_count, split, children } => {
                 let child = |c: &ChildEntry| ChildRaw {
                     qbox: c.qbox.map(U16::new),
                     block: c.at.block.into(),
@@ -220,9 +219,7 @@ impl RecordDraft {
                 let raw = InternalRaw {
                     kind: KIND_INTERNAL,
                     split: split.axis.index() as u8 | (split.order << 2),
-                    bounds_bytes: u16::try_from(bounds_len(bounds))
-                        .map_err(|_| "an internal record's bounds exceed 65,535 bytes".to_string())?
-                        .into(),
+                    reserved: [0; 2],
                     node_id: (*node_id).into(),
                     object_count: (*object_count).into(),
                     split_overlap: split.overlap.into(),
@@ -230,7 +227,6 @@ impl RecordDraft {
                     children: [child(&children[0]), child(&children[1])],
                 };
                 out.extend_from_slice(raw.as_bytes());
-                encode_bounds(bounds, out)?;
             }
             RecordDraft::Leaf { node_id, first_block, checksums, objects, end, bounds } => {
                 let raw = LeafRaw {
@@ -409,12 +405,10 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
                     return Err(bad("child_offset", format!("{} is not a record offset", c.offset.get())));
                 }
             }
-            let len = INTERNAL_LEN + usize::from(raw.bounds_bytes.get());
-            let area = bytes
-                .get(INTERNAL_LEN..len)
-                .ok_or_else(|| bad("bounds_bytes", "overruns the block".into()))?;
-            validate_bounds(area, 2, limits).map_err(|d| bad("bounds", d))?;
-            Ok(len)
+            if raw.reserved != [0; 2] {
+                return Err(bad("reserved", "reserved bytes are not zero".into()));
+            }
+            Ok(INTERNAL_LEN)
         }
         Some(&KIND_LEAF) => {
             let (raw, _) = LeafRaw::ref_from_prefix(bytes).map_err(|_| bad("record", "short".into()))?;
@@ -521,7 +515,6 @@ pub enum NodeView<'a> {
 #[derive(Debug, Clone, Copy)]
 pub struct InternalView<'a> {
     raw: &'a InternalRaw,
-    bounds: &'a [u8],
 }
 
 /// A leaf record in place.
@@ -540,9 +533,8 @@ impl<'a> NodeView<'a> {
         let bytes = block.get(offset as usize..).ok_or("offset past the block")?;
         match bytes.first() {
             Some(&KIND_INTERNAL) => {
-                let (raw, rest) = InternalRaw::ref_from_prefix(bytes).map_err(|_| "short record")?;
-                let bounds = rest.get(..usize::from(raw.bounds_bytes.get())).ok_or("bounds overrun")?;
-                Ok(NodeView::Internal(InternalView { raw, bounds }))
+                let (raw, _) = InternalRaw::ref_from_prefix(bytes).map_err(|_| "short record")?;
+                Ok(NodeView::Internal(InternalView { raw }))
             }
             Some(&KIND_LEAF) => {
                 let (raw, rest) = LeafRaw::ref_from_prefix(bytes).map_err(|_| "short record")?;
@@ -628,11 +620,6 @@ impl<'a> InternalView<'a> {
             overlap: self.raw.split_overlap.get(),
             gap: self.raw.split_gap.get(),
         }
-    }
-
-    /// The inline group bounds b(S_c,k) of the children, by (child, level).
-    pub fn bounds(&self) -> impl Iterator<Item = BoundView<'a>> + 'a {
-        bounds_iter(self.bounds)
     }
 }
 
@@ -724,7 +711,6 @@ mod tests {
                     geometry_blocks: 1,
                 },
             ],
-            bounds: vec![],
         };
         vec![inner, leaf]
     }

@@ -110,7 +110,7 @@ fn spec_tables_match_the_records() {
     field!(node, payload, FRAME_LEN, BlockHead, record_count);
     field!(node, payload, FRAME_LEN, BlockHead, reserved);
     macro_rules! internal { ($($f:ident),*) => { $( field!(node, Some("## Internal record"), 0, InternalRaw, $f); )* } }
-    internal!(kind, split, bounds_bytes, node_id, object_count, split_overlap, split_gap, children);
+    internal!(kind, split, reserved, node_id, object_count, split_overlap, split_gap, children);
     macro_rules! child { ($($f:ident),*) => { $( field!(node, Some("### Child entry"), 0, ChildRaw, $f); )* } }
     child!(qbox, block, checksum, offset, node_blocks, geometry_blocks);
     macro_rules! leaf { ($($f:ident),*) => { $( field!(node, Some("## Leaf record"), 0, LeafRaw, $f); )* } }
