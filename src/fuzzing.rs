@@ -61,7 +61,7 @@ pub fn open_and_query(data: &[u8]) {
             let _ = query_region(
                 &r,
                 &Region::Box(Aabb::from_array(b)),
-                &QueryOptions { lod, budget: None },
+                &QueryOptions { lod, ..Default::default() },
                 None,
             );
         }

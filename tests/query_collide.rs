@@ -21,7 +21,7 @@ fn check_levels(scene: &Scene, db: &mktree::db::Database, id: ObjectId, pose: &P
     let exact = brute_force_collide(scene, &mesh, pose, clearance, Some(id)).unwrap();
     for k in 1..=m {
         let opts = CollideOptions {
-            query: QueryOptions { lod: Some(k), budget: None },
+            query: QueryOptions { lod: Some(k), budget: None, ..Default::default() },
             clearance,
             exclude: Some(id),
         };
@@ -73,7 +73,9 @@ fn a_missing_object_and_a_bad_clearance_are_errors() {
     let mesh = object_mesh(&r, ObjectId(3)).unwrap();
     let opts = CollideOptions { clearance: f64::NAN, ..CollideOptions::default() };
     assert!(collide(&r, &mesh, &Pose::default(), &opts, None).is_err());
-    let opts =
-        CollideOptions { query: QueryOptions { lod: Some(4), budget: None }, ..CollideOptions::default() };
+    let opts = CollideOptions {
+        query: QueryOptions { lod: Some(4), budget: None, ..Default::default() },
+        ..CollideOptions::default()
+    };
     assert!(collide(&r, &mesh, &Pose::default(), &opts, None).is_err(), "level 4 of 3");
 }

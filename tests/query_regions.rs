@@ -41,7 +41,7 @@ proptest! {
         let r = db.begin_read().unwrap();
         let exact = brute_force_region(&scene, &region);
         for k in 1..=m {
-            let got = query_region(&r, &region, &QueryOptions { lod: Some(k), budget: None }, None).unwrap();
+            let got = query_region(&r, &region, &QueryOptions { lod: Some(k), budget: None, ..Default::default() }, None).unwrap();
             prop_assert!(got.maybe.is_empty() && got.unexplored_nodes == 0 && got.level_reached == k);
             if k == m {
                 prop_assert_eq!(&got.objects, &exact, "k = M is exact");
@@ -63,7 +63,7 @@ proptest! {
         let db = lod_db(&scene, 4, 1024, 3, LodParams { store_all: true, ..LodParams::default() });
         let r = db.begin_read().unwrap();
         let exact = brute_force_region(&scene, &region);
-        let got = query_region(&r, &region, &QueryOptions { lod: None, budget: Some(budget) }, None).unwrap();
+        let got = query_region(&r, &region, &QueryOptions { lod: None, budget: Some(budget), ..Default::default() }, None).unwrap();
         prop_assert!(got.stats.reads.total() <= budget, "{} reads for a budget of {}", got.stats.reads.total(), budget);
         for o in &got.objects {
             prop_assert!(exact.contains(o), "confirmed {} is not an answer", o);
@@ -79,7 +79,7 @@ proptest! {
             prop_assert_eq!(got.level_reached, 4);
         }
         let free = query_region(&r, &region, &QueryOptions::default(), None).unwrap();
-        let ample = query_region(&r, &region, &QueryOptions { lod: None, budget: Some(free.stats.reads.total()) }, None).unwrap();
+        let ample = query_region(&r, &region, &QueryOptions { lod: None, budget: Some(free.stats.reads.total()), ..Default::default() }, None).unwrap();
         prop_assert_eq!(&ample.objects, &exact, "a budget of the unbudgeted reads suffices");
         prop_assert!(ample.maybe.is_empty() && ample.unexplored_nodes == 0);
     }

@@ -37,7 +37,7 @@ fn check_scene(scene: &Scene, queries: usize) {
         let exact = brute_force_collide(scene, mesh, &pose, 20.0, Some(id)).unwrap();
         let at = |k| {
             let opts = CollideOptions {
-                query: QueryOptions { lod: Some(k), budget: None },
+                query: QueryOptions { lod: Some(k), budget: None, ..Default::default() },
                 clearance: 20.0,
                 exclude: Some(id),
             };
@@ -59,8 +59,13 @@ fn check_scene(scene: &Scene, queries: usize) {
         for region in [sphere, Region::Frustum(Box::new(f))] {
             let exact = brute_force_region(scene, &region);
             assert_eq!(query_region(&r, &region, &QueryOptions::default(), None).unwrap().objects, exact);
-            let coarse =
-                query_region(&r, &region, &QueryOptions { lod: Some(3), budget: None }, None).unwrap();
+            let coarse = query_region(
+                &r,
+                &region,
+                &QueryOptions { lod: Some(3), budget: None, ..Default::default() },
+                None,
+            )
+            .unwrap();
             assert!(exact.iter().all(|o| coarse.objects.contains(o)));
         }
     }

@@ -247,7 +247,7 @@ pub struct LevelArgs {
 
 impl LevelArgs {
     pub fn options(&self) -> mktree::query::QueryOptions {
-        mktree::query::QueryOptions { lod: self.lod, budget: self.budget }
+        mktree::query::QueryOptions { lod: self.lod, budget: self.budget, ..Default::default() }
     }
 }
 

@@ -66,7 +66,7 @@ impl Visitor for Collect {
 pub fn read_hierarchy(txn: &ReadTransaction) -> Result<Hierarchy, StorageError> {
     let Some(root) = txn.root() else { return Ok(Hierarchy { nodes: Vec::new() }) };
     let mut c = Collect::default();
-    let all = QueryOptions { lod: Some(1), budget: None };
+    let all = QueryOptions { lod: Some(1), budget: None, ..Default::default() };
     walk(txn, root, &Everything, &all, &mut Reads::new(None), &mut c).map_err(|e| match e {
         QueryError::Storage(s) => s,
         other => StorageError::Invalid(other.to_string()),

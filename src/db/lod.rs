@@ -190,7 +190,7 @@ impl ReadTransaction {
         let held = self.block(at.block, BlockType::Node, at.checksum, &mut Reads::new(None))?;
         reads.hold(held);
         let mut gather = Gather::default();
-        let opts = QueryOptions { lod: Some(k), budget: None };
+        let opts = QueryOptions { lod: Some(k), budget: None, ..Default::default() };
         walk(self, at, &Gathering, &opts, &mut reads, &mut gather).map_err(|e| match e {
             crate::query::QueryError::Storage(s) => s,
             other => StorageError::Invalid(other.to_string()),

@@ -108,7 +108,7 @@ pub fn clash(
     let pool = cache.unwrap_or(&own);
     let mut total = TraverseStats::default();
     let mut list = List::default();
-    let boxes = QueryOptions { lod: Some(1), budget: None };
+    let boxes = QueryOptions { lod: Some(1), budget: None, ..Default::default() };
     let listing = walk(txn, root, &Everything, &boxes, &mut Reads::new(Some(pool)), &mut list)?;
     add(&mut total, &listing.stats);
     list.objects.sort_by_key(|o| o.id);
@@ -118,7 +118,7 @@ pub fn clash(
         let id = group[0].id;
         let aabb = group.iter().fold(Aabb::EMPTY, |b, p| b.union(&p.aabb));
         let near = Region::Box(aabb.grown(d));
-        let at = QueryOptions { lod: Some(if k == m { 1 } else { k }), budget: None };
+        let at = QueryOptions { lod: Some(if k == m { 1 } else { k }), ..Default::default() };
         let found = walk(txn, root, &near, &at, &mut Reads::new(Some(pool)), &mut ())?;
         add(&mut total, &found.stats);
         let mut hits: Vec<ObjectId> = found.objects.into_iter().filter(|&b| b > id).collect();

@@ -83,7 +83,7 @@ pub fn object_meshes(txn: &ReadTransaction, ids: &[ObjectId]) -> Result<Vec<Mesh
     let root = txn.root().ok_or(QueryError::NoTree)?;
     let mut fetch =
         Fetch { txn, wanted: ids.iter().copied().collect(), reads: Reads::new(None), found: HashMap::new() };
-    let all = QueryOptions { lod: Some(1), budget: None };
+    let all = QueryOptions { lod: Some(1), budget: None, ..Default::default() };
     walk(txn, root, &Everything, &all, &mut Reads::new(None), &mut fetch)?;
     ids.iter()
         .map(|id| {

@@ -22,6 +22,8 @@ pub use error::QueryError;
 pub use navigate::{NavigateStep, navigate, parse_path};
 pub use region::query_region;
 pub use select::{Everything, Region, Selection, Triangles};
-pub use tradeoff::{TRADEOFF_SHIFT_MM, TradeoffRow, collision_workload, tradeoff};
+pub use tradeoff::{
+    LevelBenefit, TRADEOFF_SHIFT_MM, TradeoffRow, collision_workload, level_benefit, tradeoff,
+};
 pub use traverse::{ObjectLevel, Proof, QueryAnswer, QueryOptions, Seen, TraverseStats, traverse};
 pub(crate) use traverse::{Visitor, walk};

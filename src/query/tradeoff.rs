@@ -60,7 +60,9 @@ pub fn collision_workload(
 /// Runs every query at every level k = 1 .. M, each from a cold pool.
 pub fn tradeoff(txn: &ReadTransaction, queries: &[Triangles]) -> Result<Vec<TradeoffRow>, QueryError> {
     let (m, _) = levels(txn, None)?;
-    let at = |k: u8, q: &Triangles| traverse(txn, q, &QueryOptions { lod: Some(k), budget: None }, None);
+    let at = |k: u8, q: &Triangles| {
+        traverse(txn, q, &QueryOptions { lod: Some(k), budget: None, ..Default::default() }, None)
+    };
     let exact: Vec<Vec<ObjectId>> =
         queries.iter().map(|q| Ok(at(m, q)?.objects)).collect::<Result<_, QueryError>>()?;
     let n = queries.len().max(1) as f64;
@@ -98,6 +100,39 @@ pub fn tradeoff(txn: &ReadTransaction, queries: &[Triangles]) -> Result<Vec<Trad
             row.mean_reported = reported as f64 / n;
             row.mean_exact = right as f64 / n;
             Ok(row)
+        })
+        .collect()
+}
+
+/// What the bounds stored up to one level are worth, measured.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LevelBenefit {
+    pub level: u8,
+    /// Mean block reads of an exact answer to the read model's queries when
+    /// the bounds of levels up to `level` are used (level 1: none).
+    pub mean_reads: f64,
+}
+
+/// The measured benefit of each level below M: `per_scale` queries of each
+/// scale of the file's read model (`QueryMix`, its query extent from the
+/// meta block), centred evenly in the scene, answered exactly with the
+/// bounds of levels up to k, k = 1 .. M - 1. What level k saves is the
+/// drop from k - 1 to k.
+pub fn level_benefit(txn: &ReadTransaction, per_scale: usize) -> Result<Vec<LevelBenefit>, QueryError> {
+    let (m, _) = levels(txn, None)?;
+    let info = txn.info().ok_or(QueryError::NoTree)?;
+    let q = txn.lod_info().map_or([0.0; 3], |l| l.query_extent);
+    let scene = crate::geom::Aabb::from_array(info.scene_box);
+    let queries = crate::build::QueryMix::new(&scene, q).sample_centred(&scene, per_scale);
+    let n = queries.len().max(1) as f64;
+    (1..m.max(2))
+        .map(|k| {
+            let opts = QueryOptions { bounds_up_to: Some(k), ..Default::default() };
+            let mut reads = 0u64;
+            for b in &queries {
+                reads += traverse(txn, &super::Region::Box(*b), &opts, None)?.stats.reads.total();
+            }
+            Ok(LevelBenefit { level: k, mean_reads: reads as f64 / n })
         })
         .collect()
 }

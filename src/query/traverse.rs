@@ -40,6 +40,9 @@ pub struct QueryOptions {
     pub lod: Option<u8>,
     /// At most this many block reads; `None` for no limit.
     pub budget: Option<u64>,
+    /// Use stored bounds of levels up to this one only (`None`: all up to
+    /// k): to measure what each level saves.
+    pub bounds_up_to: Option<u8>,
 }
 
 /// How an object was decided.
@@ -202,6 +205,8 @@ struct Run<'t, 'c, 'v, S: ?Sized> {
     k: u8,
     m: u8,
     budget: Option<u64>,
+    /// The finest bound level tested.
+    bound_level: u8,
     reads: &'v mut Reads<'c>,
     heap: BinaryHeap<Queued>,
     seq: u64,
@@ -428,7 +433,7 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
             }
             let mut level = 1;
             let mut voxels = None;
-            if let Some(b) = finest(leaf.bounds(), i as u16, self.k.min(self.m - 1)) {
+            if let Some(b) = finest(leaf.bounds(), i as u16, self.bound_level) {
                 let v = self.voxels(block.id(), &b, &aabb)?;
                 level = b.level;
                 if !self.sel.may_meet_voxels(&v) {
@@ -518,6 +523,7 @@ pub(crate) fn walk<S: Selection + ?Sized>(
         k,
         m,
         budget: opts.budget,
+        bound_level: k.min(m - 1).min(opts.bounds_up_to.unwrap_or(u8::MAX)),
         reads,
         heap: BinaryHeap::new(),
         seq: 0,

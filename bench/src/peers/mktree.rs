@@ -104,7 +104,7 @@ impl MktreePeer {
     ) -> Result<QueryAnswer, BenchError> {
         // Without a cache of the caller's, the query reads through a pool of
         // its own: each block at most once, every read counted.
-        Ok(query_region(&self.txn, &Region::Box(*query), &QueryOptions { lod, budget: None }, cache)?)
+        Ok(query_region(&self.txn, &Region::Box(*query), &QueryOptions { lod, ..Default::default() }, cache)?)
     }
 }
 

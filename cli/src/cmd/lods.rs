@@ -6,6 +6,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result, bail};
 use mktree::db::{Database, Piece, ReadTransaction};
+use mktree::query::level_benefit;
 use mktree::scene::{Mesh, ObjWriter, Object};
 use mktree::store::ReadStats;
 use serde_json::json;
@@ -23,21 +24,27 @@ pub fn table(file: &Path, as_json: bool) -> Result<()> {
     let (Some(info), Some(tree)) = (r.lod_info(), r.info()) else {
         bail!("{} holds no tree", file.display())
     };
+    // What each level saves, measured on the file's read model (64 queries per scale).
+    let benefit = level_benefit(&r, 64)?;
+    let measured = |k: usize| match (benefit.get(k.wrapping_sub(2)), benefit.get(k - 1)) {
+        (Some(a), Some(b)) if k >= 2 => a.mean_reads - b.mean_reads,
+        _ => 0.0,
+    };
     let mut levels = Vec::new();
     for k in 1..=info.levels {
         let i = usize::from(k) - 1;
-        // Faces at the root; level M is the objects themselves (no need to read them all).
-        let (faces_b, faces_obj, bytes) = if k == info.levels {
-            (tree.triangles, tree.triangles, info.bytes[i])
+        // Faces at the root: b(S,k) is the union of the objects' bounds, so
+        // both count the same pieces; level M is the objects themselves.
+        let faces = if k == info.levels {
+            tree.triangles
         } else {
-            let b = r.fetch_level(0, k, false, &mut ReadStats::default())?;
-            let o = r.fetch_level(0, k, true, &mut ReadStats::default())?;
-            (b.faces(), o.faces(), info.bytes[i])
+            r.fetch_level(0, k, true, &mut ReadStats::default())?.faces()
         };
+        let bytes = info.bytes[i];
         levels.push(json!({
             "k": k,
-            "faces_b": faces_b,
-            "faces_B": faces_obj,
+            "faces_b": faces,
+            "faces_B": faces,
             "eps": info.eps[i],
             "measured_error": info.measured_error[i],
             "bytes": bytes,
@@ -45,6 +52,7 @@ pub fn table(file: &Path, as_json: bool) -> Result<()> {
             "stored": info.stored[i],
             "predicted_saving": info.predicted_saving[i],
             "predicted_cost": info.predicted_cost[i],
+            "measured_saving": measured(usize::from(k)),
         }));
     }
     if as_json {
@@ -95,6 +103,7 @@ pub fn table(file: &Path, as_json: bool) -> Result<()> {
             "bounds stored",
             "saves reads/query",
             "costs reads/query",
+            "measured saving",
         ],
         &rows,
     );

@@ -35,7 +35,7 @@ pub fn run(
         .collect();
     let db = Database::open(file).with_context(|| format!("opening {}", file.display()))?;
     let r = db.begin_read()?;
-    let steps = navigate(&r, &cameras, &QueryOptions { lod, budget: None }, cache_blocks)?;
+    let steps = navigate(&r, &cameras, &QueryOptions { lod, ..Default::default() }, cache_blocks)?;
     let total: u64 = steps.iter().map(|s| s.reads.total()).sum();
     let hits: u64 = steps.iter().map(|s| s.reads.cache_hits).sum();
     if as_json {

@@ -271,7 +271,7 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
         triangles: 0,
         vertices: 0,
     };
-    let all = QueryOptions { lod: Some(1), budget: None };
+    let all = QueryOptions { lod: Some(1), budget: None, ..Default::default() };
     walk(txn, root, &Everything, &all, &mut Reads::new(None), &mut w).map_err(|e| match e {
         QueryError::Storage(s) => s,
         other => StorageError::Invalid(other.to_string()),
