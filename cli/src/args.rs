@@ -228,9 +228,9 @@ pub enum Command {
     BenchPeers(crate::cmd::bench_peers::BenchPeersArgs),
     /// The main job on the built-in scene: tanker2 built with MOA and LAA, stats side by side, box queries.
     Demo {
-        /// Keep the .mkt files here (default: a temporary directory, removed after).
-        #[arg(long)]
-        dir: Option<PathBuf>,
+        /// Where the files and the chart go.
+        #[arg(long, default_value = "mktree-demo")]
+        dir: PathBuf,
     },
 }
 

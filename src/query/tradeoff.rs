@@ -57,7 +57,9 @@ pub fn collision_workload(
         .collect()
 }
 
-/// Runs every query at every level k = 1 .. M, each from a cold pool.
+/// Runs every query at level 1, at every level below M that stores bounds
+/// (a level that stores none answers as the one below it), and at M, each
+/// from a cold pool.
 pub fn tradeoff(txn: &ReadTransaction, queries: &[Triangles]) -> Result<Vec<TradeoffRow>, QueryError> {
     let (m, _) = levels(txn, None)?;
     let at = |k: u8, q: &Triangles| {
@@ -68,6 +70,7 @@ pub fn tradeoff(txn: &ReadTransaction, queries: &[Triangles]) -> Result<Vec<Trad
     let n = queries.len().max(1) as f64;
     let stored: Vec<u64> = txn.lod_info().map_or(Vec::new(), |i| i.stored);
     (1..=m)
+        .filter(|&k| k == 1 || k == m || stored.get(usize::from(k) - 1).is_some_and(|&s| s > 0))
         .map(|k| {
             let mut row = TradeoffRow {
                 level: k,

@@ -48,13 +48,13 @@ pub struct BenchPeersArgs {
 
 /// The whole run, as JSON.
 #[derive(Serialize)]
-struct Bench {
+pub(crate) struct Bench {
     /// Queries per generated set (none with a query file).
-    queries: Option<usize>,
-    seed: u64,
-    block_size: u32,
-    query_file: Option<PathBuf>,
-    rows: Vec<PeerRow>,
+    pub queries: Option<usize>,
+    pub seed: u64,
+    pub block_size: u32,
+    pub query_file: Option<PathBuf>,
+    pub rows: Vec<PeerRow>,
 }
 
 /// Runs the benchmark on every scene and prints (and with --out, writes) the result.
@@ -109,7 +109,7 @@ pub fn run(o: &BenchPeersArgs) -> Result<()> {
     Ok(())
 }
 
-fn print_tables(b: &Bench, groups: &[Vec<PeerRow>]) {
+pub(crate) fn print_tables(b: &Bench, groups: &[Vec<PeerRow>]) {
     let queries =
         b.queries.map_or_else(|| "queries from the query file".into(), |n| format!("{n} queries per set"));
     println!(

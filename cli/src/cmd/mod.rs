@@ -57,7 +57,7 @@ pub fn run(cli: Cli) -> Result<()> {
             tradeoff::run(&files, queries, seed, &out, json)
         }
         Command::Check { file, json } => check::run(&file, json),
-        Command::Demo { dir } => demo::run(dir.as_deref()),
+        Command::Demo { dir } => demo::run(&dir),
         Command::BenchQueries { files, queries, shares, seed, json } => {
             bench_queries::run(&files, queries, &shares, seed, json)
         }
