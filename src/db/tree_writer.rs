@@ -22,6 +22,9 @@ use crate::store::{Pager, StorageError};
 /// Sample queries per scale of the read model.
 const SAMPLES_PER_SCALE: usize = 128;
 
+/// The least average fill of node blocks a packing must reach, when one can.
+const MIN_FILL: f64 = 0.8;
+
 /// Piece sizes tried, as shares of a block (`store/layout.rs`).
 const PIECE_SHARES: [f64; 5] = [0.25, 0.35, 0.5, 0.7, 1.0];
 
@@ -196,13 +199,22 @@ impl Plan {
     /// sample queries read least (then the fullest); with each block's reads.
     fn choose(&self, tree: &Hierarchy, sizes: &[usize], capacity: usize) -> (Packing, Vec<u32>) {
         let children = |i: usize| tree.nodes[i].children().map(|c| c.map(|x| x.index()));
-        PIECE_SHARES
+        let total: usize = sizes.iter().sum();
+        let tried: Vec<(Packing, Vec<u32>)> = PIECE_SHARES
             .iter()
             .map(|share| {
                 let p = layout::pack(sizes, children, capacity, (capacity as f64 * share) as usize);
                 let reads = block_reads(tree, &p, &self.samples);
                 (p, reads)
             })
+            .collect();
+        // Blocks at least MIN_FILL full on average when some packing makes
+        // them so (fewer blocks, a smaller file), then the fewest reads.
+        let full = |p: &Packing| total as f64 >= MIN_FILL * (p.blocks.len() * capacity) as f64;
+        let any_full = tried.iter().any(|(p, _)| full(p));
+        tried
+            .into_iter()
+            .filter(|(p, _)| full(p) || !any_full)
             .min_by_key(|(p, reads)| (reads.iter().map(|&r| u64::from(r)).sum::<u64>(), p.blocks.len()))
             .unwrap_or_else(|| (layout::pack(sizes, children, capacity, capacity), Vec::new()))
     }

@@ -66,12 +66,14 @@ pub fn run(input: &Path, build: &BuildArgs, as_json: bool) -> Result<()> {
     );
     if let Some(info) = file {
         println!(
-            "file: {} blocks of {} bytes ({} bytes): {} node, {} geometry; txn {}",
+            "file: {} blocks of {} bytes ({} bytes): {} node ({:.1}% full), {} geometry ({:.1}% full); txn {}",
             info.file_blocks,
             info.block_size,
             u64::from(info.file_blocks) * u64::from(info.block_size),
             info.node_blocks,
+            100.0 * info.node_fill,
             info.geometry_blocks,
+            100.0 * info.geometry_fill,
             info.txn
         );
     }
