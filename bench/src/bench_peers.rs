@@ -34,6 +34,8 @@ pub struct PeerOptions {
     pub seed: u64,
     /// mktree's block size and SQLite's page size, in bytes.
     pub block_size: u32,
+    /// M, the levels of detail of mktree's file (the default, or 1 for none).
+    pub lod_levels: u8,
     /// Query sets to run instead of the generated ones (see [`parse_query_file`]).
     pub query_sets: Option<Vec<QuerySet>>,
     /// Keep the built files here (`bench-peers-NAME.mkt`, `.sqlite`,
@@ -182,7 +184,7 @@ pub fn parse_query_file(text: &str) -> Result<Vec<QuerySet>, BenchError> {
 /// use mktree_bench::{PeerOptions, bench_scene};
 ///
 /// let scene = generate_scene(&GenOptions { preset: Preset::Tanker1, objects: None, seed: 0 })?;
-/// let options = PeerOptions { queries: 3, seed: 1, block_size: 16384, query_sets: None, files_dir: None };
+/// let options = PeerOptions { queries: 3, seed: 1, block_size: 16384, lod_levels: 4, query_sets: None, files_dir: None };
 /// let rows = bench_scene("tanker1", &scene, &options, &|step| eprintln!("{step}"))?;
 /// assert_eq!(rows.len(), 4); // boxes of 1%, 5%, 20%, collisions
 /// assert!(rows.iter().all(|r| r.sqlite_exact_reads > 0.0 && r.mktree_exact_reads > 0.0));
@@ -225,7 +227,7 @@ pub fn bench_scene(
     }
     progress(&format!("{name}: building the mktree file"));
     let started = Instant::now();
-    let mkt = build_file(scene, &mkt_path, options.block_size)?;
+    let mkt = build_file(scene, &mkt_path, options.block_size, options.lod_levels)?;
     let mktree_build_seconds = started.elapsed().as_secs_f64();
     progress(&format!("{name}: loading the SQLite file"));
     let started = Instant::now();

@@ -17,6 +17,7 @@ fn tanker1_answers_agree_and_every_count_is_positive() {
             queries: 20,
             seed,
             block_size,
+            lod_levels: mktree::db::DEFAULT_LOD_LEVELS,
             query_sets: None,
             files_dir: Some(dir.path().to_path_buf()),
         };

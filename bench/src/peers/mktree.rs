@@ -9,7 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use mktree::build::BuildParams;
-use mktree::db::{CreateOptions, DEFAULT_LOD_LEVELS, Database, ReadTransaction};
+use mktree::db::{CreateOptions, Database, ReadTransaction};
 use mktree::geom::Aabb;
 use mktree::lod::LodParams;
 use mktree::query::{QueryAnswer, QueryOptions, Region, query_region};
@@ -52,9 +52,14 @@ pub struct WarmCache(BlockCache);
 
 /// Builds `scene` into a new file at `path` with `mktree build`'s defaults
 /// (cli/src/args.rs): method refine (R 0.2, query extent auto), leaves
-/// whose geometry fits one block, the default levels of detail.
-pub fn build_file(scene: &Scene, path: &Path, block_size: u32) -> Result<MktreePeer, BenchError> {
-    let db = Database::create(path, CreateOptions { block_size, lod_levels: DEFAULT_LOD_LEVELS })?;
+/// whose geometry fits one block, M = `lod_levels` levels of detail.
+pub fn build_file(
+    scene: &Scene,
+    path: &Path,
+    block_size: u32,
+    lod_levels: u8,
+) -> Result<MktreePeer, BenchError> {
+    let db = Database::create(path, CreateOptions { block_size, lod_levels })?;
     let params = BuildParams::for_blocks(block_size);
     let mut w = db.begin_write()?;
     w.set_lod_params(LodParams::default());
@@ -119,13 +124,14 @@ fn counted(answer: QueryAnswer) -> Counted {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use mktree::db::DEFAULT_LOD_LEVELS;
     use mktree::scene::generate::{GenOptions, Preset, generate_scene};
 
     #[test]
     fn answers_are_exact_at_level_m_and_by_box_at_level_1() {
         let scene = generate_scene(&GenOptions { preset: Preset::Tanker1, objects: None, seed: 0 }).unwrap();
         let dir = tempfile::tempdir().unwrap();
-        let peer = build_file(&scene, &dir.path().join("t1.mkt"), 4096).unwrap();
+        let peer = build_file(&scene, &dir.path().join("t1.mkt"), 4096, DEFAULT_LOD_LEVELS).unwrap();
         assert!(peer.file_bytes().unwrap() > 0 && peer.file_bytes().unwrap().is_multiple_of(4096));
         let cache = peer.warm_cache();
         let boxes = scene.object_boxes();

@@ -32,6 +32,9 @@ pub struct BenchPeersArgs {
     /// mktree's block size and SQLite's page size, bytes (a power of two, 1024 to 65536).
     #[arg(long, default_value_t = mktree::db::DEFAULT_BLOCK_SIZE)]
     pub block_size: u32,
+    /// M, the levels of detail of mktree's file (1: none, to see what the levels save).
+    #[arg(long, default_value_t = mktree::db::DEFAULT_LOD_LEVELS)]
+    pub lods: u8,
     /// Query boxes instead of the generated sets: one per line, x0,y0,z0,x1,y1,z1[,LABEL] in mm.
     #[arg(long)]
     pub query_file: Option<PathBuf>,
@@ -70,6 +73,7 @@ pub fn run(o: &BenchPeersArgs) -> Result<()> {
         queries: o.queries,
         seed: o.seed,
         block_size: o.block_size,
+        lod_levels: o.lods,
         query_sets,
         files_dir: o.out.clone(),
     };

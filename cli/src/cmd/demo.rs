@@ -44,6 +44,7 @@ pub fn run(dir: &Path) -> Result<()> {
         queries: QUERIES,
         seed: 0,
         block_size: 16384,
+        lod_levels: mktree::db::DEFAULT_LOD_LEVELS,
         query_sets: None,
         files_dir: Some(dir.into()),
     };
