@@ -26,7 +26,7 @@ mod common;
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use common::{arb_scene, box_mesh, grid_scene, triangle};
+use common::{arb_scene, box_mesh, forge, grid_scene, triangle};
 use mktree::build::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database, Piece, check};
 use mktree::geom::Point;
@@ -259,128 +259,6 @@ fn bounds_are_stored_only_where_they_pay() {
     assert!(check(&db).unwrap().ok());
 }
 
-/// Byte-level access to a file image, after format-spec/node.md and meta.md,
-/// to forge a block and make every checksum that vouches for it match again.
-mod forge {
-    use mktree::store::format::frame::{BlockType, seal};
-    use mktree::store::format::header::{Slot, SlotRead, SlotState, slot_offset};
-
-    pub struct Image {
-        pub bytes: Vec<u8>,
-        pub bs: usize,
-    }
-
-    fn u16_at(b: &[u8], at: usize) -> usize {
-        usize::from(u16::from_le_bytes([b[at], b[at + 1]]))
-    }
-
-    fn u32_at(b: &[u8], at: usize) -> u32 {
-        u32::from_le_bytes(b[at..at + 4].try_into().unwrap())
-    }
-
-    impl Image {
-        pub fn blocks_of(&self, t: BlockType) -> Vec<usize> {
-            (1..self.bytes.len() / self.bs).filter(|&i| self.bytes[i * self.bs + 4] == t as u8).collect()
-        }
-
-        /// Absolute offsets of the records of node block `b`.
-        pub fn records(&self, b: usize) -> Vec<usize> {
-            let base = b * self.bs;
-            let mut at = base + 24;
-            (0..u16_at(&self.bytes, base + 20))
-                .map(|_| {
-                    let r = at;
-                    at += self.record_len(r);
-                    r
-                })
-                .collect()
-        }
-
-        pub fn record_len(&self, r: usize) -> usize {
-            let f = &self.bytes;
-            match f[r] {
-                1 => 84 + u16_at(f, r + 2),
-                2 => {
-                    let (n, s) = (u16_at(f, r + 2), u16_at(f, r + 12));
-                    20 + 4 * s + 20 * n + 4 + u32_at(f, r + 16) as usize
-                }
-                k => panic!("record kind {k} at {r}"),
-            }
-        }
-
-        /// A leaf record's bound entries: (target, level, absolute blob offset, blob length).
-        pub fn leaf_bounds(&self, r: usize) -> Vec<(usize, u8, usize, usize)> {
-            let f = &self.bytes;
-            let (n, s) = (u16_at(f, r + 2), u16_at(f, r + 12));
-            let mut at = r + 20 + 4 * s + 20 * n + 4;
-            let end = at + u32_at(f, r + 16) as usize;
-            let mut out = Vec::new();
-            while at < end {
-                let len = u32_at(f, at + 4) as usize;
-                out.push((u16_at(f, at), f[at + 2], at + 8, len));
-                at += 8 + len.next_multiple_of(4);
-            }
-            out
-        }
-
-        fn txn(&self, b: usize) -> u64 {
-            u64::from_le_bytes(self.bytes[b * self.bs + 8..b * self.bs + 16].try_into().unwrap())
-        }
-
-        fn seal(&mut self, b: usize, t: BlockType) -> u32 {
-            let txn = self.txn(b);
-            seal(b as u32, &mut self.bytes[b * self.bs..(b + 1) * self.bs], t, txn)
-        }
-
-        /// Re-seals node block `b` and every checksum up the chain that
-        /// vouches for it: child entries naming it, the meta block's
-        /// `root_checksum`, the committed slot's `meta_checksum`.
-        pub fn reseal_node(&mut self, b: usize) {
-            let sum = self.seal(b, BlockType::Node);
-            let mut parents = Vec::new();
-            for p in self.blocks_of(BlockType::Node) {
-                for r in self.records(p) {
-                    if self.bytes[r] != 1 {
-                        continue;
-                    }
-                    for c in 0..2 {
-                        let e = r + 20 + 32 * c;
-                        if u32_at(&self.bytes, e + 12) == b as u32 {
-                            self.bytes[e + 16..e + 20].copy_from_slice(&sum.to_le_bytes());
-                            parents.push(p);
-                        }
-                    }
-                }
-            }
-            parents.sort_unstable();
-            parents.dedup();
-            for p in parents {
-                self.reseal_node(p);
-            }
-            for meta in self.blocks_of(BlockType::Meta) {
-                let at = meta * self.bs;
-                if u32_at(&self.bytes, at + 16) == b as u32 {
-                    self.bytes[at + 20..at + 24].copy_from_slice(&sum.to_le_bytes());
-                    let meta_sum = self.seal(meta, BlockType::Meta);
-                    self.point_slots_at(meta as u32, meta_sum);
-                }
-            }
-        }
-
-        fn point_slots_at(&mut self, meta: u32, sum: u32) {
-            for i in 0..2 {
-                let at = slot_offset(i);
-                if let SlotRead::Committed(c) = Slot::decode(i, &self.bytes[at..at + 256])
-                    && c.meta_block == meta
-                {
-                    let c = mktree::store::format::header::Commit { meta_checksum: sum, ..c };
-                    self.bytes[at..at + 256].copy_from_slice(&Slot::encode(i, SlotState::Committed, &c));
-                }
-            }
-        }
-    }
-}
-
 #[test]
 fn check_catches_a_forged_bound_that_misses_part_of_its_surface() {
     use mktree::store::format::frame::BlockType;
@@ -415,14 +293,12 @@ fn check_catches_a_forged_bound_that_misses_part_of_its_surface() {
         .find(|(_, (_, _, at, _))| img.bytes[at + 1] == 1)
         .map(|(b, (_, _, at, len))| (b, at..at + len))
         .expect("a bitmap bound");
-    let root_block = u32::from_le_bytes(
-        img.bytes[img.blocks_of(BlockType::Meta)[0] * 1024 + 16..][..4].try_into().unwrap(),
-    );
+    let root_block = u32::from_le_bytes(img.bytes[img.meta() * 1024 + 16..][..4].try_into().unwrap());
     assert_ne!(block as u32, root_block, "the forged leaf's checksum is held by a parent entry");
     let bits = blob.start + 24..blob.end;
     let byte = bits.clone().find(|&i| img.bytes[i] != 0).expect("a set cell");
     img.bytes[byte] &= img.bytes[byte] - 1;
-    img.reseal_node(block);
+    img.reseal(block, BlockType::Node);
     let db = Database::open_on(Arc::new(MemDevice::from_bytes(img.bytes)) as Arc<dyn BlockDevice>).unwrap();
     let report = check(&db).unwrap();
     assert!(!report.faults.is_empty(), "the forged bound went unnoticed");
