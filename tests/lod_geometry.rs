@@ -612,3 +612,38 @@ fn voxelizing_tanker3_takes_a_moment() {
         );
     }
 }
+
+#[test]
+#[ignore = "bug: Grid::cell_of overflows i64 (src/lod/grid.rs:169) for a box corner ~2^63 cells from the lattice origin"]
+fn a_query_unbounded_along_one_axis_is_answered_not_a_panic() {
+    // A slab query: every x, the y and z of one set cell. It holds that cell.
+    let l = Lattice { origin: Point::new(3.0, 0.0, 0.0), cell: 1.0 };
+    let m = [triangle([0.0, 0.0, 0.0], [10.0, 0.0, 3.0], [0.0, 10.0, 7.0])];
+    let (g, _) = aligned_grid(&l, 1, &m[0].aabb()).unwrap();
+    let v = Voxels::of_surfaces(g, &m);
+    let c = v.cell_boxes().next().unwrap();
+    for far in [1e30, 1e300, f64::MAX] {
+        let slab = Aabb::from_array([-far, c.min.y, c.min.z, far, c.max.y, c.max.z]);
+        assert!(v.may_meet(&slab), "x = ±{far}");
+        assert!(v.holds_a_cell_in(&slab), "x = ±{far}");
+        assert!(v.intersects_aabb(&slab), "x = ±{far}");
+    }
+}
+
+#[test]
+#[ignore = "bug: Grid::new (src/lod/grid.rs:55-63) loops forever when origin + n * cell does not change with n"]
+fn a_lattice_whose_planes_do_not_advance_is_refused_not_a_hang() {
+    let l = Lattice { origin: Point::origin(), cell: 1.0 };
+    let (g, first) = aligned_grid(&l, 0, &Aabb::from_array([0.5, 0.5, 0.5, 3.5, 1.5, 1.5])).unwrap();
+    let mut v = Voxels::empty(g);
+    v.set_cell([0, 0, 0]);
+    let blob = encode(&v, first);
+    // 1e300 + n is 1e300 for every n a grid can have: no plane is above the origin.
+    let far = Lattice { origin: Point::new(1e300, 0.0, 0.0), cell: 1.0 };
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(decode(&blob, &far).is_ok());
+    });
+    let got = rx.recv_timeout(std::time::Duration::from_secs(10));
+    assert!(got.is_ok(), "decode on a lattice whose planes do not advance still runs after 10 s");
+}
