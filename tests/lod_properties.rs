@@ -143,8 +143,7 @@ proptest! {
             let finer = bounds_at(&db, k);
             for (id, f) in &finer {
                 let (Some(f), Some(Some(c))) = (f, coarser.get(id)) else {
-                    prop_assert!(false, "object {} lost its bound between levels {} and {}", id, k - 1, k);
-                    continue;
+                    return Err(TestCaseError::fail(format!("object {id} lost its bound between levels {} and {k}", k - 1)));
                 };
                 prop_assert!(f.grid().level() <= c.grid().level(), "level {} is coarser than level {}", k, k - 1);
                 prop_assert!(f.is_subset_of(c).unwrap(), "object {}: level {} leaves level {}", id, k, k - 1);
