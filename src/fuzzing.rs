@@ -14,6 +14,7 @@ use crate::store::device::MemDevice;
 use crate::store::format::freelist::FreeListBlock;
 use crate::store::format::meta::Meta;
 use crate::store::format::node::{self, Limits};
+use crate::store::format::quant::QuantBox;
 use crate::store::format::{frame, geometry, run};
 
 /// Decodes one block of arbitrary bytes as every block type, and the bytes
@@ -25,19 +26,44 @@ pub fn decode_block(data: &[u8]) {
     let mut block = rest.to_vec();
     block.resize(1024, 0);
     let _ = frame::open(7, &block);
+    let lattice = crate::lod::Lattice { origin: crate::geom::Point::origin(), cell: 1.0 };
     if let Ok(offsets) =
         node::validate_block(7, &block, &Limits { block_size: 1024, lod_levels: m, object_count: 1 << 20 })
     {
-        // A validated block must be readable in place without failing.
+        // A validated block must be readable in place without failing, and
+        // every part of a record must read without a panic: child and object
+        // boxes decode in a frame, inline bounds decode as voxel blobs.
+        let frame = Aabb::from_array([0.0, 0.0, 0.0, 40.0, 30.0, 20.0]);
         for o in offsets {
-            if node::NodeView::at(&block, o).is_err() {
-                panic!("record {o} validated but cannot be viewed");
+            match node::NodeView::at(&block, o) {
+                Err(_) => panic!("record {o} validated but cannot be viewed"),
+                Ok(node::NodeView::Internal(n)) => {
+                    for i in 0..2 {
+                        let _ = n.child_box(i, &frame).map(|q| q.face_slabs());
+                        let _ = (n.child_ref(i), n.child_blocks(i));
+                    }
+                    let _ = n.split();
+                }
+                Ok(node::NodeView::Leaf(l)) => {
+                    let mut boxes = Vec::new();
+                    for i in 0..l.len() {
+                        let Some(ob) = l.object(i) else {
+                            panic!("object {i} of record {o} validated but is missing")
+                        };
+                        boxes.push(QuantBox::decode(&frame, ob.qbox).map(|q| (q.outer, q.face_slabs())));
+                    }
+                    let _ = (l.geometry().1.count(), l.object_count());
+                    for b in l.bounds() {
+                        if let Some(Some((outer, _))) = boxes.get(usize::from(b.target)) {
+                            let _ = crate::lod::decode(b.blob, &lattice, outer);
+                        }
+                    }
+                }
             }
         }
     }
     let _ = Meta::decode(7, &block);
     let _ = FreeListBlock::decode(7, &block);
-    let lattice = crate::lod::Lattice { origin: crate::geom::Point::origin(), cell: 1.0 };
     let _ = crate::lod::decode(rest, &lattice, &Aabb::from_array([0.0, 0.0, 0.0, 40.0, 30.0, 20.0]));
     let _ = geometry::decode_object(7, rest);
     if let Ok((_, words, len)) = run::assemble(7, &[&block]) {
@@ -53,18 +79,17 @@ pub fn open_and_query(data: &[u8]) {
         return;
     };
     if let Ok(r) = db.begin_read() {
-        for (b, lod) in
-            [([-1e12, -1e12, -1e12, 1e12, 1e12, 1e12], None), ([0.0, 0.0, 0.0, 100.0, 100.0, 100.0], None)]
-                .into_iter()
-                .chain([([0.0, 0.0, 0.0, 100.0, 100.0, 100.0], Some(1))])
-        {
-            let _ = query_region(
-                &r,
-                &Region::Box(Aabb::from_array(b)),
-                &QueryOptions { lod, ..Default::default() },
-                None,
-            );
+        // Every level (each decides objects by boxes, faces, inline bounds or
+        // geometry), everything and a corner, and a block budget.
+        let m = r.info().map_or(1, |i| i.lod_levels);
+        let everything = Aabb::from_array([-1e12, -1e12, -1e12, 1e12, 1e12, 1e12]);
+        let corner = Aabb::from_array([0.0, 0.0, 0.0, 100.0, 100.0, 100.0]);
+        for lod in (1..=m).map(Some) {
+            for b in [everything, corner] {
+                let _ = query_region(&r, &Region::Box(b), &QueryOptions { lod, ..Default::default() }, None);
+            }
         }
+        let _ = query_region(&r, &Region::Box(corner), &QueryOptions { budget: Some(2), ..Default::default() }, None);
         let _ = read_hierarchy(&r);
         let _ = r.names();
         if let Some(info) = r.info() {

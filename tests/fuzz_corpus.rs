@@ -1,10 +1,38 @@
 //! Claim: every input in the checked-in fuzz corpus (`fuzz/corpus/`) runs
-//! through the fuzz targets' bodies without a panic.
+//! through the fuzz targets' bodies (`mktree::fuzzing`) without a panic;
+//! and the version 3 seeds are what their names say, so that replaying and
+//! mutating them reaches version 3 code: the files open and `check` clean
+//! (the traversal, inline bounds and geometry are read), the node blocks
+//! validate and hold inline bounds, the blobs decode. The old seeds stay
+//! beside them. Set MKTREE_BLESS=1 to rewrite the v3 seeds from the writer.
 
-use std::path::Path;
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::mpsc::{self, RecvTimeoutError};
+use std::time::Duration;
+
+use common::{forge, triangle};
+use mktree::build::{BuildParams, LeafRule, Method};
+use mktree::db::{CreateOptions, Database, check};
+use mktree::geom::{Aabb, Point};
+use mktree::lod::{Lattice, LodParams, Voxels, aligned_grid, decode, encode};
+use mktree::scene::{Object, Scene};
+use mktree::store::BlockDevice;
+use mktree::store::device::MemDevice;
+use mktree::store::format::frame::BlockType;
+use mktree::store::format::node::{Limits, NodeView, validate_block};
+use proptest::prelude::*;
+
+const BS: usize = 1024;
+
+fn corpus(target: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus").join(target)
+}
 
 fn replay(target: &str, body: fn(&[u8])) -> usize {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus").join(target);
+    let dir = corpus(target);
     let mut n = 0;
     for entry in std::fs::read_dir(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display())) {
         let path = entry.unwrap().path();
@@ -18,4 +46,242 @@ fn replay(target: &str, body: fn(&[u8])) -> usize {
 fn the_corpus_replays_without_a_panic() {
     assert!(replay("decode_block", mktree::fuzzing::decode_block) > 0);
     assert!(replay("open_and_query", mktree::fuzzing::open_and_query) > 0);
+}
+
+/// Twelve slanted triangles in 1 KiB blocks with every bound stored (M = 4):
+/// several node blocks, leaves with inline bounds of levels 2 and 3.
+fn store_all_file() -> Vec<u8> {
+    let scene = Scene::new(
+        (0..12)
+            .map(|i| {
+                let o = [(i % 4) as f64 * 120.0, (i / 4) as f64 * 120.0, (i % 3) as f64 * 40.0];
+                let m = triangle(
+                    o,
+                    [o[0] + 100.0, o[1] + 10.0, o[2] + 60.0],
+                    [o[0] + 20.0, o[1] + 90.0, o[2] + 30.0],
+                );
+                Object::new(format!("t{i}"), m)
+            })
+            .collect(),
+    );
+    let dev = Arc::new(MemDevice::new());
+    let db = Database::create_on(
+        dev.clone() as Arc<dyn BlockDevice>,
+        CreateOptions { block_size: BS as u32, lod_levels: 4 },
+    )
+    .unwrap();
+    let mut w = db.begin_write().unwrap();
+    w.set_lod_params(LodParams { store_all: true, ..LodParams::default() });
+    let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(3), ..BuildParams::default() };
+    w.bulk_load(&scene, &params, &|_| {}).unwrap();
+    w.commit().unwrap();
+    drop(db);
+    dev.to_bytes()
+}
+
+/// The first node block of `file` holding a record with inline bounds.
+fn node_block_with_bounds(file: &[u8], m: u8) -> &[u8] {
+    (1..file.len() / BS)
+        .map(|i| &file[i * BS..(i + 1) * BS])
+        .filter(|b| b[4] == BlockType::Node as u8)
+        .find(|b| bound_count(b, m) > 0)
+        .expect("a node block with inline bounds")
+}
+
+/// Inline bounds in the records of a node block that validates.
+fn bound_count(block: &[u8], m: u8) -> usize {
+    let limits = Limits { block_size: BS as u32, lod_levels: m, object_count: 1 << 20 };
+    let offsets = validate_block(7, block, &limits).expect("the node block validates");
+    offsets
+        .iter()
+        .map(|&o| match NodeView::at(block, o).unwrap() {
+            NodeView::Internal(n) => n.bounds().count(),
+            NodeView::Leaf(l) => l.bounds().count(),
+        })
+        .sum()
+}
+
+/// A blob on a unit lattice: a dense set (a bitmap) or a sparse one (boxes
+/// with u8 corners).
+fn blob(dense: bool) -> Vec<u8> {
+    let l = Lattice { origin: Point::origin(), cell: 1.0 };
+    let (g, first) = aligned_grid(&l, 0, &Aabb::from_array([0.5, -3.5, 2.5, 39.5, 9.5, 3.5])).unwrap();
+    let mut v = Voxels::empty(g.clone());
+    let d = g.dims();
+    for x in 0..d[0] {
+        for y in 0..d[1] {
+            if (dense && (x + y) % 3 != 0) || (!dense && x % 13 == 0 && y % 5 == 0) {
+                v.set_cell([x, y, 0]);
+            }
+        }
+    }
+    encode(&v, first)
+}
+
+/// The v3 seeds: (target, file name, bytes).
+fn v3_seeds() -> Vec<(&'static str, &'static str, Vec<u8>)> {
+    let golden = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v3.mkt")).unwrap();
+    let all = store_all_file();
+    // decode_block's first byte chooses M (its value mod 16, plus 1).
+    let with_m = |m: u8, bytes: &[u8]| [&[m - 1], bytes].concat();
+    vec![
+        ("decode_block", "v3-node-block-store-all", with_m(4, node_block_with_bounds(&all, 4))),
+        ("decode_block", "v3-node-block-golden", with_m(3, node_block_with_bounds(&golden, 3))),
+        ("decode_block", "v3-blob-bitmap", with_m(1, &blob(true))),
+        ("decode_block", "v3-blob-boxes", with_m(1, &blob(false))),
+        ("open_and_query", "tiny-v3", golden),
+        ("open_and_query", "v3-store-all", all),
+    ]
+}
+
+#[test]
+fn the_v3_seeds_are_current_files_blocks_and_blobs() {
+    let bless = std::env::var_os("MKTREE_BLESS").is_some();
+    for (target, name, bytes) in v3_seeds() {
+        let path = corpus(target).join(name);
+        if bless {
+            std::fs::write(&path, &bytes).unwrap();
+        }
+        let seed = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        match (target, name) {
+            ("open_and_query", _) => {
+                let db = Database::open_on(Arc::new(MemDevice::from_bytes(seed)) as Arc<dyn BlockDevice>)
+                    .unwrap_or_else(|e| panic!("{name}: {e}"));
+                let report = check(&db).unwrap();
+                assert!(report.ok(), "{name}: {:?}", report.faults);
+                let info = db.begin_read().unwrap().lod_info().unwrap();
+                assert!(
+                    info.stored[1..usize::from(info.levels) - 1].iter().sum::<u64>() > 0,
+                    "{name} has bounds"
+                );
+            }
+            (_, n) if n.starts_with("v3-node-block") => {
+                let m = seed[0] % 16 + 1;
+                assert_eq!(seed.len(), 1 + BS, "{name}: a selector byte and a block");
+                assert!(bound_count(&seed[1..], m) > 0, "{name} holds inline bounds");
+            }
+            _ => {
+                let l = Lattice { origin: Point::origin(), cell: 1.0 };
+                let v = decode(&seed[1..], &l).unwrap_or_else(|e| panic!("{name}: {e}"));
+                let form = if name.ends_with("bitmap") { 1 } else { 2 };
+                assert_eq!(seed[2], form, "{name} is in form {form}");
+                assert!(!v.is_empty());
+            }
+        }
+    }
+}
+
+/// The v3 seeds as checked in: (is a file for open_and_query, bytes).
+fn checked_in_v3_seeds() -> Vec<(bool, Vec<u8>)> {
+    v3_seeds()
+        .into_iter()
+        .map(|(target, name, _)| {
+            (target == "open_and_query", std::fs::read(corpus(target).join(name)).unwrap())
+        })
+        .collect()
+}
+
+/// Runs `f` on its own thread for at most `secs` seconds: a hang fails the
+/// test instead of blocking the suite (the stuck thread is left behind), a
+/// panic fails it as a panic.
+fn finishes_within(secs: u64, f: impl FnOnce() + Send + 'static) -> Result<(), String> {
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        f();
+        let _ = tx.send(());
+    });
+    match rx.recv_timeout(Duration::from_secs(secs)) {
+        Ok(()) => Ok(()),
+        Err(RecvTimeoutError::Timeout) => Err(format!("still running after {secs} s: a hang")),
+        Err(RecvTimeoutError::Disconnected) => Err("panicked".into()),
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 96, max_shrink_iters: 0, ..ProptestConfig::default() })]
+
+    /// Damaged v3 seeds (bytes flipped, a tail cut) go through the targets'
+    /// bodies without a panic, as libFuzzer's first mutations would.
+    #[test]
+    fn mutated_v3_seeds_run_without_a_panic(
+        pick in any::<prop::sample::Index>(),
+        flips in prop::collection::vec((any::<prop::sample::Index>(), 1u8..=255), 1..6),
+        cut in prop::option::of(any::<prop::sample::Index>()),
+    ) {
+        let all = checked_in_v3_seeds();
+        let (is_file, mut bytes) = all[pick.index(all.len())].clone();
+        for (i, x) in flips {
+            let i = i.index(bytes.len());
+            bytes[i] ^= x;
+        }
+        if let Some(c) = cut {
+            bytes.truncate(c.index(bytes.len() + 1));
+        }
+        let body = if is_file { mktree::fuzzing::open_and_query } else { mktree::fuzzing::decode_block };
+        let run = finishes_within(10, move || body(&bytes));
+        prop_assert!(run.is_ok(), "{:?}", run);
+    }
+
+    /// A v3 file with bytes of one node, names or meta block changed and
+    /// every checksum up the chain made to match again (so the reader gets
+    /// past the checksums to the forged content) opens, queries, walks and
+    /// checks without a panic or a hang. Geometry blocks and the meta
+    /// block's lattice are left out: forging them hits the two bugs of the
+    /// ignored tests below.
+    #[test]
+    fn forged_blocks_with_matching_checksums_run_without_a_panic(
+        file in any::<bool>(),
+        pick in any::<prop::sample::Index>(),
+        flips in prop::collection::vec((any::<prop::sample::Index>(), 1u8..=255), 1..4),
+    ) {
+        let name = if file { "v3-store-all" } else { "tiny-v3" };
+        let bytes = std::fs::read(corpus("open_and_query").join(name)).unwrap();
+        let mut img = forge::Image { bytes, bs: BS };
+        let blocks: Vec<(usize, BlockType)> = (1..img.bytes.len() / BS)
+            .map(|b| (b, BlockType::from_code(img.bytes[b * BS + 4]).unwrap()))
+            .filter(|&(_, t)| t != BlockType::Geometry)
+            .collect();
+        let (b, t) = blocks[pick.index(blocks.len())];
+        // Payload bytes only (a changed frame is the checksum's business),
+        // and not the meta block's lattice_origin and lattice_cell.
+        let payload: Vec<usize> =
+            (16..BS).filter(|&i| t != BlockType::Meta || !(416..448).contains(&i)).collect();
+        for (i, x) in flips {
+            img.bytes[b * BS + payload[i.index(payload.len())]] ^= x;
+        }
+        img.reseal(b, t);
+        let run = finishes_within(10, move || mktree::fuzzing::open_and_query(&img.bytes));
+        prop_assert!(run.is_ok(), "block {} ({:?}) of {}: {:?}", b, t, name, run);
+    }
+}
+
+/// The golden file with `forge` applied to its block `b` of type `t`, resealed.
+fn forged_golden(b: usize, t: BlockType, forge: impl FnOnce(&mut [u8])) -> Vec<u8> {
+    let bytes = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v3.mkt")).unwrap();
+    let mut img = forge::Image { bytes, bs: BS };
+    forge(&mut img.bytes[b * BS..(b + 1) * BS]);
+    img.reseal(b, t);
+    img.bytes
+}
+
+#[test]
+#[ignore = "bug: Grid::new loops forever when lattice planes do not advance (lattice_origin 1e300): a query hangs"]
+fn a_forged_far_lattice_origin_is_an_error_not_a_hang() {
+    // format-spec/example.md: block 4 is the meta block, lattice_origin at 416.
+    let f = forged_golden(4, BlockType::Meta, |m| m[416..424].copy_from_slice(&1e300f64.to_le_bytes()));
+    let run = finishes_within(10, move || mktree::fuzzing::open_and_query(&f));
+    assert!(run.is_ok(), "{run:?}");
+}
+
+#[test]
+#[ignore = "bug: Grid::cell_of overflows i64 (src/lod/grid.rs:169) for a vertex ~2^63 cells away: check panics"]
+fn a_forged_far_vertex_is_a_fault_not_a_panic() {
+    // Block 1 is the geometry block; the plate (which has a bound) has its
+    // record at payload 0, vertex 1's x offset at 40 + 12 in it.
+    let f = forged_golden(1, BlockType::Geometry, |g| {
+        g[16 + 52..16 + 56].copy_from_slice(&(-1e30f32).to_le_bytes())
+    });
+    let db = Database::open_on(Arc::new(MemDevice::from_bytes(f)) as Arc<dyn BlockDevice>).unwrap();
+    let report = check(&db).unwrap();
+    assert!(!report.ok(), "a plate vertex moved 1e30 mm away is a fault");
 }

@@ -1,13 +1,29 @@
-//! The voxel levels of detail are conservative and nest: every point of the
-//! geometry lies in the voxel solid, every point of the solid lies within the
-//! grid's cell diagonal of the geometry, a level lifts into the next coarser
-//! one and into a parent's grid, and blobs round-trip and never panic.
+//! Claim: the voxel levels of detail (`mktree::lod`) are sound bounds and
+//! sound witnesses, and their inline blobs are exact.
+//!
+//! - Conservative: every vertex and surface point lies in the voxelization
+//!   of its meshes, filled (`of_meshes`) or of the surface only
+//!   (`of_surfaces`), and the surface set is part of the filled one.
+//! - A witness: every cell of a surface set, grown by the grid's tolerance,
+//!   meets a triangle, so a query that holds such a cell (`holds_a_cell_in`)
+//!   meets the surface; and `may_meet` never rules out a box that meets a
+//!   triangle.
+//! - Nesting: a surface or filled set lifts into the set of the next coarser
+//!   lattice level and into a parent's grid; grids on one lattice nest.
+//! - Boxes are disjoint and cover exactly the set cells; the boundary mesh
+//!   encloses the solid outward; the measured error stays within the cell
+//!   diagonal.
+//! - Blobs (format-spec/lod.md) round-trip in every form, in the smallest
+//!   form the spec names, with `encoded_len` their length, and decoding
+//!   never panics on damaged or arbitrary bytes.
 
 mod common;
 
 use common::{box_mesh, triangle};
-use mktree::geom::{Aabb, Point};
-use mktree::lod::{Form, Grid, Lattice, LodError, Voxels, decode, decode_objects, encode, measured_error};
+use mktree::geom::{Aabb, Point, Vector, intersects_triangle_box};
+use mktree::lod::{
+    Grid, Lattice, LodError, Voxels, aligned_grid, decode, encode, encoded_len, measured_error,
+};
 use mktree::scene::Mesh;
 use proptest::prelude::*;
 
@@ -37,69 +53,214 @@ fn bounds(meshes: &[Mesh]) -> Aabb {
     meshes.iter().fold(Aabb::EMPTY, |b, m| b.union(&m.aabb()))
 }
 
-/// A random set of cells on a random small grid.
-fn arb_voxels() -> impl Strategy<Value = Voxels> {
-    (arb_lattice(), prop::array::uniform3(0.0f64..30.0), any::<u64>(), 1u64..4).prop_map(
-        |(l, e, seed, density)| {
-            let g = Grid::new(&l, 0, &Aabb::from_array([0.0, 0.0, 0.0, e[0], e[1], e[2]])).unwrap();
+fn triangles(meshes: &[Mesh]) -> Vec<[Point; 3]> {
+    meshes.iter().flat_map(|m| m.triangle_points()).collect()
+}
+
+/// A point of triangle `t` at barycentric-ish coordinates (a, b).
+fn on_triangle(t: &[Point; 3], a: f64, b: f64) -> Point {
+    let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
+    t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b
+}
+
+/// A stream of pseudo-random words (xorshift), for dense random cell sets.
+fn xorshift(seed: u64) -> impl FnMut() -> u64 {
+    let mut s = seed | 1;
+    move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        s
+    }
+}
+
+/// A random set of cells on a random aligned grid (so it can be encoded),
+/// with its first planes. Grids are small, or more than 255 cells along x
+/// (the u16 box form); sets are sparse, dense, empty or full.
+fn arb_voxels() -> impl Strategy<Value = (Voxels, [i64; 3])> {
+    let dims = prop_oneof![
+        3 => prop::array::uniform3(1u32..12),
+        1 => (256u32..300, 1u32..3, 1u32..3).prop_map(|(x, y, z)| [x, y, z]),
+    ];
+    (arb_lattice(), 0u8..4, prop::array::uniform3(-1000i64..1000), dims, any::<u64>(), 0u64..=16).prop_map(
+        |(l, level, first, dims, seed, density)| {
+            let s = l.cell_at(level);
+            // A box strictly inside the wanted planes: the aligned grid is exactly them.
+            let lo: [f64; 3] = std::array::from_fn(|a| l.origin[a] + (first[a] as f64 + 0.25) * s);
+            let hi: [f64; 3] =
+                std::array::from_fn(|a| l.origin[a] + ((first[a] + i64::from(dims[a])) as f64 - 0.25) * s);
+            let (g, first) =
+                aligned_grid(&l, level, &Aabb::from_array([lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]]))
+                    .unwrap();
             let mut v = Voxels::empty(g.clone());
-            let mut s = seed | 1;
+            let mut next = xorshift(seed);
             let d = g.dims();
             for z in 0..d[2] {
                 for y in 0..d[1] {
                     for x in 0..d[0] {
-                        s ^= s << 13;
-                        s ^= s >> 7;
-                        s ^= s << 17;
-                        if s % 4 < density {
+                        if next() % 16 < density {
                             v.set_cell([x, y, z]);
                         }
                     }
                 }
             }
-            v
+            (v, first)
         },
     )
+}
+
+fn cells(g: &Grid) -> impl Iterator<Item = [u32; 3]> + use<> {
+    let d = g.dims();
+    (0..d[2]).flat_map(move |z| (0..d[1]).flat_map(move |y| (0..d[0]).map(move |x| [x, y, z])))
 }
 
 fn in_world_boxes(v: &Voxels, p: &Point, tol: f64) -> bool {
     v.world_boxes().iter().any(|b| b.grown(tol).contains_point(p))
 }
 
+/// The form byte format-spec/lod.md says a writer emits for `v`: the
+/// smaller of the bitmap and the boxes (the bitmap on a tie), boxes with u8
+/// corners when every dim is at most 255.
+fn spec_form(v: &Voxels) -> u8 {
+    let d = v.grid().dims();
+    let small = d.iter().all(|&x| x <= 255);
+    let bitmap = (v.grid().cells() as usize).div_ceil(8);
+    let boxes = 4 + v.boxes().len() * if small { 6 } else { 12 };
+    if bitmap <= boxes {
+        1
+    } else if small {
+        2
+    } else {
+        3
+    }
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(64))]
+    #![proptest_config(ProptestConfig::with_cases(128))]
 
     #[test]
-    fn vertices_and_surface_points_lie_in_the_voxel_solid(
+    fn vertices_and_surface_points_lie_in_both_voxelizations(
         meshes in arb_meshes(), l in arb_lattice(), level in 0u8..3,
         samples in prop::collection::vec((0.0f64..1.0, 0.0f64..1.0), 8),
     ) {
         let g = Grid::new(&l, level, &bounds(&meshes)).unwrap();
-        let v = Voxels::of_meshes(g, &meshes);
-        for m in &meshes {
-            for p in m.vertices() {
-                prop_assert!(v.contains_point(&p), "vertex {p}");
-                prop_assert!(in_world_boxes(&v, &p, 0.0), "vertex {p} exactly in a closed box");
-            }
-            for t in m.triangle_points() {
-                prop_assert!(v.intersects_triangle(&t));
-                for &(a, b) in &samples {
-                    let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
-                    let p = t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b;
-                    prop_assert!(v.contains_point(&p), "surface point {p}");
-                    // Only rounding in computing p separates it from the boxes.
-                    prop_assert!(in_world_boxes(&v, &p, 1e-9 * 200.0), "surface point {p}");
+        let filled = Voxels::of_meshes(g.clone(), &meshes);
+        let surface = Voxels::of_surfaces(g, &meshes);
+        prop_assert!(surface.is_subset_of(&filled).unwrap(), "the surface set is part of the filled one");
+        for v in [&filled, &surface] {
+            for m in &meshes {
+                for p in m.vertices() {
+                    prop_assert!(v.contains_point(&p), "vertex {p}");
+                    prop_assert!(in_world_boxes(v, &p, 0.0), "vertex {p} exactly in a closed box");
+                }
+                for t in m.triangle_points() {
+                    prop_assert!(v.intersects_triangle(&t));
+                    for &(a, b) in &samples {
+                        let p = on_triangle(&t, a, b);
+                        prop_assert!(v.contains_point(&p), "surface point {p}");
+                        prop_assert!(v.may_meet(&Aabb::new(p, p)), "surface point {p}");
+                        // Only rounding in computing p separates it from the boxes.
+                        prop_assert!(in_world_boxes(v, &p, 1e-9 * 200.0), "surface point {p}");
+                    }
                 }
             }
-        }
-        // Every set cell lies inside the grid's bounds.
-        for b in v.world_boxes() {
-            prop_assert!(v.grid().bounds().contains(&b));
+            // Every set cell lies inside the grid's bounds.
+            for b in v.world_boxes() {
+                prop_assert!(v.grid().bounds().contains(&b));
+            }
         }
     }
 
     #[test]
-    fn the_inside_of_a_closed_box_is_filled(
+    fn every_cell_of_a_surface_set_grown_by_the_tolerance_meets_a_triangle(
+        meshes in arb_meshes(), l in arb_lattice(), level in 0u8..3,
+    ) {
+        let (g, _) = aligned_grid(&l, level, &bounds(&meshes)).unwrap();
+        let v = Voxels::of_surfaces(g, &meshes);
+        let tris = triangles(&meshes);
+        prop_assert!(!v.is_empty());
+        let mut n = 0;
+        for c in v.cell_boxes() {
+            prop_assert!(tris.iter().any(|t| intersects_triangle_box(t, &c)), "cell {c:?} touches no triangle");
+            // A query that is exactly the grown cell holds it.
+            prop_assert!(v.holds_a_cell_in(&c), "the grown cell {c:?} itself is not held");
+            n += 1;
+        }
+        prop_assert_eq!(n, v.count());
+    }
+
+    #[test]
+    fn a_query_holding_a_surface_cell_meets_the_surface(
+        meshes in arb_meshes(), l in arb_lattice(), level in 0u8..3,
+        queries in prop::collection::vec(
+            (any::<prop::sample::Index>(), 0.0f64..3.0, prop::array::uniform3(-1.0f64..1.0), prop::array::uniform3(0.0f64..1.0)),
+            16,
+        ),
+    ) {
+        let (g, _) = aligned_grid(&l, level, &bounds(&meshes)).unwrap();
+        let v = Voxels::of_surfaces(g, &meshes);
+        let tris = triangles(&meshes);
+        let set: Vec<Aabb> = v.cell_boxes().collect();
+        prop_assert!(!set.is_empty());
+        let s = l.cell_at(level);
+        for (i, grow, shift, shrink) in queries {
+            // Around a set cell: grown, moved, and squeezed on some axes (then it holds no cell).
+            let c = set[i.index(set.len())];
+            let mut q = c.grown(grow * s);
+            for a in 0..3 {
+                q.min[a] += shift[a] * grow * s;
+                q.max[a] += shift[a] * grow * s;
+                if shrink[a] > 0.8 {
+                    q.max[a] = q.min[a] + (q.max[a] - q.min[a]) * (shrink[a] - 0.8);
+                }
+            }
+            if v.holds_a_cell_in(&q) {
+                prop_assert!(tris.iter().any(|t| intersects_triangle_box(t, &q)), "{q:?} holds a cell but meets no triangle");
+            }
+        }
+        // A query grown around a cell holds it, so the witness does answer yes.
+        prop_assert!(v.holds_a_cell_in(&set[0].grown(s)));
+    }
+
+    #[test]
+    fn may_meet_never_rules_out_a_box_that_meets_a_triangle(
+        meshes in arb_meshes(), l in arb_lattice(), level in 0u8..3,
+        queries in prop::collection::vec(
+            (any::<prop::sample::Index>(), (0.0f64..1.0, 0.0f64..1.0), prop::array::uniform3(-1.0f64..1.0), prop::array::uniform3(0.0f64..2.0), 0u8..4),
+            24,
+        ),
+    ) {
+        let (g, _) = aligned_grid(&l, level, &bounds(&meshes)).unwrap();
+        let v = Voxels::of_surfaces(g, &meshes);
+        let tris = triangles(&meshes);
+        let s = l.cell_at(level);
+        let mut met = 0;
+        for (i, (a, b), dir, size, shape) in queries {
+            let t = &tris[i.index(tris.len())];
+            // From a point on (or a vertex of) the triangle: a point, or a box
+            // with a corner there reaching away along `dir`, or a box near it.
+            let p = if shape == 0 { t[i.index(3)] } else { on_triangle(t, a, b) };
+            let off = Vector::new(dir[0] * size[0], dir[1] * size[1], dir[2] * size[2]) * s;
+            let q = match shape {
+                0 | 1 => Aabb::new(p.inf(&(p + off)), p.sup(&(p + off))),
+                2 => Aabb::new(p, p),
+                _ => Aabb::new(p + off, p + off).grown(s * size[0] / 4.0),
+            };
+            if tris.iter().any(|t| intersects_triangle_box(t, &q)) {
+                met += 1;
+                prop_assert!(v.may_meet(&q), "{q:?} meets a triangle but may_meet says no");
+            }
+        }
+        prop_assert!(met > 0, "no query met a triangle: the strategy tests nothing");
+        // And it does rule out what lies well away from every cell.
+        let far = v.grid().bounds().grown(0.0);
+        let e = far.extent().max() + 10.0 * s;
+        let away = Aabb::new(far.max + Vector::repeat(e), far.max + Vector::repeat(2.0 * e));
+        prop_assert!(!v.may_meet(&away));
+    }
+
+    #[test]
+    fn the_inside_of_a_closed_box_is_filled_but_not_its_surface_set(
         lo in prop::array::uniform3(0.0f64..50.0), size in prop::array::uniform3(5.0f64..40.0), l in arb_lattice(),
     ) {
         let hi = [lo[0] + size[0], lo[1] + size[1], lo[2] + size[2]];
@@ -108,38 +269,51 @@ proptest! {
         // On the box's own bounds every cell touches or lies inside the box.
         prop_assert_eq!(v.count(), v.grid().cells());
         let g = Grid::new(&l, 0, &m.aabb().grown(10.0)).unwrap();
-        let v = Voxels::of_meshes(g.clone(), [&m]);
-        let d = g.dims();
-        for c in (0..d[0]).flat_map(|x| (0..d[1]).flat_map(move |y| (0..d[2]).map(move |z| [x, y, z]))) {
+        let filled = Voxels::of_meshes(g.clone(), [&m]);
+        let surface = Voxels::of_surfaces(g.clone(), [&m]);
+        for c in cells(&g) {
             let b = g.cell_box(c);
             if m.aabb().contains_point(&b.center()) {
-                prop_assert!(v.is_set(c), "cell {c:?} inside the box");
+                prop_assert!(filled.is_set(c), "cell {c:?} inside the box");
             }
             if !m.aabb().grown(1e-6).intersects(&b) {
-                prop_assert!(!v.is_set(c), "cell {c:?} away from the box");
+                prop_assert!(!filled.is_set(c), "cell {c:?} away from the box");
+            }
+            // A cell clear of every face (inside the box) holds no surface.
+            if m.aabb().grown(-1e-6).contains(&b) {
+                prop_assert!(!surface.is_set(c), "cell {c:?} of the interior is in the surface set");
             }
         }
     }
 
     #[test]
     fn a_level_lifted_into_the_next_is_inside_its_direct_voxelization(
-        meshes in arb_meshes(), l in arb_lattice(), level in 0u8..3,
+        meshes in arb_meshes(), l in arb_lattice(), level in 0u8..3, up in 1u8..3,
     ) {
         let b = bounds(&meshes);
+        // Clipped grids over the same box, filled sets.
         let fine = Voxels::of_meshes(Grid::new(&l, level, &b).unwrap(), &meshes);
         let coarse = Voxels::of_meshes(Grid::new(&l, level + 1, &b).unwrap(), &meshes);
         prop_assert!(fine.is_subset_of(&coarse).unwrap());
-        // The lift itself is the coarser solid at most.
         let mut lifted = Voxels::empty(coarse.grid().clone());
         fine.lift_into(&mut lifted).unwrap();
         prop_assert!(lifted.is_subset_of(&coarse).unwrap());
+        prop_assert_eq!(lifted.is_empty(), fine.is_empty());
+        // Aligned grids, surface sets (what the file stores): level k + 1 of an
+        // object is a finer lattice level than level k, and lifts into it.
+        let (gf, _) = aligned_grid(&l, level, &b).unwrap();
+        let (gc, _) = aligned_grid(&l, level + up, &b).unwrap();
+        prop_assert!(gc.bounds().contains(gf.bounds()));
+        let fine = Voxels::of_surfaces(gf, &meshes);
+        let coarse = Voxels::of_surfaces(gc, &meshes);
+        prop_assert!(fine.is_subset_of(&coarse).unwrap(), "a finer surface set leaves the coarser one");
     }
 
     #[test]
     fn a_childs_voxelization_lifts_into_its_parents(
         meshes in arb_meshes(), l in arb_lattice(), level in 0u8..2, up in 0u8..2, split in 0usize..6,
     ) {
-        let split = split.min(meshes.len() - 1).max(1).min(meshes.len());
+        let split = split.clamp(1, meshes.len());
         let child = &meshes[..split];
         let parent = Voxels::of_meshes(Grid::new(&l, level + up, &bounds(&meshes)).unwrap(), &meshes);
         let c = Voxels::of_meshes(Grid::new(&l, level, &bounds(child)).unwrap(), child);
@@ -151,6 +325,12 @@ proptest! {
                 "a parent's grid does not nest in its child's"
             );
         }
+        // Surface sets on aligned grids nest the same way.
+        let (gp, _) = aligned_grid(&l, level + up, &bounds(&meshes)).unwrap();
+        let (gc, _) = aligned_grid(&l, level, &bounds(child)).unwrap();
+        let parent = Voxels::of_surfaces(gp, &meshes);
+        let c = Voxels::of_surfaces(gc, child);
+        prop_assert!(c.is_subset_of(&parent).unwrap());
     }
 
     #[test]
@@ -164,10 +344,6 @@ proptest! {
         let sub = Aabb::from_array([a[0], a[1], a[2], b[0], b[1], b[2]]);
         let fine = Grid::new(&l, j, &sub).unwrap();
         let coarse = Grid::new(&l, j + up, &r).unwrap();
-        let cells = |g: &Grid| {
-            let d = g.dims();
-            (0..d[0]).flat_map(move |x| (0..d[1]).flat_map(move |y| (0..d[2]).map(move |z| [x, y, z])))
-        };
         for c in cells(&fine) {
             let fb = fine.cell_box(c);
             let holders = cells(&coarse).filter(|&k| coarse.cell_box(k).contains(&fb)).count();
@@ -183,8 +359,6 @@ proptest! {
                 prop_assert_eq!(overlapping, 1);
             }
         }
-        // Every coarse cell is covered by the fine grid's cells inside it on
-        // the sub-box: lifting the full fine set gives a non-empty coarse set.
         let mut full = Voxels::empty(fine.clone());
         let d = fine.dims();
         full.set_cell([d[0] - 1, d[1] - 1, d[2] - 1]);
@@ -192,7 +366,7 @@ proptest! {
     }
 
     #[test]
-    fn boxes_are_disjoint_and_cover_exactly_the_set_cells(v in arb_voxels()) {
+    fn boxes_are_disjoint_and_cover_exactly_the_set_cells((v, _) in arb_voxels()) {
         let boxes = v.boxes();
         let mut rebuilt = Voxels::empty(v.grid().clone());
         let d = v.grid().dims();
@@ -213,20 +387,18 @@ proptest! {
         let wb = v.world_boxes();
         prop_assert_eq!(wb.len(), boxes.len());
         let vol: f64 = wb.iter().map(Aabb::volume).sum();
-        let cells: f64 = (0..v.grid().cells() as usize)
-            .map(|i| {
-                let c = [i as u32 % d[0], (i as u32 / d[0]) % d[1], i as u32 / (d[0] * d[1])];
-                if v.is_set(c) { v.grid().cell_box(c).volume() } else { 0.0 }
-            })
-            .sum();
-        prop_assert!((vol - cells).abs() <= 1e-9 * (1.0 + cells));
+        let set: f64 = cells(v.grid()).filter(|&c| v.is_set(c)).map(|c| v.grid().cell_box(c).volume()).sum();
+        prop_assert!((vol - set).abs() <= 1e-9 * (1.0 + set));
     }
 
     #[test]
-    fn the_boundary_mesh_encloses_the_solid_outward(v in arb_voxels()) {
+    fn the_boundary_mesh_encloses_the_solid_outward((v, _) in arb_voxels()) {
         let m = v.boundary_mesh();
-        // Divergence theorem: a closed, outward mesh's signed volume is the solid's.
-        let signed: f64 = m.triangle_points().map(|[a, b, c]| a.coords.dot(&b.coords.cross(&c.coords)) / 6.0).sum();
+        // Divergence theorem: a closed, outward mesh's signed volume is the
+        // solid's (measured about the grid's corner, to keep it well conditioned).
+        let o = v.grid().bounds().min;
+        let signed: f64 =
+            m.triangle_points().map(|[a, b, c]| (a - o).dot(&(b - o).cross(&(c - o))) / 6.0).sum();
         let vol: f64 = v.world_boxes().iter().map(Aabb::volume).sum();
         prop_assert!((signed - vol).abs() <= 1e-4 * (1.0 + vol), "{signed} against {vol}");
         prop_assert_eq!(m.triangle_count() == 0, v.is_empty());
@@ -238,47 +410,138 @@ proptest! {
         meshes in arb_meshes(), l in arb_lattice(), level in 0u8..4,
     ) {
         let g = Grid::new(&l, level, &bounds(&meshes)).unwrap();
-        let v = Voxels::of_meshes(g, &meshes);
-        let e = measured_error(&v, &meshes, 2000);
-        prop_assert!(e <= v.grid().max_cell_diagonal(), "{e} > {}", v.grid().max_cell_diagonal());
+        for v in [Voxels::of_meshes(g.clone(), &meshes), Voxels::of_surfaces(g.clone(), &meshes)] {
+            let e = measured_error(&v, &meshes, 2000);
+            prop_assert!(e <= v.grid().max_cell_diagonal(), "{e} > {}", v.grid().max_cell_diagonal());
+        }
     }
 
     #[test]
-    fn both_forms_round_trip(v in arb_voxels(), bitmap in any::<bool>(), id in any::<u32>()) {
-        let form = if bitmap { Form::Bitmap } else { Form::Boxes };
-        let mut out = Vec::new();
-        encode(&v, form, &mut out);
-        prop_assert_eq!(out.len(), mktree::lod::encoded_len(&v, form));
-        prop_assert_eq!(out.len() % 4, 0);
-        let (back, used) = decode(&out, v.grid().lattice()).unwrap();
-        prop_assert_eq!(used, out.len());
+    fn inline_blobs_round_trip_in_the_smallest_form((v, first) in arb_voxels()) {
+        let bytes = encode(&v, first);
+        prop_assert_eq!(bytes.len(), encoded_len(&v));
+        // The head: level, form, reserved, first planes, dims, reserved.
+        prop_assert_eq!(bytes[0], v.grid().level());
+        prop_assert_eq!(bytes[1], spec_form(&v));
+        prop_assert_eq!(&bytes[2..4], &[0, 0]);
+        for a in 0..3 {
+            let f = i32::from_le_bytes(bytes[4 + 4 * a..8 + 4 * a].try_into().unwrap());
+            prop_assert_eq!(i64::from(f), first[a]);
+            let d = u16::from_le_bytes(bytes[16 + 2 * a..18 + 2 * a].try_into().unwrap());
+            prop_assert_eq!(u32::from(d), v.grid().dims()[a]);
+        }
+        prop_assert_eq!(&bytes[22..24], &[0, 0]);
+        let back = decode(&bytes, v.grid().lattice()).unwrap();
         prop_assert_eq!(&back, &v);
-        let mut objs = Vec::new();
-        mktree::lod::encode_objects(&[(id, &v), (7, &back)], form, &mut objs);
-        let got = decode_objects(&objs, v.grid().lattice()).unwrap();
-        prop_assert_eq!(got, vec![(id, v.clone()), (7, v)]);
+        // Equal sets encode to equal bytes.
+        prop_assert_eq!(encode(&back, first), bytes);
     }
 
     #[test]
     fn decoding_never_panics_on_damaged_or_arbitrary_bytes(
-        v in arb_voxels(), bitmap in any::<bool>(), cut in any::<prop::sample::Index>(),
+        (v, first) in arb_voxels(), cut in any::<prop::sample::Index>(),
         flips in prop::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 0..4),
         junk in prop::collection::vec(any::<u8>(), 0..300),
     ) {
-        let form = if bitmap { Form::Bitmap } else { Form::Boxes };
-        let mut out = Vec::new();
-        encode(&v, form, &mut out);
+        let mut out = encode(&v, first);
         let l = *v.grid().lattice();
         let n = cut.index(out.len());
         prop_assert!(decode(&out[..n], &l).is_err(), "a truncated blob is refused");
+        let mut longer = out.clone();
+        longer.push(0);
+        prop_assert!(decode(&longer, &l).is_err(), "a blob with a byte too many is refused");
         for (i, x) in flips {
             let i = i.index(out.len());
             out[i] ^= x;
         }
-        let _ = decode(&out, &l);
-        let _ = decode_objects(&out, &l);
+        if let Ok(w) = decode(&out, &l) {
+            // Whatever decodes is a set within its own grid.
+            prop_assert!(w.count() <= w.grid().cells());
+        }
         let _ = decode(&junk, &l);
-        let _ = decode_objects(&junk, &l);
+    }
+}
+
+/// A blob of `v` on the grid of lattice level `level` with the given first
+/// planes and dims, over a unit lattice at the origin.
+fn grid_at(level: u8, first: [i64; 3], dims: [u32; 3]) -> (Grid, [i64; 3]) {
+    let l = Lattice { origin: Point::origin(), cell: 1.0 };
+    let s = l.cell_at(level);
+    let lo = first.map(|f| (f as f64 + 0.5) * s);
+    let hi: [f64; 3] = std::array::from_fn(|a| (first[a] + i64::from(dims[a])) as f64 * s - 0.5 * s);
+    let (g, f) =
+        aligned_grid(&l, level, &Aabb::from_array([lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]])).unwrap();
+    assert_eq!((g.dims(), f), (dims, first));
+    (g, f)
+}
+
+#[test]
+fn each_form_has_the_bytes_the_spec_gives() {
+    let head = |level: u8, form: u8, first: [i32; 3], dims: [u16; 3]| {
+        let mut h = vec![level, form, 0, 0];
+        first.iter().for_each(|f| h.extend_from_slice(&f.to_le_bytes()));
+        dims.iter().for_each(|d| h.extend_from_slice(&d.to_le_bytes()));
+        h.extend_from_slice(&[0, 0]);
+        h
+    };
+    // Bitmap: one cell, its bit.
+    let (g, first) = grid_at(2, [3, -1, 0], [1, 1, 1]);
+    let mut v = Voxels::empty(g);
+    v.set_cell([0, 0, 0]);
+    let mut want = head(2, 1, [3, -1, 0], [1, 1, 1]);
+    want.push(1);
+    assert_eq!(encode(&v, first), want);
+    assert_eq!(decode(&want, v.grid().lattice()).unwrap(), v);
+    // Boxes with u8 corners: one cell of 100 x 100, at x 5, y 7.
+    let (g, first) = grid_at(0, [-4, 0, 9], [100, 100, 1]);
+    let mut v = Voxels::empty(g);
+    v.set_cell([5, 7, 0]);
+    let mut want = head(0, 2, [-4, 0, 9], [100, 100, 1]);
+    want.extend_from_slice(&1u32.to_le_bytes());
+    want.extend_from_slice(&[5, 7, 0, 6, 8, 1]);
+    assert_eq!(encode(&v, first), want);
+    assert_eq!(decode(&want, v.grid().lattice()).unwrap(), v);
+    // Boxes with u16 corners: a row of 300 cells, the last two set.
+    let (g, first) = grid_at(1, [0, 0, 0], [300, 1, 1]);
+    let mut v = Voxels::empty(g);
+    v.set_cell([298, 0, 0]);
+    v.set_cell([299, 0, 0]);
+    let mut want = head(1, 3, [0, 0, 0], [300, 1, 1]);
+    want.extend_from_slice(&1u32.to_le_bytes());
+    for c in [298u16, 0, 0, 300, 1, 1] {
+        want.extend_from_slice(&c.to_le_bytes());
+    }
+    assert_eq!(encode(&v, first), want);
+    assert_eq!(decode(&want, v.grid().lattice()).unwrap(), v);
+}
+
+#[test]
+fn a_blob_whose_boxes_overlap_or_leave_the_grid_is_refused() {
+    let (g, first) = grid_at(0, [0, 0, 0], [100, 100, 1]);
+    let mut v = Voxels::empty(g);
+    v.set_cell([5, 7, 0]);
+    let good = encode(&v, first);
+    let l = *v.grid().lattice();
+    assert!(decode(&good, &l).is_ok());
+    // Two boxes, the second over the first.
+    let mut overlap = good[..24].to_vec();
+    overlap.extend_from_slice(&2u32.to_le_bytes());
+    overlap.extend_from_slice(&[5, 7, 0, 6, 8, 1, 4, 6, 0, 7, 9, 1]);
+    assert!(decode(&overlap, &l).is_err(), "overlapping boxes");
+    // A box past the grid, and an empty box.
+    for b in [[5u8, 7, 0, 101, 8, 1], [5, 7, 0, 5, 8, 1]] {
+        let mut bad = good[..28].to_vec();
+        bad.extend_from_slice(&b);
+        assert!(decode(&bad, &l).is_err(), "box {b:?}");
+    }
+    // Reserved bytes, an unknown form, a grid with no cells.
+    for (at, x) in [(2usize, 1u8), (23, 1), (1, 9), (16, 0)] {
+        let mut bad = good.clone();
+        bad[at] = x;
+        if at == 16 {
+            bad[17] = 0;
+        }
+        assert!(decode(&bad, &l).is_err(), "byte {at} = {x}");
     }
 }
 
@@ -299,7 +562,7 @@ fn a_cavity_between_two_open_plates_is_not_filled() {
 fn the_measured_error_of_a_coarse_grid_is_positive() {
     let l = Lattice { origin: Point::origin(), cell: 1.0 };
     let m = [triangle([0.0, 0.0, 0.0], [10.0, 0.0, 3.0], [0.0, 10.0, 7.0])];
-    let v = Voxels::of_meshes(Grid::new(&l, 2, &m[0].aabb()).unwrap(), &m);
+    let v = Voxels::of_surfaces(Grid::new(&l, 2, &m[0].aabb()).unwrap(), &m);
     let e = measured_error(&v, &m, 1000);
     assert!(e > 0.5 && e <= v.grid().max_cell_diagonal(), "{e}");
 }
@@ -322,7 +585,7 @@ fn faces_of_hand_made_solids() {
 
 /// Timing on the tanker3 preset (132,456 triangles): run with `--ignored --nocapture`.
 #[test]
-#[ignore]
+#[ignore = "a timing report, not a claim"]
 fn voxelizing_tanker3_takes_a_moment() {
     use mktree::scene::generate::{GenOptions, Preset, generate_scene};
     let scene = generate_scene(&GenOptions { preset: Preset::Tanker3, objects: None, seed: 0 }).unwrap();
@@ -332,30 +595,55 @@ fn voxelizing_tanker3_takes_a_moment() {
     for level in [7u8, 6, 5, 4, 3] {
         let t = std::time::Instant::now();
         let g = Grid::new(&l, level, &b).unwrap();
-        let v = Voxels::of_meshes(g, meshes.iter().copied());
+        let v = Voxels::of_surfaces(g, meshes.iter().copied());
         let tv = t.elapsed();
         let t = std::time::Instant::now();
         let boxes = v.boxes().len();
         let tb = t.elapsed();
         let t = std::time::Instant::now();
-        let faces = v.faces();
-        let tf = t.elapsed();
-        let t = std::time::Instant::now();
         let e = measured_error(&v, meshes.iter().copied(), 2000);
         let te = t.elapsed();
         println!(
-            "cell {} mm, dims {:?}: {} set, voxelize {:.3?}; {} boxes {:.3?}; {} faces {:.3?}; error {:.1} (diag {:.1}) {:.3?}",
+            "cell {} mm, dims {:?}: {} set, voxelize {tv:.3?}; {boxes} boxes {tb:.3?}; error {e:.1} (diag {:.1}) {te:.3?}",
             l.cell_at(level),
             v.grid().dims(),
             v.count(),
-            tv,
-            boxes,
-            tb,
-            faces,
-            tf,
-            e,
             v.grid().max_cell_diagonal(),
-            te
         );
     }
+}
+
+#[test]
+#[ignore = "bug: Grid::cell_of overflows i64 (src/lod/grid.rs:169) for a box corner ~2^63 cells from the lattice origin"]
+fn a_query_unbounded_along_one_axis_is_answered_not_a_panic() {
+    // A slab query: every x, the y and z of one set cell. It holds that cell.
+    let l = Lattice { origin: Point::new(3.0, 0.0, 0.0), cell: 1.0 };
+    let m = [triangle([0.0, 0.0, 0.0], [10.0, 0.0, 3.0], [0.0, 10.0, 7.0])];
+    let (g, _) = aligned_grid(&l, 1, &m[0].aabb()).unwrap();
+    let v = Voxels::of_surfaces(g, &m);
+    let c = v.cell_boxes().next().unwrap();
+    for far in [1e30, 1e300, f64::MAX] {
+        let slab = Aabb::from_array([-far, c.min.y, c.min.z, far, c.max.y, c.max.z]);
+        assert!(v.may_meet(&slab), "x = ±{far}");
+        assert!(v.holds_a_cell_in(&slab), "x = ±{far}");
+        assert!(v.intersects_aabb(&slab), "x = ±{far}");
+    }
+}
+
+#[test]
+#[ignore = "bug: Grid::new (src/lod/grid.rs:55-63) loops forever when origin + n * cell does not change with n"]
+fn a_lattice_whose_planes_do_not_advance_is_refused_not_a_hang() {
+    let l = Lattice { origin: Point::origin(), cell: 1.0 };
+    let (g, first) = aligned_grid(&l, 0, &Aabb::from_array([0.5, 0.5, 0.5, 3.5, 1.5, 1.5])).unwrap();
+    let mut v = Voxels::empty(g);
+    v.set_cell([0, 0, 0]);
+    let blob = encode(&v, first);
+    // 1e300 + n is 1e300 for every n a grid can have: no plane is above the origin.
+    let far = Lattice { origin: Point::new(1e300, 0.0, 0.0), cell: 1.0 };
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(decode(&blob, &far).is_ok());
+    });
+    let got = rx.recv_timeout(std::time::Duration::from_secs(10));
+    assert!(got.is_ok(), "decode on a lattice whose planes do not advance still runs after 10 s");
 }

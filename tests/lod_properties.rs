@@ -1,23 +1,48 @@
-//! Claims about the levels of detail a file stores (issue 5), through the
-//! public API: `check` finds no fault (containment, nesting, eps, predicted
-//! reads) on random scenes for every M; every bound contains its objects'
-//! surface points; b(S_n,k+1) lies in b(S_n,k); and `check` does catch a
-//! bound that misses part of its object.
+//! Claims about the levels of detail a version 3 file stores, through the
+//! public API:
+//!
+//! - `check` finds no fault on random scenes for M = 1 .. 5, whether every
+//!   bound is stored (`LodParams::store_all`) or only those that pay;
+//! - every stored bound B(o,k) holds its object's surface (sampled points,
+//!   read back with `fetch_level` as `Piece::ObjectVoxels`), and not the
+//!   inside of a closed object: version 3 bounds are surface cells;
+//! - an object's bound at level k + 1 lies in its bound at level k: level
+//!   k + 1 sits on a finer level of the one lattice (the cuberille, k = 2,
+//!   on the coarsest), and a finer surface set lifts into a coarser one;
+//! - `check` catches a forged bound, one set cell cleared (with every
+//!   checksum up the chain made to match again);
+//! - the policy stores no bound for a scene whose bounds buy nothing
+//!   (axis-aligned boxes), and does store some where they pay;
+//! - user eps values bound every stored level's cells; bad ones are a
+//!   typed error.
+//!
+//! Dropped from version 2: "b(S_n,k+1) lies in b(S_n,k)" and "bounds have
+//! fewer faces than long triangle strips". Version 3 stores no group bounds
+//! b(S_n,k) (the writer fills only per-object bounds in leaf records), and
+//! a closed object's bound is its surface, no longer its filled solid.
 
 mod common;
 
-use common::{arb_scene, box_mesh, grid_scene, triangle};
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use common::{arb_scene, box_mesh, forge, grid_scene, triangle};
 use mktree::build::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database, Piece, check};
 use mktree::geom::Point;
-use mktree::lod::LodParams;
-use mktree::scene::{Object, Scene};
+use mktree::lod::{LodParams, Voxels};
+use mktree::scene::{Object, ObjectId, Scene};
+use mktree::store::BlockDevice;
 use mktree::store::ReadStats;
+use mktree::store::device::MemDevice;
 use proptest::prelude::*;
 
-fn build(scene: &Scene, m: u8, bs: u32, cap: u32, lod: LodParams) -> Database {
+/// `scene` in a fresh in-memory file: M levels, blocks of `bs` bytes, MOA
+/// leaves of at most `cap` objects; also the device, to forge its bytes.
+fn build(scene: &Scene, m: u8, bs: u32, cap: u32, lod: LodParams) -> (Database, Arc<MemDevice>) {
+    let dev = Arc::new(MemDevice::new());
     let db = Database::create_on(
-        std::sync::Arc::new(mktree::store::device::MemDevice::new()),
+        dev.clone() as Arc<dyn BlockDevice>,
         CreateOptions { block_size: bs, lod_levels: m },
     )
     .unwrap();
@@ -26,78 +51,146 @@ fn build(scene: &Scene, m: u8, bs: u32, cap: u32, lod: LodParams) -> Database {
     let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(cap), ..BuildParams::default() };
     w.bulk_load(scene, &params, &|_| {}).unwrap();
     w.commit().unwrap();
-    db
+    (db, dev)
 }
 
-/// Every vertex of every object lies in every level's bound of every node
-/// on its path, read back through `fetch_level`.
-fn vertices_inside_every_level(db: &Database, scene: &Scene) {
+fn store_all() -> LodParams {
+    LodParams { store_all: true, ..LodParams::default() }
+}
+
+/// Every object's bound at level k as `fetch_level` reads it from the root:
+/// its finest stored voxel set up to k, or `None` when it has only its box.
+fn bounds_at(db: &Database, k: u8) -> HashMap<ObjectId, Option<Voxels>> {
     let r = db.begin_read().unwrap();
-    let m = db.lod_levels();
-    let nodes = common::all_nodes(&r);
-    for (at, rec) in &nodes {
-        // The node's objects, from level M.
-        let exact = r.fetch_level(*at, m, true, &mut ReadStats::default()).unwrap();
-        let points: Vec<Point> = exact
-            .pieces
-            .iter()
-            .flat_map(|p| match p {
-                Piece::Objects(o) => {
-                    o.iter().flat_map(|(id, _)| scene.objects()[id.index()].mesh.vertices()).collect()
+    let level = r.fetch_level(0, k, true, &mut ReadStats::default()).unwrap();
+    let mut out = HashMap::new();
+    for piece in level.pieces {
+        match piece {
+            Piece::ObjectVoxels(v) => out.extend(v.into_iter().map(|(id, v)| (id, Some(v)))),
+            Piece::ObjectBoxes(b) => out.extend(b.into_iter().map(|(id, _)| (id, None))),
+            other => panic!("level {k} of the root holds {other:?}"),
+        }
+    }
+    out
+}
+
+/// Vertices and a spread of points on every triangle of `scene`'s object `id`.
+fn surface_points(scene: &Scene, id: ObjectId) -> Vec<Point> {
+    let mesh = &scene.objects()[id.index()].mesh;
+    let mut out: Vec<Point> = mesh.vertices().collect();
+    for t in mesh.triangle_points() {
+        for (a, b) in [(0.5, 0.0), (0.0, 0.5), (0.5, 0.5), (1.0 / 3.0, 1.0 / 3.0), (0.1, 0.8), (0.7, 0.2)] {
+            out.push(t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b);
+        }
+    }
+    out
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    #[test]
+    fn random_scenes_check_clean_for_every_m_with_and_without_store_all(
+        scene in arb_scene(30),
+        m in 1u8..=5,
+        cap in 1u32..5,
+        bs in prop::sample::select(vec![1024u32, 2048, 4096]),
+        all in any::<bool>(),
+    ) {
+        let (db, _) = build(&scene, m, bs, cap, LodParams { store_all: all, ..LodParams::default() });
+        let report = check(&db).unwrap();
+        prop_assert!(report.ok(), "{:?}", report.faults);
+        let info = db.begin_read().unwrap().lod_info().unwrap();
+        if all && m >= 3 {
+            // Every object's cuberille fits its cell budget, so each has one.
+            prop_assert_eq!(info.stored[1], scene.len() as u64);
+        }
+        prop_assert_eq!(info.stored.len(), usize::from(m));
+    }
+
+    #[test]
+    fn every_stored_bound_holds_its_objects_surface(
+        scene in arb_scene(24), m in 3u8..=5, cap in 1u32..5,
+    ) {
+        let (db, _) = build(&scene, m, 4096, cap, store_all());
+        let info = db.begin_read().unwrap().lod_info().unwrap();
+        for k in 2..m {
+            let bounds = bounds_at(&db, k);
+            prop_assert_eq!(bounds.len(), scene.len(), "level {} reaches every object", k);
+            let voxels = bounds.values().filter(|v| v.is_some()).count() as u64;
+            // Objects without a level-k bound answer with a coarser one.
+            prop_assert!(voxels >= info.stored[usize::from(k) - 1]);
+            for (id, v) in &bounds {
+                let Some(v) = v else { continue };
+                for p in surface_points(&scene, *id) {
+                    prop_assert!(v.contains_point(&p), "level {} of object {}: {:?} outside", k, id, p);
                 }
-                _ => Vec::new(),
-            })
-            .collect();
-        for k in 1..m {
-            for objects in [false, true] {
-                let level = r.fetch_level(*at, k, objects, &mut ReadStats::default()).unwrap();
-                for p in &points {
-                    let inside = level.pieces.iter().any(|piece| match piece {
-                        Piece::Box { aabb, .. } => aabb.contains_point(p),
-                        Piece::ObjectBoxes(b) => b.iter().any(|(_, a)| a.contains_point(p)),
-                        Piece::Voxels { voxels, .. } => voxels.contains_point(p),
-                        Piece::ObjectVoxels(v) => v.iter().any(|(_, v)| v.contains_point(p)),
-                        Piece::Objects(_) => true,
-                    });
-                    assert!(inside, "node {} level {k} objects={objects}: {p:?} outside", rec.node_id);
-                }
+                // Every cell holds a piece of the surface: the bound is no larger than it must be.
+                let surface = Voxels::of_surfaces(v.grid().clone(), [&scene.objects()[id.index()].mesh]);
+                prop_assert_eq!(&surface, v, "level {} of object {} is not its surface cells", k, id);
             }
+        }
+        prop_assert_eq!(bounds_at(&db, 2).values().filter(|v| v.is_some()).count(), scene.len());
+    }
+
+    #[test]
+    fn an_objects_bound_at_level_k_plus_1_lies_in_its_bound_at_level_k(
+        scene in arb_scene(24), m in 4u8..=6, cap in 1u32..5,
+    ) {
+        let (db, _) = build(&scene, m, 4096, cap, store_all());
+        let mut coarser = bounds_at(&db, 2);
+        for k in 3..m {
+            let finer = bounds_at(&db, k);
+            for (id, f) in &finer {
+                let (Some(f), Some(Some(c))) = (f, coarser.get(id)) else {
+                    return Err(TestCaseError::fail(format!("object {id} lost its bound between levels {} and {k}", k - 1)));
+                };
+                prop_assert!(f.grid().level() <= c.grid().level(), "level {} is coarser than level {}", k, k - 1);
+                prop_assert!(f.is_subset_of(c).unwrap(), "object {}: level {} leaves level {}", id, k, k - 1);
+            }
+            coarser = finer;
         }
     }
 }
 
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(20))]
-    #[test]
-    fn random_scenes_check_clean_at_every_m(
-        scene in arb_scene(40),
-        m in 1u8..7,
-        cap in 1u32..6,
-        bs in prop::sample::select(vec![1024u32, 4096]),
-        keep in any::<bool>(),
-    ) {
-        let db = build(&scene, m, bs, cap, LodParams { keep_identity: keep, ..LodParams::default() });
-        let report = check(&db).unwrap();
-        prop_assert!(report.ok(), "{:?}", report.faults);
-        vertices_inside_every_level(&db, &scene);
+#[test]
+fn a_closed_boxs_bound_holds_its_surface_not_its_inside() {
+    let scene = Scene::new(vec![
+        Object::new("box", box_mesh([0.0; 3], [100.0, 100.0, 100.0])),
+        Object::new("twin", box_mesh([200.0, 0.0, 0.0], [300.0, 100.0, 100.0])),
+    ]);
+    let (db, _) = build(&scene, 4, 4096, 4, store_all());
+    assert!(check(&db).unwrap().ok());
+    for k in 2..4 {
+        let bounds = bounds_at(&db, k);
+        let v = bounds[&ObjectId(0)].as_ref().expect("store_all stores a bound");
+        assert!(v.contains_point(&Point::new(0.0, 50.0, 50.0)), "level {k}: a face point");
+        assert!(!v.contains_point(&Point::new(50.0, 50.0, 50.0)), "level {k}: the centre is not surface");
     }
 }
 
 #[test]
-fn user_eps_levels_nest_and_check_clean() {
-    let scene = grid_scene(120);
-    for eps in [vec![80.0, 40.0, 10.0], vec![30.0, 30.0, 30.0]] {
-        let db = build(&scene, 6, 4096, 8, LodParams { eps: Some(eps.clone()), ..LodParams::default() });
+fn user_eps_bound_every_stored_levels_cells() {
+    let scene = grid_scene(60);
+    for eps in [vec![80.0, 40.0, 20.0], vec![30.0, 30.0, 30.0]] {
+        let (db, _) = build(&scene, 6, 4096, 4, LodParams { eps: Some(eps.clone()), ..store_all() });
         let report = check(&db).unwrap();
         assert!(report.ok(), "eps {eps:?}: {:?}", report.faults);
         let info = db.begin_read().unwrap().lod_info().unwrap();
         for (k, e) in eps.iter().enumerate() {
+            let k = k + 3;
+            assert!(info.stored[k - 1] > 0, "level {k} stores bounds");
             assert!(
-                info.eps[k + 2] <= *e * (1.0 + 1e-6),
-                "level {} eps {} above the asked {e}",
-                k + 3,
-                info.eps[k + 2]
+                info.eps[k - 1] <= *e * (1.0 + 1e-6),
+                "level {k} eps {} above the asked {e}",
+                info.eps[k - 1]
             );
+            for v in bounds_at(&db, k as u8).values().flatten() {
+                assert!(
+                    v.grid().max_cell_diagonal() <= *e * (1.0 + 1e-6),
+                    "level {k}: a cell wider than {e}"
+                );
+            }
         }
     }
 }
@@ -105,11 +198,9 @@ fn user_eps_levels_nest_and_check_clean() {
 #[test]
 fn bad_eps_is_a_typed_error_not_a_panic() {
     let scene = grid_scene(10);
-    let db = Database::create_on(
-        std::sync::Arc::new(mktree::store::device::MemDevice::new()),
-        CreateOptions { block_size: 4096, lod_levels: 5 },
-    )
-    .unwrap();
+    let db =
+        Database::create_on(Arc::new(MemDevice::new()), CreateOptions { block_size: 4096, lod_levels: 5 })
+            .unwrap();
     for eps in [vec![1.0], vec![1.0, 2.0], vec![-1.0, -2.0], vec![f64::NAN, 1.0]] {
         let mut w = db.begin_write().unwrap();
         w.set_lod_params(LodParams { eps: Some(eps.clone()), ..LodParams::default() });
@@ -118,81 +209,98 @@ fn bad_eps_is_a_typed_error_not_a_panic() {
     }
 }
 
+/// Rods along the space diagonal: their boxes are mostly empty, so a query
+/// that meets a box usually misses the rod, and a bound says so.
+fn diagonal_rods(n: usize) -> Scene {
+    Scene::new(
+        (0..n)
+            .map(|i| {
+                let o = [(i % 5) as f64 * 300.0, (i / 5 % 5) as f64 * 300.0, (i / 25) as f64 * 300.0];
+                let m = triangle(
+                    o,
+                    [o[0] + 250.0, o[1] + 250.0, o[2] + 250.0],
+                    [o[0] + 252.0, o[1] + 250.0, o[2] + 250.0],
+                );
+                Object::new(format!("rod{i}"), m)
+            })
+            .collect(),
+    )
+}
+
+/// `n` axis-aligned boxes of side `side` mm, 100 mm apart.
+fn small_boxes(n: usize, side: f64) -> Scene {
+    Scene::new(
+        (0..n)
+            .map(|i| {
+                let o = [(i % 5) as f64 * 100.0, (i / 5 % 5) as f64 * 100.0, (i / 25) as f64 * 100.0];
+                Object::new(format!("b{i}"), box_mesh(o, [o[0] + side, o[1] + side, o[2] + side]))
+            })
+            .collect(),
+    )
+}
+
 #[test]
-fn a_closed_box_is_filled_and_a_level_buying_nothing_is_not_stored_twice() {
-    // A single closed box: every voxel level of it is a box, as few faces as
-    // its 12 triangles or fewer; the per-object bound points to the group's.
-    let scene = Scene::new(vec![Object::new("box", box_mesh([0.0; 3], [100.0, 100.0, 100.0]))]);
-    let db = build(&scene, 5, 4096, 4, LodParams::default());
+fn bounds_are_stored_only_where_they_pay() {
+    // Small axis-aligned boxes under the default query model (queries of
+    // the mean object extent + 100 mm): a query that meets such a box
+    // nearly always holds one of its faces, so the box decides it already
+    // and a voxel bound would only cost bytes. None is stored.
+    let (db, _) = build(&small_boxes(100, 2.0), 4, 4096, 8, LodParams::default());
+    let info = db.begin_read().unwrap().lod_info().unwrap();
+    assert_eq!(&info.stored[1..3], &[0, 0], "small boxes store no bound: {info:?}");
+    assert_eq!(&info.bytes[1..3], &[0, 0]);
     assert!(check(&db).unwrap().ok());
-    let r = db.begin_read().unwrap();
-    let root = r.root().unwrap();
-    let centre = Point::new(50.0, 50.0, 50.0);
-    for k in 2..5 {
-        let level = r.fetch_level(root, k, false, &mut ReadStats::default()).unwrap();
-        let inside = level.pieces.iter().any(|p| match p {
-            Piece::Voxels { voxels, .. } => voxels.contains_point(&centre),
-            Piece::Objects(_) => true,
-            _ => false,
-        });
-        assert!(inside, "level {k}: the interior of a closed box is part of its bound");
-    }
+    // Diagonal rods: a bound rules out most queries their boxes let through.
+    let (db, _) = build(&diagonal_rods(50), 4, 4096, 8, LodParams::default());
+    let info = db.begin_read().unwrap().lod_info().unwrap();
+    assert!(info.stored[1..3].iter().sum::<u64>() > 0, "rods store bounds: {info:?}");
+    assert!(info.predicted_saving[1..3].iter().zip(&info.predicted_cost[1..3]).all(|(s, c)| s >= c));
+    assert!(check(&db).unwrap().ok());
 }
 
 #[test]
-fn thin_plates_get_bounds_with_fewer_faces_than_long_triangle_strips() {
-    // A plate of many triangles: the voxel levels need far fewer faces.
-    let mut tris = Vec::new();
-    for i in 0..200 {
-        let x = i as f64 * 5.0;
-        tris.push(triangle([x, 0.0, 0.0], [x + 5.0, 0.0, 0.0], [x, 50.0, 1.0]));
-    }
-    let scene =
-        Scene::new(tris.into_iter().enumerate().map(|(i, m)| Object::new(format!("t{i}"), m)).collect());
-    let db = build(&scene, 4, 4096, 50, LodParams::default());
+fn check_catches_a_forged_bound_that_misses_part_of_its_surface() {
+    use mktree::store::format::frame::BlockType;
+    // Slanted triangles, stored with every bound, in 1 KiB blocks: several
+    // node blocks, so the forged leaf's checksum is held by a parent entry.
+    let scene = Scene::new(
+        (0..12)
+            .map(|i| {
+                let o = [(i % 4) as f64 * 120.0, (i / 4) as f64 * 120.0, (i % 3) as f64 * 40.0];
+                let m = triangle(
+                    o,
+                    [o[0] + 100.0, o[1] + 10.0, o[2] + 60.0],
+                    [o[0] + 20.0, o[1] + 90.0, o[2] + 30.0],
+                );
+                Object::new(format!("t{i}"), m)
+            })
+            .collect(),
+    );
+    let (db, dev) = build(&scene, 4, 1024, 3, store_all());
+    assert!(check(&db).unwrap().ok());
+    drop(db);
+    let mut img = forge::Image { bytes: dev.to_bytes(), bs: 1024 };
+    let nodes = img.blocks_of(BlockType::Node);
+    assert!(nodes.len() > 1, "the scene spans several node blocks");
+    // A bitmap bound (form 1) in the last node block: clear its first set cell.
+    let (block, blob) = nodes
+        .iter()
+        .rev()
+        .flat_map(|&b| img.records(b).into_iter().map(move |r| (b, r)))
+        .filter(|&(_, r)| img.bytes[r] == 2)
+        .flat_map(|(b, r)| img.leaf_bounds(r).into_iter().map(move |x| (b, x)))
+        .find(|(_, (_, _, at, _))| img.bytes[at + 1] == 1)
+        .map(|(b, (_, _, at, len))| (b, at..at + len))
+        .expect("a bitmap bound");
+    let root_block = u32::from_le_bytes(img.bytes[img.meta() * 1024 + 16..][..4].try_into().unwrap());
+    assert_ne!(block as u32, root_block, "the forged leaf's checksum is held by a parent entry");
+    let bits = blob.start + 24..blob.end;
+    let byte = bits.clone().find(|&i| img.bytes[i] != 0).expect("a set cell");
+    img.bytes[byte] &= img.bytes[byte] - 1;
+    img.reseal(block, BlockType::Node);
+    let db = Database::open_on(Arc::new(MemDevice::from_bytes(img.bytes)) as Arc<dyn BlockDevice>).unwrap();
     let report = check(&db).unwrap();
-    assert!(report.ok(), "{:?}", report.faults);
-    let r = db.begin_read().unwrap();
-    let level2 = r.fetch_level(r.root().unwrap(), 2, false, &mut ReadStats::default()).unwrap();
-    assert!(level2.faces() < 200, "the cuberille of 200 triangles has {} faces", level2.faces());
-}
-
-#[test]
-fn check_catches_a_bound_that_misses_its_object() {
-    use mktree::store::format::frame::{BlockType, seal};
-    use mktree::store::format::header::{Commit, Slot, SlotRead, SlotState, slot_offset};
-    // The golden file (M = 3): the second LOD block holds a leaf's cuberille.
-    let mut f = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v2.mkt")).unwrap();
-    let bs = 1024;
-    let block = |i: usize| i * bs..(i + 1) * bs;
-    let all = |f: &[u8], t: BlockType| -> Vec<usize> {
-        (1..f.len() / bs).filter(|&i| f[i * bs + 4] == t as u8).collect()
-    };
-    let (lod, node, meta) =
-        (all(&f, BlockType::Lod)[1], all(&f, BlockType::Node)[0], all(&f, BlockType::Meta)[0]);
-    // The first blob: length word at 24, the voxel blob after it, its bitmap at 68: clear every cell.
-    let len = u32::from_le_bytes(f[lod * bs + 24..lod * bs + 28].try_into().unwrap()) as usize;
-    f[lod * bs + 28 + 68..lod * bs + 28 + len].fill(0);
-    let lod_sum = seal(lod as u32, &mut f[block(lod)], BlockType::Lod, 2);
-    // Entries naming that block carry its checksum: records of 120 + 32 * 3 bytes from offset 24.
-    let count = u16::from_le_bytes([f[node * bs + 16], f[node * bs + 17]]) as usize;
-    for r in 0..count {
-        for e in 0..6 {
-            let at = node * bs + 24 + r * 216 + 120 + 16 * e;
-            if f[at] == 1 && u32::from_le_bytes(f[at + 4..at + 8].try_into().unwrap()) == lod as u32 {
-                f[at + 12..at + 16].copy_from_slice(&lod_sum.to_le_bytes());
-            }
-        }
-    }
-    let node_sum = seal(node as u32, &mut f[block(node)], BlockType::Node, 2);
-    f[meta * bs + 20..meta * bs + 24].copy_from_slice(&node_sum.to_le_bytes());
-    let meta_sum = seal(meta as u32, &mut f[block(meta)], BlockType::Meta, 2);
-    let SlotRead::Committed(c) = Slot::decode(1, &f[slot_offset(1)..slot_offset(1) + 256]) else {
-        panic!("slot 1")
-    };
-    let c = Commit { meta_checksum: meta_sum, ..c };
-    f[slot_offset(1)..slot_offset(1) + 256].copy_from_slice(&Slot::encode(1, SlotState::Committed, &c));
-    let db = Database::open_on(std::sync::Arc::new(mktree::store::device::MemDevice::from_bytes(f))).unwrap();
-    let report = check(&db).unwrap();
-    assert!(report.faults.iter().any(|f| f.contains("outside level 2")), "{:?}", report.faults);
+    assert!(!report.faults.is_empty(), "the forged bound went unnoticed");
+    // Every checksum matches again: the bound is the one fault.
+    assert!(report.faults.iter().all(|f| f.contains("does not hold its surface")), "{:?}", report.faults);
 }

@@ -179,7 +179,8 @@ impl ReadTransaction {
             return Err(StorageError::Invalid(format!("level {k} is not in 1..={m}")));
         }
         let (at, (node_blocks, geometry_blocks)) = self.locate(node)?;
-        if k == 1 && !objects {
+        // b(S_n,1) is the node's box, unless level 1 is M (the exact objects).
+        if k == 1 && !objects && m > 1 {
             return Ok(Level {
                 pieces: vec![Piece::Box { node, aabb: at.aabb }],
                 bytes: 0,

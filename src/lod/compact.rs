@@ -45,16 +45,32 @@ pub fn aligned_grid(lattice: &Lattice, level: u8, b: &Aabb) -> Result<Grid, LodE
         {
             return Err(LodError::TooLarge { level, dims: [0; 3], cells: u64::MAX });
         }
+        // The guess is off by a plane or two at most; where planes do not
+        // advance with n (a cell below the coordinates' resolution) the walks
+        // are cut short instead of running forever.
+        let stalled = || LodError::BadLattice { origin: lattice.origin.into(), cell: lattice.cell };
         let mut n = guess as i64;
+        let mut steps = 0;
         while lattice.plane(level, a, n) > b.min[a] {
             n -= 1;
+            steps += 1;
+            if steps > 4 {
+                return Err(stalled());
+            }
         }
         while lattice.plane(level, a, n + 1) <= b.min[a] {
             n += 1;
+            steps += 1;
+            if steps > 8 {
+                return Err(stalled());
+            }
         }
         let mut m = n + 1;
         while lattice.plane(level, a, m) < b.max[a] {
             m += 1;
+            if m - n > i64::from(u16::MAX) + 2 {
+                return Err(stalled());
+            }
         }
         lo[a] = lattice.plane(level, a, n);
         hi[a] = lattice.plane(level, a, m);

@@ -52,16 +52,32 @@ impl Grid {
                 estimate[a] = u32::MAX;
                 continue;
             }
+            // The estimate is off by a plane or two at most; where planes do
+            // not advance with n (a cell below the coordinates' resolution,
+            // e.g. a far origin) the walks would never end: they are bounded.
+            let stalled = || LodError::BadLattice { origin: lattice.origin.into(), cell: lattice.cell };
             let mut n = ((lo - lattice.origin[a]) / s).floor() as i64 + 1;
+            let mut steps = 0;
             while lattice.plane(level, a, n - 1) > lo {
                 n -= 1;
+                steps += 1;
+                if steps > 4 {
+                    return Err(stalled());
+                }
             }
             while lattice.plane(level, a, n) <= lo {
                 n += 1;
+                steps += 1;
+                if steps > 8 {
+                    return Err(stalled());
+                }
             }
             let mut m = n - 1;
             while lattice.plane(level, a, m + 1) < hi {
                 m += 1;
+                if m - n > i64::from(MAX_DIM) + 2 {
+                    return Err(stalled());
+                }
             }
             first[a] = n;
             let d = (m - n + 2).max(1);
@@ -165,9 +181,12 @@ impl Grid {
     pub(crate) fn cell_of(&self, axis: usize, x: f64) -> u32 {
         let d = self.dims[axis];
         let s = self.lattice.cell_at(self.level);
+        // Far coordinates saturate (as i64 does from f64), and the offset is
+        // taken in i128, so no coordinate overflows: clamping puts it at an end.
         let est = ((x - self.lattice.origin[axis]) / s).floor();
-        let est = if est.is_finite() { est as i64 - self.first[axis] + 1 } else { 0 };
-        let mut k = est.clamp(0, i64::from(d) - 1) as u32;
+        let est = if est.is_finite() { i128::from(est as i64) - i128::from(self.first[axis]) + 1 } else { 0 };
+        let est = est.clamp(0, i128::from(d) - 1) as i64;
+        let mut k = est as u32;
         while k > 0 && self.plane(axis, k) > x {
             k -= 1;
         }

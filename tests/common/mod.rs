@@ -2,6 +2,8 @@
 //! in-memory database built from them.
 #![allow(dead_code)]
 
+pub mod forge;
+
 use std::sync::Arc;
 
 use mktree::build::BuildParams;

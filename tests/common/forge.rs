@@ -1,0 +1,163 @@
+//! Byte-level access to a file image, after format-spec/ (node.md, meta.md,
+//! header.md): find records and bounds, and after changing a block's bytes
+//! make every checksum that vouches for it match again, up the chain to the
+//! committed slot, so that a reader gets past the checksums to the forged
+//! content.
+
+use mktree::store::format::frame::{BlockType, seal};
+use mktree::store::format::header::{Commit, Slot, SlotRead, SlotState, slot_offset};
+
+/// A file's bytes in blocks of `bs` bytes.
+pub struct Image {
+    pub bytes: Vec<u8>,
+    pub bs: usize,
+}
+
+fn u16_at(b: &[u8], at: usize) -> usize {
+    usize::from(u16::from_le_bytes([b[at], b[at + 1]]))
+}
+
+fn u32_at(b: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
+}
+
+impl Image {
+    /// Blocks whose frame says type `t`.
+    pub fn blocks_of(&self, t: BlockType) -> Vec<usize> {
+        (1..self.bytes.len() / self.bs).filter(|&i| self.bytes[i * self.bs + 4] == t as u8).collect()
+    }
+
+    /// Absolute offsets of the records of node block `b` (node.md: the
+    /// record count at 20, records from 24, each sized by its head).
+    pub fn records(&self, b: usize) -> Vec<usize> {
+        let base = b * self.bs;
+        let mut at = base + 24;
+        (0..u16_at(&self.bytes, base + 20))
+            .map(|_| {
+                let r = at;
+                at += self.record_len(r);
+                r
+            })
+            .collect()
+    }
+
+    /// Bytes of the record at `r`: an internal record's 84 and its bounds,
+    /// or a leaf's head, span checksums, objects, `end` and bounds.
+    pub fn record_len(&self, r: usize) -> usize {
+        let f = &self.bytes;
+        match f[r] {
+            1 => 84 + u16_at(f, r + 2),
+            2 => {
+                let (n, s) = (u16_at(f, r + 2), u16_at(f, r + 12));
+                20 + 4 * s + 20 * n + 4 + u32_at(f, r + 16) as usize
+            }
+            k => panic!("record kind {k} at {r}"),
+        }
+    }
+
+    /// A leaf record's bound entries: (target, level, absolute blob offset, blob length).
+    pub fn leaf_bounds(&self, r: usize) -> Vec<(usize, u8, usize, usize)> {
+        let f = &self.bytes;
+        let (n, s) = (u16_at(f, r + 2), u16_at(f, r + 12));
+        let mut at = r + 20 + 4 * s + 20 * n + 4;
+        let end = at + u32_at(f, r + 16) as usize;
+        let mut out = Vec::new();
+        while at < end {
+            let len = u32_at(f, at + 4) as usize;
+            out.push((u16_at(f, at), f[at + 2], at + 8, len));
+            at += 8 + len.next_multiple_of(4);
+        }
+        out
+    }
+
+    /// The committed slot with the larger transaction id, and its commit.
+    fn committed(&self) -> (usize, Commit) {
+        (0..2)
+            .filter_map(|i| match Slot::decode(i, &self.bytes[slot_offset(i)..slot_offset(i) + 256]) {
+                SlotRead::Committed(c) => Some((i, c)),
+                _ => None,
+            })
+            .max_by_key(|(_, c)| c.txn)
+            .expect("a committed slot")
+    }
+
+    /// The committed meta block.
+    pub fn meta(&self) -> usize {
+        self.committed().1.meta_block as usize
+    }
+
+    fn seal(&mut self, b: usize, t: BlockType) -> u32 {
+        let at = b * self.bs;
+        let txn = u64::from_le_bytes(self.bytes[at + 8..at + 16].try_into().unwrap());
+        seal(b as u32, &mut self.bytes[at..at + self.bs], t, txn)
+    }
+
+    /// Re-seals block `b` as type `t` and every checksum up the chain that
+    /// vouches for it: a node block's parent entries (or the meta block's
+    /// `root_checksum`), a geometry block's entry in its leaves' spans, the
+    /// names block's `names_checksum`, the meta block's in the committed slot.
+    /// Block `b` itself is never parsed: its bytes may be the forgery.
+    pub fn reseal(&mut self, b: usize, t: BlockType) {
+        self.reseal_above(b, t, b);
+    }
+
+    fn reseal_above(&mut self, b: usize, t: BlockType, forged: usize) {
+        let sum = self.seal(b, t);
+        let meta = self.meta();
+        match t {
+            BlockType::Meta => {
+                let (i, c) = self.committed();
+                let c = Commit { meta_checksum: sum, ..c };
+                self.bytes[slot_offset(i)..slot_offset(i) + 256].copy_from_slice(&Slot::encode(
+                    i,
+                    SlotState::Committed,
+                    &c,
+                ));
+            }
+            BlockType::Names => {
+                let at = meta * self.bs + 148;
+                self.bytes[at..at + 4].copy_from_slice(&sum.to_le_bytes());
+                self.reseal_above(meta, BlockType::Meta, forged);
+            }
+            BlockType::Node | BlockType::Geometry => {
+                let mut parents = Vec::new();
+                for p in self.blocks_of(BlockType::Node).into_iter().filter(|&p| p != forged) {
+                    for r in self.records(p) {
+                        for at in self.references(r, b) {
+                            self.bytes[at..at + 4].copy_from_slice(&sum.to_le_bytes());
+                            parents.push(p);
+                        }
+                    }
+                }
+                parents.sort_unstable();
+                parents.dedup();
+                for p in parents {
+                    self.reseal_above(p, BlockType::Node, forged);
+                }
+                let root = meta * self.bs + 16;
+                if t == BlockType::Node && u32_at(&self.bytes, root) == b as u32 {
+                    self.bytes[root + 4..root + 8].copy_from_slice(&sum.to_le_bytes());
+                    self.reseal_above(meta, BlockType::Meta, forged);
+                }
+            }
+            other => panic!("no chain for {other:?} blocks here"),
+        }
+    }
+
+    /// Where record `r` holds block `b`'s checksum: a child entry naming
+    /// it, or a leaf span's entry for it.
+    fn references(&self, r: usize, b: usize) -> Vec<usize> {
+        let f = &self.bytes;
+        match f[r] {
+            1 => (0..2)
+                .map(|c| r + 20 + 32 * c)
+                .filter(|&e| u32_at(f, e + 12) == b as u32)
+                .map(|e| e + 16)
+                .collect(),
+            _ => {
+                let (first, span) = (u32_at(f, r + 8) as usize, u16_at(f, r + 12));
+                (first..first + span).zip(0..).filter(|&(g, _)| g == b).map(|(_, i)| r + 20 + 4 * i).collect()
+            }
+        }
+    }
+}
