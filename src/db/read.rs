@@ -1,7 +1,7 @@
 //! The read transaction: a consistent snapshot of the committed tree, with
 //! verified, counted block reads (format-spec/node.md, geometry.md).
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 use std::sync::Arc;
 
 use super::{Inner, Snapshot, codes};
@@ -67,14 +67,15 @@ pub struct NodeRef {
 /// it has one.
 pub struct Reads<'c> {
     pub stats: ReadStats,
-    held: HashMap<u32, Arc<Block>>,
+    // Block ids hash with Fx: SipHash's resistance buys nothing here and costs a warm query.
+    held: FxHashMap<u32, Arc<Block>>,
     shared: Option<&'c BlockCache>,
 }
 
 impl<'c> Reads<'c> {
     /// Reads through `shared` (a pool kept across operations) when given.
     pub fn new(shared: Option<&'c BlockCache>) -> Reads<'c> {
-        Reads { stats: ReadStats::default(), held: HashMap::new(), shared }
+        Reads { stats: ReadStats::default(), held: FxHashMap::default(), shared }
     }
 
     /// True when block `id` is already in hand (reading it costs nothing).

@@ -26,8 +26,7 @@ pub trait Selection {
     /// The shape may meet the surface that voxel set `v` bounds.
     fn may_meet_voxels(&self, v: &Voxels) -> bool {
         let tol = v.grid().tolerance();
-        self.may_meet_box(&v.grid().bounds().grown(tol))
-            && v.world_boxes().iter().any(|b| self.may_meet_box(&b.grown(tol)))
+        self.may_meet_box(&v.grid().bounds().grown(tol)) && v.cell_boxes().any(|b| self.may_meet_box(&b))
     }
     /// Some cell of `v` (a set of surface cells) proves contact.
     fn confirms_voxels(&self, v: &Voxels) -> bool {
@@ -56,6 +55,17 @@ impl Region {
 }
 
 impl Selection for Region {
+    fn may_meet_voxels(&self, v: &Voxels) -> bool {
+        match self {
+            // The cells in the query's range, not every cell.
+            Region::Box(q) => v.may_meet(q),
+            _ => {
+                let tol = v.grid().tolerance();
+                self.may_meet_box(&v.grid().bounds().grown(tol)) && v.cell_boxes().any(|b| self.may_meet_box(&b))
+            }
+        }
+    }
+
     fn may_meet_box(&self, b: &Aabb) -> bool {
         match self {
             Region::Box(q) => q.intersects(b),

@@ -213,9 +213,9 @@ struct Run<'t, 'c, 'v, S: ?Sized> {
     visits: u64,
     visit_limit: u64,
     /// Objects decided so far (a part still queued of one is not read).
-    done: std::collections::HashSet<u32>,
+    done: rustc_hash::FxHashSet<u32>,
     /// Objects whose parts are queued for their geometry: parts left.
-    parts: std::collections::HashMap<u32, u32>,
+    parts: rustc_hash::FxHashMap<u32, u32>,
     stats: TraverseStats,
     objects: Vec<ObjectId>,
     decided: Vec<ObjectLevel>,

@@ -6,7 +6,9 @@
 //! is checked against the checksum its reference holds, so a hit is never
 //! stale.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
+
+use rustc_hash::FxHashMap;
 use std::sync::{Arc, Mutex};
 
 /// A verified block in memory.
@@ -34,7 +36,7 @@ impl Block {
 #[derive(Debug, Default)]
 struct Lru {
     clock: u64,
-    blocks: HashMap<u32, (Arc<Block>, u64)>,
+    blocks: FxHashMap<u32, (Arc<Block>, u64)>,
     by_age: BTreeMap<u64, u32>,
 }
 

@@ -196,8 +196,8 @@ impl Visitor for Walker<'_> {
                     }
                     // Each face of the stored box must hold the true face: the box witnesses contact.
                     let tight = (0..3).all(|a| {
-                        (q.lower_face[a].0..=q.lower_face[a].1).contains(&b.min[a])
-                            && (q.upper_face[a].0..=q.upper_face[a].1).contains(&b.max[a])
+                        let (lower, upper) = (q.lower_face(a), q.upper_face(a));
+                        (lower.0..=lower.1).contains(&b.min[a]) && (upper.0..=upper.1).contains(&b.max[a])
                     });
                     if !tight {
                         self.faults

@@ -58,10 +58,8 @@ pub fn quantize(frame: &Aabb, b: &Aabb) -> [u16; 6] {
 pub struct QuantBox {
     /// Contains the true box.
     pub outer: Aabb,
-    /// Per axis, the slab `[lo, hi]` that holds the true lower face's
-    /// coordinate, and the one that holds the upper face's.
-    pub lower_face: [(f64, f64); 3],
-    pub upper_face: [(f64, f64); 3],
+    frame: Aabb,
+    q: [u16; 6],
 }
 
 impl QuantBox {
@@ -75,10 +73,23 @@ impl QuantBox {
             Point::new(d(0, q[0]), d(1, q[1]), d(2, q[2])),
             Point::new(d(0, q[3]), d(1, q[4]), d(2, q[5])),
         );
-        let lower_face = std::array::from_fn(|a| (d(a, q[a]), d(a, q[a].saturating_add(1).min(q[a + 3]))));
-        let upper_face =
-            std::array::from_fn(|a| (d(a, q[a + 3].saturating_sub(1).max(q[a])), d(a, q[a + 3])));
-        Some(QuantBox { outer, lower_face, upper_face })
+        Some(QuantBox { outer, frame: *frame, q })
+    }
+
+    /// The slab `[lo, hi]` on `axis` that holds the true lower face's coordinate.
+    pub fn lower_face(&self, axis: usize) -> (f64, f64) {
+        let q = self.q;
+        (self.outer.min[axis], self.step(axis, q[axis].saturating_add(1).min(q[axis + 3])))
+    }
+
+    /// The slab `[lo, hi]` on `axis` that holds the true upper face's coordinate.
+    pub fn upper_face(&self, axis: usize) -> (f64, f64) {
+        let q = self.q;
+        (self.step(axis, q[axis + 3].saturating_sub(1).max(q[axis])), self.outer.max[axis])
+    }
+
+    fn step(&self, axis: usize, s: u16) -> f64 {
+        dequantize(self.frame.min[axis], self.frame.max[axis], s)
     }
 
     /// The six regions that each hold a whole face of the true box: the
@@ -86,7 +97,7 @@ impl QuantBox {
     /// set holding one of them holds a point of whatever the box is tight on.
     pub fn face_slabs(&self) -> [Aabb; 6] {
         std::array::from_fn(|i| {
-            let (a, (lo, hi)) = if i < 3 { (i, self.lower_face[i]) } else { (i - 3, self.upper_face[i - 3]) };
+            let (a, (lo, hi)) = if i < 3 { (i, self.lower_face(i)) } else { (i - 3, self.upper_face(i - 3)) };
             let mut s = self.outer;
             s.min[a] = lo;
             s.max[a] = hi;
@@ -119,8 +130,8 @@ mod tests {
             let q = QuantBox::decode(&frame, quantize(&frame, &b)).unwrap();
             for a in 0..3 {
                 prop_assert!(q.outer.min[a] <= b.min[a] && q.outer.max[a] >= b.max[a]);
-                prop_assert!(q.lower_face[a].0 <= b.min[a] && b.min[a] <= q.lower_face[a].1);
-                prop_assert!(q.upper_face[a].0 <= b.max[a] && b.max[a] <= q.upper_face[a].1);
+                prop_assert!(q.lower_face(a).0 <= b.min[a] && b.min[a] <= q.lower_face(a).1);
+                prop_assert!(q.upper_face(a).0 <= b.max[a] && b.max[a] <= q.upper_face(a).1);
             }
             for s in q.face_slabs() {
                 prop_assert!(q.outer.contains(&s));
