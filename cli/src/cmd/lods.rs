@@ -82,10 +82,11 @@ pub fn table(file: &Path, as_json: bool) -> Result<()> {
                 "stored",
                 "predicted_saving",
                 "predicted_cost",
+                "measured_saving",
             ]
             .iter()
             .map(|key| match &l[*key] {
-                serde_json::Value::Number(n) if n.is_f64() => format!("{:.1}", n.as_f64().unwrap_or(0.0)),
+                serde_json::Value::Number(n) if n.is_f64() => format!("{:.2}", n.as_f64().unwrap_or(0.0)),
                 v => v.to_string(),
             })
             .collect()
