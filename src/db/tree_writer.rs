@@ -20,7 +20,7 @@ use crate::store::layout::{self, Packing};
 use crate::store::{Pager, StorageError};
 
 /// Sample queries per scale of the read model.
-const SAMPLES_PER_SCALE: usize = 128;
+const SAMPLES_PER_SCALE: usize = 256;
 
 /// The least average fill of node blocks a packing must reach, when one can.
 const MIN_FILL: f64 = 0.8;

@@ -332,7 +332,7 @@ fn lod_error(e: crate::lod::LodError) -> StorageError {
 
 /// The bounds to store: chosen block by block, they may still not pay as a
 /// whole, since the bytes they add change the packing. Of the best-valued
-/// bounds (all, half, a quarter, ... by value), the most the model's
+/// bounds (all, half, a quarter, an eighth, by value), the most the model's
 /// queries read no more with at any scale than with none, and less in all;
 /// none if no share passes.
 fn worth_keeping(
@@ -346,7 +346,10 @@ fn worth_keeping(
     let base = plan.expected_reads(scene, tree, &without, block_size);
     let values = stored.values();
     let mut count = values.len();
-    while count > 0 {
+    for _ in 0..4 {
+        if count == 0 {
+            break;
+        }
         let kept = stored.keep(values[count - 1]);
         let reads = plan.expected_reads(scene, tree, &kept, block_size);
         if reads.iter().zip(&base).all(|(x, y)| x <= y)
