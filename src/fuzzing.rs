@@ -89,7 +89,12 @@ pub fn open_and_query(data: &[u8]) {
                 let _ = query_region(&r, &Region::Box(b), &QueryOptions { lod, ..Default::default() }, None);
             }
         }
-        let _ = query_region(&r, &Region::Box(corner), &QueryOptions { budget: Some(2), ..Default::default() }, None);
+        let _ = query_region(
+            &r,
+            &Region::Box(corner),
+            &QueryOptions { budget: Some(2), ..Default::default() },
+            None,
+        );
         let _ = read_hierarchy(&r);
         let _ = r.names();
         if let Some(info) = r.info() {

@@ -12,6 +12,7 @@ use std::sync::Arc;
 use common::{box_mesh, triangle};
 use mktree::build::{BuildParams, LeafRule, Method, build};
 use mktree::db::{CreateOptions, Database, check};
+use mktree::lod::LodParams;
 use mktree::scene::{Object, Scene};
 use mktree::store::device::MemDevice;
 use mktree::store::{BlockDevice, StorageError};
@@ -21,7 +22,8 @@ const GOLDEN_V1: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-
 const GOLDEN_V2: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v2.mkt");
 const EXAMPLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/format-spec/example.md");
 
-/// Three objects, two leaves, 1,024-byte blocks, M = 3 (box, cuberille, exact).
+/// Three objects, two leaves, 1,024-byte blocks, M = 3 (box, cuberille,
+/// exact), every object's cuberille stored.
 fn tiny() -> Vec<u8> {
     let scene = Scene::new(vec![
         Object::new("plate", triangle([0.0, 0.0, 0.0], [100.0, 0.0, 0.0], [0.0, 50.0, 0.0])),
@@ -38,6 +40,9 @@ fn tiny() -> Vec<u8> {
     )
     .unwrap();
     let mut w = db.begin_write().unwrap();
+    // Every bound stored, so the example shows bound entries whatever the
+    // policy judges them worth.
+    w.set_lod_params(LodParams { store_all: true, ..LodParams::default() });
     w.write_tree(&scene, &tree, &params, 0.0).unwrap();
     w.commit().unwrap();
     assert!(check(&db).unwrap().ok());

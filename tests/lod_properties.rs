@@ -18,7 +18,7 @@
 //!
 //! Dropped from version 2: "b(S_n,k+1) lies in b(S_n,k)" and "bounds have
 //! fewer faces than long triangle strips". Version 3 stores no group bounds
-//! b(S_n,k) (the writer fills only per-object bounds in leaf records), and
+//! b(S_n,k) (only leaf records hold bounds, one per entry and level), and
 //! a closed object's bound is its surface, no longer its filled solid.
 
 mod common;
@@ -159,7 +159,12 @@ fn a_closed_boxs_bound_holds_its_surface_not_its_inside() {
         Object::new("box", box_mesh([0.0; 3], [100.0, 100.0, 100.0])),
         Object::new("twin", box_mesh([200.0, 0.0, 0.0], [300.0, 100.0, 100.0])),
     ]);
-    let (db, _) = build(&scene, 4, 4096, 4, store_all());
+    // Cells of about 12 mm (eps 20 mm at level 3, the cuberille as fine
+    // within its budget): a 100 mm box is several cells across, so its
+    // inside is cells of their own. (With the default eps, from the median
+    // object's sides, it would be two cells across, each touching a face.)
+    let lod = LodParams { eps: Some(vec![20.0]), ..store_all() };
+    let (db, _) = build(&scene, 4, 4096, 4, lod);
     assert!(check(&db).unwrap().ok());
     for k in 2..4 {
         let bounds = bounds_at(&db, k);
@@ -264,7 +269,7 @@ fn check_catches_a_forged_bound_that_misses_part_of_its_surface() {
     // Slanted triangles, stored with every bound, in 1 KiB blocks: several
     // node blocks, so the forged leaf's checksum is held by a parent entry.
     let scene = Scene::new(
-        (0..12)
+        (0..24)
             .map(|i| {
                 let o = [(i % 4) as f64 * 120.0, (i / 4) as f64 * 120.0, (i % 3) as f64 * 40.0];
                 let m = triangle(
@@ -294,7 +299,8 @@ fn check_catches_a_forged_bound_that_misses_part_of_its_surface() {
         .expect("a bitmap bound");
     let root_block = u32::from_le_bytes(img.bytes[img.meta() * 1024 + 16..][..4].try_into().unwrap());
     assert_ne!(block as u32, root_block, "the forged leaf's checksum is held by a parent entry");
-    let bits = blob.start + 24..blob.end;
+    // The blob's head is its lattice level and form; the bitmap follows.
+    let bits = blob.start + 2..blob.end;
     let byte = bits.clone().find(|&i| img.bytes[i] != 0).expect("a set cell");
     img.bytes[byte] &= img.bytes[byte] - 1;
     img.reseal(block, BlockType::Node);

@@ -60,7 +60,7 @@ fn check_predictions(db: &Database) {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
     #[test]
-    fn predicted_reads_equal_actual_reads(scene in arb_scene(80), cap in 1u32..6, bs in prop::sample::select(vec![1024u32, 1536, 4096]), m in 2u8..6) {
+    fn predicted_reads_equal_actual_reads(scene in arb_scene(80), cap in 1u32..6, bs in prop::sample::select(vec![1024u32, 1536, 4096]), m in 1u8..6) {
         let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(cap), ..BuildParams::default() };
         let (db, _) = common::mem_db(&scene, &params, CreateOptions { block_size: bs, lod_levels: m });
         check_predictions(&db);
@@ -78,10 +78,8 @@ fn multi_block_leaves_and_big_objects_are_predicted_too() {
 
 /// With M = 1 the one level is the exact geometry (format-spec/lod.md:
 /// level M is the exact objects), so the prediction covers its geometry
-/// blocks and the pieces are objects; M = 1 is kept out of the proptest
-/// above until this holds.
+/// blocks and the pieces are objects.
 #[test]
-#[ignore = "bug: with M = 1, fetch_level(node, 1, false) returns the node's box, not its exact objects"]
 fn with_one_level_fetching_level_1_reads_the_exact_objects() {
     let params = BuildParams { leaf: LeafRule::Objects(4), ..BuildParams::default() };
     let (db, _) = common::mem_db(&grid_scene(30), &params, CreateOptions { block_size: 1024, lod_levels: 1 });

@@ -61,7 +61,8 @@ impl Selection for Region {
             Region::Box(q) => v.may_meet(q),
             _ => {
                 let tol = v.grid().tolerance();
-                self.may_meet_box(&v.grid().bounds().grown(tol)) && v.cell_boxes().any(|b| self.may_meet_box(&b))
+                self.may_meet_box(&v.grid().bounds().grown(tol))
+                    && v.cell_boxes().any(|b| self.may_meet_box(&b))
             }
         }
     }

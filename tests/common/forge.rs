@@ -41,12 +41,12 @@ impl Image {
             .collect()
     }
 
-    /// Bytes of the record at `r`: an internal record's 84 and its bounds,
-    /// or a leaf's head, span checksums, objects, `end` and bounds.
+    /// Bytes of the record at `r`: an internal record's 84, or a leaf's
+    /// head, span checksums, objects, `end` and bounds.
     pub fn record_len(&self, r: usize) -> usize {
         let f = &self.bytes;
         match f[r] {
-            1 => 84 + u16_at(f, r + 2),
+            1 => 84,
             2 => {
                 let (n, s) = (u16_at(f, r + 2), u16_at(f, r + 12));
                 20 + 4 * s + 20 * n + 4 + u32_at(f, r + 16) as usize
@@ -55,18 +55,24 @@ impl Image {
         }
     }
 
-    /// A leaf record's bound entries: (target, level, absolute blob offset, blob length).
+    /// A leaf record's bound entries: (target, level, absolute blob offset,
+    /// blob length). Each entry is a 4-byte head (`target` u16, then
+    /// `level_bytes` u16: the level in bits 0-3, the blob's length in bits
+    /// 4-15) and its blob, unpadded; fewer than 4 bytes left are the area's
+    /// zero padding.
     pub fn leaf_bounds(&self, r: usize) -> Vec<(usize, u8, usize, usize)> {
         let f = &self.bytes;
         let (n, s) = (u16_at(f, r + 2), u16_at(f, r + 12));
         let mut at = r + 20 + 4 * s + 20 * n + 4;
         let end = at + u32_at(f, r + 16) as usize;
         let mut out = Vec::new();
-        while at < end {
-            let len = u32_at(f, at + 4) as usize;
-            out.push((u16_at(f, at), f[at + 2], at + 8, len));
-            at += 8 + len.next_multiple_of(4);
+        while at + 4 <= end {
+            let level_bytes = u16_at(f, at + 2);
+            let len = level_bytes >> 4;
+            out.push((u16_at(f, at), (level_bytes & 0xf) as u8, at + 4, len));
+            at += 4 + len;
         }
+        assert!(end >= at && f[at..end].iter().all(|&b| b == 0), "the bounds' padding at {at}");
         out
     }
 
