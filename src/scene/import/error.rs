@@ -31,12 +31,13 @@ impl fmt::Display for Location {
     }
 }
 
-/// Why a scene could not be imported. Every message starts with the file.
+/// Why a scene could not be imported. Every message starts with the file;
+/// the cause, if any, is the `source()`, not repeated in the message.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ImportError {
     /// The file or directory could not be opened or read.
-    #[error("cannot read {}: {source}", file.display())]
+    #[error("cannot read {}", file.display())]
     Io {
         file: PathBuf,
         #[source]
@@ -79,7 +80,7 @@ pub enum ImportError {
     #[error("{}: glTF: {message}", file.display())]
     Gltf { file: PathBuf, message: String },
     /// The mesh of an object was refused (for example, too many vertices).
-    #[error("{}: object {object:?}: {source}", file.display())]
+    #[error("{}: object {object:?}", file.display())]
     Mesh {
         file: PathBuf,
         object: String,
@@ -116,5 +117,13 @@ mod tests {
         assert_eq!(e.to_string(), "a.stl: object \"a\" has no triangles");
         let at = Location::Primitive { node: 4, mesh: 1, primitive: 0 };
         assert_eq!(at.to_string(), "node 4, mesh 1, primitive 0");
+    }
+
+    #[test]
+    fn a_cause_is_the_source_and_is_not_repeated_in_the_message() {
+        let e = ImportError::Io { file: "a.obj".into(), source: io::Error::other("disk on fire") };
+        assert_eq!(e.to_string(), "cannot read a.obj");
+        let source = std::error::Error::source(&e).map(|c| c.to_string());
+        assert_eq!(source.as_deref(), Some("disk on fire"));
     }
 }
