@@ -11,7 +11,6 @@
 
 mod bench_peers;
 mod error;
-mod hilbert;
 pub mod peers;
 mod query_sets;
 pub mod record;

@@ -32,6 +32,7 @@ pub use cost::{CostModel, MIX_SHARES, QueryMix};
 pub use driver::build;
 pub use error::BuildError;
 pub use hierarchy::{Hierarchy, Node, NodeId, NodeKind, Order, Split};
+pub use hilbert::curve_order;
 pub use leaf::{LeafRule, object_bytes};
 pub use params::{BuildParams, LookAhead, Method, ParseParamError, QueryExtent, TieBreak};
 pub use progress::{BuildProgress, estimate_work};
