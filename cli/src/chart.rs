@@ -38,7 +38,7 @@ macro_rules! svg_and_png {
         Ok(())
     }};
 }
-use svg_and_png;
+pub(crate) use svg_and_png;
 
 /// One series of `tradeoff`'s chart: a file's (mean block reads, precision)
 /// per level k.
@@ -103,7 +103,7 @@ fn draw_tradeoff<DB: DrawingBackend>(
     Ok(())
 }
 
-fn failed(e: impl std::fmt::Display) -> anyhow::Error {
+pub fn failed(e: impl std::fmt::Display) -> anyhow::Error {
     anyhow!("drawing the chart: {e}")
 }
 
@@ -146,44 +146,67 @@ fn panel<DB: DrawingBackend>(
         .flat_map(|(_, p)| p.iter().map(|&(_, y)| y))
         .fold((0.9f64, 1.1f64), |(lo, hi), y| (lo.min(y), hi.max(y)));
     let (lo, hi) = (lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo));
+    let what = if reads { "block reads" } else { "leaves visited" };
+    let panel = RatioPanel {
+        caption: format!("{}: {what} per query / best of median, sah, vsah", scene.scene),
+        sets: &labels,
+        lines,
+        y: lo..hi,
+        rules: vec![(1.0, BLACK.mix(0.6)), (0.9, RED.mix(0.4))],
+    };
+    ratio_panel(area, &panel, text)
+}
+
+/// One panel of ratios by query set: a line per series, horizontal rules at
+/// reference ratios, the legend upper right.
+pub struct RatioPanel<'a> {
+    pub caption: String,
+    /// The query sets' names, one per x position.
+    pub sets: &'a [String],
+    /// Per series: its name and (set index, ratio) points.
+    pub lines: Vec<(&'a str, Vec<(f64, f64)>)>,
+    pub y: std::ops::Range<f64>,
+    pub rules: Vec<(f64, RGBAColor)>,
+}
+
+pub fn ratio_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    p: &RatioPanel,
+    text: bool,
+) -> Result<()> {
     let mut builder = ChartBuilder::on(area);
     builder.margin(12);
     if text {
-        let what = if reads { "block reads" } else { "leaves visited" };
         builder
-            .caption(
-                format!("{}: {what} per query / best of median, sah, vsah", scene.scene),
-                ("sans-serif", 18),
-            )
+            .caption(&p.caption, ("sans-serif", 18))
             .x_label_area_size(28)
             .y_label_area_size(48)
             .right_y_label_area_size(90);
     }
-    let sets = labels.len().max(1) as f64;
-    let mut chart = builder.build_cartesian_2d(-0.5f64..sets - 0.5, lo..hi).map_err(failed)?;
+    let sets = p.sets.len().max(1) as f64;
+    let mut chart = builder.build_cartesian_2d(-0.5f64..sets - 0.5, p.y.clone()).map_err(failed)?;
     let mut mesh = chart.configure_mesh();
-    mesh.x_labels(labels.len()).disable_x_mesh();
+    mesh.x_labels(p.sets.len()).disable_x_mesh();
     if text {
-        let fmt = |x: &f64| labels.get(x.round() as usize).cloned().unwrap_or_default();
+        let fmt = |x: &f64| p.sets.get(x.round() as usize).cloned().unwrap_or_default();
         mesh.x_label_formatter(&fmt).y_label_formatter(&|y| format!("{y:.2}")).draw().map_err(failed)?;
     } else {
         mesh.x_labels(0).y_labels(0).draw().map_err(failed)?;
     }
-    for (level, colour) in [(1.0, BLACK.mix(0.6)), (0.9, RED.mix(0.4))] {
+    for &(level, colour) in &p.rules {
         chart
             .draw_series(LineSeries::new([(-0.5, level), (sets - 0.5, level)], colour.stroke_width(1)))
             .map_err(failed)?;
     }
-    for (i, (method, points)) in lines.iter().enumerate() {
+    for (i, (name, points)) in p.lines.iter().enumerate() {
         let colour = Palette99::pick(i).to_rgba();
         let series = chart
             .draw_series(LineSeries::new(points.iter().copied(), colour.stroke_width(2)))
             .map_err(failed)?;
         if text {
-            let legend = colour;
             series
-                .label(*method)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], legend.stroke_width(2)));
+                .label(*name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
         }
         chart.draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled()))).map_err(failed)?;
     }

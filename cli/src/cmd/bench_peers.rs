@@ -15,6 +15,7 @@ use plotters::prelude::*;
 use serde::Serialize;
 
 use crate::args::ImportArgs;
+use crate::chart::{RatioPanel, failed, ratio_panel, svg_and_png};
 use crate::output;
 
 /// `bench-peers`' arguments.
@@ -225,17 +226,7 @@ const LEVELS: [f64; 2] = [0.6, 0.8];
 /// (and parity, 1); as SVG with text and as PNG without.
 fn chart(groups: &[Vec<PeerRow>], svg: &Path, png: &Path) -> Result<()> {
     let size = (PANEL.0, PANEL.1 * groups.len().max(1) as u32);
-    let root = SVGBackend::new(svg, size).into_drawing_area();
-    draw(&root, groups, true)?;
-    root.present().map_err(|e| anyhow!("writing {}: {e}", svg.display()))?;
-    let root = BitMapBackend::new(png, size).into_drawing_area();
-    draw(&root, groups, false)?;
-    root.present().map_err(|e| anyhow!("writing {}: {e}", png.display()))?;
-    Ok(())
-}
-
-fn failed(e: impl std::fmt::Display) -> anyhow::Error {
-    anyhow!("drawing the chart: {e}")
+    svg_and_png!(size, svg, png, draw(groups))
 }
 
 fn draw<DB: DrawingBackend>(
@@ -255,57 +246,20 @@ fn draw<DB: DrawingBackend>(
 fn panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, rows: &[PeerRow], text: bool) -> Result<()> {
     let scene = rows.first().map_or("", |r| r.scene.as_str());
     let lines = [
-        ("exact answers", points(rows, |r| r.exact_reads_ratio), Palette99::pick(0).to_rgba()),
-        ("box filter", points(rows, |r| r.filter_reads_ratio), Palette99::pick(1).to_rgba()),
+        ("exact answers", points(rows, |r| r.exact_reads_ratio)),
+        ("box filter", points(rows, |r| r.filter_reads_ratio)),
     ];
     // Headroom above the highest point for the legend.
     let top = lines.iter().flat_map(|l| l.1.iter().map(|p| p.1)).fold(1.1f64, f64::max) * 1.3;
-    let sets = rows.len().max(1) as f64;
-    let mut builder = ChartBuilder::on(area);
-    builder.margin(12);
-    if text {
-        builder
-            .caption(format!("{scene}: mean reads per query, mktree / SQLite"), ("sans-serif", 18))
-            .x_label_area_size(28)
-            .y_label_area_size(48);
-    }
-    let mut chart = builder.build_cartesian_2d(-0.5f64..sets - 0.5, 0.0..top).map_err(failed)?;
-    let mut mesh = chart.configure_mesh();
-    mesh.x_labels(rows.len()).disable_x_mesh();
-    if text {
-        let fmt = |x: &f64| rows.get(x.round() as usize).map(|r| r.set.clone()).unwrap_or_default();
-        mesh.x_label_formatter(&fmt).y_label_formatter(&|y| format!("{y:.2}")).draw().map_err(failed)?;
-    } else {
-        mesh.x_labels(0).y_labels(0).draw().map_err(failed)?;
-    }
-    // Parity in grey, the reference ratios in red.
-    for (level, colour) in [(1.0, BLACK.mix(0.4))].into_iter().chain(LEVELS.map(|l| (l, RED.mix(0.4)))) {
-        chart
-            .draw_series(LineSeries::new([(-0.5, level), (sets - 0.5, level)], colour.stroke_width(1)))
-            .map_err(failed)?;
-    }
-    for (name, pts, colour) in &lines {
-        let series = chart
-            .draw_series(LineSeries::new(pts.iter().copied(), colour.stroke_width(2)))
-            .map_err(failed)?;
-        if text {
-            let legend = *colour;
-            series
-                .label(*name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], legend.stroke_width(2)));
-        }
-        chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, colour.filled()))).map_err(failed)?;
-    }
-    if text {
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(failed)?;
-    }
-    Ok(())
+    let sets: Vec<String> = rows.iter().map(|r| r.set.clone()).collect();
+    let panel = RatioPanel {
+        caption: format!("{scene}: mean reads per query, mktree / SQLite"),
+        sets: &sets,
+        lines: lines.into(),
+        y: 0.0..top,
+        rules: [(1.0, BLACK.mix(0.4))].into_iter().chain(LEVELS.map(|l| (l, RED.mix(0.4)))).collect(),
+    };
+    ratio_panel(area, &panel, text)
 }
 
 /// (set index, ratio) for the sets that have one.
