@@ -8,7 +8,8 @@
 //!
 //! Layers point down: `build` -> `scene` -> `geom`.
 
-#![forbid(unsafe_code)]
+// The one exception is the byte-range locks of src/store/lock.rs (fcntl).
+#![deny(unsafe_code)]
 
 pub use error::Error;
 

@@ -79,6 +79,9 @@ pub enum Command {
         build: BuildArgs,
         #[command(flatten)]
         lod: LodArgs,
+        /// If another process is writing the file, wait for it instead of failing.
+        #[arg(long)]
+        wait: bool,
         #[arg(long)]
         json: bool,
     },

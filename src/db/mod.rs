@@ -1,7 +1,7 @@
-//! `Database`: one `.mkt` file, opened with recovery, shared by read
-//! transactions (snapshots, MVCC in a process) and one write transaction at a
-//! time; locked exclusively against other processes. The protocol is
-//! format-spec/commit.md.
+//! `Database`: one `.mkt` file. Read transactions are snapshots, in this
+//! process and across processes; one write transaction runs at a time over
+//! all processes sharing the file, and it alone repairs what a crash left.
+//! The protocol is format-spec/commit.md.
 
 mod check;
 mod codes;
@@ -12,7 +12,7 @@ mod tree_writer;
 mod write;
 
 use std::collections::BTreeMap;
-use std::fs::{File, OpenOptions};
+use std::fs::OpenOptions;
 use std::path::Path;
 use std::sync::{Arc, Mutex, MutexGuard};
 
@@ -26,10 +26,11 @@ pub use write::WriteTransaction;
 
 use crate::store::device::FileDevice;
 use crate::store::format::frame::{self, BlockType};
-use crate::store::format::freelist::FreeListBlock;
-use crate::store::format::header::{self, Commit, PREFIX_LEN, Slot, SlotRead, SlotState};
+use crate::store::format::freelist::{FreeListBlock, FreeRange};
+use crate::store::format::header::{self, Commit, PREFIX_LEN, SlotPair, SlotRead, SlotState};
 use crate::store::format::meta::Meta;
 use crate::store::format::{validate_block_size, validate_lod_levels};
+use crate::store::lock::FileLocks;
 use crate::store::{BlockCache, BlockDevice, Pager, ReadStats, StorageError};
 
 /// Default block size, bytes. See the README's measurements.
@@ -54,7 +55,7 @@ impl Default for CreateOptions {
     }
 }
 
-/// What opening the file found and repaired.
+/// What a write transaction repaired before it began.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Recovery {
     /// A write transaction had been interrupted (crash or abort).
@@ -63,6 +64,35 @@ pub struct Recovery {
     pub scrubbed_blocks: u64,
     /// Blocks past the committed end removed.
     pub truncated_blocks: u64,
+    /// Copies of the committed slot rewritten from the other copy.
+    pub repaired_slot_copies: u64,
+}
+
+/// Something reading the header noticed that does not stop reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Warning {
+    /// A copy of a commit slot fails its checksum (a torn write or damage);
+    /// the other copy holds the slot and the next write rewrites this one.
+    DamagedSlotCopy { slot: u8, copy: u8 },
+    /// A write transaction was interrupted (crash or abort); the next write
+    /// transaction cleans up after it.
+    Interrupted,
+}
+
+impl std::fmt::Display for Warning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Warning::DamagedSlotCopy { slot, copy } => write!(
+                f,
+                "copy {copy} of commit slot {slot} fails its checksum (a torn write or damage); \
+                 the other copy holds the slot, and the next write rewrites it"
+            ),
+            Warning::Interrupted => {
+                write!(f, "a write transaction was interrupted; the next write cleans up after it")
+            }
+        }
+    }
 }
 
 /// The committed state a reader sees.
@@ -73,17 +103,26 @@ pub(crate) struct Snapshot {
     pub block_count: u32,
 }
 
+/// A committed state as read from the file.
+#[derive(Debug)]
+struct Loaded {
+    slots: [SlotPair; 2],
+    committed: Commit,
+    committed_slot: usize,
+    free: Vec<FreeRange>,
+    meta: Option<Meta>,
+}
+
 #[derive(Debug)]
 struct State {
+    slots: [SlotPair; 2],
     committed: Commit,
     committed_slot: usize,
     /// Free ranges of the committed state (what its free list holds).
-    free: Vec<(u32, u32)>,
+    free: Vec<FreeRange>,
     snapshot: Arc<Snapshot>,
-    /// Live readers by snapshot transaction.
+    /// Live readers in this process by snapshot transaction.
     readers: BTreeMap<u64, usize>,
-    /// Blocks made free by commit `txn`: reusable once no reader older than `txn` lives.
-    freed_at: Vec<(u64, Vec<(u32, u32)>)>,
 }
 
 pub(crate) struct Inner {
@@ -91,6 +130,9 @@ pub(crate) struct Inner {
     cache: BlockCache,
     state: Mutex<State>,
     writer: Mutex<()>,
+    /// Locks shared with other processes (files only).
+    locks: Option<FileLocks>,
+    read_only: bool,
 }
 
 /// An MKtree file.
@@ -114,7 +156,7 @@ pub(crate) struct Inner {
 /// ```
 pub struct Database {
     inner: Arc<Inner>,
-    recovery: Recovery,
+    warnings: Vec<Warning>,
 }
 
 impl std::fmt::Debug for Database {
@@ -123,51 +165,66 @@ impl std::fmt::Debug for Database {
     }
 }
 
-fn lock(file: &File) -> Result<(), StorageError> {
-    file.try_lock().map_err(|e| match e {
-        std::fs::TryLockError::WouldBlock => StorageError::Locked,
-        std::fs::TryLockError::Error(e) => StorageError::Io(e),
-    })
+/// How [`Database::begin_write_with`] meets another process's write.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum WriterWait {
+    /// Fail with [`StorageError::Locked`].
+    #[default]
+    Fail,
+    /// Wait until it ends.
+    Wait,
 }
 
 impl Database {
     /// Creates a new file at `path` (it must not exist) with an empty tree.
     pub fn create(path: impl AsRef<Path>, options: CreateOptions) -> Result<Database, StorageError> {
         let file = OpenOptions::new().read(true).write(true).create_new(true).open(path)?;
-        lock(&file)?;
-        Database::create_on(Arc::new(FileDevice::new(file)), options)
+        let locks = FileLocks::new(file.try_clone()?);
+        // Another process may open the file before its header is written: it
+        // sees no magic and gives up, and it cannot write meanwhile.
+        if !locks.lock_writer(false)? {
+            return Err(StorageError::Locked);
+        }
+        let device = Arc::new(FileDevice::new(file));
+        initialize(device.as_ref(), options)?;
+        locks.unlock_writer()?;
+        Database::open_with(device, Some(locks), false)
     }
 
-    /// Opens an existing file, recovering from an interrupted transaction.
+    /// Opens an existing file to read and write. Opening never writes: a
+    /// crash's leftovers are cleaned up by the next write transaction.
     pub fn open(path: impl AsRef<Path>) -> Result<Database, StorageError> {
         let file = OpenOptions::new().read(true).write(true).open(path)?;
-        lock(&file)?;
-        Database::open_on(Arc::new(FileDevice::new(file)))
+        let locks = FileLocks::new(file.try_clone()?);
+        Database::open_with(Arc::new(FileDevice::new(file)), Some(locks), false)
+    }
+
+    /// Opens an existing file to read only (a read-only file or mount will
+    /// do); [`begin_write`](Self::begin_write) fails with [`StorageError::ReadOnly`].
+    pub fn open_read_only(path: impl AsRef<Path>) -> Result<Database, StorageError> {
+        let file = OpenOptions::new().read(true).open(path)?;
+        let locks = FileLocks::new(file.try_clone()?);
+        Database::open_with(Arc::new(FileDevice::new(file)), Some(locks), true)
     }
 
     /// Creates a database on an empty device.
     pub fn create_on(device: Arc<dyn BlockDevice>, options: CreateOptions) -> Result<Database, StorageError> {
-        let block_size = validate_block_size(options.block_size.into())?;
-        let lod_levels = validate_lod_levels(options.lod_levels.into())?;
-        if !device.is_empty()? {
-            return Err(StorageError::Invalid("create needs an empty device".into()));
-        }
-        let mut block0 = header::encode_block0(block_size, lod_levels);
-        let first = Commit { txn: 1, block_count: 1, ..Commit::default() };
-        block0[header::slot_offset(0)..header::slot_offset(1)].copy_from_slice(&Slot::encode(
-            0,
-            SlotState::Committed,
-            &first,
-        ));
-        device.write_at(0, &block0)?;
-        device.sync()?;
+        initialize(device.as_ref(), options)?;
         Database::open_on(device)
     }
 
-    /// Opens a database on a device: reads the header, chooses the newest
-    /// committed slot, reads its free list and meta block, and recovers from
-    /// an interrupted transaction (format-spec/commit.md).
+    /// Opens a database on a device no other process writes: reads the
+    /// header, chooses the newest committed slot, reads its free list and
+    /// meta block (format-spec/commit.md).
     pub fn open_on(device: Arc<dyn BlockDevice>) -> Result<Database, StorageError> {
+        Database::open_with(device, None, false)
+    }
+
+    fn open_with(
+        device: Arc<dyn BlockDevice>,
+        locks: Option<FileLocks>,
+        read_only: bool,
+    ) -> Result<Database, StorageError> {
         let len = device.len()?;
         if len < PREFIX_LEN as u64 {
             return Err(if len == 0 {
@@ -179,43 +236,22 @@ impl Database {
         let mut prefix = vec![0u8; PREFIX_LEN];
         device.read_at(0, &mut prefix)?;
         let (block_size, lod_levels) = header::decode_prefix(&prefix)?;
-        let pager = Pager::new(device.clone(), block_size, lod_levels);
-        let block0 = pager.read_raw(0)?;
-        let (_, _, slots) = header::decode_block0(&block0)?;
-        let committed_slot = match slots {
-            [SlotRead::Committed(a), SlotRead::Committed(b)] => usize::from(b.txn > a.txn),
-            [SlotRead::Committed(_), _] => 0,
-            [_, SlotRead::Committed(_)] => 1,
-            _ => return Err(StorageError::corrupt(0, "slots", "no valid committed slot")),
-        };
-        let SlotRead::Committed(committed) = slots[committed_slot] else { unreachable!("chosen above") };
-        let other = slots[1 - committed_slot];
-        let blocks_on_disk = pager.block_count()?;
-        if blocks_on_disk < u64::from(committed.block_count) {
-            return Err(StorageError::Truncated {
-                detail: format!(
-                    "the commit holds {} blocks, the file {blocks_on_disk}",
-                    committed.block_count
-                ),
-            });
-        }
-        let free = read_free_list(&pager, &committed)?;
-        let meta = read_meta(&pager, &committed)?;
-        let interrupted = matches!(other, SlotRead::Pending { .. } | SlotRead::Invalid)
-            || blocks_on_disk > u64::from(committed.block_count)
-            || len % u64::from(block_size) != 0;
-        let mut recovery = Recovery { interrupted, ..Recovery::default() };
-        if interrupted {
-            recover(&pager, &committed, 1 - committed_slot, &free, &mut recovery)?;
-        }
-        let snapshot = Arc::new(Snapshot { txn: committed.txn, meta, block_count: committed.block_count });
+        let pager = Pager::new(device, block_size, lod_levels);
+        // The fixed region and the tail never change after creation: checked once.
+        header::decode_block0(&pager.read_raw(0)?)?;
+        let loaded = load(&pager)?;
+        let warnings = warnings(&pager, &loaded)?;
         let state = State {
-            committed,
-            committed_slot,
-            free,
-            snapshot,
+            slots: loaded.slots,
+            committed: loaded.committed,
+            committed_slot: loaded.committed_slot,
+            free: loaded.free,
+            snapshot: Arc::new(Snapshot {
+                txn: loaded.committed.txn,
+                meta: loaded.meta,
+                block_count: loaded.committed.block_count,
+            }),
             readers: BTreeMap::new(),
-            freed_at: Vec::new(),
         };
         Ok(Database {
             inner: Arc::new(Inner {
@@ -223,14 +259,16 @@ impl Database {
                 cache: BlockCache::new(DEFAULT_CACHE_BLOCKS),
                 state: Mutex::new(state),
                 writer: Mutex::new(()),
+                locks,
+                read_only,
             }),
-            recovery,
+            warnings,
         })
     }
 
-    /// What opening found and repaired.
-    pub fn recovery(&self) -> Recovery {
-        self.recovery
+    /// What opening noticed: damaged slot copies, an interrupted transaction.
+    pub fn warnings(&self) -> &[Warning] {
+        &self.warnings
     }
 
     /// Bytes per block.
@@ -243,34 +281,230 @@ impl Database {
         self.inner.pager.lod_levels()
     }
 
-    /// Starts the write transaction; waits for a running one to finish.
+    /// Starts the write transaction; waits for one running in this process,
+    /// and fails with [`StorageError::Locked`] if another process writes.
     pub fn begin_write(&self) -> Result<WriteTransaction<'_>, StorageError> {
-        let guard = self.inner.writer.lock().unwrap_or_else(|e| e.into_inner());
-        WriteTransaction::begin(&self.inner, guard)
+        self.begin_write_with(WriterWait::Fail)
     }
 
-    /// A read transaction on the last committed state.
+    /// Starts the write transaction, meeting another process's write as `wait` says.
+    pub fn begin_write_with(&self, wait: WriterWait) -> Result<WriteTransaction<'_>, StorageError> {
+        if self.inner.read_only {
+            return Err(StorageError::ReadOnly);
+        }
+        let guard = self.inner.writer.lock().unwrap_or_else(|e| e.into_inner());
+        let file_lock = match &self.inner.locks {
+            Some(l) if !l.lock_writer(wait == WriterWait::Wait)? => return Err(StorageError::Locked),
+            Some(l) => Some(WriterLock(l)),
+            None => None,
+        };
+        WriteTransaction::begin(&self.inner, guard, file_lock)
+    }
+
+    /// A read transaction on the newest committed state, which stays
+    /// readable however many commits follow while it lives.
     pub fn begin_read(&self) -> Result<ReadTransaction, StorageError> {
-        let mut s = self.inner.lock_state();
-        let snapshot = s.snapshot.clone();
-        *s.readers.entry(snapshot.txn).or_default() += 1;
-        Ok(ReadTransaction::new(self.inner.clone(), snapshot))
+        let inner = &self.inner;
+        if inner.locks.is_none() {
+            let snapshot = inner.lock_state().snapshot.clone();
+            inner.pin(snapshot.txn)?;
+            return Ok(ReadTransaction::new(inner.clone(), snapshot));
+        }
+        // Pin the newest state, then make sure it is still the newest: a
+        // writer that began before the pin could otherwise reuse its blocks.
+        for _ in 0..PIN_ATTEMPTS {
+            inner.refresh()?;
+            let snapshot = inner.lock_state().snapshot.clone();
+            inner.pin(snapshot.txn)?;
+            if newest(&read_slots(&inner.pager)?)?.1.txn == snapshot.txn {
+                return Ok(ReadTransaction::new(inner.clone(), snapshot));
+            }
+            inner.release_reader(snapshot.txn);
+        }
+        Err(StorageError::Invalid(format!(
+            "no snapshot held still through {PIN_ATTEMPTS} commits by other processes"
+        )))
     }
 
     pub(crate) fn pager(&self) -> &Pager {
         &self.inner.pager
     }
 
-    /// The committed slot and its free ranges (for `check`).
-    pub(crate) fn committed(&self) -> (Commit, Vec<(u32, u32)>) {
-        let s = self.inner.lock_state();
-        (s.committed, s.free.clone())
+    /// Keeps writers out while `check` reads free blocks, and brings the
+    /// committed state up to date.
+    pub(crate) fn exclude_writers(&self) -> Result<CheckerLock<'_>, StorageError> {
+        let guard = self.inner.writer.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(l) = &self.inner.locks {
+            l.lock_checker(true)?;
+        }
+        self.inner.refresh()?;
+        Ok(CheckerLock { _guard: guard, locks: self.inner.locks.as_ref() })
     }
+
+    /// The committed slot, its free ranges and the header's warnings (for `check`).
+    pub(crate) fn committed(&self) -> Result<(Commit, Vec<FreeRange>, Vec<Warning>), StorageError> {
+        let s = self.inner.lock_state();
+        let loaded = Loaded {
+            slots: s.slots,
+            committed: s.committed,
+            committed_slot: s.committed_slot,
+            free: s.free.clone(),
+            meta: None,
+        };
+        let w = warnings(&self.inner.pager, &loaded)?;
+        Ok((s.committed, s.free.clone(), w))
+    }
+}
+
+/// Times a reader retries when commits keep landing between its reads.
+const PIN_ATTEMPTS: usize = 1000;
+
+/// The writer's lock between processes, held for the transaction's life.
+pub(crate) struct WriterLock<'a>(&'a FileLocks);
+
+impl Drop for WriterLock<'_> {
+    fn drop(&mut self) {
+        // Closing the file would release it too; an error here leaves nothing wrong.
+        let _ = self.0.unlock_writer();
+    }
+}
+
+/// Writers kept out while `check` runs.
+pub(crate) struct CheckerLock<'a> {
+    _guard: MutexGuard<'a, ()>,
+    locks: Option<&'a FileLocks>,
+}
+
+impl Drop for CheckerLock<'_> {
+    fn drop(&mut self) {
+        if let Some(l) = self.locks {
+            let _ = l.unlock_writer();
+        }
+    }
+}
+
+/// Writes block 0 of a new file: both copies of slot 0 hold an empty tree.
+fn initialize(device: &dyn BlockDevice, options: CreateOptions) -> Result<(), StorageError> {
+    let block_size = validate_block_size(options.block_size.into())?;
+    let lod_levels = validate_lod_levels(options.lod_levels.into())?;
+    if !device.is_empty()? {
+        return Err(StorageError::Invalid("create needs an empty device".into()));
+    }
+    let mut block0 = header::encode_block0(block_size, lod_levels);
+    let first = Commit { txn: 1, block_count: 1, ..Commit::default() };
+    header::put_slot(&mut block0, 0, SlotState::Committed, &first);
+    device.write_at(0, &block0)?;
+    device.sync()?;
+    Ok(())
+}
+
+/// Reads both copies of both slots. A copy failing its checksum may be one a
+/// writer in another process is writing right now: it is read again before
+/// it counts as damaged.
+fn read_slots(pager: &Pager) -> Result<[SlotPair; 2], StorageError> {
+    let mut prefix = vec![0u8; PREFIX_LEN];
+    let mut tries = 0;
+    loop {
+        pager.device().read_at(0, &mut prefix)?;
+        let slots = header::decode_slots(&prefix);
+        tries += 1;
+        if tries == 3 || slots.iter().all(|p| p.invalid_copies().next().is_none()) {
+            return Ok(slots);
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+}
+
+/// The committed slot in force: the valid committed slot with the larger
+/// transaction. A slot whose copies both fail is an error, never a silent
+/// fall back to an older state: it may have held the newest commit.
+fn newest(slots: &[SlotPair; 2]) -> Result<(usize, Commit), StorageError> {
+    let values = slots.map(|p| p.value());
+    if let Some(i) = (0..2).find(|&i| values[i] == SlotRead::Invalid) {
+        return Err(StorageError::corrupt(
+            0,
+            "slots",
+            format!("both copies of commit slot {i} fail their checksums: the newest commit cannot be told"),
+        ));
+    }
+    match values {
+        [SlotRead::Committed(a), SlotRead::Committed(b)] => Ok(if b.txn > a.txn { (1, b) } else { (0, a) }),
+        [SlotRead::Committed(a), _] => Ok((0, a)),
+        [_, SlotRead::Committed(b)] => Ok((1, b)),
+        _ => Err(StorageError::corrupt(0, "slots", "no valid committed slot")),
+    }
+}
+
+/// The newest committed state. Its blocks are read after its slot, and a
+/// writer in another process may reuse them in between (no pin holds them
+/// yet): when a read fails and the slots have moved on, read again.
+fn load(pager: &Pager) -> Result<Loaded, StorageError> {
+    let mut slots = read_slots(pager)?;
+    loop {
+        let result = load_state(pager, &slots);
+        let Err(e) = result else { return result };
+        let again = read_slots(pager)?;
+        if newest(&again).ok().map(|c| c.1.txn) == newest(&slots).ok().map(|c| c.1.txn) {
+            return Err(e);
+        }
+        slots = again;
+    }
+}
+
+fn load_state(pager: &Pager, slots: &[SlotPair; 2]) -> Result<Loaded, StorageError> {
+    let (committed_slot, committed) = newest(slots)?;
+    let blocks_on_disk = pager.block_count()?;
+    if blocks_on_disk < u64::from(committed.block_count) {
+        return Err(StorageError::Truncated {
+            detail: format!("the commit holds {} blocks, the file {blocks_on_disk}", committed.block_count),
+        });
+    }
+    let free = read_free_list(pager, &committed)?;
+    let meta = read_meta(pager, &committed)?;
+    Ok(Loaded { slots: *slots, committed, committed_slot, free, meta })
+}
+
+/// True when a write transaction was interrupted: the other slot pending,
+/// or blocks past the committed end.
+fn interrupted(pager: &Pager, l: &Loaded) -> Result<bool, StorageError> {
+    let len = pager.device().len()?;
+    let bs = u64::from(pager.block_size());
+    Ok(matches!(l.slots[1 - l.committed_slot].value(), SlotRead::Pending { .. })
+        || len > u64::from(l.committed.block_count) * bs)
+}
+
+fn warnings(pager: &Pager, l: &Loaded) -> Result<Vec<Warning>, StorageError> {
+    let mut w: Vec<Warning> = (0..2)
+        .flat_map(|slot| {
+            l.slots[slot]
+                .invalid_copies()
+                .map(move |copy| Warning::DamagedSlotCopy { slot: slot as u8, copy: copy as u8 })
+        })
+        .collect();
+    if interrupted(pager, l)? {
+        w.push(Warning::Interrupted);
+    }
+    Ok(w)
 }
 
 impl Inner {
     fn lock_state(&self) -> MutexGuard<'_, State> {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// A reader of snapshot `txn` begins: the first in this process pins it for other processes.
+    fn pin(&self, txn: u64) -> Result<(), StorageError> {
+        let mut s = self.lock_state();
+        let n = s.readers.entry(txn).or_default();
+        *n += 1;
+        if *n == 1
+            && let Some(l) = &self.locks
+            && let Err(e) = l.pin(txn)
+        {
+            s.readers.remove(&txn);
+            return Err(e.into());
+        }
+        Ok(())
     }
 
     /// A reader of snapshot `txn` ended.
@@ -280,8 +514,55 @@ impl Inner {
             *n -= 1;
             if *n == 0 {
                 s.readers.remove(&txn);
+                if let Some(l) = &self.locks {
+                    // Closing the file releases it too; a failure only delays reuse.
+                    let _ = l.unpin(txn);
+                }
             }
         }
+    }
+
+    /// The oldest state a reader in this or another process still reads.
+    fn oldest_reader(&self, below: u64) -> Result<Option<u64>, StorageError> {
+        let here = self.lock_state().readers.keys().next().copied();
+        let there = match &self.locks {
+            Some(l) => l.oldest_pin(below)?,
+            None => None,
+        };
+        Ok(here.into_iter().chain(there).min())
+    }
+
+    /// Catches up with commits made by other processes (files only).
+    fn refresh(&self) -> Result<(), StorageError> {
+        if self.locks.is_none() {
+            return Ok(());
+        }
+        let slots = read_slots(&self.pager)?;
+        let txn = newest(&slots)?.1.txn;
+        if txn == self.lock_state().committed.txn {
+            self.lock_state().slots = slots;
+            return Ok(());
+        }
+        let loaded = load(&self.pager)?;
+        self.install(loaded);
+        Ok(())
+    }
+
+    /// Makes `l` the committed state, unless a newer one is installed.
+    fn install(&self, l: Loaded) {
+        let mut s = self.lock_state();
+        if l.committed.txn < s.committed.txn {
+            return;
+        }
+        s.slots = l.slots;
+        if l.committed.txn == s.committed.txn {
+            return;
+        }
+        s.committed = l.committed;
+        s.committed_slot = l.committed_slot;
+        s.free = l.free;
+        s.snapshot =
+            Arc::new(Snapshot { txn: l.committed.txn, meta: l.meta, block_count: l.committed.block_count });
     }
 
     pub(crate) fn pager(&self) -> &Pager {
@@ -294,8 +575,8 @@ impl Inner {
 }
 
 /// The free ranges the commit's free-list chain holds, checked against the spec.
-pub(crate) fn read_free_list(pager: &Pager, c: &Commit) -> Result<Vec<(u32, u32)>, StorageError> {
-    let mut ranges: Vec<(u32, u32)> = Vec::new();
+pub(crate) fn read_free_list(pager: &Pager, c: &Commit) -> Result<Vec<FreeRange>, StorageError> {
+    let mut ranges: Vec<FreeRange> = Vec::new();
     let (mut block, mut sum) = (c.freelist_block, c.freelist_checksum);
     let mut stats = ReadStats::default();
     let mut hops = 0u64;
@@ -306,20 +587,29 @@ pub(crate) fn read_free_list(pager: &Pager, c: &Commit) -> Result<Vec<(u32, u32)
         }
         let (b, _) = pager.read(block, BlockType::FreeList, Some(sum), &mut stats)?;
         let fl = FreeListBlock::decode(block, &b)?;
-        for &(first, count) in &fl.ranges {
-            let last = ranges.last().map_or(1, |&(f, n)| f + n + 1);
-            if count == 0 || first < last || u64::from(first) + u64::from(count) > u64::from(c.block_count) {
+        for &r in &fl.ranges {
+            // Neighbours touch only when different commits freed them.
+            let last = ranges.last().map_or(1, |p| p.first + p.count + u32::from(p.freed == r.freed));
+            if r.count == 0
+                || r.first < last
+                || u64::from(r.first) + u64::from(r.count) > u64::from(c.block_count)
+                || r.freed == 0
+                || r.freed > c.txn
+            {
                 return Err(StorageError::corrupt(
                     block,
                     "ranges",
-                    format!("range ({first}, {count}) is out of order or out of the file"),
+                    format!(
+                        "range ({}, {}) freed by {} is out of order, out of the file or from a later commit",
+                        r.first, r.count, r.freed
+                    ),
                 ));
             }
-            ranges.push((first, count));
+            ranges.push(r);
         }
         (block, sum) = (fl.next_block, fl.next_checksum);
     }
-    let total: u64 = ranges.iter().map(|r| u64::from(r.1)).sum();
+    let total: u64 = ranges.iter().map(|r| u64::from(r.count)).sum();
     if total != u64::from(c.free_blocks) {
         return Err(StorageError::corrupt(
             0,
@@ -355,14 +645,10 @@ pub(crate) fn read_meta(pager: &Pager, c: &Commit) -> Result<Option<Meta>, Stora
     Ok(Some(meta))
 }
 
-/// Recovery after an interrupted transaction (format-spec/commit.md).
-fn recover(
-    pager: &Pager,
-    c: &Commit,
-    other_slot: usize,
-    free: &[(u32, u32)],
-    r: &mut Recovery,
-) -> Result<(), StorageError> {
+/// Cleans up after an interrupted transaction (format-spec/commit.md): drops
+/// blocks past the committed end and rewrites torn free blocks. Only a
+/// write transaction calls it, holding the writer's lock.
+fn recover(pager: &Pager, c: &Commit, free: &[FreeRange], r: &mut Recovery) -> Result<(), StorageError> {
     let bs = u64::from(pager.block_size());
     let len = pager.device().len()?;
     let end = u64::from(c.block_count) * bs;
@@ -370,8 +656,8 @@ fn recover(
         r.truncated_blocks = (len - end).div_ceil(bs);
         pager.device().set_len(end)?;
     }
-    for &(first, count) in free {
-        for id in first..first + count {
+    for f in free {
+        for id in f.first..f.first + f.count {
             let mut b = pager.read_raw(id)?;
             if frame::open(id, &b).is_err() {
                 b.fill(0);
@@ -380,8 +666,5 @@ fn recover(
             }
         }
     }
-    pager.sync()?;
-    pager.write_header_bytes(header::slot_offset(other_slot) as u64, &[0u8; 256])?;
-    pager.sync()?;
-    Ok(())
+    pager.sync()
 }

@@ -295,8 +295,9 @@ impl ReadTransaction {
             first.checked_add(blocks - 1).ok_or_else(|| StorageError::corrupt(first, "run", "overflows"))?;
         self.check_in_snapshot(last)?;
         let mut all = vec![head];
-        for id in first + 1..=last {
-            all.push(self.pager().read(id, BlockType::Continuation, None, &mut stats)?.0);
+        for (j, id) in (first + 1..=last).enumerate() {
+            let expected = run::next_checksum(j, &all[j]);
+            all.push(self.pager().read(id, BlockType::Continuation, Some(expected), &mut stats)?.0);
         }
         let refs: Vec<&[u8]> = all.iter().map(|b| &b[..]).collect();
         let (records, words, len) = run::assemble(first, &refs)?;

@@ -4,14 +4,14 @@
 use std::sync::{Arc, MutexGuard};
 use std::time::Instant;
 
-use super::{Inner, Snapshot, codes, tree_writer};
+use super::{Inner, Recovery, Snapshot, WriterLock, codes, interrupted, load, recover, tree_writer};
 use crate::build::{BuildParams, BuildProgress, CostModel, Hierarchy, QueryMix, build};
 use crate::lod::{Layout, LodParams, StoredBounds, plan_bounds};
 use crate::scene::Scene;
 use crate::store::StorageError;
-use crate::store::alloc::FreeSpace;
+use crate::store::alloc::{FreeSpace, label_freed};
 use crate::store::format::frame::BlockType;
-use crate::store::format::freelist::{FreeListBlock, ranges_per_block};
+use crate::store::format::freelist::{FreeListBlock, FreeRange, ranges_per_block};
 use crate::store::format::header::{self, Commit, Slot, SlotState};
 use crate::store::format::meta::{LOD_TABLE_LEN, LodCodes, Meta};
 use crate::store::format::{geometry, run};
@@ -21,9 +21,13 @@ use crate::store::format::{geometry, run};
 pub struct WriteTransaction<'db> {
     inner: &'db Arc<Inner>,
     _guard: MutexGuard<'db, ()>,
+    _file_lock: Option<WriterLock<'db>>,
     txn: u64,
     base: Commit,
+    /// The base state's free ranges, labelled with the commits that freed them.
+    base_free: Vec<FreeRange>,
     slot: usize,
+    recovery: Recovery,
     /// Blocks this transaction may allocate.
     avail: FreeSpace,
     /// Blocks this transaction wrote (as a set of ranges).
@@ -39,36 +43,58 @@ impl<'db> WriteTransaction<'db> {
     pub(super) fn begin(
         inner: &'db Arc<Inner>,
         guard: MutexGuard<'db, ()>,
+        file_lock: Option<WriterLock<'db>>,
     ) -> Result<WriteTransaction<'db>, StorageError> {
-        let (base, slot, avail) = {
-            let mut s = inner.lock_state();
-            // Blocks freed by a commit become reusable once no reader older than it lives.
-            let oldest = s.readers.keys().next().copied();
-            s.freed_at.retain(|(t, _)| oldest.is_some_and(|r| r < *t));
-            let mut avail = FreeSpace::new(s.committed.block_count, s.free.iter().copied());
-            for (_, pinned) in &s.freed_at {
-                avail.remove_all(pinned);
-            }
-            (s.committed, 1 - s.committed_slot, avail)
-        };
+        let pager = inner.pager().clone();
+        // Another process may have committed since this one last looked.
+        let loaded = load(&pager)?;
+        let mut recovery = Recovery::default();
+        if interrupted(&pager, &loaded)? {
+            recovery.interrupted = true;
+            recover(&pager, &loaded.committed, &loaded.free, &mut recovery)?;
+        }
+        let (base, c_slot) = (loaded.committed, loaded.committed_slot);
+        // A damaged copy of the slot in force is rewritten from the other.
+        let in_force = loaded.slots[c_slot];
+        for copy in in_force.invalid_copies() {
+            write_slot_copy(&pager, c_slot, copy, SlotState::Committed, &base)?;
+            recovery.repaired_slot_copies += 1;
+        }
+        let slot = 1 - c_slot;
+        let order = loaded.slots[slot].write_order();
+        let base_free = loaded.free.clone();
+        inner.install(loaded);
+        // Blocks freed by a commit are reusable once no reader, here or in
+        // another process, reads a state older than that commit.
+        let oldest = inner.oldest_reader(base.txn)?;
+        let reusable = base_free.iter().filter(|r| oldest.is_none_or(|o| r.freed <= o));
+        let avail = FreeSpace::new(base.block_count, reusable.map(|r| (r.first, r.count)));
         let txn = base.txn + 1;
         // Step 1: the other slot may hold the state before `base`, whose blocks we may reuse.
-        let pending = Slot::encode(slot, SlotState::Pending, &Commit { txn, ..Commit::default() });
-        inner.pager().write_header_bytes(header::slot_offset(slot) as u64, &pending)?;
-        inner.pager().sync()?;
+        for copy in order {
+            write_slot_copy(&pager, slot, copy, SlotState::Pending, &Commit { txn, ..Commit::default() })?;
+        }
         let end = avail.end();
         Ok(WriteTransaction {
             inner,
             _guard: guard,
+            _file_lock: file_lock,
             txn,
             base,
+            base_free,
             slot,
+            recovery,
             avail,
             written: FreeSpace::new(end, []),
             meta: None,
             lod_params: LodParams::default(),
             done: false,
         })
+    }
+
+    /// What this transaction repaired before it began (a crash's leftovers).
+    pub fn recovery(&self) -> Recovery {
+        self.recovery
     }
 
     /// Sets how the next tree's levels of detail are built (default:
@@ -164,15 +190,14 @@ impl<'db> WriteTransaction<'db> {
         for o in scene.objects() {
             geometry::encode_name(&o.name, &mut stream);
         }
-        let payloads = run::encode(&stream, scene.len() as u32, bs);
+        let mut payloads = run::encode(&stream, scene.len() as u32, bs);
         let names_block = self.allocate(payloads.len() as u32)?;
+        // Last block first: each block holds the checksum of the one after it.
         let mut names_checksum = 0;
-        for (j, mut b) in payloads.into_iter().enumerate() {
+        for (j, b) in payloads.iter_mut().enumerate().rev() {
+            run::set_next_checksum(j, b, names_checksum);
             let t = if j == 0 { BlockType::Names } else { BlockType::Continuation };
-            let sum = pager.write(names_block + j as u32, &mut b, t, self.txn)?;
-            if j == 0 {
-                names_checksum = sum;
-            }
+            names_checksum = pager.write(names_block + j as u32, b, t, self.txn)?;
         }
         let mut lod_table = [[0.0; 2]; LOD_TABLE_LEN];
         for (row, e) in lod_table.iter_mut().zip(&stored.errors) {
@@ -244,14 +269,18 @@ impl<'db> WriteTransaction<'db> {
         let per = ranges_per_block(pager.block_size());
         let mut list_blocks: Vec<u32> = Vec::new();
         let free = loop {
-            let free = FreeSpace::complement(self.avail.end(), &self.written);
+            let free = label_freed(
+                &FreeSpace::complement(self.avail.end(), &self.written),
+                &self.base_free,
+                self.txn,
+            );
             if free.len().div_ceil(per) <= list_blocks.len() {
                 break free;
             }
             list_blocks.push(self.allocate(1)?);
         };
         let (mut next, mut next_sum) = (0u32, 0u32);
-        let chunks: Vec<&[(u32, u32)]> = free.chunks(per).collect();
+        let chunks: Vec<&[FreeRange]> = free.chunks(per).collect();
         for (j, &id) in list_blocks.iter().enumerate().rev() {
             let fl = FreeListBlock {
                 next_block: next,
@@ -270,30 +299,27 @@ impl<'db> WriteTransaction<'db> {
             block_count: self.avail.end(),
             freelist_block: next,
             freelist_checksum: next_sum,
-            free_blocks: free.iter().map(|r| r.1).sum(),
+            free_blocks: free.iter().map(|r| r.count).sum(),
         };
         self.finish(c, Some((meta, free)))
     }
 
-    fn finish(&mut self, c: Commit, loaded: Option<(Meta, Vec<(u32, u32)>)>) -> Result<(), StorageError> {
+    fn finish(&mut self, c: Commit, loaded: Option<(Meta, Vec<FreeRange>)>) -> Result<(), StorageError> {
         let pager = self.inner.pager();
         pager.sync()?;
-        pager.write_header_bytes(
-            header::slot_offset(self.slot) as u64,
-            &Slot::encode(self.slot, SlotState::Committed, &c),
-        )?;
-        pager.sync()?;
+        // Durable once the first copy is: a crash before the second leaves
+        // one valid committed copy, which wins (format-spec/commit.md).
+        for copy in 0..2 {
+            write_slot_copy(pager, self.slot, copy, SlotState::Committed, &c)?;
+        }
         self.done = true;
         let mut s = self.inner.lock_state();
-        let old_used = FreeSpace::new(self.base.block_count, s.free.iter().copied());
         let (meta, free) = match loaded {
-            Some((meta, free)) => {
-                // The old tree and old free-list blocks are free now, but pinned for older readers.
-                s.freed_at.push((c.txn, FreeSpace::complement(self.base.block_count, &old_used)));
-                (Some(meta), free)
-            }
+            Some((meta, free)) => (Some(meta), free),
             None => (s.snapshot.meta.clone(), s.free.clone()),
         };
+        let value = header::SlotRead::Committed(c);
+        s.slots[self.slot] = header::SlotPair { copies: [value; 2] };
         s.committed = c;
         s.committed_slot = self.slot;
         s.free = free;
@@ -312,9 +338,26 @@ impl<'db> WriteTransaction<'db> {
         // Nothing was torn: the pending slot can be cleared, and appended blocks dropped.
         pager.device().set_len(u64::from(self.base.block_count) * u64::from(pager.block_size()))?;
         pager.sync()?;
-        pager.write_header_bytes(header::slot_offset(self.slot) as u64, &[0u8; 256])?;
-        pager.sync()
+        for copy in 0..2 {
+            write_slot_copy(pager, self.slot, copy, SlotState::Empty, &Commit::default())?;
+        }
+        let mut s = self.inner.lock_state();
+        s.slots[self.slot] = header::SlotPair { copies: [header::SlotRead::Empty; 2] };
+        Ok(())
     }
+}
+
+/// Writes one copy of a slot and syncs it, so that a crash tears at most one
+/// copy of a slot (format-spec/commit.md).
+fn write_slot_copy(
+    pager: &crate::store::Pager,
+    slot: usize,
+    copy: usize,
+    state: SlotState,
+    c: &Commit,
+) -> Result<(), StorageError> {
+    pager.write_header_bytes(header::slot_offset(slot, copy) as u64, &Slot::encode(slot, copy, state, c))?;
+    pager.sync()
 }
 
 impl Drop for WriteTransaction<'_> {

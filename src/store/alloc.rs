@@ -5,6 +5,7 @@
 use std::collections::BTreeMap;
 
 use super::StorageError;
+use super::format::freelist::FreeRange;
 
 /// A set of free block ranges plus the file's end.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -117,6 +118,49 @@ impl FreeSpace {
     }
 }
 
+/// The blocks of `free` (sorted, disjoint), each labelled with the commit
+/// that freed it: its label in `before` where it was free already, else
+/// `now`. Neighbours with one label are merged.
+pub fn label_freed(free: &[(u32, u32)], before: &[FreeRange], now: u64) -> Vec<FreeRange> {
+    let mut out: Vec<FreeRange> = Vec::new();
+    let mut push = |first: u64, end: u64, freed: u64| {
+        let (first, count) = (first as u32, (end - first) as u32);
+        match out.last_mut() {
+            Some(l) if u64::from(l.first) + u64::from(l.count) == u64::from(first) && l.freed == freed => {
+                l.count += count
+            }
+            _ => out.push(FreeRange { first, count, freed }),
+        }
+    };
+    let end_of = |r: &FreeRange| u64::from(r.first) + u64::from(r.count);
+    let mut j = 0;
+    for &(first, count) in free {
+        let (mut at, end) = (u64::from(first), u64::from(first) + u64::from(count));
+        while at < end {
+            while j < before.len() && end_of(&before[j]) <= at {
+                j += 1;
+            }
+            match before.get(j) {
+                Some(b) if u64::from(b.first) <= at => {
+                    let stop = end.min(end_of(b));
+                    push(at, stop, b.freed);
+                    at = stop;
+                }
+                Some(b) => {
+                    let stop = end.min(u64::from(b.first));
+                    push(at, stop, now);
+                    at = stop;
+                }
+                None => {
+                    push(at, end, now);
+                    at = end;
+                }
+            }
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -142,5 +186,15 @@ mod tests {
         f.remove_all(&[(6, 2)]);
         assert_eq!(f.ranges(), vec![(5, 1), (8, 2)]);
         assert!(f.contains(8) && !f.contains(6));
+    }
+
+    #[test]
+    fn freed_blocks_keep_the_commit_that_freed_them() {
+        let r = |first, count, freed| FreeRange { first, count, freed };
+        let before = [r(2, 3, 4), r(10, 2, 6)];
+        // Blocks 2..5 and 10..12 were free before; 5..7 and 12..13 are freed now.
+        let got = label_freed(&[(3, 4), (10, 3)], &before, 9);
+        assert_eq!(got, vec![r(3, 2, 4), r(5, 2, 9), r(10, 2, 6), r(12, 1, 9)]);
+        assert_eq!(label_freed(&[(1, 5)], &[r(1, 2, 9)], 9), vec![r(1, 5, 9)], "one label merges");
     }
 }

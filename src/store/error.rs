@@ -21,8 +21,10 @@ pub enum StorageError {
     /// A checksum or structural rule failed; names the block, the record (if any) and the field.
     #[error("corrupt file: block {block}{}: {field}: {detail}", record.map(|r| format!(", record {r}")).unwrap_or_default())]
     Corruption { block: u32, record: Option<u32>, field: &'static str, detail: String },
-    #[error("the file is locked by another process")]
+    #[error("another process is writing the file (wait for it, e.g. with --wait)")]
     Locked,
+    #[error("the file was opened read-only")]
+    ReadOnly,
     #[error("the file would exceed 2^32 blocks")]
     FileTooLarge,
     #[error("{0}")]

@@ -8,6 +8,7 @@ pub mod device;
 mod error;
 pub mod format;
 pub mod layout;
+pub(crate) mod lock;
 pub mod pager;
 
 pub use cache::{Block, BlockCache};

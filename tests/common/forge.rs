@@ -5,7 +5,7 @@
 //! content.
 
 use mktree::store::format::frame::{BlockType, seal};
-use mktree::store::format::header::{Commit, Slot, SlotRead, SlotState, slot_offset};
+use mktree::store::format::header::{Commit, SlotRead, SlotState, decode_slots, put_slot};
 
 /// A file's bytes in blocks of `bs` bytes.
 pub struct Image {
@@ -78,8 +78,10 @@ impl Image {
 
     /// The committed slot with the larger transaction id, and its commit.
     fn committed(&self) -> (usize, Commit) {
-        (0..2)
-            .filter_map(|i| match Slot::decode(i, &self.bytes[slot_offset(i)..slot_offset(i) + 256]) {
+        decode_slots(&self.bytes)
+            .iter()
+            .enumerate()
+            .filter_map(|(i, p)| match p.value() {
                 SlotRead::Committed(c) => Some((i, c)),
                 _ => None,
             })
@@ -114,11 +116,7 @@ impl Image {
             BlockType::Meta => {
                 let (i, c) = self.committed();
                 let c = Commit { meta_checksum: sum, ..c };
-                self.bytes[slot_offset(i)..slot_offset(i) + 256].copy_from_slice(&Slot::encode(
-                    i,
-                    SlotState::Committed,
-                    &c,
-                ));
+                put_slot(&mut self.bytes, i, SlotState::Committed, &c);
             }
             BlockType::Names => {
                 let at = meta * self.bs + 148;

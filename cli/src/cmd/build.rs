@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use mktree::build::{BuildProgress, Hierarchy, Report, build, estimate_work};
-use mktree::db::{CreateOptions, Database};
+use mktree::db::{CreateOptions, Database, WriterWait};
 use mktree::scene::Scene;
 use mktree::store::format::geometry::record_len;
 use serde_json::json;
@@ -40,7 +40,14 @@ pub fn build_in_memory(scene: &Scene, args: &BuildArgs) -> Result<Hierarchy> {
     Ok(tree)
 }
 
-pub fn run(scene_path: &Path, out: &Path, args: &BuildArgs, lod: &LodArgs, as_json: bool) -> Result<()> {
+pub fn run(
+    scene_path: &Path,
+    out: &Path,
+    args: &BuildArgs,
+    lod: &LodArgs,
+    wait: bool,
+    as_json: bool,
+) -> Result<()> {
     let scene = crate::cmd::read_scene(scene_path, &args.import.options())?;
     let started = Instant::now();
     let db = if out.exists() {
@@ -63,7 +70,7 @@ pub fn run(scene_path: &Path, out: &Path, args: &BuildArgs, lod: &LodArgs, as_js
         .with_context(|| format!("creating {}", out.display()))?
     };
     let pb = progress_bar(&scene, args);
-    let mut w = db.begin_write()?;
+    let mut w = db.begin_write_with(if wait { WriterWait::Wait } else { WriterWait::Fail })?;
     w.set_lod_params(lod.params());
     let tree = w.bulk_load(&scene, &args.params(), &|p: BuildProgress| pb.set_position(p.objects_placed))?;
     w.commit()?;

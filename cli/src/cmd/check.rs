@@ -8,17 +8,16 @@ use mktree::db::{Database, check};
 use crate::output;
 
 pub fn run(file: &Path, as_json: bool) -> Result<()> {
-    let db = Database::open(file).with_context(|| format!("opening {}", file.display()))?;
-    let rec = db.recovery();
+    let db = Database::open_read_only(file).with_context(|| format!("opening {}", file.display()))?;
     let report = check(&db)?;
     if as_json {
         output::json(&report)?;
     } else {
-        if rec.interrupted {
-            println!(
-                "recovered an interrupted transaction: {} torn free blocks rewritten, {} blocks truncated",
-                rec.scrubbed_blocks, rec.truncated_blocks
-            );
+        if report.interrupted {
+            println!("a write transaction was interrupted; the next write cleans up after it");
+        }
+        for w in &report.warnings {
+            println!("warning: {w}");
         }
         let types: Vec<String> = report.blocks_by_type.iter().map(|(t, n)| format!("{n} {t}")).collect();
         println!(

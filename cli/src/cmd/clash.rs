@@ -11,7 +11,7 @@ use serde_json::json;
 use crate::output;
 
 pub fn run(file: &Path, clearance: f64, lod: Option<u8>, as_json: bool) -> Result<()> {
-    let db = Database::open(file).with_context(|| format!("opening {}", file.display()))?;
+    let db = Database::open_read_only(file).with_context(|| format!("opening {}", file.display()))?;
     let r = db.begin_read()?;
     let a = clash(&r, &ClashOptions { lod, clearance }, None)?;
     let s = &a.stats;

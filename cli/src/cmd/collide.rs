@@ -41,7 +41,7 @@ pub fn run(
     import: &ImportOptions,
     as_json: bool,
 ) -> Result<()> {
-    let db = Database::open(file).with_context(|| format!("opening {}", file.display()))?;
+    let db = Database::open_read_only(file).with_context(|| format!("opening {}", file.display()))?;
     let r = db.begin_read()?;
     let (mesh, exclude) = match (&q.mesh, q.object) {
         (Some(path), _) => (merged(path, import)?, None),

@@ -55,7 +55,7 @@ pub fn run(dir: &Path) -> Result<()> {
     );
     // 2. One collision query, with what decided each object.
     let file = dir.join("bench-peers-tanker2.mkt");
-    let db = Database::open(&file).with_context(|| format!("opening {}", file.display()))?;
+    let db = Database::open_read_only(&file).with_context(|| format!("opening {}", file.display()))?;
     let r = db.begin_read()?;
     let id = ObjectId(1000);
     let mesh = object_mesh(&r, id)?;

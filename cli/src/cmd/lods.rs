@@ -14,7 +14,7 @@ use serde_json::json;
 use crate::output;
 
 fn open(file: &Path) -> Result<(Database, ReadTransaction)> {
-    let db = Database::open(file).with_context(|| format!("opening {}", file.display()))?;
+    let db = Database::open_read_only(file).with_context(|| format!("opening {}", file.display()))?;
     let r = db.begin_read()?;
     Ok((db, r))
 }

@@ -37,7 +37,9 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Sweep { scene, pages, rates, look_ahead, json, import } => {
             sweep::run(&scene, &import.options(), pages, &rates, look_ahead, json)
         }
-        Command::Build { scene, output, build, lod, json } => build::run(&scene, &output, &build, &lod, json),
+        Command::Build { scene, output, build, lod, wait, json } => {
+            build::run(&scene, &output, &build, &lod, wait, json)
+        }
         Command::Lods { file, json } => lods::table(&file, json),
         Command::Node { file, node, lod, objects, export, json } => {
             lods::node(&file, node, lod, objects, export.as_deref(), json)
@@ -103,7 +105,7 @@ pub fn is_mkt(path: &Path) -> bool {
 /// with the file's info or the build time.
 pub fn tree_of(input: &Path, build: &BuildArgs) -> Result<(Hierarchy, Source)> {
     if is_mkt(input) {
-        let db = Database::open(input).with_context(|| format!("opening {}", input.display()))?;
+        let db = Database::open_read_only(input).with_context(|| format!("opening {}", input.display()))?;
         let r = db.begin_read()?;
         let info = r.info().context("the file holds no tree")?;
         Ok((read_hierarchy(&r)?, Source::File(Box::new(info))))

@@ -33,7 +33,7 @@ pub fn run(
             far: lens[3],
         })
         .collect();
-    let db = Database::open(file).with_context(|| format!("opening {}", file.display()))?;
+    let db = Database::open_read_only(file).with_context(|| format!("opening {}", file.display()))?;
     let r = db.begin_read()?;
     let steps = navigate(&r, &cameras, &QueryOptions { lod, ..Default::default() }, cache_blocks)?;
     let total: u64 = steps.iter().map(|s| s.reads.total()).sum();

@@ -30,7 +30,7 @@ pub fn shape(aabb: Option<[f64; 6]>, sphere: Option<[f64; 4]>, frustum: Option<[
 }
 
 pub fn run(file: &Path, region: &Region, opts: &QueryOptions, as_json: bool) -> Result<()> {
-    let db = Database::open(file).with_context(|| format!("opening {}", file.display()))?;
+    let db = Database::open_read_only(file).with_context(|| format!("opening {}", file.display()))?;
     let r = db.begin_read()?;
     print(&query_region(&r, region, opts, None)?, as_json)
 }

@@ -14,7 +14,7 @@ use crate::output;
 pub fn run(files: &[PathBuf], queries: usize, seed: u64, out: &Path, as_json: bool) -> Result<()> {
     let mut results: Vec<(String, Vec<TradeoffRow>)> = Vec::new();
     for file in files {
-        let db = Database::open(file).with_context(|| format!("opening {}", file.display()))?;
+        let db = Database::open_read_only(file).with_context(|| format!("opening {}", file.display()))?;
         let r = db.begin_read()?;
         // The same seed draws the same objects and moves in files of one scene.
         let workload =

@@ -1,6 +1,6 @@
 //! Free-list blocks (format-spec/freelist.md).
 
-use zerocopy::byteorder::little_endian::U32;
+use zerocopy::byteorder::little_endian::{U32, U64};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
 use super::all_zero;
@@ -21,13 +21,24 @@ pub(crate) struct FreeListHeader {
 struct RangeRecord {
     first: U32,
     count: U32,
+    freed: U64,
+}
+const RANGE_LEN: usize = size_of::<RangeRecord>();
+
+/// Free blocks `first .. first + count`, made free by commit `freed`: a
+/// reader of a state older than `freed` may still read them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FreeRange {
+    pub first: u32,
+    pub count: u32,
+    pub freed: u64,
 }
 
 const HEADER_END: usize = FRAME_LEN + size_of::<FreeListHeader>();
 
 /// Ranges one free-list block holds.
 pub fn ranges_per_block(block_size: u32) -> usize {
-    (block_size as usize - HEADER_END) / size_of::<RangeRecord>()
+    (block_size as usize - HEADER_END) / RANGE_LEN
 }
 
 /// One decoded free-list block.
@@ -35,8 +46,7 @@ pub fn ranges_per_block(block_size: u32) -> usize {
 pub struct FreeListBlock {
     pub next_block: u32,
     pub next_checksum: u32,
-    /// (first block, count).
-    pub ranges: Vec<(u32, u32)>,
+    pub ranges: Vec<FreeRange>,
 }
 
 impl FreeListBlock {
@@ -49,10 +59,10 @@ impl FreeListBlock {
             reserved: [0; 4],
         };
         block[FRAME_LEN..HEADER_END].copy_from_slice(h.as_bytes());
-        for (i, &(first, count)) in self.ranges.iter().enumerate() {
-            let r = RangeRecord { first: first.into(), count: count.into() };
-            let at = HEADER_END + 8 * i;
-            block[at..at + 8].copy_from_slice(r.as_bytes());
+        for (i, r) in self.ranges.iter().enumerate() {
+            let rec = RangeRecord { first: r.first.into(), count: r.count.into(), freed: r.freed.into() };
+            let at = HEADER_END + RANGE_LEN * i;
+            block[at..at + RANGE_LEN].copy_from_slice(rec.as_bytes());
         }
     }
 
@@ -64,13 +74,13 @@ impl FreeListBlock {
         if n > ranges_per_block(block.len() as u32) {
             return Err(StorageError::corrupt(id, "range_count", format!("{n} ranges do not fit a block")));
         }
-        if h.reserved != [0; 4] || !all_zero(&block[HEADER_END + 8 * n..]) {
+        if h.reserved != [0; 4] || !all_zero(&block[HEADER_END + RANGE_LEN * n..]) {
             return Err(StorageError::corrupt(id, "reserved", "reserved bytes are not zero"));
         }
-        let ranges = <[RangeRecord]>::ref_from_bytes(&block[HEADER_END..HEADER_END + 8 * n])
+        let ranges = <[RangeRecord]>::ref_from_bytes(&block[HEADER_END..HEADER_END + RANGE_LEN * n])
             .map_err(|_| StorageError::corrupt(id, "ranges", "misaligned"))?
             .iter()
-            .map(|r| (r.first.get(), r.count.get()))
+            .map(|r| FreeRange { first: r.first.get(), count: r.count.get(), freed: r.freed.get() })
             .collect();
         Ok(FreeListBlock { next_block: h.next_block.get(), next_checksum: h.next_checksum.get(), ranges })
     }

@@ -1,4 +1,5 @@
-//! Block 0: the fixed header and the two commit slots (format-spec/header.md).
+//! Block 0: the fixed header and the two commit slots, each kept in two
+//! copies (format-spec/header.md).
 
 use zerocopy::byteorder::little_endian::{U32, U64};
 use zerocopy::{FromBytes, FromZeros, Immutable, IntoBytes, KnownLayout, Unaligned};
@@ -10,9 +11,11 @@ use crate::store::StorageError;
 pub const MAGIC: [u8; 8] = [0x89, b'M', b'K', b'T', b'\r', b'\n', 0x1a, b'\n'];
 /// Bytes a reader needs to learn the block size and read both slots.
 pub const PREFIX_LEN: usize = 1024;
-/// Offset of slot `i` in block 0.
-pub const fn slot_offset(i: usize) -> usize {
-    512 + 256 * i
+/// Bytes of one copy of a commit slot.
+pub const SLOT_LEN: usize = 128;
+/// Offset of copy `copy` (0 or 1) of slot `slot` (0 or 1) in block 0.
+pub const fn slot_offset(slot: usize, copy: usize) -> usize {
+    512 + SLOT_LEN * (2 * copy + slot)
 }
 
 /// The fixed region, bytes 0 .. 512 of block 0.
@@ -37,7 +40,7 @@ pub enum SlotState {
     Committed = 2,
 }
 
-/// A commit slot (256 bytes).
+/// One copy of a commit slot (128 bytes).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
 pub struct Slot {
@@ -50,10 +53,10 @@ pub struct Slot {
     pub freelist_block: U32,
     pub freelist_checksum: U32,
     pub free_blocks: U32,
-    pub reserved1: [u8; 216],
+    pub reserved1: [u8; 88],
     pub slot_checksum: U32,
 }
-const _: () = assert!(size_of::<Slot>() == 256);
+const _: () = assert!(size_of::<Slot>() == SLOT_LEN);
 
 /// A slot's contents, decoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -67,7 +70,8 @@ pub struct Commit {
     pub free_blocks: u32,
 }
 
-/// A slot as read: empty, pending, committed, or failing its checksum (torn).
+/// A slot copy as read: empty, pending, committed, or failing its checksum
+/// (torn or damaged).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SlotRead {
     Empty,
@@ -76,16 +80,72 @@ pub enum SlotRead {
     Invalid,
 }
 
+impl SlotRead {
+    /// Order of preference between two valid copies of one slot: the later
+    /// transaction, and committed over pending (a commit interrupted between
+    /// its two copies is durable once one copy says committed).
+    fn rank(&self) -> Option<(u64, u8)> {
+        match self {
+            SlotRead::Empty => Some((0, 0)),
+            SlotRead::Pending { txn } => Some((*txn, 1)),
+            SlotRead::Committed(c) => Some((c.txn, 2)),
+            SlotRead::Invalid => None,
+        }
+    }
+}
+
+/// A slot as its two copies give it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SlotPair {
+    pub copies: [SlotRead; 2],
+}
+
+impl SlotPair {
+    /// The slot's value: the preferred valid copy; `Invalid` only when both
+    /// copies fail, which a crash cannot cause (format-spec/commit.md).
+    pub fn value(&self) -> SlotRead {
+        let [a, b] = self.copies;
+        match (a.rank(), b.rank()) {
+            (None, None) => SlotRead::Invalid,
+            (Some(_), None) => a,
+            (None, Some(_)) => b,
+            (Some(x), Some(y)) => {
+                if y > x {
+                    b
+                } else {
+                    a
+                }
+            }
+        }
+    }
+
+    /// Copies failing their checksum.
+    pub fn invalid_copies(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..2).filter(|&i| self.copies[i] == SlotRead::Invalid)
+    }
+
+    /// The order to rewrite the copies in: a failing copy first, so that a
+    /// crash during either write leaves one valid copy.
+    pub fn write_order(&self) -> [usize; 2] {
+        if self.copies[1] == SlotRead::Invalid && self.copies[0] != SlotRead::Invalid {
+            [1, 0]
+        } else {
+            [0, 1]
+        }
+    }
+}
+
 impl Slot {
-    fn checksum(&self, index: usize) -> u32 {
+    fn checksum(&self, slot: usize, copy: usize) -> u32 {
         let mut h = crc32fast::Hasher::new();
-        h.update(&self.as_bytes()[..252]);
-        h.update(&(index as u32).to_le_bytes());
+        h.update(&self.as_bytes()[..SLOT_LEN - 4]);
+        h.update(&(slot as u32).to_le_bytes());
+        h.update(&(copy as u32).to_le_bytes());
         h.finalize()
     }
 
-    /// The bytes of slot `index` in state `state` for `commit`.
-    pub fn encode(index: usize, state: SlotState, commit: &Commit) -> [u8; 256] {
+    /// The bytes of copy `copy` of slot `slot` in state `state` for `commit`.
+    pub fn encode(slot: usize, copy: usize, state: SlotState, commit: &Commit) -> [u8; SLOT_LEN] {
         let mut s = Slot::new_zeroed();
         if state != SlotState::Empty {
             s.txn = commit.txn.into();
@@ -96,20 +156,20 @@ impl Slot {
             s.freelist_block = commit.freelist_block.into();
             s.freelist_checksum = commit.freelist_checksum.into();
             s.free_blocks = commit.free_blocks.into();
-            s.slot_checksum = s.checksum(index).into();
+            s.slot_checksum = s.checksum(slot, copy).into();
         }
-        let mut out = [0u8; 256];
+        let mut out = [0u8; SLOT_LEN];
         out.copy_from_slice(s.as_bytes());
         out
     }
 
-    /// Decodes slot `index` from its 256 bytes.
-    pub fn decode(index: usize, bytes: &[u8]) -> SlotRead {
+    /// Decodes copy `copy` of slot `slot` from its bytes.
+    pub fn decode(slot: usize, copy: usize, bytes: &[u8]) -> SlotRead {
         let Ok(s) = Slot::read_from_bytes(bytes) else { return SlotRead::Invalid };
         if all_zero(bytes) {
             return SlotRead::Empty;
         }
-        if s.slot_checksum.get() != s.checksum(index)
+        if s.slot_checksum.get() != s.checksum(slot, copy)
             || !all_zero(&s.reserved0)
             || !all_zero(&s.reserved1)
             || s.txn.get() == 0
@@ -170,8 +230,27 @@ pub fn decode_prefix(prefix: &[u8]) -> Result<(u32, u8), StorageError> {
     Ok((block_size, lod_levels))
 }
 
+/// Both copies of both slots from the first [`PREFIX_LEN`] bytes of block 0.
+pub fn decode_slots(prefix: &[u8]) -> [SlotPair; 2] {
+    [0, 1].map(|slot| SlotPair {
+        copies: [0, 1].map(|copy| {
+            let at = slot_offset(slot, copy);
+            prefix.get(at..at + SLOT_LEN).map_or(SlotRead::Invalid, |b| Slot::decode(slot, copy, b))
+        }),
+    })
+}
+
+/// Writes both copies of slot `slot` into `block0` (for tools that forge or
+/// build a file image in memory; the writer writes them one at a time).
+pub fn put_slot(block0: &mut [u8], slot: usize, state: SlotState, commit: &Commit) {
+    for copy in 0..2 {
+        let at = slot_offset(slot, copy);
+        block0[at..at + SLOT_LEN].copy_from_slice(&Slot::encode(slot, copy, state, commit));
+    }
+}
+
 /// Checks the whole of block 0's fixed region and tail, then reads both slots.
-pub fn decode_block0(block0: &[u8]) -> Result<(u32, u8, [SlotRead; 2]), StorageError> {
+pub fn decode_block0(block0: &[u8]) -> Result<(u32, u8, [SlotPair; 2]), StorageError> {
     let (block_size, lod_levels) = decode_prefix(block0)?;
     if block0.len() != block_size as usize {
         return Err(StorageError::corrupt(0, "block_size", "block 0 is shorter than a block"));
@@ -187,8 +266,7 @@ pub fn decode_block0(block0: &[u8]) -> Result<(u32, u8, [SlotRead; 2]), StorageE
     if !all_zero(&block0[17..508]) || !all_zero(&block0[PREFIX_LEN..]) {
         return Err(StorageError::corrupt(0, "reserved", "reserved bytes of block 0 are not zero"));
     }
-    let slots = [0, 1].map(|i| Slot::decode(i, &block0[slot_offset(i)..slot_offset(i) + 256]));
-    Ok((block_size, lod_levels, slots))
+    Ok((block_size, lod_levels, decode_slots(block0)))
 }
 
 #[cfg(test)]
@@ -198,21 +276,40 @@ mod tests {
     #[test]
     fn slots_round_trip_and_know_their_position() {
         let c = Commit { txn: 9, meta_block: 4, meta_checksum: 77, block_count: 12, ..Commit::default() };
-        let bytes = Slot::encode(1, SlotState::Committed, &c);
-        assert_eq!(Slot::decode(1, &bytes), SlotRead::Committed(c));
+        let bytes = Slot::encode(1, 0, SlotState::Committed, &c);
+        assert_eq!(Slot::decode(1, 0, &bytes), SlotRead::Committed(c));
         assert_eq!(
-            Slot::decode(0, &bytes),
+            Slot::decode(0, 0, &bytes),
             SlotRead::Invalid,
-            "a slot copied to the other position is caught"
+            "a slot copied to the other slot is caught"
         );
-        assert_eq!(Slot::decode(0, &[0u8; 256]), SlotRead::Empty);
+        assert_eq!(Slot::decode(1, 1, &bytes), SlotRead::Invalid, "a copy moved to the other copy is caught");
+        assert_eq!(Slot::decode(0, 0, &[0u8; SLOT_LEN]), SlotRead::Empty);
+    }
+
+    #[test]
+    fn a_slot_is_its_preferred_valid_copy() {
+        let c = Commit { txn: 9, meta_block: 4, block_count: 12, ..Commit::default() };
+        let pair = |a, b| SlotPair { copies: [a, b] };
+        let (done, pending) = (SlotRead::Committed(c), SlotRead::Pending { txn: 9 });
+        assert_eq!(pair(SlotRead::Invalid, done).value(), done, "one damaged copy loses nothing");
+        assert_eq!(pair(done, pending).value(), done, "a commit torn between its copies holds");
+        assert_eq!(pair(pending, SlotRead::Invalid).value(), pending);
+        assert_eq!(pair(SlotRead::Invalid, SlotRead::Invalid).value(), SlotRead::Invalid);
+        assert_eq!(
+            pair(done, SlotRead::Invalid).write_order(),
+            [1, 0],
+            "the failing copy is rewritten first"
+        );
+        assert_eq!(pair(SlotRead::Invalid, done).write_order(), [0, 1]);
     }
 
     #[test]
     fn block0_round_trips_and_rejects_other_versions() {
         let b = encode_block0(4096, 4);
         let (bs, m, slots) = decode_block0(&b).unwrap();
-        assert_eq!((bs, m, slots), (4096, 4, [SlotRead::Empty, SlotRead::Empty]));
+        let empty = SlotPair { copies: [SlotRead::Empty; 2] };
+        assert_eq!((bs, m, slots), (4096, 4, [empty, empty]));
         let mut v1 = b.clone();
         v1[8] = 1;
         assert!(matches!(decode_prefix(&v1), Err(StorageError::UnsupportedVersion { found: 1, .. })));

@@ -1,5 +1,6 @@
 //! Runs: a byte stream in consecutive blocks, a first block with a run header
-//! then continuation blocks (format-spec/geometry.md). Geometry and names use it.
+//! then continuation blocks, each holding the next block's checksum
+//! (format-spec/runs.md). The names use it.
 
 use zerocopy::byteorder::little_endian::{U32, U64};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
@@ -14,10 +15,33 @@ pub(crate) struct RunHeader {
     pub(crate) run_blocks: U32,
     pub(crate) record_count: U32,
     pub(crate) data_bytes: U64,
+    pub(crate) next_checksum: U32,
+    pub(crate) reserved: [u8; 4],
 }
 
 /// Offset of the stream in the first block.
 pub const FIRST_DATA: usize = FRAME_LEN + size_of::<RunHeader>();
+/// Offset of the stream in a continuation block, after the next block's
+/// checksum and four reserved bytes.
+const NEXT_DATA: usize = FRAME_LEN + 8;
+
+/// Where a run block holds the checksum of the block after it.
+fn next_at(index: usize) -> usize {
+    if index == 0 { FRAME_LEN + 16 } else { FRAME_LEN }
+}
+
+/// The checksum run block `index` holds for the block after it (0 after the last).
+pub fn next_checksum(index: usize, block: &[u8]) -> u32 {
+    let at = next_at(index);
+    u32::from_le_bytes([block[at], block[at + 1], block[at + 2], block[at + 3]])
+}
+
+/// Sets the checksum run block `index` holds for the block after it; the
+/// writer writes a run last block first.
+pub fn set_next_checksum(index: usize, block: &mut [u8], checksum: u32) {
+    let at = next_at(index);
+    block[at..at + 4].copy_from_slice(&checksum.to_le_bytes());
+}
 
 /// Stream bytes the first block of a run holds.
 pub fn first_capacity(block_size: u32) -> u64 {
@@ -27,7 +51,7 @@ pub fn first_capacity(block_size: u32) -> u64 {
 /// Blocks a stream of `data_bytes` takes.
 pub fn blocks_for(data_bytes: u64, block_size: u32) -> u64 {
     let rest = data_bytes.saturating_sub(first_capacity(block_size));
-    1 + rest.div_ceil(block_size as u64 - FRAME_LEN as u64)
+    1 + rest.div_ceil(block_size as u64 - NEXT_DATA as u64)
 }
 
 /// The payloads of the run's blocks (frames left for `seal`).
@@ -40,14 +64,16 @@ pub fn encode(stream: &[u8], record_count: u32, block_size: u32) -> Vec<Vec<u8>>
         run_blocks: (n as u32).into(),
         record_count: record_count.into(),
         data_bytes: (stream.len() as u64).into(),
+        next_checksum: 0.into(),
+        reserved: [0; 4],
     };
     first[FRAME_LEN..FIRST_DATA].copy_from_slice(h.as_bytes());
     let take = stream.len().min(bs - FIRST_DATA);
     first[FIRST_DATA..FIRST_DATA + take].copy_from_slice(&stream[..take]);
     blocks.push(first);
-    for chunk in stream[take..].chunks(bs - FRAME_LEN) {
+    for chunk in stream[take..].chunks(bs - NEXT_DATA) {
         let mut b = vec![0u8; bs];
-        b[FRAME_LEN..FRAME_LEN + chunk.len()].copy_from_slice(chunk);
+        b[NEXT_DATA..NEXT_DATA + chunk.len()].copy_from_slice(chunk);
         blocks.push(b);
     }
     blocks
@@ -58,6 +84,9 @@ pub fn header(id: u32, first: &[u8]) -> Result<(u32, u32, u64), StorageError> {
     let h = RunHeader::read_from_bytes(&first[FRAME_LEN..FIRST_DATA])
         .map_err(|_| StorageError::corrupt(id, "run header", "too small"))?;
     let (blocks, records, bytes) = (h.run_blocks.get(), h.record_count.get(), h.data_bytes.get());
+    if h.reserved != [0; 4] {
+        return Err(StorageError::corrupt(id, "reserved", "run header reserved bytes are not zero"));
+    }
     if u64::from(blocks) != blocks_for(bytes, first.len() as u32) {
         return Err(StorageError::corrupt(
             id,
@@ -68,7 +97,8 @@ pub fn header(id: u32, first: &[u8]) -> Result<(u32, u32, u64), StorageError> {
     Ok((blocks, records, bytes))
 }
 
-/// Reassembles the stream from the run's blocks (first block first), as u32
+/// Reassembles the stream from the run's blocks (first block first, each
+/// already verified against the checksum the block before it holds), as u32
 /// words so that arrays cast from it are aligned.
 pub fn assemble(first_id: u32, blocks: &[&[u8]]) -> Result<(u32, Vec<u32>, usize), StorageError> {
     let (n, records, bytes) = header(first_id, blocks[0])?;
@@ -80,9 +110,23 @@ pub fn assemble(first_id: u32, blocks: &[&[u8]]) -> Result<(u32, Vec<u32>, usize
     let out: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
     let mut at = 0;
     for (i, b) in blocks.iter().enumerate() {
-        let start = if i == 0 { FIRST_DATA } else { FRAME_LEN };
+        let start = if i == 0 { FIRST_DATA } else { NEXT_DATA };
         let take = (bytes - at).min(b.len() - start);
         out[at..at + take].copy_from_slice(&b[start..start + take]);
+        if i > 0 && !all_zero(&b[FRAME_LEN + 4..NEXT_DATA]) {
+            return Err(StorageError::corrupt(
+                first_id + i as u32,
+                "reserved",
+                "reserved bytes are not zero",
+            ));
+        }
+        if i + 1 == blocks.len() && next_checksum(i, b) != 0 {
+            return Err(StorageError::corrupt(
+                first_id + i as u32,
+                "next_checksum",
+                "the run's last block names a next block",
+            ));
+        }
         if !all_zero(&b[start + take..]) {
             return Err(StorageError::corrupt(
                 first_id + i as u32,

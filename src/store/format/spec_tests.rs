@@ -128,6 +128,7 @@ fn spec_tables_match_the_records() {
     field!(runs, Some("## First block"), FRAME_LEN, RunHeader, run_blocks);
     field!(runs, Some("## First block"), FRAME_LEN, RunHeader, record_count);
     field!(runs, Some("## First block"), FRAME_LEN, RunHeader, data_bytes);
+    field!(runs, Some("## First block"), FRAME_LEN, RunHeader, next_checksum);
     let geometry = include_str!("../../../format-spec/geometry.md");
     macro_rules! obj { ($($f:ident),*) => { $( field!(geometry, Some("## Object record"), 0, ObjectHeader, $f); )* } }
     obj!(object_id, vertex_count, triangle_count, anchor);

@@ -1,0 +1,191 @@
+//! Locks between processes that share one file (format-spec/commit.md,
+//! "Many processes"). They are byte-range locks far past any block, so they
+//! never touch data: one byte a writer holds exclusively (a checker holds it
+//! shared, to keep writers out), and one byte per transaction id, which a
+//! process reading that transaction's state holds shared. A writer finds the
+//! oldest state another process still reads and leaves the blocks that
+//! state may reach alone.
+//!
+//! On Linux the locks belong to the open file (`F_OFD_*`), so threads of one
+//! process and several opens of one file behave as separate owners should;
+//! elsewhere they are POSIX record locks, owned by the process.
+
+#![allow(unsafe_code)]
+
+use std::fs::File;
+use std::io;
+use std::os::fd::AsRawFd;
+
+#[cfg(any(target_os = "linux", target_os = "android"))]
+const SET: libc::c_int = libc::F_OFD_SETLK;
+#[cfg(any(target_os = "linux", target_os = "android"))]
+const SET_WAIT: libc::c_int = libc::F_OFD_SETLKW;
+#[cfg(any(target_os = "linux", target_os = "android"))]
+const GET: libc::c_int = libc::F_OFD_GETLK;
+#[cfg(not(any(target_os = "linux", target_os = "android")))]
+const SET: libc::c_int = libc::F_SETLK;
+#[cfg(not(any(target_os = "linux", target_os = "android")))]
+const SET_WAIT: libc::c_int = libc::F_SETLKW;
+#[cfg(not(any(target_os = "linux", target_os = "android")))]
+const GET: libc::c_int = libc::F_GETLK;
+
+/// The writer's byte: 2^62, past any file of 2^32 blocks of 4 MiB.
+const WRITER: u64 = 1 << 62;
+/// Transaction `t`'s reader byte is `READERS + t`.
+const READERS: u64 = WRITER + 1;
+/// Transaction ids a reader byte can name.
+const MAX_TXN: u64 = (i64::MAX as u64) - READERS;
+
+/// The kind of a lock.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Shared,
+    Exclusive,
+    Unlock,
+}
+
+/// The locks of one open file.
+#[derive(Debug)]
+pub struct FileLocks {
+    file: File,
+}
+
+impl FileLocks {
+    /// Locks through `file` (a handle of the open file the device reads).
+    pub fn new(file: File) -> FileLocks {
+        FileLocks { file }
+    }
+
+    fn flock(kind: Kind, start: u64, len: u64) -> libc::flock {
+        // SAFETY: `flock` is a plain C struct for which all-zero is valid
+        // (and `l_pid` must be 0 for open-file-description locks).
+        let mut fl: libc::flock = unsafe { std::mem::zeroed() };
+        fl.l_type = match kind {
+            Kind::Shared => libc::F_RDLCK,
+            Kind::Exclusive => libc::F_WRLCK,
+            Kind::Unlock => libc::F_UNLCK,
+        } as _;
+        fl.l_whence = libc::SEEK_SET as _;
+        fl.l_start = start as libc::off_t;
+        fl.l_len = len as libc::off_t;
+        fl
+    }
+
+    /// Sets a lock; `Ok(false)` when another owner holds a conflicting one
+    /// and `wait` is false.
+    fn set(&self, kind: Kind, start: u64, wait: bool) -> io::Result<bool> {
+        let fl = Self::flock(kind, start, 1);
+        loop {
+            // SAFETY: a valid descriptor and a valid `flock` for the call's duration.
+            let r = unsafe { libc::fcntl(self.file.as_raw_fd(), if wait { SET_WAIT } else { SET }, &fl) };
+            if r == 0 {
+                return Ok(true);
+            }
+            let e = io::Error::last_os_error();
+            match e.raw_os_error() {
+                Some(libc::EINTR) => continue,
+                Some(libc::EAGAIN) | Some(libc::EACCES) if !wait => return Ok(false),
+                _ => return Err(e),
+            }
+        }
+    }
+
+    /// True when another owner holds a lock in `start .. start + len` that
+    /// an exclusive lock would conflict with.
+    fn taken(&self, start: u64, len: u64) -> io::Result<bool> {
+        let mut fl = Self::flock(Kind::Exclusive, start, len);
+        // SAFETY: as in `set`; the kernel writes the conflicting lock into `fl`.
+        let r = unsafe { libc::fcntl(self.file.as_raw_fd(), GET, &mut fl) };
+        if r != 0 {
+            return Err(io::Error::last_os_error());
+        }
+        Ok(fl.l_type != libc::F_UNLCK as libc::c_short)
+    }
+
+    /// Takes the writer's byte exclusively: `Ok(false)` when another writer
+    /// (or a checker) holds it and `wait` is false.
+    pub fn lock_writer(&self, wait: bool) -> io::Result<bool> {
+        self.set(Kind::Exclusive, WRITER, wait)
+    }
+
+    /// Takes the writer's byte shared (a checker: no writer runs meanwhile).
+    pub fn lock_checker(&self, wait: bool) -> io::Result<bool> {
+        self.set(Kind::Shared, WRITER, wait)
+    }
+
+    /// Releases the writer's byte.
+    pub fn unlock_writer(&self) -> io::Result<()> {
+        self.set(Kind::Unlock, WRITER, false).map(drop)
+    }
+
+    /// Marks the state of transaction `txn` as read by this owner.
+    pub fn pin(&self, txn: u64) -> io::Result<()> {
+        self.set(Kind::Shared, READERS + txn.min(MAX_TXN), true).map(drop)
+    }
+
+    /// Ends [`pin`](Self::pin).
+    pub fn unpin(&self, txn: u64) -> io::Result<()> {
+        self.set(Kind::Unlock, READERS + txn.min(MAX_TXN), false).map(drop)
+    }
+
+    /// The oldest transaction below `below` whose state another owner reads.
+    pub fn oldest_pin(&self, below: u64) -> io::Result<Option<u64>> {
+        let below = below.min(MAX_TXN);
+        let (mut lo, mut hi) = (0, below);
+        if hi == 0 || !self.taken(READERS, hi)? {
+            return Ok(None);
+        }
+        // Invariant: a pin lies in lo .. hi. The kernel reports some
+        // conflicting lock, not the lowest, so halve the range.
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            if self.taken(READERS + lo, mid - lo)? {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        Ok(Some(lo))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn two_owners() -> (tempfile::NamedTempFile, FileLocks, FileLocks) {
+        let f = tempfile::NamedTempFile::new().unwrap();
+        let open =
+            || FileLocks::new(std::fs::OpenOptions::new().read(true).write(true).open(f.path()).unwrap());
+        let (a, b) = (open(), open());
+        (f, a, b)
+    }
+
+    #[cfg(any(target_os = "linux", target_os = "android"))]
+    #[test]
+    fn writers_exclude_each_other_and_checkers() {
+        let (_f, a, b) = two_owners();
+        assert!(a.lock_writer(false).unwrap());
+        assert!(!b.lock_writer(false).unwrap(), "a second writer is refused");
+        assert!(!b.lock_checker(false).unwrap(), "a checker waits for the writer");
+        a.unlock_writer().unwrap();
+        assert!(b.lock_checker(false).unwrap());
+        assert!(!a.lock_writer(false).unwrap(), "a writer waits for the checker");
+    }
+
+    #[cfg(any(target_os = "linux", target_os = "android"))]
+    #[test]
+    fn a_writer_finds_the_oldest_pin_of_another_owner() {
+        let (_f, a, b) = two_owners();
+        assert_eq!(a.oldest_pin(100).unwrap(), None);
+        b.pin(70).unwrap();
+        b.pin(12).unwrap();
+        b.pin(90).unwrap();
+        assert_eq!(a.oldest_pin(100).unwrap(), Some(12));
+        assert_eq!(a.oldest_pin(12).unwrap(), None, "only pins below the bound count");
+        assert_eq!(b.oldest_pin(100).unwrap(), None, "an owner's own pins are not another's");
+        b.unpin(12).unwrap();
+        assert_eq!(a.oldest_pin(100).unwrap(), Some(70));
+        assert_eq!(a.oldest_pin(u64::MAX).unwrap(), Some(70));
+    }
+}

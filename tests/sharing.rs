@@ -1,0 +1,71 @@
+//! Claim: several openers share one file as format-spec/commit.md's "Many
+//! processes" says. Each `Database::open` is a separate owner of the file's
+//! locks, as another process would be (multi-process runs are in
+//! `tests/processes.rs`): readers never wait and never fail, writers exclude
+//! each other, a read-only open works on a read-only file and never writes.
+
+mod common;
+
+use mktree::build::BuildParams;
+use mktree::db::{CreateOptions, Database, WriterWait, check};
+use mktree::store::StorageError;
+
+fn load(db: &Database, objects: usize) {
+    let mut w = db.begin_write().unwrap();
+    w.bulk_load(&common::grid_scene(objects), &BuildParams::default(), &|_| {}).unwrap();
+    w.commit().unwrap();
+}
+
+#[test]
+fn writers_exclude_each_other_and_readers_never_wait() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("t.mkt");
+    let a = Database::create(&path, CreateOptions::default()).unwrap();
+    load(&a, 30);
+    let b = Database::open(&path).unwrap();
+    let w = a.begin_write().unwrap();
+    assert!(matches!(b.begin_write(), Err(StorageError::Locked)), "a second writer is refused");
+    let r = b.begin_read().unwrap();
+    assert_eq!(r.info().unwrap().objects, 30, "a reader works while a writer writes");
+    drop(w);
+    let w = b.begin_write_with(WriterWait::Wait).unwrap();
+    drop(w);
+    assert!(Database::create(&path, CreateOptions::default()).is_err(), "create never overwrites a file");
+}
+
+#[test]
+fn a_reader_keeps_its_snapshot_through_commits_of_another_opener() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("t.mkt");
+    let a = Database::create(&path, CreateOptions::default()).unwrap();
+    load(&a, 30);
+    let b = Database::open_read_only(&path).unwrap();
+    let old = b.begin_read().unwrap();
+    let everything = common::grid_scene(60).aabb();
+    let before = old.query_box(&everything).unwrap().objects;
+    // Enough commits that the old tree's blocks would be reused if nothing pinned them.
+    for n in [40, 50, 60, 45] {
+        load(&a, n);
+    }
+    assert_eq!(old.query_box(&everything).unwrap().objects, before, "the old snapshot still reads");
+    assert_eq!(b.begin_read().unwrap().info().unwrap().objects, 45, "a new reader sees the newest commit");
+    drop(old);
+    load(&a, 35);
+    assert!(check(&a).unwrap().ok());
+}
+
+#[test]
+fn a_read_only_file_opens_and_is_never_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("t.mkt");
+    load(&Database::create(&path, CreateOptions::default()).unwrap(), 30);
+    let bytes = std::fs::read(&path).unwrap();
+    let mut perms = std::fs::metadata(&path).unwrap().permissions();
+    perms.set_readonly(true);
+    std::fs::set_permissions(&path, perms).unwrap();
+    let db = Database::open_read_only(&path).unwrap();
+    assert_eq!(db.begin_read().unwrap().info().unwrap().objects, 30);
+    assert!(check(&db).unwrap().ok());
+    assert!(matches!(db.begin_write(), Err(StorageError::ReadOnly)));
+    assert_eq!(std::fs::read(&path).unwrap(), bytes);
+}
