@@ -2,13 +2,13 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result, bail};
-use mktree::db::{Database, check};
+use anyhow::{Result, bail};
+use mktree::db::check;
 
 use crate::output;
 
 pub fn run(file: &Path, as_json: bool) -> Result<()> {
-    let db = Database::open_read_only(file).with_context(|| format!("opening {}", file.display()))?;
+    let db = crate::cmd::open_to_read(file)?;
     let report = check(&db)?;
     if as_json {
         output::json(&report)?;

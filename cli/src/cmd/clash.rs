@@ -3,15 +3,14 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
-use mktree::db::Database;
+use anyhow::Result;
 use mktree::query::{ClashOptions, clash};
 use serde_json::json;
 
 use crate::output;
 
 pub fn run(file: &Path, clearance: f64, lod: Option<u8>, as_json: bool) -> Result<()> {
-    let db = Database::open_read_only(file).with_context(|| format!("opening {}", file.display()))?;
+    let db = crate::cmd::open_to_read(file)?;
     let r = db.begin_read()?;
     let a = clash(&r, &ClashOptions { lod, clearance }, None)?;
     let s = &a.stats;

@@ -4,7 +4,6 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use mktree::db::Database;
 use mktree::geom::Pose;
 use mktree::query::{CollideOptions, QueryOptions, collide, object_mesh};
 use mktree::scene::import::ImportOptions;
@@ -41,7 +40,7 @@ pub fn run(
     import: &ImportOptions,
     as_json: bool,
 ) -> Result<()> {
-    let db = Database::open_read_only(file).with_context(|| format!("opening {}", file.display()))?;
+    let db = crate::cmd::open_to_read(file)?;
     let r = db.begin_read()?;
     let (mesh, exclude) = match (&q.mesh, q.object) {
         (Some(path), _) => (merged(path, import)?, None),

@@ -9,7 +9,6 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use mktree::db::Database;
 use mktree::geom::Pose;
 use mktree::query::{
     CollideOptions, Proof, TRADEOFF_SHIFT_MM, collide, collision_workload, object_mesh, tradeoff,
@@ -55,7 +54,7 @@ pub fn run(dir: &Path) -> Result<()> {
     );
     // 2. One collision query, with what decided each object.
     let file = dir.join("bench-peers-tanker2.mkt");
-    let db = Database::open_read_only(&file).with_context(|| format!("opening {}", file.display()))?;
+    let db = crate::cmd::open_to_read(&file)?;
     let r = db.begin_read()?;
     let id = ObjectId(1000);
     let mesh = object_mesh(&r, id)?;

@@ -14,7 +14,7 @@ use serde_json::json;
 use crate::output;
 
 fn open(file: &Path) -> Result<(Database, ReadTransaction)> {
-    let db = Database::open_read_only(file).with_context(|| format!("opening {}", file.display()))?;
+    let db = crate::cmd::open_to_read(file)?;
     let r = db.begin_read()?;
     Ok((db, r))
 }

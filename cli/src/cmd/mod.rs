@@ -94,6 +94,16 @@ pub fn scene_or_preset(arg: &str, options: &ImportOptions) -> Result<Scene> {
     Ok(generate_scene(&GenOptions { preset, objects, seed: 0 })?)
 }
 
+/// Opens an .mkt file to read, printing what opening noticed (a damaged
+/// slot copy, an interrupted transaction) to stderr.
+pub fn open_to_read(path: &Path) -> Result<Database> {
+    let db = Database::open_read_only(path).with_context(|| format!("opening {}", path.display()))?;
+    for w in db.warnings() {
+        eprintln!("warning: {}: {w}", path.display());
+    }
+    Ok(db)
+}
+
 /// True when `path` is an .mkt file (by its magic number).
 pub fn is_mkt(path: &Path) -> bool {
     let mut magic = [0u8; 8];
@@ -105,7 +115,7 @@ pub fn is_mkt(path: &Path) -> bool {
 /// with the file's info or the build time.
 pub fn tree_of(input: &Path, build: &BuildArgs) -> Result<(Hierarchy, Source)> {
     if is_mkt(input) {
-        let db = Database::open_read_only(input).with_context(|| format!("opening {}", input.display()))?;
+        let db = open_to_read(input)?;
         let r = db.begin_read()?;
         let info = r.info().context("the file holds no tree")?;
         Ok((read_hierarchy(&r)?, Source::File(Box::new(info))))

@@ -4,7 +4,6 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use mktree::db::Database;
 use mktree::geom::Camera;
 use mktree::query::{QueryOptions, navigate, parse_path};
 use serde_json::json;
@@ -33,7 +32,7 @@ pub fn run(
             far: lens[3],
         })
         .collect();
-    let db = Database::open_read_only(file).with_context(|| format!("opening {}", file.display()))?;
+    let db = crate::cmd::open_to_read(file)?;
     let r = db.begin_read()?;
     let steps = navigate(&r, &cameras, &QueryOptions { lod, ..Default::default() }, cache_blocks)?;
     let total: u64 = steps.iter().map(|s| s.reads.total()).sum();

@@ -4,8 +4,7 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result, bail};
-use mktree::db::Database;
+use anyhow::{Result, bail};
 use mktree::geom::{Aabb, Camera, Frustum, Point, Sphere};
 use mktree::query::{QueryAnswer, QueryOptions, Region, query_region};
 use serde_json::{Value, json};
@@ -30,7 +29,7 @@ pub fn shape(aabb: Option<[f64; 6]>, sphere: Option<[f64; 4]>, frustum: Option<[
 }
 
 pub fn run(file: &Path, region: &Region, opts: &QueryOptions, as_json: bool) -> Result<()> {
-    let db = Database::open_read_only(file).with_context(|| format!("opening {}", file.display()))?;
+    let db = crate::cmd::open_to_read(file)?;
     let r = db.begin_read()?;
     print(&query_region(&r, region, opts, None)?, as_json)
 }

@@ -4,7 +4,6 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use mktree::db::Database;
 use mktree::query::{TRADEOFF_SHIFT_MM, TradeoffRow, collision_workload, tradeoff};
 use serde_json::json;
 
@@ -14,7 +13,7 @@ use crate::output;
 pub fn run(files: &[PathBuf], queries: usize, seed: u64, out: &Path, as_json: bool) -> Result<()> {
     let mut results: Vec<(String, Vec<TradeoffRow>)> = Vec::new();
     for file in files {
-        let db = Database::open_read_only(file).with_context(|| format!("opening {}", file.display()))?;
+        let db = crate::cmd::open_to_read(file)?;
         let r = db.begin_read()?;
         // The same seed draws the same objects and moves in files of one scene.
         let workload =
