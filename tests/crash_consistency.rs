@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use common::grid_scene;
 use mktree::build::{BuildParams, LeafRule, Method};
-use mktree::db::{CreateOptions, Database, check};
+use mktree::db::{CreateOptions, Database, Warning, check};
 use mktree::geom::Aabb;
 use mktree::scene::Scene;
 use mktree::store::BlockDevice;
@@ -126,4 +126,46 @@ fn a_reader_keeps_its_snapshot_while_a_writer_replaces_the_tree_twice() {
     drop(reader);
     load(&db, &grid_scene(90), Method::Median).unwrap();
     assert!(check(&db).unwrap().ok());
+}
+
+#[test]
+fn readers_leave_a_crashed_file_alone_and_the_next_writer_cleans_up() {
+    let base = Arc::new(MemDevice::new());
+    let db = Database::create_on(
+        base.clone() as Arc<dyn BlockDevice>,
+        CreateOptions { block_size: 1024, lod_levels: 2 },
+    )
+    .unwrap();
+    load(&db, &grid_scene(120), Method::Moa).unwrap();
+    let old = fingerprint(&db);
+    drop(db);
+    // A crash halfway through the next commit, every write kept: appended
+    // blocks past the committed end and a pending slot.
+    let clean = Arc::new(CrashDevice::new(base.to_bytes(), u64::MAX));
+    let db = Database::open_on(clean.clone() as Arc<dyn BlockDevice>).unwrap();
+    let before = clean.events();
+    load(&db, &grid_scene(150), Method::Median).unwrap();
+    let events = clean.events() - before;
+    let dev = Arc::new(CrashDevice::new(base.to_bytes(), events / 2));
+    let db = Database::open_on(dev.clone() as Arc<dyn BlockDevice>).unwrap();
+    assert!(load(&db, &grid_scene(150), Method::Median).is_err());
+    drop(db);
+    let crashed = dev.image(CrashImage::KeepAll);
+    let after = Arc::new(MemDevice::from_bytes(crashed.clone()));
+    let db = Database::open_on(after.clone() as Arc<dyn BlockDevice>).unwrap();
+    assert_eq!(db.warnings(), &[Warning::Interrupted]);
+    assert_eq!(fingerprint(&db), old);
+    let report = check(&db).unwrap();
+    assert!(report.ok() && report.interrupted, "{:?}", report.faults);
+    assert!(after.to_bytes() == crashed, "opening, reading and checking wrote nothing");
+    let w = db.begin_write().unwrap();
+    let r = w.recovery();
+    assert!(r.interrupted && r.truncated_blocks > 0, "{r:?}");
+    w.abort().unwrap();
+    drop(db);
+    let db = Database::open_on(after as Arc<dyn BlockDevice>).unwrap();
+    assert!(db.warnings().is_empty(), "{:?}", db.warnings());
+    assert_eq!(fingerprint(&db), old);
+    let report = check(&db).unwrap();
+    assert!(report.ok() && !report.interrupted);
 }
