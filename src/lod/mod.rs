@@ -33,5 +33,6 @@ pub use error_measure::{ErrorProbe, measured_error};
 pub use grid::{Grid, MAX_CELLS, MAX_DIM};
 pub use lattice::Lattice;
 pub use plan::{LodParams, LodPlan};
+pub(crate) use policy::bound_grid;
 pub use policy::{Layout, LeafEntry, StoredBounds, plan_bounds};
 pub use voxels::Voxels;
