@@ -133,7 +133,8 @@ impl ReadTransaction {
         // With the root's record in hand, its subtree is every other node block.
         let mut below = (u64::from(meta.node_blocks) - 1, meta.geometry_blocks);
         let mut reads = Reads::new(None);
-        for _ in 0..meta.node_count {
+        // One level per step: a path longer than the tree is deep means the links loop.
+        for _ in 0..=meta.depth {
             let block = self.block(at.block, BlockType::Node, at.checksum, &mut reads)?;
             let NodeView::Internal(n) = view(&block, at.offset)? else { break };
             let id = view(&block, at.offset)?.node_id();
@@ -157,6 +158,14 @@ impl ReadTransaction {
             } else {
                 NodeRef { block: r.block, checksum: r.checksum, offset: r.offset, aabb: frame }
             };
+        }
+        let block = self.block(at.block, BlockType::Node, at.checksum, &mut reads)?;
+        if view(&block, at.offset)?.node_id() != node {
+            return Err(StorageError::corrupt(
+                at.block,
+                "child_block",
+                format!("no path leads to node {node}"),
+            ));
         }
         Ok((at, below))
     }

@@ -642,6 +642,24 @@ pub(crate) fn read_meta(pager: &Pager, c: &Commit) -> Result<Option<Meta>, Stora
             format!("{} is not a block of the file", meta.root_block),
         ));
     }
+    // Readers size loops and stacks by these counts: bound them by the bytes
+    // that must hold them. Every node record and every object entry takes at
+    // least 20 bytes of a node block's payload (format-spec/node.md).
+    let per_block = u64::from(pager.block_size() - 24) / 20;
+    let entries = u64::from(meta.node_blocks) * per_block;
+    let too_many = |field: &'static str, n: u64, most: u64| {
+        (n > most).then(|| {
+            StorageError::corrupt(c.meta_block, field, format!("{n} is more than the file can hold ({most})"))
+        })
+    };
+    if let Some(e) = too_many("node_blocks", meta.node_blocks.into(), c.block_count.into())
+        .or_else(|| too_many("geometry_blocks", meta.geometry_blocks, c.block_count.into()))
+        .or_else(|| too_many("node_count", meta.node_count.into(), entries))
+        .or_else(|| too_many("object_count", meta.object_count.into(), entries))
+        .or_else(|| too_many("depth", meta.depth.into(), u64::from(meta.node_count).saturating_sub(1)))
+    {
+        return Err(e);
+    }
     Ok(Some(meta))
 }
 

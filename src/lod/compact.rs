@@ -176,6 +176,20 @@ pub fn decode(bytes: &[u8], lattice: &Lattice, outer: &Aabb) -> Result<Voxels, L
     Ok(v)
 }
 
+/// True when `blob`'s form says it sets no cell (a bitmap with no bit set,
+/// or no box), read without its grid. A blob too short for its head, or of
+/// an unknown form, is left to [`decode`] to refuse.
+pub(crate) fn sets_no_cell(blob: &[u8]) -> bool {
+    match BlobHead::ref_from_prefix(blob) {
+        Ok((head, payload)) => match head.form {
+            FORM_BITMAP => payload.iter().all(|&b| b == 0),
+            FORM_BOXES8 | FORM_BOXES16 => payload.is_empty(),
+            _ => false,
+        },
+        Err(_) => false,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -201,6 +215,23 @@ mod tests {
             assert_eq!(bytes.len(), encoded_len(&v));
             assert_eq!(decode(&bytes, &lattice, &b).unwrap(), v);
             assert!(decode(&bytes[..bytes.len() - 1], &lattice, &b).is_err());
+        }
+    }
+
+    #[test]
+    fn an_empty_set_is_seen_in_every_form_without_its_grid() {
+        let lattice = Lattice { origin: Point::origin(), cell: 1.0 };
+        let b = Aabb::from_array([0.0, 0.0, 0.0, 4.0, 4.0, 4.0]);
+        let grid = aligned_grid(&lattice, 0, &b).unwrap();
+        let mut one = Voxels::empty(grid.clone());
+        one.set_cell([3, 0, 2]);
+        assert!(sets_no_cell(&encode(&Voxels::empty(grid))));
+        assert!(!sets_no_cell(&encode(&one)));
+        let bitmap = [&[0, FORM_BITMAP][..], &[0; 8]].concat();
+        for (blob, empty) in
+            [(bitmap, true), (vec![0, FORM_BOXES16], true), (vec![0, 9], false), (vec![0], false)]
+        {
+            assert_eq!(sets_no_cell(&blob), empty, "{blob:?}");
         }
     }
 

@@ -26,11 +26,13 @@ mod voxels;
 pub use closed::is_closed;
 #[cfg(test)]
 pub(crate) use compact::BlobHead;
+pub(crate) use compact::sets_no_cell;
 pub use compact::{aligned_grid, decode, encode, encoded_len};
 pub use error::LodError;
 pub use error_measure::{ErrorProbe, measured_error};
 pub use grid::{Grid, MAX_CELLS, MAX_DIM};
 pub use lattice::Lattice;
 pub use plan::{LodParams, LodPlan};
+pub(crate) use policy::bound_grid;
 pub use policy::{Layout, LeafEntry, StoredBounds, plan_bounds};
 pub use voxels::Voxels;

@@ -268,7 +268,7 @@ impl Ctx<'_> {
         let frame = &self.layout.frames[i];
         let Some(qbox) = QuantBox::decode(frame, quantize(frame, &e.mesh.aabb())) else { return Ok(None) };
         // The grid over the box the reader holds: the decoded quantized box.
-        let Some(grid) = grid(self.plan, self.params, k, &qbox.outer)? else { return Ok(None) };
+        let Some(grid) = bound_grid(self.plan, self.params, k, &qbox.outer)? else { return Ok(None) };
         if grid.cells() > u64::from(u16::MAX) {
             return Ok(None);
         }
@@ -370,8 +370,14 @@ fn judge(
 }
 
 /// The grid of level k over `b`: the cuberille's within its cell budget,
-/// a polyhedral level's at its lattice level; `None` when too large.
-fn grid(plan: &LodPlan, params: &LodParams, k: u8, b: &Aabb) -> Result<Option<Grid>, LodError> {
+/// a polyhedral level's at its lattice level; `None` when too large. The
+/// writer bounds on it, and `check` holds every stored bound to it.
+pub(crate) fn bound_grid(
+    plan: &LodPlan,
+    params: &LodParams,
+    k: u8,
+    b: &Aabb,
+) -> Result<Option<Grid>, LodError> {
     let finest = plan.grid_level[usize::from(k) - 1];
     if k == 2 {
         for level in finest..=u8::MAX {

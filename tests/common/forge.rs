@@ -55,6 +55,33 @@ impl Image {
         }
     }
 
+    /// Every leaf record: (node block, absolute offset).
+    pub fn leaves(&self) -> Vec<(usize, usize)> {
+        self.blocks_of(BlockType::Node)
+            .into_iter()
+            .flat_map(|b| self.records(b).into_iter().map(move |r| (b, r)))
+            .filter(|&(_, r)| self.bytes[r] == 2)
+            .collect()
+    }
+
+    /// Absolute offsets of a leaf record's object entries (20 bytes each:
+    /// `object_id` u32, `qbox` [u16; 6], `position` u32).
+    pub fn leaf_entries(&self, r: usize) -> Vec<usize> {
+        let (n, s) = (u16_at(&self.bytes, r + 2), u16_at(&self.bytes, r + 12));
+        (0..n).map(|i| r + 20 + 4 * s + 20 * i).collect()
+    }
+
+    /// Where the geometry record of the object entry at `e` of the leaf at
+    /// `r` starts (geometry.md: stream position `position` * 4 of the span
+    /// from `first_block`, P = bs - 16 bytes a block): (block, absolute offset).
+    pub fn record_of(&self, r: usize, e: usize) -> (usize, usize) {
+        let p = self.bs - 16;
+        let first = u32_at(&self.bytes, r + 8) as usize;
+        let at = u32_at(&self.bytes, e + 16) as usize * 4;
+        let b = first + at / p;
+        (b, b * self.bs + 16 + at % p)
+    }
+
     /// A leaf record's bound entries: (target, level, absolute blob offset,
     /// blob length). Each entry is a 4-byte head (`target` u16, then
     /// `level_bytes` u16: the level in bits 0-3, the blob's length in bits

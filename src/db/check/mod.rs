@@ -1,20 +1,26 @@
 //! `check`: verifies every block's checksum, that every block is reachable
 //! or free exactly once, and every rule of the tree as the one traversal
-//! walks it: the objects' partition, each object inside its stored box and
-//! tight on every face of it (the box witnesses contact), each stored bound
-//! holding its object's surface within eps_k, the block counts every child
-//! entry predicts, and the meta block's totals.
+//! walks it: the objects' partition (each id in exactly one leaf, its parts
+//! consecutive and of one anchor, each record's id its entry's), each object
+//! inside its stored box and tight on every face of it (the box witnesses
+//! contact), each stored bound exactly the cells its surface touches on the
+//! grid its level's rules give (so it both rules contact out and proves it),
+//! encoded as the writer encodes it, within eps_k, the block counts every
+//! child entry predicts, and the meta block's totals. Whatever it sizes, it
+//! sizes by what it has read, never by a count the file states.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::sync::Arc;
 
 use super::{Database, ReadTransaction, Reads, Warning, view};
-use crate::geom::Aabb;
-use crate::lod::Voxels;
+use crate::geom::{Aabb, Point};
+use crate::lod::{LodParams, LodPlan, Voxels, bound_grid};
 use crate::query::{Everything, QueryError, QueryOptions, Visitor, walk};
+use crate::scene::Mesh;
 use crate::store::format::frame::{self, BlockType};
 use crate::store::format::freelist::FreeListBlock;
-use crate::store::format::node::NodeView;
+use crate::store::format::meta::LOD_TABLE_LEN;
+use crate::store::format::node::{BoundView, NodeView};
 use crate::store::format::quant::QuantBox;
 use crate::store::format::run;
 use crate::store::{Block, ReadStats, StorageError};
@@ -155,10 +161,66 @@ struct Walker<'t> {
     facts: Vec<NodeFacts>,
     at: HashMap<(u32, u32), usize>,
     depth_of: HashMap<(u32, u32), u32>,
-    seen: Vec<bool>,
+    /// The object ids met: as many as the leaves hold, whatever the meta block says.
+    seen: HashSet<u32>,
+    objects: u32,
+    /// How the writer chose each level's grids, from the meta block (none without a lattice).
+    rules: Option<(LodPlan, LodParams)>,
     eps: Vec<f64>,
     triangles: u64,
     vertices: u64,
+}
+
+impl Walker<'_> {
+    /// Checks bound `b` of an entry whose box, as its leaf holds it, is
+    /// `outer` and whose geometry is `mesh` (format-spec/lod.md).
+    fn check_bound(&self, b: &BoundView, outer: &Aabb, mesh: &Mesh) -> Result<(), String> {
+        let (plan, params) = self.rules.as_ref().ok_or("the meta block has no lattice")?;
+        let v = crate::lod::decode(b.blob, &plan.lattice, outer).map_err(|e| e.to_string())?;
+        let k = b.level;
+        let grid = bound_grid(plan, params, k, outer)
+            .map_err(|e| e.to_string())?
+            .ok_or("its level's rules give no grid over the box")?;
+        if *v.grid() != grid {
+            return Err(format!(
+                "lies on lattice level {}, its level's rules give {}",
+                v.grid().level(),
+                grid.level()
+            ));
+        }
+        // What the writer stores, and what bounds the voxelization below.
+        if grid.cells() > u64::from(u16::MAX) {
+            return Err(format!("has {} cells, more than the 65,535 a stored bound has", grid.cells()));
+        }
+        // The writer's conservative test: a cell is set when a triangle touches it.
+        let exact = Voxels::of_surfaces(grid, [mesh]);
+        if !exact.is_subset_of(&v).unwrap_or(false) {
+            return Err("does not hold its surface".into());
+        }
+        // A cell the surface does not touch would prove a contact that is not there.
+        if exact != v {
+            return Err("sets cells its surface does not touch".into());
+        }
+        if crate::lod::encode(&v) != b.blob {
+            return Err("is not encoded as the writer encodes its cells".into());
+        }
+        let eps = self.eps.get(usize::from(k) - 1).copied().unwrap_or(0.0);
+        if v.grid().max_cell_diagonal() > eps * (1.0 + 1e-9) {
+            return Err(format!("has cells wider than eps_{k} = {eps}"));
+        }
+        Ok(())
+    }
+}
+
+/// The lattice plan and the parameters the writer chose bounds' grids by,
+/// as the meta block records them.
+fn bound_rules(txn: &ReadTransaction) -> Option<(LodPlan, LodParams)> {
+    let meta = txn.snapshot.meta.as_ref()?;
+    let levels = txn.pager().lod_levels();
+    let grid_level = meta.lods.grid_level[..usize::from(levels).min(LOD_TABLE_LEN)].to_vec();
+    let plan = LodPlan { levels, lattice: txn.lattice()?, grid_level };
+    let params = LodParams { cuberille_object_bits: meta.lods.cuberille_object_bits, ..LodParams::default() };
+    Some((plan, params))
 }
 
 impl Visitor for Walker<'_> {
@@ -188,12 +250,15 @@ impl Visitor for Walker<'_> {
             NodeView::Leaf(leaf) => {
                 let (first, sums) = leaf.geometry();
                 facts.geometry = (0..sums.len() as u32).map(|i| first.saturating_add(i)).collect();
+                // The previous entry's id and anchor, when its record was read.
+                let mut previous: Option<(u32, Point)> = None;
                 for i in 0..leaf.len() {
                     let Some(o) = leaf.object(i) else { continue };
                     let (id, mesh) = match self.txn.read_object(block.id(), &leaf, i, &mut self.reads) {
                         Ok(x) => x,
                         Err(e) => {
                             self.faults.push(format!("{here}: {e}"));
+                            previous = None;
                             continue;
                         }
                     };
@@ -201,13 +266,15 @@ impl Visitor for Walker<'_> {
                     self.vertices += mesh.vertex_count() as u64;
                     // An object's parts are consecutive entries of one leaf.
                     let part_of_previous = i > 0 && leaf.object(i - 1).is_some_and(|p| p.object_id == id.0);
-                    match self.seen.get_mut(id.index()) {
-                        Some(s) if !*s => *s = true,
-                        Some(_) if part_of_previous => {}
-                        _ => {
-                            self.faults.push(format!("{here}: object {id} appears twice or is out of range"))
-                        }
+                    if id.0 >= self.objects || !self.seen.insert(id.0) && !part_of_previous {
+                        self.faults.push(format!("{here}: object {id} appears twice or is out of range"));
                     }
+                    // Every part carries its object's anchor: a part relabelled
+                    // as its neighbour's has another one.
+                    if previous.is_some_and(|(p, a)| p == id.0 && a != mesh.anchor()) {
+                        self.faults.push(format!("{here}: object {id}'s parts have different anchors"));
+                    }
+                    previous = Some((id.0, mesh.anchor()));
                     let Some(q) = QuantBox::decode(frame, o.qbox) else {
                         self.faults.push(format!("{here}: object {id}'s box is backwards"));
                         continue;
@@ -226,29 +293,9 @@ impl Visitor for Walker<'_> {
                             .push(format!("{here}: object {id}'s stored box is not tight on its surface"));
                     }
                     for bound in leaf.bounds().filter(|x| usize::from(x.target) == i) {
-                        let k = bound.level;
-                        let v =
-                            match self.txn.lattice().ok_or_else(|| "no lattice".to_string()).and_then(|l| {
-                                crate::lod::decode(bound.blob, &l, &q.outer).map_err(|e| e.to_string())
-                            }) {
-                                Ok(v) => v,
-                                Err(e) => {
-                                    self.faults
-                                        .push(format!("{here}: object {id}'s bound at level {k}: {e}"));
-                                    continue;
-                                }
-                            };
-                        let exact = Voxels::of_surfaces(v.grid().clone(), [&mesh]);
-                        if !exact.is_subset_of(&v).unwrap_or(false) {
-                            self.faults.push(format!(
-                                "{here}: object {id}'s bound at level {k} does not hold its surface"
-                            ));
-                        }
-                        let eps = self.eps.get(usize::from(k) - 1).copied().unwrap_or(0.0);
-                        if v.grid().max_cell_diagonal() > eps * (1.0 + 1e-9) {
-                            self.faults.push(format!(
-                                "{here}: object {id}'s bound at level {k} has cells wider than eps_{k} = {eps}"
-                            ));
+                        if let Err(e) = self.check_bound(&bound, &q.outer, &mesh) {
+                            self.faults
+                                .push(format!("{here}: object {id}'s bound at level {}: {e}", bound.level));
                         }
                     }
                 }
@@ -288,7 +335,9 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
         facts: Vec::new(),
         at: HashMap::new(),
         depth_of: HashMap::new(),
-        seen: vec![false; info.objects as usize],
+        seen: HashSet::new(),
+        objects: info.objects,
+        rules: bound_rules(txn),
         eps: txn.lod_info().map(|l| l.eps).unwrap_or_default(),
         triangles: 0,
         vertices: 0,
@@ -349,7 +398,10 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
         sub_nodes[i] = nodes;
         sub_geometry[i] = geometry;
     }
-    if let Some(missing) = w.seen.iter().position(|s| !s) {
+    // Fewer ids met than objects: among the first `seen + 1` ids one is missing.
+    if (w.seen.len() as u64) < u64::from(info.objects)
+        && let Some(missing) = (0..=w.seen.len() as u32).find(|i| !w.seen.contains(i))
+    {
         c.fault(format!("object {missing} is in no leaf"));
     }
     let leaves = w.facts.iter().filter(|f| f.children.is_none()).count() as u64;

@@ -21,6 +21,13 @@ pub(crate) struct ObjectHeader {
 pub const HEADER_LEN: usize = 40;
 const _: () = assert!(size_of::<ObjectHeader>() == HEADER_LEN);
 
+/// The format's coordinate range, mm (format-spec/geometry.md): every
+/// anchor and vertex coordinate lies in `[-MAX_COORDINATE, MAX_COORDINATE]`,
+/// 2^53, where f64 still holds every whole millimetre. Far inside f64's
+/// range, so the products of coordinates that distances and exact contact
+/// tests (parry's GJK) form stay finite.
+pub const MAX_COORDINATE: f64 = 9_007_199_254_740_992.0;
+
 /// Encoded bytes of one object record: 40 + 12 v + 12 t.
 pub fn record_len(mesh: &Mesh) -> u64 {
     HEADER_LEN as u64 + 12 * mesh.vertex_count() as u64 + 12 * mesh.triangle_count() as u64
@@ -219,8 +226,8 @@ pub fn decode_object(id: u32, bytes: &[u8]) -> Result<(ObjectId, Mesh), StorageE
         return Err(bad("triangle_count", "an object with no triangles".into()));
     }
     let anchor = Point::new(h.anchor[0].get(), h.anchor[1].get(), h.anchor[2].get());
-    if !anchor.iter().all(|c| c.is_finite()) {
-        return Err(bad("anchor", "non-finite anchor".into()));
+    if !anchor.iter().all(|c| c.abs() <= MAX_COORDINATE) {
+        return Err(bad("anchor", format!("{anchor:?} is outside the format's range (2^53 mm)")));
     }
     let arrays = &bytes[HEADER_LEN..end];
     let offsets: Vec<[f32; 3]> = arrays[..12 * v]
@@ -235,8 +242,15 @@ pub fn decode_object(id: u32, bytes: &[u8]) -> Result<(ObjectId, Mesh), StorageE
             std::array::from_fn(|i| u32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]]))
         })
         .collect();
-    if let Some(i) = offsets.iter().position(|o| !o.iter().all(|c| c.is_finite())) {
-        return Err(bad("offsets", format!("vertex {i} is not finite")));
+    // The anchor is the vertices' lower corner, so offsets are >= 0 and the
+    // anchor bounds every vertex from below; from above, each is checked.
+    let in_range =
+        |o: &[f32; 3]| (0..3).all(|a| o[a] >= 0.0 && anchor[a] + f64::from(o[a]) <= MAX_COORDINATE);
+    if let Some(i) = offsets.iter().position(|o| !in_range(o)) {
+        return Err(bad(
+            "offsets",
+            format!("vertex {i} lies below the anchor or outside the format's range"),
+        ));
     }
     if let Some(i) = triangles.iter().position(|tr| tr.iter().any(|&x| x as usize >= v)) {
         return Err(bad("triangles", format!("triangle {i} indexes past {v} vertices")));
@@ -288,6 +302,34 @@ mod tests {
         *stream.last_mut().unwrap() = 1;
         assert!(decode_object(7, &stream).is_err());
         assert!(decode_object(7, &stream[..100]).is_err());
+    }
+
+    #[test]
+    fn anchors_and_vertices_outside_the_format_range_are_corrupt() {
+        let m = Mesh::from_world(
+            &[Point::new(1.0, 2.0, 3.0), Point::new(4.0, 2.0, 3.0), Point::new(1.0, 5.0, 3.0)],
+            vec![[0, 1, 2]],
+        )
+        .unwrap();
+        let mut good = Vec::new();
+        encode_object(ObjectId(0), &m, &mut good);
+        let far = MAX_COORDINATE + 2.0;
+        // (byte, bytes): the anchor's x far out, its y far below; a vertex
+        // below the anchor; a vertex past the range from an anchor inside it.
+        let cases: [(usize, Vec<u8>); 4] = [
+            (16, far.to_le_bytes().to_vec()),
+            (24, (-far).to_le_bytes().to_vec()),
+            (40 + 12, (-1.0f32).to_le_bytes().to_vec()),
+            (16, (MAX_COORDINATE - 1.0).to_le_bytes().to_vec()),
+        ];
+        for (i, (at, bytes)) in cases.into_iter().enumerate() {
+            let mut rec = good.clone();
+            rec[at..at + bytes.len()].copy_from_slice(&bytes);
+            assert!(decode_object(7, &rec).is_err(), "case {i}");
+        }
+        let mut edge = good.clone();
+        edge[16..24].copy_from_slice(&(-MAX_COORDINATE).to_le_bytes());
+        assert!(decode_object(7, &edge).is_ok(), "the range's ends are in it");
     }
 
     #[test]

@@ -430,6 +430,8 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
             let payload = limits.block_size as u64 - FRAME_LEN as u64;
             let objects_at = LEAF_HEAD_LEN + 4 * span;
             let mut prev: Option<u64> = None;
+            // The first entry of each object: its parts follow it, so no id starts twice.
+            let mut starts: Vec<u32> = Vec::new();
             for i in 0..n {
                 let at = objects_at + i * OBJECT_LEN;
                 let (o, _) =
@@ -443,6 +445,9 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
                 if !qbox_ok(&o.qbox) {
                     return Err(bad("object_box", "a lower step exceeds the upper one".into()));
                 }
+                if starts.last() != Some(&o.object_id.get()) {
+                    starts.push(o.object_id.get());
+                }
                 let p = u64::from(o.position.get()) * 4;
                 if i == 0 && p >= payload {
                     return Err(bad(
@@ -454,6 +459,10 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
                     return Err(bad("position", format!("object {i} starts inside the one before")));
                 }
                 prev = Some(p);
+            }
+            starts.sort_unstable();
+            if let Some(w) = starts.windows(2).find(|w| w[0] == w[1]) {
+                return Err(bad("object_id", format!("object {}'s entries are not consecutive", w[0])));
             }
             let end_at = objects_at + n * OBJECT_LEN;
             let end = u64::from(u32::from_le_bytes(
@@ -495,6 +504,11 @@ fn validate_bounds(mut area: &[u8], targets: usize, limits: &Limits) -> Result<(
         let n = raw.blob_bytes();
         if n > rest.len() {
             return Err(format!("a bound of {n} bytes overruns its record"));
+        }
+        // A bound is of a surface, which touches some cell: one of no cell
+        // would rule its object out of every query.
+        if crate::lod::sets_no_cell(&rest[..n]) {
+            return Err(format!("the bound of target {t} at level {k} sets no cell"));
         }
         area = &rest[n..];
     }
@@ -689,9 +703,10 @@ mod tests {
             objects: vec![
                 ObjectEntry { object_id: 3, qbox: [0, 0, 0, 10, 10, 10], position: 0 },
                 ObjectEntry { object_id: 4, qbox: [1, 2, 3, 4, 5, 6], position: 100 },
+                ObjectEntry { object_id: 4, qbox: [1, 2, 3, 4, 5, 6], position: 200 },
             ],
-            end: 200,
-            bounds: vec![BoundEntry { target: 1, level: 2, blob: vec![1, 2, 3] }],
+            end: 300,
+            bounds: vec![BoundEntry { target: 1, level: 2, blob: vec![1, 1, 4] }],
         };
         let inner = RecordDraft::Internal {
             node_id: 0,
@@ -724,9 +739,11 @@ mod tests {
         assert_eq!(n.child_ref(1), RecordRef { block: 5, checksum: 1234, offset: 24 });
         assert_eq!(n.split().axis, Axis::Y);
         let NodeView::Leaf(l) = NodeView::at(&block, offsets[1]).unwrap() else { panic!() };
-        assert_eq!(l.len(), 2);
+        assert_eq!(l.len(), 3);
+        assert_eq!(l.object_count(), 2, "the parts of object 4 are one object");
         assert_eq!(l.object(1).unwrap().span, (100, 200));
-        assert_eq!(l.bounds().collect::<Vec<_>>(), vec![BoundView { target: 1, level: 2, blob: &[1, 2, 3] }]);
+        let blob = [1, 1, 4];
+        assert_eq!(l.bounds().collect::<Vec<_>>(), vec![BoundView { target: 1, level: 2, blob: &blob }]);
         assert_eq!(l.geometry().1.collect::<Vec<_>>(), vec![77]);
     }
 
@@ -735,8 +752,20 @@ mod tests {
         let mut block = vec![0u8; 1024];
         let offsets = encode_block(&drafts(), &mut block).unwrap();
         // (byte, value): the kind, the used bytes, an in-block child offset,
-        // the reserved tail, an object id.
-        let cases = [(24, 7), (16, 1), (24 + 20 + 16, 1), (1000, 1), (offsets[1] as usize + 20 + 4, 99)];
+        // the reserved tail, an object id out of range, the third entry's id
+        // made 3 (object 3 again, after 4), the bound's bitmap (its blob:
+        // level 1, form 1, one byte) cleared.
+        let third = offsets[1] as usize + 20 + 4 + 2 * 20;
+        let bitmap = offsets[1] as usize + 20 + 4 + 3 * 20 + 4 + 4 + 2;
+        let cases = [
+            (24, 7),
+            (16, 1),
+            (24 + 20 + 16, 1),
+            (1000, 1),
+            (offsets[1] as usize + 20 + 4, 99),
+            (third, 3),
+            (bitmap, 0),
+        ];
         for (i, (at, value)) in cases.into_iter().enumerate() {
             let mut b = block.clone();
             b[at] = value;
