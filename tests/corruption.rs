@@ -112,30 +112,7 @@ fn a_truncated_file_is_refused() {
 
 #[test]
 fn a_child_link_that_loops_is_an_error_not_a_hang() {
-    use mktree::store::format::frame::{BlockType, seal};
-    use mktree::store::format::header::{Commit, SlotRead, SlotState, decode_slots, put_slot};
-    // The golden file (format-spec/example.md): one node block holds the
-    // root record (offset 24) and its two leaves; slot 1 holds the commit.
-    let mut f = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v4.mkt")).unwrap();
-    let block = |i: usize| i * 1024..(i + 1) * 1024;
-    let of_type = |f: &[u8], t: BlockType| (1..f.len() / 1024).find(|&i| f[i * 1024 + 4] == t as u8).unwrap();
-    let (node, meta) = (of_type(&f, BlockType::Node), of_type(&f, BlockType::Meta));
-    let txn = 2;
-    // The root is an internal record (kind 1) at offset 24; its first child
-    // entry starts at 20 in the record and names its record by `offset` at
-    // 20 in the entry, with `block` 0 (this block): point it at the root.
-    let root = node * 1024 + 24;
-    assert_eq!(f[root], 1, "the root is an internal record");
-    let entry = root + 20;
-    assert_eq!(&f[entry + 12..entry + 16], &[0; 4], "the first child lives in the root's block");
-    f[entry + 20..entry + 24].copy_from_slice(&24u32.to_le_bytes());
-    let root_sum = seal(node as u32, &mut f[block(node)], BlockType::Node, txn);
-    // The meta block holds the root block's checksum at offset 20; the slot holds the meta's.
-    f[meta * 1024 + 20..meta * 1024 + 24].copy_from_slice(&root_sum.to_le_bytes());
-    let meta_sum = seal(meta as u32, &mut f[block(meta)], BlockType::Meta, txn);
-    let SlotRead::Committed(c) = decode_slots(&f)[1].value() else { panic!("slot 1") };
-    let c = Commit { meta_checksum: meta_sum, ..c };
-    put_slot(&mut f, 1, SlotState::Committed, &c);
+    let f = common::forge::golden_with_looping_root(None);
     let db = Database::open_on(Arc::new(MemDevice::from_bytes(f)) as Arc<dyn BlockDevice>).unwrap();
     let err =
         db.begin_read().unwrap().query_box(&Aabb::from_array([-1e9, -1e9, -1e9, 1e9, 1e9, 1e9])).unwrap_err();

@@ -485,25 +485,9 @@ proptest! {
 
 #[test]
 fn a_looping_child_link_under_a_forged_node_count_is_an_error_not_an_abort() {
-    use mktree::store::format::frame::seal;
-    use mktree::store::format::header::{Commit, SlotRead, SlotState, decode_slots, put_slot};
-    // The golden file (format-spec/example.md): one node block holds the root
-    // record (offset 24) and its two leaves; slot 1 holds the commit. The
-    // root's first child is pointed at the root, and the meta block claims
-    // 2^31 - 1 nodes, so a bound from the meta block alone would let the walk
-    // grow until memory runs out.
-    let mut f = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v4.mkt")).unwrap();
-    let block = |i: usize| i * 1024..(i + 1) * 1024;
-    let of_type = |f: &[u8], t: BlockType| (1..f.len() / 1024).find(|&i| f[i * 1024 + 4] == t as u8).unwrap();
-    let (node, meta) = (of_type(&f, BlockType::Node), of_type(&f, BlockType::Meta));
-    let entry = node * 1024 + 24 + 20;
-    f[entry + 20..entry + 24].copy_from_slice(&24u32.to_le_bytes());
-    let root_sum = seal(node as u32, &mut f[block(node)], BlockType::Node, 2);
-    f[meta * 1024 + 20..meta * 1024 + 24].copy_from_slice(&root_sum.to_le_bytes());
-    f[meta * 1024 + 32..meta * 1024 + 36].copy_from_slice(&(i32::MAX as u32).to_le_bytes());
-    let meta_sum = seal(meta as u32, &mut f[block(meta)], BlockType::Meta, 2);
-    let SlotRead::Committed(c) = decode_slots(&f)[1].value() else { panic!("slot 1") };
-    put_slot(&mut f, 1, SlotState::Committed, &Commit { meta_checksum: meta_sum, ..c });
+    // The meta block claims 2^31 - 1 nodes: a bound from the meta block
+    // alone would let the walk grow until memory runs out.
+    let f = forge::golden_with_looping_root(Some(i32::MAX as u32));
     let err = open(&f).unwrap_err();
     assert!(err.is_corruption() && err.to_string().contains("node_count"), "{err}");
     mktree::fuzzing::open_and_query(&f);
