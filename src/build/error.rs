@@ -5,6 +5,8 @@
 //! `Storage(StorageError)`; building is in-memory and the storage layer does
 //! not exist yet, so there is no such variant until a build reads from it.
 
+use super::validate::MAX_SPAN;
+use crate::geom::Axis;
 use crate::scene::ObjectId;
 
 /// Why [`build`](super::build) refused to start.
@@ -36,6 +38,24 @@ pub enum BuildError {
     NonFiniteBox {
         /// The object.
         object: ObjectId,
+    },
+    /// The boxes span more than [`MAX_SPAN`] on an axis: a file could
+    /// not store the splits between them.
+    #[error(
+        "the scene spans {axis} from {low:e} mm (object {low_object}) to {high:e} mm (object {high_object}): \
+         wider than the {MAX_SPAN:e} mm a file can hold (split values are f32)"
+    )]
+    TooWide {
+        /// The axis.
+        axis: Axis,
+        /// The lowest coordinate on it.
+        low: f64,
+        /// An object that reaches it.
+        low_object: ObjectId,
+        /// The highest coordinate on it.
+        high: f64,
+        /// An object that reaches it.
+        high_object: ObjectId,
     },
     /// A box has min > max on some axis (the empty box included).
     #[error("object {object} has an inverted box (min > max on some axis)")]

@@ -6,8 +6,33 @@
 
 use super::driver::{check_input, signed_intersection};
 use super::{BuildError, BuildParams, Hierarchy, Method, NodeId, NodeKind, Order, Split};
-use crate::geom::Aabb;
+use crate::geom::{Aabb, Axis};
 use crate::scene::ObjectId;
+
+/// The widest, in mm, that objects may span on an axis: a file stores split
+/// values (format-spec/node.md) and vertex offsets from an object's anchor
+/// (geometry.md) as f32, and both are bounded by the span. Anchors and the
+/// scene box are f64, so a scene may lie anywhere as long as it is this narrow.
+pub const MAX_SPAN: f64 = f32::MAX as f64;
+
+/// Refuses finite `boxes` that span more than [`MAX_SPAN`] on an axis,
+/// naming the axis, its two ends and an object at each.
+pub(crate) fn check_span(boxes: &[Aabb]) -> Result<(), BuildError> {
+    let id = |j: usize| ObjectId(j as u32);
+    for axis in Axis::ALL {
+        let a = axis.index();
+        let low = boxes.iter().map(|b| b.min[a]).enumerate().min_by(|x, y| x.1.total_cmp(&y.1));
+        let high = boxes.iter().map(|b| b.max[a]).enumerate().max_by(|x, y| x.1.total_cmp(&y.1));
+        let (Some((lo, low)), Some((hi, high))) = (low, high) else {
+            return Ok(());
+        };
+        // The far ends' difference may overflow to infinity: wider too.
+        if high - low > MAX_SPAN {
+            return Err(BuildError::TooWide { axis, low, low_object: id(lo), high, high_object: id(hi) });
+        }
+    }
+    Ok(())
+}
 
 /// Why a hierarchy is not a valid tree of its input.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -229,5 +254,29 @@ fn check_split(
         Ok(())
     } else {
         Err(HierarchyError::SplitMismatch { node: id, found: *split, expected_gap })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_span_is_checked_on_every_axis_up_to_f32_max() {
+        let b = |y0: f64, y1: f64| Aabb::from_array([0.0, y0, 0.0, 1.0, y1, 1.0]);
+        assert_eq!(check_span(&[]), Ok(()));
+        assert_eq!(check_span(&[b(-1e300, -1e300), b(-1e300, -1e300)]), Ok(()));
+        assert_eq!(check_span(&[b(0.0, 1.0), b(5.0, MAX_SPAN)]), Ok(()));
+        let wide = [b(0.0, 1.0), b(-2.0, -1.0), b(5.0, 1e39)];
+        let expected = BuildError::TooWide {
+            axis: Axis::Y,
+            low: -2.0,
+            low_object: ObjectId(1),
+            high: 1e39,
+            high_object: ObjectId(2),
+        };
+        assert_eq!(check_span(&wide), Err(expected));
+        // A span that overflows f64 is too wide as well.
+        assert!(check_span(&[b(-f64::MAX, 0.0), b(0.0, f64::MAX)]).is_err());
     }
 }
