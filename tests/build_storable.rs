@@ -1,9 +1,9 @@
 //! Claim: `bulk_load` accepts only scenes that a file can hold, and every
-//! file it writes reads back. A scene wider than f32's range on an axis
-//! (split values and vertex offsets are stored as f32) is refused before
-//! anything is written, with an error that names the axis, the coordinates
-//! and the objects; an object wider than that is refused when its mesh is
-//! made. Degenerate scenes (points, 1e-100 mm triangles, segments), alone
+//! file it writes reads back. A scene with a coordinate beyond the format's
+//! range (±2^53 mm, format-spec/geometry.md) is refused before anything is
+//! written, with an error that names the object, the axis and the
+//! coordinate; an object wider than an f32 offset holds is refused when its
+//! mesh is made. Degenerate scenes (points, 1e-100 mm triangles, segments), alone
 //! or among good objects, are accepted, with or without stored levels of
 //! detail, and read back: `check` finds no fault, a query answers them.
 
@@ -12,6 +12,7 @@ use mktree::db::{CreateOptions, Database, check};
 use mktree::geom::{Axis, Point};
 use mktree::lod::LodParams;
 use mktree::scene::{Mesh, MeshError, Object, ObjectId, Scene};
+use mktree::store::format::geometry::MAX_COORDINATE;
 
 /// Small leaves, so that a few objects make internal nodes (splits).
 fn params() -> BuildParams {
@@ -58,51 +59,65 @@ fn build_then_read(scene: &Scene, store_all: bool) -> Result<(), mktree::Error> 
     Ok(())
 }
 
-fn too_wide(scene: &Scene) -> BuildError {
+fn out_of_range(scene: &Scene) -> BuildError {
     match build_then_read(scene, false) {
-        Err(mktree::Error::Build(e @ BuildError::TooWide { .. })) => e,
-        other => panic!("expected the scene to be refused as too wide, got {other:?}"),
+        Err(mktree::Error::Build(e @ BuildError::OutOfRange { .. })) => e,
+        other => panic!("expected the scene to be refused as out of range, got {other:?}"),
     }
 }
 
 #[test]
-fn a_scene_wider_than_f32_on_an_axis_is_refused_before_anything_is_written() {
-    // Two groups of triangles 1e39 mm apart: the split between them did not fit an f32.
-    let wide = scene(
+fn a_scene_beyond_the_format_range_is_refused_before_anything_is_written() {
+    // Two groups of triangles 1e39 mm apart: the split between them did not even fit an f32.
+    let far_apart = scene(
         (0..4)
             .map(|i| triangle_at(f64::from(i)))
             .chain((0..4).map(|i| triangle_at(1e39 + 1e24 * f64::from(i)))),
     );
-    let e = too_wide(&wide);
-    let high = wide.aabb().max.x;
-    let expected = BuildError::TooWide {
+    let e = out_of_range(&far_apart);
+    let expected = BuildError::OutOfRange {
+        object: ObjectId(4),
         axis: Axis::X,
-        low: 0.0,
-        low_object: ObjectId(0),
-        high,
-        high_object: ObjectId(7),
+        coordinate: 1e39,
+        limit: MAX_COORDINATE,
     };
     assert_eq!(e, expected);
     let m = e.to_string();
-    assert!(m.contains(&format!("spans x from 0e0 mm (object 0) to {high:e} mm (object 7)")), "{m}");
-    assert!(m.contains("3.4028234663852886e38 mm"), "{m}");
-    // Coordinates at either end of f64, whose difference is not even finite.
-    let ends = scene([triangle_at(-1e308), triangle_at(1e308), triangle_at(0.0)]);
-    assert!(matches!(too_wide(&ends), BuildError::TooWide { axis: Axis::X, .. }));
+    assert_eq!(m, "object 4: x = 1e39 mm is beyond the range of ±9007199254740992 mm a file holds");
+    // A narrow scene far out: its anchors were written, and refused by every reader.
+    let far = scene(
+        (0..4).map(|i| mesh(&[[0.0, -1e20, 0.0], [1.0, -1e20, f64::from(i)], [0.0, -1e20 + 5e4, 1.0]])),
+    );
+    let e = out_of_range(&far);
+    assert_eq!(
+        e,
+        BuildError::OutOfRange {
+            object: ObjectId(0),
+            axis: Axis::Y,
+            coordinate: -1e20,
+            limit: MAX_COORDINATE
+        }
+    );
+    // Coordinates at either end of f64.
+    let ends = scene([triangle_at(0.0), triangle_at(-1e308), triangle_at(1e308)]);
+    assert!(matches!(out_of_range(&ends), BuildError::OutOfRange { object: ObjectId(1), .. }));
 }
 
 #[test]
-fn a_scene_exactly_as_wide_as_f32_allows_builds_and_reads_back() {
-    let max = f64::from(f32::MAX);
-    let edge = scene((0..4).map(|i| triangle_at(f64::from(i))).chain([mesh(&[
-        [max, 0.0, 0.0],
-        [max, 1.0, 0.0],
-        [max, 0.0, 1.0],
-    ])]));
+fn a_scene_out_to_the_ends_of_the_range_builds_and_reads_back() {
+    let max = MAX_COORDINATE;
+    let edge = scene(
+        (0..4)
+            .map(|i| triangle_at(f64::from(i)))
+            .chain([mesh(&[[-max, 0.0, 0.0], [-max + 2.0, 0.0, 0.0], [-max, 1.0, -max]])])
+            .chain([mesh(&[[max - 2.0, max, 0.0], [max, max, 0.0], [max, max - 2.0, max]])]),
+    );
     build_then_read(&edge, false).unwrap();
-    let over =
-        scene([triangle_at(0.0), mesh(&[[max, 0.0, 0.0], [max * (1.0 + 1e-15), 0.0, 0.0], [max, 1.0, 0.0]])]);
-    assert!(matches!(too_wide(&over), BuildError::TooWide { .. }));
+    let over = scene([triangle_at(0.0), mesh(&[[max, 0.0, 0.0], [max + 2.0, 0.0, 0.0], [max, 1.0, 0.0]])]);
+    assert!(matches!(
+        out_of_range(&over),
+        BuildError::OutOfRange { object: ObjectId(1), coordinate: 9007199254740994.0, .. }
+    ));
 }
 
 #[test]
@@ -157,7 +172,7 @@ fn degenerate_scenes_with_every_level_of_detail_stored_read_back() {
 }
 
 #[test]
-fn a_far_scene_within_the_span_reads_back() {
+fn a_far_scene_within_the_range_reads_back() {
     // Anchors are f64: a scene far from the origin only needs a small span.
     let far = scene((0..6).map(|i| triangle_at(1e15 + 10.0 * f64::from(i))));
     build_then_read(&far, true).unwrap();

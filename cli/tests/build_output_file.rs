@@ -106,7 +106,8 @@ fn an_existing_tree_is_replaced_and_a_refused_scene_leaves_no_new_file() {
     let built = build(&wide, &refused);
     assert!(!built.status.success());
     assert!(
-        stderr(&built).contains("the scene spans x from 0e0 mm (object 0) to 1e39 mm (object 1)"),
+        stderr(&built)
+            .contains("object 1: x = 1e39 mm is beyond the range of ±9007199254740992 mm a file holds"),
         "{}",
         stderr(&built)
     );

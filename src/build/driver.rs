@@ -122,7 +122,6 @@ pub(crate) fn check_input<'a>(
             return Err(BuildError::InvertedBox { object });
         }
     }
-    super::validate::check_span(boxes)?;
     if let Some(s) = sizes.filter(|s| s.len() != boxes.len()) {
         return Err(BuildError::SizesMismatch { boxes: boxes.len(), sizes: s.len() });
     }

@@ -5,7 +5,6 @@
 //! `Storage(StorageError)`; building is in-memory and the storage layer does
 //! not exist yet, so there is no such variant until a build reads from it.
 
-use super::validate::MAX_SPAN;
 use crate::geom::Axis;
 use crate::scene::ObjectId;
 
@@ -39,23 +38,18 @@ pub enum BuildError {
         /// The object.
         object: ObjectId,
     },
-    /// The boxes span more than [`MAX_SPAN`] on an axis: a file could
-    /// not store the splits between them.
-    #[error(
-        "the scene spans {axis} from {low:e} mm (object {low_object}) to {high:e} mm (object {high_object}): \
-         wider than the {MAX_SPAN:e} mm a file can hold (split values are f32)"
-    )]
-    TooWide {
+    /// An object's coordinate is beyond the range a file holds (see
+    /// [`check_range`](super::check_range)).
+    #[error("object {object}: {axis} = {coordinate:e} mm is beyond the range of ±{limit} mm a file holds")]
+    OutOfRange {
+        /// The object.
+        object: ObjectId,
         /// The axis.
         axis: Axis,
-        /// The lowest coordinate on it.
-        low: f64,
-        /// An object that reaches it.
-        low_object: ObjectId,
-        /// The highest coordinate on it.
-        high: f64,
-        /// An object that reaches it.
-        high_object: ObjectId,
+        /// The coordinate of its anchor or of a vertex.
+        coordinate: f64,
+        /// The range's bound, mm.
+        limit: f64,
     },
     /// A box has min > max on some axis (the empty box included).
     #[error("object {object} has an inverted box (min > max on some axis)")]

@@ -7,28 +7,31 @@
 use super::driver::{check_input, signed_intersection};
 use super::{BuildError, BuildParams, Hierarchy, Method, NodeId, NodeKind, Order, Split};
 use crate::geom::{Aabb, Axis};
-use crate::scene::ObjectId;
+use crate::scene::{ObjectId, Scene};
 
-/// The widest, in mm, that objects may span on an axis: a file stores split
-/// values (format-spec/node.md) and vertex offsets from an object's anchor
-/// (geometry.md) as f32, and both are bounded by the span. Anchors and the
-/// scene box are f64, so a scene may lie anywhere as long as it is this narrow.
-pub const MAX_SPAN: f64 = f32::MAX as f64;
-
-/// Refuses finite `boxes` that span more than [`MAX_SPAN`] on an axis,
-/// naming the axis, its two ends and an object at each.
-pub(crate) fn check_span(boxes: &[Aabb]) -> Result<(), BuildError> {
-    let id = |j: usize| ObjectId(j as u32);
-    for axis in Axis::ALL {
-        let a = axis.index();
-        let low = boxes.iter().map(|b| b.min[a]).enumerate().min_by(|x, y| x.1.total_cmp(&y.1));
-        let high = boxes.iter().map(|b| b.max[a]).enumerate().max_by(|x, y| x.1.total_cmp(&y.1));
-        let (Some((lo, low)), Some((hi, high))) = (low, high) else {
-            return Ok(());
-        };
-        // The far ends' difference may overflow to infinity: wider too.
-        if high - low > MAX_SPAN {
-            return Err(BuildError::TooWide { axis, low, low_object: id(lo), high, high_object: id(hi) });
+/// Refuses `scene` when an object's anchor or a vertex, used or not, has a
+/// coordinate beyond ±`limit` mm, naming the first object and axis at fault.
+/// A file holds coordinates within
+/// [`MAX_COORDINATE`](crate::store::format::geometry::MAX_COORDINATE)
+/// (format-spec/geometry.md, "Coordinate range"), and its writer checks
+/// against that; within it, f32 also holds every offset and split value.
+pub fn check_range(scene: &Scene, limit: f64) -> Result<(), BuildError> {
+    for (j, object) in scene.objects().iter().enumerate() {
+        let mesh = &object.mesh;
+        // Every vertex lies between the anchor and this corner.
+        let high = mesh.vertices().fold(mesh.anchor(), |corner, v| corner.sup(&v));
+        for corner in [mesh.anchor(), high] {
+            for axis in Axis::ALL {
+                let coordinate = corner[axis.index()];
+                if coordinate.abs() > limit {
+                    return Err(BuildError::OutOfRange {
+                        object: ObjectId(j as u32),
+                        axis,
+                        coordinate,
+                        limit,
+                    });
+                }
+            }
         }
     }
     Ok(())
@@ -260,23 +263,30 @@ fn check_split(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geom::Point;
+    use crate::scene::{Mesh, Object};
+
+    fn scene(objects: &[&[[f64; 3]]]) -> Scene {
+        let object = |points: &&[[f64; 3]]| {
+            let points: Vec<Point> = points.iter().map(|&p| p.into()).collect();
+            Object::new("o", Mesh::from_world(&points, vec![[0, 1, 2]]).unwrap())
+        };
+        Scene::new(objects.iter().map(object).collect())
+    }
 
     #[test]
-    fn the_span_is_checked_on_every_axis_up_to_f32_max() {
-        let b = |y0: f64, y1: f64| Aabb::from_array([0.0, y0, 0.0, 1.0, y1, 1.0]);
-        assert_eq!(check_span(&[]), Ok(()));
-        assert_eq!(check_span(&[b(-1e300, -1e300), b(-1e300, -1e300)]), Ok(()));
-        assert_eq!(check_span(&[b(0.0, 1.0), b(5.0, MAX_SPAN)]), Ok(()));
-        let wide = [b(0.0, 1.0), b(-2.0, -1.0), b(5.0, 1e39)];
-        let expected = BuildError::TooWide {
-            axis: Axis::Y,
-            low: -2.0,
-            low_object: ObjectId(1),
-            high: 1e39,
-            high_object: ObjectId(2),
-        };
-        assert_eq!(check_span(&wide), Err(expected));
-        // A span that overflows f64 is too wide as well.
-        assert!(check_span(&[b(-f64::MAX, 0.0), b(0.0, f64::MAX)]).is_err());
+    fn every_vertex_and_anchor_is_checked_against_the_limit() {
+        let inside: &[[f64; 3]] = &[[-10.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0]];
+        assert_eq!(check_range(&scene(&[inside]), 10.0), Ok(()));
+        assert_eq!(check_range(&Scene::default(), 10.0), Ok(()));
+        let out: &[[f64; 3]] = &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, -11.0]];
+        let expected =
+            BuildError::OutOfRange { object: ObjectId(1), axis: Axis::Z, coordinate: -11.0, limit: 10.0 };
+        assert_eq!(check_range(&scene(&[inside, out]), 10.0), Err(expected));
+        // A vertex no triangle uses is stored too.
+        let points = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 12.0, 0.0]].map(Point::from);
+        let unused = Mesh::from_world(&points, vec![[0, 1, 2]]).unwrap();
+        let e = check_range(&Scene::new(vec![Object::new("u", unused)]), 10.0).unwrap_err();
+        assert!(matches!(e, BuildError::OutOfRange { axis: Axis::Y, coordinate: 12.0, .. }), "{e}");
     }
 }
