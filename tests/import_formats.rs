@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use mktree::geom::Point;
-use mktree::scene::import::{ImportError, ImportOptions, Imported, load};
+use mktree::scene::import::{ImportError, ImportOptions, Imported, UriRefusal, load};
 use mktree::scene::{Object, Scene};
 use proptest::prelude::*;
 use serde_json::{Value, json};
@@ -369,8 +369,126 @@ fn broken_gltf_files_are_refused_with_their_name() {
 
     let doc = document(json!({"uri": "missing.bin", "byteLength": 108}));
     let path = write(dir.path(), "lonely.gltf", serde_json::to_vec(&doc).unwrap());
-    let m = load(&path, &MM).unwrap_err().to_string();
-    assert!(m.contains("lonely.gltf: glTF: buffer 0: "), "{m}");
+    let e = load(&path, &MM).unwrap_err();
+    assert!(matches!(&e, ImportError::Io { file, .. } if file.ends_with("missing.bin")), "{e:?}");
+}
+
+// ------------------------------------------------- glTF buffer URIs
+
+/// Loads `<root>/scene/assembly.gltf`, the test document with one buffer
+/// of `uri` declaring `byte_length` bytes (and `extra` merged into the
+/// document), with `parts.bin` in `<root>/scene/bin/` and a copy of it,
+/// the "secret", in `<root>/outside/`.
+fn load_buffer_uri(
+    root: &Path,
+    uri: &str,
+    byte_length: usize,
+    extra: Value,
+) -> Result<Imported, ImportError> {
+    let bin = buffer_bytes();
+    for folder in ["scene/bin", "outside"] {
+        std::fs::create_dir_all(root.join(folder)).unwrap();
+    }
+    write(&root.join("scene/bin"), "parts one.bin", &bin);
+    write(&root.join("outside"), "secret.bin", &bin);
+    let mut doc = document(json!({"uri": uri, "byteLength": byte_length}));
+    if let (Some(doc), Value::Object(extra)) = (doc.as_object_mut(), extra) {
+        doc.extend(extra);
+    }
+    let path = write(&root.join("scene"), "assembly.gltf", serde_json::to_vec(&doc).unwrap());
+    load(&path, &MM)
+}
+
+/// The refusal of `uri` (as a buffer URI of the test document), checked to
+/// name the URI in its message.
+fn refused_uri(root: &Path, uri: &str, byte_length: usize) -> UriRefusal {
+    match load_buffer_uri(root, uri, byte_length, json!({})) {
+        Err(e @ ImportError::BufferUri { .. }) => {
+            let message = e.to_string();
+            assert!(message.contains(&format!("{uri:?}")), "does not name the URI: {message}");
+            assert!(message.contains("assembly.gltf: "), "does not name the file: {message}");
+            let ImportError::BufferUri { buffer, reason, .. } = e else { unreachable!() };
+            assert_eq!(buffer, 0);
+            reason
+        }
+        other => panic!("{uri}: expected a refused URI, got {other:?}"),
+    }
+}
+
+#[test]
+fn a_buffer_uri_in_a_subfolder_is_read_and_images_are_never_opened() {
+    let dir = tempfile::tempdir().unwrap();
+    let bin = buffer_bytes();
+    // Images are never needed for geometry: not even ones that would be refused as buffers.
+    let images =
+        json!({"images": [{"uri": "/dev/zero"}, {"uri": "../outside/secret.bin"}, {"uri": "none.png"}]});
+    for uri in ["bin/parts%20one.bin", "./bin/../bin/parts one.bin"] {
+        let imported = load_buffer_uri(dir.path(), uri, bin.len(), images.clone()).unwrap();
+        assert_default_scene(&imported);
+    }
+}
+
+#[test]
+fn absolute_and_foreign_scheme_buffer_uris_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret = dir.path().join("outside/secret.bin");
+    let len = buffer_bytes().len();
+    // Before this was refused, /dev/zero was read until memory ran out.
+    assert_eq!(refused_uri(dir.path(), "/dev/zero", 1 << 40), UriRefusal::Absolute);
+    assert_eq!(refused_uri(dir.path(), secret.to_str().unwrap(), len), UriRefusal::Absolute);
+    let file_uri = format!("file://{}", secret.display());
+    assert_eq!(refused_uri(dir.path(), &file_uri, len), UriRefusal::Scheme);
+    assert_eq!(refused_uri(dir.path(), "https://example.com/parts.bin", len), UriRefusal::Scheme);
+}
+
+#[test]
+fn buffer_uris_that_leave_the_folder_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let len = buffer_bytes().len();
+    for uri in ["../outside/secret.bin", "bin/../../outside/secret.bin", "%2E%2E/outside/secret.bin"] {
+        assert_eq!(refused_uri(dir.path(), uri, len), UriRefusal::OutsideFolder, "{uri}");
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn a_symbolic_link_out_of_the_folder_is_refused_and_one_within_it_is_followed() {
+    let dir = tempfile::tempdir().unwrap();
+    let len = buffer_bytes().len();
+    std::fs::create_dir_all(dir.path().join("scene/bin")).unwrap();
+    std::os::unix::fs::symlink("../../outside/secret.bin", dir.path().join("scene/bin/leak.bin")).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", dir.path().join("scene/zero.bin")).unwrap();
+    assert_eq!(refused_uri(dir.path(), "bin/leak.bin", len), UriRefusal::OutsideFolder);
+    assert_eq!(refused_uri(dir.path(), "zero.bin", len), UriRefusal::OutsideFolder);
+    std::os::unix::fs::symlink("bin/parts one.bin", dir.path().join("scene/alias.bin")).unwrap();
+    assert_default_scene(&load_buffer_uri(dir.path(), "alias.bin", len, json!({})).unwrap());
+}
+
+#[cfg(unix)]
+#[test]
+fn a_pipe_or_a_folder_is_not_a_buffer_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let len = buffer_bytes().len();
+    std::fs::create_dir_all(dir.path().join("scene")).unwrap();
+    let fifo = dir.path().join("scene/pipe.bin");
+    // Opening a pipe for reading would wait for a writer forever.
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status().unwrap();
+    assert!(made.success());
+    assert_eq!(refused_uri(dir.path(), "pipe.bin", len), UriRefusal::NotAFile);
+    assert_eq!(refused_uri(dir.path(), "bin", len), UriRefusal::NotAFile);
+}
+
+#[test]
+fn a_buffer_file_shorter_than_its_byte_length_is_refused_and_a_longer_one_is_cut() {
+    let dir = tempfile::tempdir().unwrap();
+    let len = buffer_bytes().len() as u64;
+    assert_eq!(
+        refused_uri(dir.path(), "bin/parts one.bin", 1 << 40),
+        UriRefusal::Short { declared: 1 << 40, actual: len }
+    );
+    // Reading stops at byteLength: an accessor past it is out of its buffer.
+    let m = load_buffer_uri(dir.path(), "bin/parts one.bin", 100, json!({})).unwrap_err().to_string();
+    assert!(m.contains("accessor 2 reaches past the end of buffer view 2"), "{m}");
 }
 
 proptest! {

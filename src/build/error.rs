@@ -5,6 +5,7 @@
 //! `Storage(StorageError)`; building is in-memory and the storage layer does
 //! not exist yet, so there is no such variant until a build reads from it.
 
+use crate::geom::Axis;
 use crate::scene::ObjectId;
 
 /// Why [`build`](super::build) refused to start.
@@ -36,6 +37,19 @@ pub enum BuildError {
     NonFiniteBox {
         /// The object.
         object: ObjectId,
+    },
+    /// An object's coordinate is beyond the range a file holds (see
+    /// [`check_range`](super::check_range)).
+    #[error("object {object}: {axis} = {coordinate:e} mm is beyond the range of ±{limit} mm a file holds")]
+    OutOfRange {
+        /// The object.
+        object: ObjectId,
+        /// The axis.
+        axis: Axis,
+        /// The coordinate of its anchor or of a vertex.
+        coordinate: f64,
+        /// The range's bound, mm.
+        limit: f64,
     },
     /// A box has min > max on some axis (the empty box included).
     #[error("object {object} has an inverted box (min > max on some axis)")]

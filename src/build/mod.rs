@@ -37,4 +37,4 @@ pub use leaf::{LeafRule, object_bytes};
 pub use params::{BuildParams, LookAhead, Method, ParseParamError, QueryExtent, TieBreak};
 pub use progress::{BuildProgress, estimate_work};
 pub use report::{LevelRow, Report, TreeShape};
-pub use validate::HierarchyError;
+pub use validate::{HierarchyError, check_range};

@@ -6,8 +6,36 @@
 
 use super::driver::{check_input, signed_intersection};
 use super::{BuildError, BuildParams, Hierarchy, Method, NodeId, NodeKind, Order, Split};
-use crate::geom::Aabb;
-use crate::scene::ObjectId;
+use crate::geom::{Aabb, Axis};
+use crate::scene::{ObjectId, Scene};
+
+/// Refuses `scene` when an object's anchor or a vertex, used or not, has a
+/// coordinate beyond ±`limit` mm, naming the first object and axis at fault.
+/// A file holds coordinates within
+/// [`MAX_COORDINATE`](crate::store::format::geometry::MAX_COORDINATE)
+/// (format-spec/geometry.md, "Coordinate range"), and its writer checks
+/// against that; within it, f32 also holds every offset and split value.
+pub fn check_range(scene: &Scene, limit: f64) -> Result<(), BuildError> {
+    for (j, object) in scene.objects().iter().enumerate() {
+        let mesh = &object.mesh;
+        // Every vertex lies between the anchor and this corner.
+        let high = mesh.vertices().fold(mesh.anchor(), |corner, v| corner.sup(&v));
+        for corner in [mesh.anchor(), high] {
+            for axis in Axis::ALL {
+                let coordinate = corner[axis.index()];
+                if coordinate.abs() > limit {
+                    return Err(BuildError::OutOfRange {
+                        object: ObjectId(j as u32),
+                        axis,
+                        coordinate,
+                        limit,
+                    });
+                }
+            }
+        }
+    }
+    Ok(())
+}
 
 /// Why a hierarchy is not a valid tree of its input.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -229,5 +257,36 @@ fn check_split(
         Ok(())
     } else {
         Err(HierarchyError::SplitMismatch { node: id, found: *split, expected_gap })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::Point;
+    use crate::scene::{Mesh, Object};
+
+    fn scene(objects: &[&[[f64; 3]]]) -> Scene {
+        let object = |points: &&[[f64; 3]]| {
+            let points: Vec<Point> = points.iter().map(|&p| p.into()).collect();
+            Object::new("o", Mesh::from_world(&points, vec![[0, 1, 2]]).unwrap())
+        };
+        Scene::new(objects.iter().map(object).collect())
+    }
+
+    #[test]
+    fn every_vertex_and_anchor_is_checked_against_the_limit() {
+        let inside: &[[f64; 3]] = &[[-10.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0]];
+        assert_eq!(check_range(&scene(&[inside]), 10.0), Ok(()));
+        assert_eq!(check_range(&Scene::default(), 10.0), Ok(()));
+        let out: &[[f64; 3]] = &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, -11.0]];
+        let expected =
+            BuildError::OutOfRange { object: ObjectId(1), axis: Axis::Z, coordinate: -11.0, limit: 10.0 };
+        assert_eq!(check_range(&scene(&[inside, out]), 10.0), Err(expected));
+        // A vertex no triangle uses is stored too.
+        let points = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 12.0, 0.0]].map(Point::from);
+        let unused = Mesh::from_world(&points, vec![[0, 1, 2]]).unwrap();
+        let e = check_range(&Scene::new(vec![Object::new("u", unused)]), 10.0).unwrap_err();
+        assert!(matches!(e, BuildError::OutOfRange { axis: Axis::Y, coordinate: 12.0, .. }), "{e}");
     }
 }

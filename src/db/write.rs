@@ -5,7 +5,7 @@ use std::sync::{Arc, MutexGuard};
 use std::time::Instant;
 
 use super::{Inner, Recovery, Snapshot, WriterLock, codes, interrupted, load, recover, tree_writer};
-use crate::build::{BuildParams, BuildProgress, CostModel, Hierarchy, QueryMix, build};
+use crate::build::{BuildParams, BuildProgress, CostModel, Hierarchy, QueryMix, build, check_range};
 use crate::lod::{Layout, LodParams, StoredBounds, plan_bounds};
 use crate::scene::Scene;
 use crate::store::StorageError;
@@ -128,6 +128,7 @@ impl<'db> WriteTransaction<'db> {
         if self.meta.is_some() {
             return Err(StorageError::Invalid("a transaction writes one tree".into()).into());
         }
+        check_range(scene, geometry::MAX_COORDINATE)?;
         let started = Instant::now();
         let boxes = scene.object_boxes();
         let sizes: Vec<u64> = scene.objects().iter().map(|o| geometry::record_len(&o.mesh)).collect();
@@ -150,6 +151,7 @@ impl<'db> WriteTransaction<'db> {
         if self.meta.is_some() {
             return Err(StorageError::Invalid("a transaction writes one tree".into()));
         }
+        check_range(scene, geometry::MAX_COORDINATE).map_err(|e| StorageError::Invalid(e.to_string()))?;
         let boxes = scene.object_boxes();
         let sizes: Vec<u64> = scene.objects().iter().map(|o| geometry::record_len(&o.mesh)).collect();
         tree.validate(&boxes, Some(&sizes), params)

@@ -5,7 +5,7 @@
 use super::Point;
 use parry3d_f64::math::Isometry;
 use parry3d_f64::query::PointQuery;
-use parry3d_f64::shape::{Segment, Shape, TriMesh, Triangle};
+use parry3d_f64::shape::{Polyline, Segment, Shape, TriMesh, Triangle};
 
 /// A triangle as parry sees it: parry's triangle routines assume area, so a
 /// zero-area triangle is the segment between its two farthest corners (which
@@ -67,29 +67,57 @@ pub fn distance_point_triangle(p: &Point, t: &[Point; 3]) -> f64 {
 /// Distances from points to a set of triangles (the surface, not a solid),
 /// through parry's BVH. Deterministic: the same triangles give the same tree.
 pub struct SurfaceDistance {
-    mesh: Option<TriMesh>,
+    nearest: Nearest,
+}
+
+/// What distances are measured to.
+enum Nearest {
+    Triangles(TriMesh),
+    /// The segments (or points) of zero-area triangles, when no triangle has area.
+    Segments(Polyline),
+    Nothing,
 }
 
 impl SurfaceDistance {
     /// The surface of `triangles`. Zero-area triangles are dropped (parry
-    /// cannot project onto them); they lie on their neighbours' edges in
-    /// any mesh that has area, so distances only grow where one stood alone.
+    /// cannot project onto them) when any triangle has area: they lie on
+    /// their neighbours' edges in any mesh that has area, so distances only
+    /// grow where one stood alone. Without area, the surface is the
+    /// segments and points they span.
     pub fn new(triangles: impl IntoIterator<Item = [Point; 3]>) -> SurfaceDistance {
         let mut vertices = Vec::new();
         let mut indices = Vec::new();
-        for [a, b, c] in triangles {
-            if (b - a).cross(&(c - a)).norm_squared() > 0.0 {
-                let n = vertices.len() as u32;
-                vertices.extend([a, b, c]);
-                indices.push([n, n + 1, n + 2]);
+        let mut segments = Vec::new();
+        for t in triangles {
+            match Simplex::of(&t) {
+                Simplex::Triangle(_) => {
+                    let n = vertices.len() as u32;
+                    vertices.extend(t);
+                    indices.push([n, n + 1, n + 2]);
+                }
+                Simplex::Segment(s) if indices.is_empty() => segments.extend([s.a, s.b]),
+                Simplex::Segment(_) => {}
             }
         }
-        SurfaceDistance { mesh: TriMesh::new(vertices, indices).ok() }
+        let nearest = match TriMesh::new(vertices, indices) {
+            Ok(mesh) => Nearest::Triangles(mesh),
+            Err(_) if !segments.is_empty() => {
+                let ends = (0..segments.len() as u32 / 2).map(|i| [2 * i, 2 * i + 1]).collect();
+                Nearest::Segments(Polyline::new(segments, Some(ends)))
+            }
+            Err(_) => Nearest::Nothing,
+        };
+        SurfaceDistance { nearest }
     }
 
     /// The distance from `p` to the nearest triangle (infinite when there is none).
     pub fn distance(&self, p: &Point) -> f64 {
-        self.mesh.as_ref().map_or(f64::INFINITY, |m| (p - m.project_local_point(p, false).point).norm())
+        let projection = match &self.nearest {
+            Nearest::Triangles(mesh) => mesh.project_local_point(p, false),
+            Nearest::Segments(lines) => lines.project_local_point(p, false),
+            Nearest::Nothing => return f64::INFINITY,
+        };
+        (p - projection.point).norm()
     }
 }
 
@@ -108,6 +136,21 @@ mod tests {
         assert!((s.distance(&Point::new(0.5, -2.0, 0.0)) - 2.0).abs() < 1e-12);
         assert!((s.distance(&Point::new(-3.0, -4.0, 0.0)) - 5.0).abs() < 1e-12);
         assert_eq!(SurfaceDistance::new([]).distance(&Point::origin()), f64::INFINITY);
+    }
+
+    #[test]
+    fn a_surface_without_area_is_its_segments_and_points() {
+        let p = Point::new;
+        let segment = [p(0.0, 0.0, 0.0), p(2.0, 0.0, 0.0), p(1.0, 0.0, 0.0)];
+        let point = [p(5.0, 5.0, 5.0); 3];
+        let s = SurfaceDistance::new([segment, point]);
+        assert!((s.distance(&p(1.0, 3.0, 0.0)) - 3.0).abs() < 1e-12);
+        assert!((s.distance(&p(-4.0, 0.0, 3.0)) - 5.0).abs() < 1e-12);
+        assert!((s.distance(&p(5.0, 5.0, 6.0)) - 1.0).abs() < 1e-12);
+        // With area, a zero-area triangle is dropped.
+        let flat = [p(0.0, 0.0, 10.0), p(1.0, 0.0, 10.0), p(0.0, 1.0, 10.0)];
+        let s = SurfaceDistance::new([point, flat]);
+        assert!((s.distance(&p(0.0, 0.0, 12.0)) - 2.0).abs() < 1e-12);
     }
 
     #[test]

@@ -22,6 +22,9 @@ pub enum MeshError {
     NoTriangles,
     #[error("object has {vertices} vertices, more than the 2^32 an index can address")]
     TooManyVertices { vertices: usize },
+    /// Offsets from the anchor are f32: an object wider than f32's range has none.
+    #[error("vertex {vertex} lies {offset:e} mm from the object's lower corner, beyond the {max:e} mm of an f32 offset", max = f32::MAX)]
+    TooWide { vertex: usize, offset: f64 },
 }
 
 /// A triangle mesh: vertex positions and triangles as index triples.
@@ -53,7 +56,11 @@ impl Mesh {
             }
         }
         let anchor = Aabb::from_points(vertices).min;
-        let offsets = vertices.iter().map(|p| quantize(anchor, p)).collect();
+        let offsets: Vec<[f32; 3]> = vertices.iter().map(|p| quantize(anchor, p)).collect();
+        if let Some(vertex) = offsets.iter().position(|o| !o.iter().all(|c| c.is_finite())) {
+            let offset = (vertices[vertex] - anchor).amax();
+            return Err(MeshError::TooWide { vertex, offset });
+        }
         Ok(Mesh::from_parts(anchor, offsets, triangles))
     }
 

@@ -79,6 +79,10 @@ pub enum ImportError {
     /// The glTF decoder refused the file, or its data is inconsistent.
     #[error("{}: glTF: {message}", file.display())]
     Gltf { file: PathBuf, message: String },
+    /// A glTF buffer's URI that the importer will not follow, or whose
+    /// file does not hold the buffer.
+    #[error("{}: glTF: buffer {buffer}: URI {uri:?} {reason}", file.display())]
+    BufferUri { file: PathBuf, buffer: usize, uri: String, reason: UriRefusal },
     /// The mesh of an object was refused (for example, too many vertices).
     #[error("{}: object {object:?}", file.display())]
     Mesh {
@@ -87,6 +91,44 @@ pub enum ImportError {
         #[source]
         source: MeshError,
     },
+}
+
+/// Why a glTF buffer URI is refused. A buffer is read only from a `data:`
+/// URI or from a regular file in the glTF file's folder or below, and never
+/// beyond its declared `byteLength`: a document cannot make the importer
+/// read another file, a device or a pipe, or more bytes than the file has.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum UriRefusal {
+    /// A scheme other than `data:` (`file:`, `https:`, ...).
+    Scheme,
+    /// Percent escapes that do not decode to UTF-8.
+    NotUtf8,
+    /// An absolute path.
+    Absolute,
+    /// A path out of the glTF file's folder, by `..` or a symbolic link.
+    OutsideFolder,
+    /// Not a regular file: a folder, a device, a pipe.
+    NotAFile,
+    /// A file shorter than the buffer's declared `byteLength`.
+    Short { declared: u64, actual: u64 },
+}
+
+impl fmt::Display for UriRefusal {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            UriRefusal::Scheme => write!(f, "is not a relative path or a data: URI"),
+            UriRefusal::NotUtf8 => write!(f, "has percent escapes that are not UTF-8"),
+            UriRefusal::Absolute => {
+                write!(f, "is an absolute path; buffers must be relative to the glTF file")
+            }
+            UriRefusal::OutsideFolder => write!(f, "leads out of the glTF file's folder"),
+            UriRefusal::NotAFile => write!(f, "is not a regular file"),
+            UriRefusal::Short { declared, actual } => {
+                write!(f, "has {actual} bytes, fewer than the {declared} its byteLength declares")
+            }
+        }
+    }
 }
 
 /// " (line N)" when the line is known.

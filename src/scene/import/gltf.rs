@@ -12,19 +12,24 @@
 //! Guards: the `gltf` crates trust some input they do not validate (an
 //! accessor's byte range, a GLB header's length, a buffer URI's percent
 //! escapes, a POSITION accessor index during validation) and would panic on
-//! it, so those are checked here first. Sparse and quantised (non-f32)
+//! it, so those are checked here first. Buffer files are opened here, not by
+//! `gltf`, which would follow any path and read any stream to its end: only
+//! regular files in the glTF file's folder are read, and only up to the
+//! buffer's `byteLength`. Images are not needed for geometry and never read. Sparse and quantised (non-f32)
 //! position accessors are refused with a message.
 //! A mirroring transform (negative determinant) reverses the winding, as
 //! the glTF specification asks, so faces keep their orientation.
 
-use std::path::Path;
+use std::fs::File;
+use std::io::Read;
+use std::path::{Component, Path, PathBuf};
 
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::mesh::Mode;
 use ::gltf::{Accessor, Document, Gltf, Node, Primitive, buffer};
 use nalgebra::Matrix4;
 
-use super::{ImportError, Imported, Location};
+use super::{ImportError, Imported, Location, UriRefusal};
 use crate::geom::Point;
 use crate::scene::{MeshError, Object, Scene};
 
@@ -39,7 +44,7 @@ pub(super) fn load(path: &Path, scale: f64) -> Result<Imported, ImportError> {
     drop(bytes);
     check_position_references(document.as_json()).map_err(gltf_error)?;
     let document = Document::from_json(document.into_json()).map_err(|e| gltf_error(e.to_string()))?;
-    let buffers = load_buffers(&document, path.parent(), blob).map_err(gltf_error)?;
+    let buffers = load_buffers(&document, path, blob)?;
 
     let mut scene = Scene::default();
     let mut degenerate_triangles = 0;
@@ -89,34 +94,124 @@ fn check_position_references(root: &::gltf::json::Root) -> Result<(), String> {
     Ok(())
 }
 
-/// Every buffer's bytes: the GLB binary chunk, a `data:` URI or a file
-/// beside the glTF file.
+/// Every buffer's bytes, exactly its declared `byteLength`: the GLB binary
+/// chunk, a `data:` URI, or a file in the glTF file's folder (see
+/// [`UriRefusal`] for what is refused). Images are never read.
 fn load_buffers(
     document: &Document,
-    base: Option<&Path>,
+    path: &Path,
     mut blob: Option<Vec<u8>>,
-) -> Result<Vec<buffer::Data>, String> {
-    let base = Some(base.unwrap_or(Path::new(".")));
+) -> Result<Vec<buffer::Data>, ImportError> {
+    let gltf_error = |message: String| ImportError::Gltf { file: path.into(), message };
     let mut buffers = Vec::new();
     for buffer in document.buffers() {
         let index = buffer.index();
-        if let buffer::Source::Uri(uri) = buffer.source() {
-            // `gltf` unwraps the decoding of a relative URI's %-escapes.
-            if !uri.contains(':') && !percent_decodes_to_utf8(uri) {
-                return Err(format!("buffer {index}: URI {uri:?} does not decode to UTF-8"));
+        let declared = buffer.length();
+        let mut data = match buffer.source() {
+            buffer::Source::Uri(uri) if !uri.starts_with("data:") => {
+                let uri = BufferUri { gltf: path, buffer: index, uri };
+                uri.read(&uri.file()?, declared)?
             }
+            // A data: URI or the GLB chunk: bytes already in memory, without
+            // a base folder so that `gltf` opens no file.
+            source => {
+                buffer::Data::from_source_and_blob(source, None, &mut blob)
+                    .map_err(|e| gltf_error(format!("buffer {index}: {e}")))?
+                    .0
+            }
+        };
+        if data.len() < declared {
+            return Err(gltf_error(format!(
+                "buffer {index}: declares {declared} bytes but has {}",
+                data.len()
+            )));
         }
-        let data = buffer::Data::from_source_and_blob(buffer.source(), base, &mut blob)
-            .map_err(|e| format!("buffer {index}: {e}"))?;
-        if data.len() < buffer.length() {
-            return Err(format!("buffer {index}: declares {} bytes but has {}", buffer.length(), data.len()));
-        }
-        buffers.push(data);
+        // The specification bounds every view by byteLength, not by the padding after it.
+        data.truncate(declared);
+        buffers.push(buffer::Data(data));
     }
     Ok(buffers)
 }
 
-fn percent_decodes_to_utf8(uri: &str) -> bool {
+/// The URI of buffer `buffer` of the glTF file at `gltf`, not a `data:` URI.
+struct BufferUri<'a> {
+    gltf: &'a Path,
+    buffer: usize,
+    uri: &'a str,
+}
+
+impl BufferUri<'_> {
+    fn refused(&self, reason: UriRefusal) -> ImportError {
+        ImportError::BufferUri { file: self.gltf.into(), buffer: self.buffer, uri: self.uri.into(), reason }
+    }
+
+    /// The file the URI names, resolved (symbolic links followed) and
+    /// checked to be a regular file in the glTF file's folder or below.
+    fn file(&self) -> Result<PathBuf, ImportError> {
+        // A colon before any slash ends a scheme (RFC 3986).
+        if self.uri.split('/').next().is_some_and(|first| first.contains(':')) {
+            return Err(self.refused(UriRefusal::Scheme));
+        }
+        let decoded = percent_decode(self.uri).ok_or_else(|| self.refused(UriRefusal::NotUtf8))?;
+        let relative = Path::new(&decoded);
+        let mut depth = 0usize;
+        for component in relative.components() {
+            depth = match component {
+                Component::Normal(_) => depth + 1,
+                Component::CurDir => depth,
+                Component::ParentDir => {
+                    depth.checked_sub(1).ok_or_else(|| self.refused(UriRefusal::OutsideFolder))?
+                }
+                Component::RootDir | Component::Prefix(_) => return Err(self.refused(UriRefusal::Absolute)),
+            };
+        }
+        let folder = match self.gltf.parent() {
+            Some(folder) if !folder.as_os_str().is_empty() => folder,
+            _ => Path::new("."),
+        };
+        let joined = folder.join(relative);
+        // Symbolic links (and `..` after one) may lead anywhere: compare where the path truly ends.
+        let root = folder.canonicalize().map_err(io_error(folder))?;
+        let target = joined.canonicalize().map_err(io_error(&joined))?;
+        if !target.starts_with(&root) {
+            return Err(self.refused(UriRefusal::OutsideFolder));
+        }
+        // Checked before opening: opening a pipe waits for a writer.
+        if !std::fs::metadata(&target).map_err(io_error(&target))?.is_file() {
+            return Err(self.refused(UriRefusal::NotAFile));
+        }
+        Ok(target)
+    }
+
+    /// The first `declared` bytes of the regular file at `path`; refused
+    /// when the file is shorter, so that the allocation is bounded by the file.
+    fn read(&self, path: &Path, declared: usize) -> Result<Vec<u8>, ImportError> {
+        let file = File::open(path).map_err(io_error(path))?;
+        let metadata = file.metadata().map_err(io_error(path))?;
+        // Again on the open file: the path may have been replaced since it was checked.
+        if !metadata.is_file() {
+            return Err(self.refused(UriRefusal::NotAFile));
+        }
+        let short = |actual| self.refused(UriRefusal::Short { declared: declared as u64, actual });
+        if metadata.len() < declared as u64 {
+            return Err(short(metadata.len()));
+        }
+        let mut data = Vec::with_capacity(declared);
+        file.take(declared as u64).read_to_end(&mut data).map_err(io_error(path))?;
+        if data.len() < declared {
+            return Err(short(data.len() as u64));
+        }
+        Ok(data)
+    }
+}
+
+fn io_error(file: &Path) -> impl FnOnce(std::io::Error) -> ImportError {
+    let file = file.to_path_buf();
+    move |source| ImportError::Io { file, source }
+}
+
+/// `uri` with its percent escapes decoded; `None` when that is not UTF-8.
+fn percent_decode(uri: &str) -> Option<String> {
     let bytes = uri.as_bytes();
     let mut decoded = Vec::with_capacity(bytes.len());
     let mut i = 0;
@@ -133,7 +228,7 @@ fn percent_decodes_to_utf8(uri: &str) -> bool {
             }
         }
     }
-    std::str::from_utf8(&decoded).is_ok()
+    String::from_utf8(decoded).ok()
 }
 
 /// One node that instances a mesh, with its world transform.
@@ -379,11 +474,11 @@ mod tests {
     }
 
     #[test]
-    fn percent_escapes_are_checked_for_utf8() {
-        assert!(percent_decodes_to_utf8("buffer%20one.bin"));
-        assert!(percent_decodes_to_utf8("100%.bin"));
-        assert!(percent_decodes_to_utf8("%C3%A9.bin"));
-        assert!(!percent_decodes_to_utf8("%FF.bin"));
+    fn percent_escapes_are_decoded_and_checked_for_utf8() {
+        assert_eq!(percent_decode("buffer%20one.bin").as_deref(), Some("buffer one.bin"));
+        assert_eq!(percent_decode("100%.bin").as_deref(), Some("100%.bin"));
+        assert_eq!(percent_decode("%C3%A9.bin").as_deref(), Some("é.bin"));
+        assert_eq!(percent_decode("%FF.bin"), None);
     }
 
     #[test]

@@ -10,6 +10,6 @@ mod load;
 mod obj;
 mod stl;
 
-pub use error::{ImportError, Location};
+pub use error::{ImportError, Location, UriRefusal};
 pub use load::{ImportOptions, Imported, load};
 pub use obj::read_obj;
