@@ -191,6 +191,44 @@ impl Database {
         Database::open_with(device, Some(locks), false)
     }
 
+    /// Opens the file at `path` to read and write, creating it with
+    /// `options` when it does not exist or holds nothing a reader could use:
+    /// it is empty, or shorter than a header and all zeros or the start of
+    /// the magic number (what a crash while a file was created leaves). Any
+    /// other file that is not an mktree file is refused with
+    /// [`StorageError::NotMktree`] and left as it was. Returns whether the
+    /// file was created; an existing file keeps its block size and M.
+    pub fn open_or_create(
+        path: impl AsRef<Path>,
+        options: CreateOptions,
+    ) -> Result<(Database, bool), StorageError> {
+        let file = OpenOptions::new().read(true).write(true).create(true).truncate(false).open(path)?;
+        if !file.metadata()?.is_file() {
+            return Err(StorageError::Invalid("not a regular file".into()));
+        }
+        let locks = FileLocks::new(file.try_clone()?);
+        let device = Arc::new(FileDevice::new(file));
+        let mut created = false;
+        if holds_nothing(device.as_ref())? {
+            // Under the writer's lock, so that two processes creating one
+            // file write one header: the second finds it written.
+            locks.lock_writer(true)?;
+            let result = (|| {
+                if holds_nothing(device.as_ref())? {
+                    device.set_len(0)?;
+                    initialize(device.as_ref(), options)?;
+                    created = true;
+                }
+                Ok::<(), StorageError>(())
+            })();
+            locks.unlock_writer()?;
+            result?;
+        } else if device.len()? < PREFIX_LEN as u64 {
+            return Err(StorageError::NotMktree);
+        }
+        Ok((Database::open_with(device, Some(locks), false)?, created))
+    }
+
     /// Opens an existing file to read and write. Opening never writes: a
     /// crash's leftovers are cleaned up by the next write transaction.
     pub fn open(path: impl AsRef<Path>) -> Result<Database, StorageError> {
@@ -381,6 +419,18 @@ impl Drop for CheckerLock<'_> {
             let _ = l.unlock_writer();
         }
     }
+}
+
+/// True when `device` holds nothing a reader could use: see [`Database::open_or_create`].
+fn holds_nothing(device: &dyn BlockDevice) -> Result<bool, StorageError> {
+    let len = device.len()?;
+    if len >= PREFIX_LEN as u64 {
+        return Ok(false);
+    }
+    let mut head = vec![0u8; len as usize];
+    device.read_at(0, &mut head)?;
+    let start = head.len().min(header::MAGIC.len());
+    Ok(head[..start] == header::MAGIC[..start] || head.iter().all(|&b| b == 0))
 }
 
 /// Writes block 0 of a new file: both copies of slot 0 hold an empty tree.

@@ -2,8 +2,6 @@
 //! transaction (replacing the tree of an existing file atomically, or an
 //! empty or torn file that a crash left while creating one).
 
-use std::fs::File;
-use std::io::{self, Read};
 use std::path::Path;
 use std::time::Instant;
 
@@ -13,7 +11,7 @@ use mktree::build::{BuildProgress, Hierarchy, Report, build, estimate_work};
 use mktree::db::{CreateOptions, Database, WriterWait};
 use mktree::scene::Scene;
 use mktree::store::format::geometry::record_len;
-use mktree::store::format::header::{MAGIC, PREFIX_LEN};
+use mktree::store::StorageError;
 use serde_json::json;
 
 use crate::args::{BuildArgs, LodArgs};
@@ -33,76 +31,26 @@ fn progress_bar(scene: &Scene, build: &BuildArgs) -> ProgressBar {
     pb
 }
 
-/// The database `build` writes into, and whether this run created its file.
-/// An mktree file keeps its block size and M; a missing file is created; a
-/// file that holds nothing (see [`Found::Nothing`]) is replaced; any other
-/// file is refused untouched.
+/// The database `build` writes into, and whether this run created its
+/// file: a missing, empty or torn file is created anew, any other file that
+/// is not an mktree file refused untouched (`Database::open_or_create`). An
+/// existing file keeps its block size and M.
 fn open_output(out: &Path, args: &BuildArgs, lod: &LodArgs) -> Result<(Database, bool)> {
-    let create = || {
-        let options = CreateOptions {
-            block_size: args.block_size(),
-            lod_levels: lod.lods.unwrap_or(mktree::db::DEFAULT_LOD_LEVELS),
-        };
-        Database::create(out, options).with_context(|| format!("creating {}", out.display()))
+    let options = CreateOptions {
+        block_size: args.block_size(),
+        lod_levels: lod.lods.unwrap_or(mktree::db::DEFAULT_LOD_LEVELS),
     };
-    let file = match File::open(out) {
-        Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok((create()?, true)),
+    let (db, created) = match Database::open_or_create(out, options) {
+        Err(StorageError::NotMktree) => bail!("{} is not an mktree file; not overwriting it", out.display()),
         opened => opened.with_context(|| format!("opening {}", out.display()))?,
     };
-    let reading = || format!("reading {}", out.display());
-    if !file.metadata().with_context(reading)?.is_file() {
-        bail!("{} is not a regular file", out.display());
-    }
-    match look_into(&file).with_context(reading)? {
-        Found::Nothing => {
-            // Removed and created anew, not written in place, so that the header
-            // is written as `create` writes it, under the writer's lock (and
-            // `create` fails if another process makes the file meanwhile). A
-            // file another process has just created looks the same until its
-            // header is written: two builds of one path at that instant end
-            // with this one's file.
-            drop(file);
-            std::fs::remove_file(out).with_context(|| format!("removing {}", out.display()))?;
-            return Ok((create()?, false));
-        }
-        Found::Foreign => bail!("{} is not an mktree file; not overwriting it", out.display()),
-        Found::Mktree => {}
-    }
-    let db = Database::open(out).with_context(|| format!("opening {}", out.display()))?;
     if args.block_size.is_some_and(|b| b != db.block_size()) {
         bail!("{} has {}-byte blocks; a new block size needs a new file", out.display(), db.block_size());
     }
     if lod.lods.is_some_and(|m| m != db.lod_levels()) {
         bail!("{} has {} levels of detail; a new M needs a new file", out.display(), db.lod_levels());
     }
-    Ok((db, false))
-}
-
-/// What an existing output file holds.
-enum Found {
-    /// Nothing a reader could use: the file is empty, or shorter than a
-    /// header and either zeros or the start of the magic number, which is
-    /// what a crash while the header of a new file was written may leave.
-    Nothing,
-    /// An mktree file (by its magic number; opening it checks the rest).
-    Mktree,
-    /// Anything else.
-    Foreign,
-}
-
-fn look_into(file: &File) -> io::Result<Found> {
-    let len = file.metadata()?.len();
-    let mut head = Vec::with_capacity(PREFIX_LEN);
-    file.take(len.min(PREFIX_LEN as u64)).read_to_end(&mut head)?;
-    let start = head.len().min(MAGIC.len());
-    let torn = head[..start] == MAGIC[..start] || head.iter().all(|&b| b == 0);
-    Ok(if len < PREFIX_LEN as u64 && torn {
-        Found::Nothing
-    } else if head.starts_with(&MAGIC) {
-        Found::Mktree
-    } else {
-        Found::Foreign
-    })
+    Ok((db, created))
 }
 
 /// Builds the tree of `scene` in memory, with a progress bar.
