@@ -1,36 +1,126 @@
 //! Exact triangle against box overlap by the separating axis theorem
 //! (Akenine-Möller, "Fast 3D triangle-box overlap testing", 2001): the box's
 //! three normals, the triangle's normal, and the nine cross products of box
-//! and triangle edges. Degenerate triangles (segments, points) are handled by
+//! and triangle edges. A triangle that only touches the box (distance 0)
+//! meets it, and one a rounding step away does not. Each axis is first
+//! tried in floating point with a bound on its rounding; only an axis that
+//! comes within its bound of touching is decided by exact signs
+//! (`contact.rs`). Degenerate triangles (segments, points) are handled by
 //! the same axes.
 
+use super::contact::{side2, side3, strictly_one_side};
 use super::{Aabb, Point, Vector};
 
-/// True when the closed triangle and the closed box share a point.
+/// True when the closed triangle and the closed box share a point (exact).
 pub fn intersects_triangle_box(tri: &[Point; 3], b: &Aabb) -> bool {
+    !b.is_empty()
+        && !box_normals_separate(tri, b)
+        && rounded_axes(tri, b).unwrap_or_else(|| exact_axes(tri, b))
+}
+
+/// The box's normals separate them: coordinates compared as they are.
+fn box_normals_separate(tri: &[Point; 3], b: &Aabb) -> bool {
+    (0..3).any(|i| {
+        let (lo, hi) = min_max([tri[0][i], tri[1][i], tri[2][i]]);
+        lo > b.max[i] || hi < b.min[i]
+    })
+}
+
+/// The plane and edge axes in floating point: `Some` answer when every axis
+/// separates or overlaps by more than its rounding can move it, `None` when
+/// one is too close to call.
+fn rounded_axes(tri: &[Point; 3], b: &Aabb) -> Option<bool> {
+    const U: f64 = f64::EPSILON / 2.0;
     let c = b.center();
-    let h = b.extent() / 2.0;
     let v = tri.map(|p| p - c);
-    // Box normals: the triangle's box against the box.
-    for i in 0..3 {
-        let (lo, hi) = min_max([v[0][i], v[1][i], v[2][i]]);
-        if lo > h[i] || hi < -h[i] {
+    let (lo, hi) = (b.min - c, b.max - c);
+    // Per coordinate, a bound on every point's size.
+    let size = Vector::from_fn(|k, _| {
+        v[0][k].abs().max(v[1][k].abs()).max(v[2][k].abs()).max(lo[k].abs()).max(hi[k].abs())
+    });
+    // Edges from the coordinates themselves: a component is 0 exactly when
+    // the coordinates agree, and otherwise off by at most U of itself.
+    let e = [tri[1] - tri[0], tri[2] - tri[1], tri[0] - tri[2]];
+    let mut close = false;
+    // True when axis `a` (each component within `off` of the exact axis's)
+    // surely separates; marks `close` when it may separate or touch.
+    let mut separates = |a: Vector, off: Vector| {
+        // A null axis (an edge along the box axis) is null exactly: no test.
+        if a == Vector::zeros() && off == Vector::zeros() {
             return false;
         }
+        let (t_lo, t_hi) = min_max([a.dot(&v[0]), a.dot(&v[1]), a.dot(&v[2])]);
+        let (mut b_lo, mut b_hi) = (0.0, 0.0);
+        for k in 0..3 {
+            let (x, y) = (a[k] * lo[k], a[k] * hi[k]);
+            b_lo += x.min(y);
+            b_hi += x.max(y);
+        }
+        let gap = (t_lo - b_hi).max(b_lo - t_hi);
+        // Points are off by U of themselves, the axis by `off`, products and
+        // sums by a few U: twice that, for both projections, is generous.
+        let err = 2.0 * (off + a.abs() * (8.0 * U)).dot(&size);
+        if gap > err {
+            return true;
+        }
+        // Too close to call, or no number (an overflow): the exact test decides.
+        close |= gap.partial_cmp(&-err) != Some(std::cmp::Ordering::Less);
+        false
+    };
+    let perm = Vector::from_fn(|k, _| {
+        let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+        (e[0][i] * e[1][j]).abs() + (e[0][j] * e[1][i]).abs()
+    });
+    if separates(e[0].cross(&e[1]), perm * (5.0 * U)) {
+        return Some(false);
     }
-    let e = [v[1] - v[0], v[2] - v[1], v[0] - v[2]];
-    // The triangle's plane against the box.
-    let n = e[0].cross(&e[1]);
-    if n.dot(&v[0]).abs() > h.dot(&n.abs()) {
-        return false;
-    }
-    // Nine edge-edge axes.
     for axis in [Vector::x(), Vector::y(), Vector::z()] {
         for edge in &e {
             let a = axis.cross(edge);
-            let (lo, hi) = min_max(v.map(|p| a.dot(&p)));
-            let r = h.dot(&a.abs());
-            if lo > r || hi < -r {
+            if separates(a, a.abs() * U) {
+                return Some(false);
+            }
+        }
+    }
+    (!close).then_some(true)
+}
+
+/// The plane and edge axes by exact signs, where the box normals do not
+/// separate (an edge axis is only tried on the side of its edge away from
+/// the triangle: beyond the third corner is for the box normals).
+fn exact_axes(tri: &[Point; 3], b: &Aabb) -> bool {
+    // The triangle's plane. The side of a point is affine in it, so over the
+    // box it is extreme at the corners the normal's signs pick (each sign an
+    // exact 2D orientation); the plane misses the box when both extremes lie
+    // strictly on one side.
+    let [a, c, d] = tri;
+    let normal = [0, 1, 2].map(|axis| side2(axis, a, c, d));
+    let corner = |sign: f64| {
+        Point::from(std::array::from_fn(|i| if normal[i] * sign > 0.0 { b.max[i] } else { b.min[i] }))
+    };
+    if strictly_one_side(&[side3(a, c, d, &corner(1.0)), side3(a, c, d, &corner(-1.0))]) {
+        return false;
+    }
+    // Nine edge axes: seen along each box axis, the box is a rectangle and
+    // the edge a line, with the side of a point affine in it. The axis
+    // separates when the rectangle lies strictly on the side of the line
+    // away from the third corner (either side when the triangle is seen
+    // edge-on there); the far side of the third corner is another edge's
+    // line or a box normal.
+    for along in 0..3 {
+        let (i, j) = ((along + 1) % 3, (along + 2) % 3);
+        for (p, q, r) in
+            [(&tri[0], &tri[1], &tri[2]), (&tri[1], &tri[2], &tri[0]), (&tri[2], &tri[0], &tri[1])]
+        {
+            // The gradient of side2(p, q, x) in (x_i, x_j) is (p_j - q_j, q_i - p_i).
+            let extreme = |up: bool| {
+                let mut x = b.min;
+                x[i] = if (p[j] > q[j]) == up && p[j] != q[j] { b.max[i] } else { b.min[i] };
+                x[j] = if (q[i] > p[i]) == up && q[i] != p[i] { b.max[j] } else { b.min[j] };
+                side2(along, p, q, &x)
+            };
+            let third = side2(along, p, q, r);
+            if (third >= 0.0 && extreme(true) < 0.0) || (third <= 0.0 && extreme(false) > 0.0) {
                 return false;
             }
         }
@@ -73,7 +163,74 @@ mod tests {
         assert!(intersects_triangle_box(&seg, &b), "a degenerate triangle is a segment");
     }
 
+    #[test]
+    fn touching_is_meeting_and_one_step_off_is_not() {
+        let b = Aabb::from_array([0.1, 0.1, 0.1, 0.7, 0.7, 0.7]);
+        // A corner on the upper x face (coordinates binary cannot hold).
+        let t = [p(0.7, 0.3, 0.3), p(1.3, 0.2, 0.9), p(1.1, 0.9, 0.2)];
+        assert!(intersects_triangle_box(&t, &b));
+        let t = [p(0.7f64.next_up(), 0.3, 0.3), p(1.3, 0.2, 0.9), p(1.1, 0.9, 0.2)];
+        assert!(!intersects_triangle_box(&t, &b));
+        // The triangle's plane x + y + z = 3 holds the corner (1, 1, 1) only.
+        let b = Aabb::from_array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0]);
+        let t = [p(2.0, 0.5, 0.5), p(0.5, 2.0, 0.5), p(0.5, 0.5, 2.0)];
+        assert!(intersects_triangle_box(&t, &b));
+        let e = 2f64.powi(-50);
+        let t = [p(2.0 + e, 0.5, 0.5), p(0.5, 2.0 + e, 0.5), p(0.5, 0.5, 2.0 + e)];
+        assert!(!intersects_triangle_box(&t, &b));
+        // An edge on the line x + y = 2, seen along z, through the edge x = y = 1.
+        let t = [p(2.0, 0.0, 0.5), p(0.0, 2.0, 0.5), p(2.0, 2.0, 0.5)];
+        assert!(intersects_triangle_box(&t, &b));
+        let t = [p(2.0 + e, 0.0, 0.5), p(0.0, 2.0 + e, 0.5), p(2.0, 2.0, 0.5)];
+        assert!(!intersects_triangle_box(&t, &b));
+    }
+
+    /// The box's surface as 12 triangles.
+    fn faces(b: &Aabb) -> Vec<[Point; 3]> {
+        let c = b.corners();
+        let quads = [[0, 1, 3, 2], [4, 5, 7, 6], [0, 1, 5, 4], [2, 3, 7, 6], [0, 2, 6, 4], [1, 3, 7, 5]];
+        quads.iter().flat_map(|q| [[c[q[0]], c[q[1]], c[q[2]]], [c[q[0]], c[q[2]], c[q[3]]]]).collect()
+    }
+
     proptest! {
+        /// Two exact tests agree to the last case: a triangle meets a closed
+        /// box when a corner lies in it or it meets a face of it. Corners
+        /// on a coarse grid of 0.1 steps make ties (touching) common.
+        #[test]
+        fn agrees_with_the_exact_triangle_test_on_the_faces(
+            c in prop::array::uniform9(-1i32..5), b in prop::array::uniform6(0i32..4),
+        ) {
+            let c = c.map(|x| f64::from(x) * 0.1);
+            let t = [p(c[0], c[1], c[2]), p(c[3], c[4], c[5]), p(c[6], c[7], c[8])];
+            let b = b.map(|x| f64::from(x) * 0.1);
+            let b = Aabb::from_array([b[0].min(b[3]), b[1].min(b[4]), b[2].min(b[5]), b[0].max(b[3]), b[1].max(b[4]), b[2].max(b[5])]);
+            let via_faces = t.iter().any(|x| b.contains_point(x))
+                || faces(&b).iter().any(|f| super::super::intersects_triangle_triangle(&t, f));
+            prop_assert_eq!(intersects_triangle_box(&t, &b), via_faces);
+        }
+
+        /// The rounded axes, when they decide, decide as the exact ones: on
+        /// grid and free corners, at any scale and offset, slivers included.
+        #[test]
+        fn rounded_axes_decide_as_the_exact_ones(
+            c in prop::array::uniform9(-1i32..5), b in prop::array::uniform6(0i32..4),
+            jitter in prop::array::uniform9(-1e-6f64..1e-6), scale in prop_oneof![Just(0.1), Just(1e4 + 0.1)],
+            offset in prop_oneof![Just(0.0), Just(5000.3)], sliver in any::<bool>(),
+        ) {
+            let at = |x: i32, j: f64| offset + (f64::from(x) + j) * scale;
+            let j = |i: usize| if sliver { jitter[i] } else { 0.0 };
+            let mut t = [0, 1, 2].map(|v| p(at(c[3 * v], j(3 * v)), at(c[3 * v + 1], j(3 * v + 1)), at(c[3 * v + 2], j(3 * v + 2))));
+            if sliver {
+                // The third corner on the first edge, off it by the jitter only.
+                t[2] = t[0] + (t[1] - t[0]) * 0.5 + Vector::new(jitter[0], jitter[4], jitter[8]);
+            }
+            let b = b.map(|x| at(x, 0.0));
+            let b = Aabb::from_array([b[0].min(b[3]), b[1].min(b[4]), b[2].min(b[5]), b[0].max(b[3]), b[1].max(b[4]), b[2].max(b[5])]);
+            if let Some(r) = rounded_axes(&t, &b).filter(|_| !box_normals_separate(&t, &b)) {
+                prop_assert_eq!(r, exact_axes(&t, &b));
+            }
+        }
+
         /// Against sampling: if any sampled point of the triangle lies in the
         /// box, the test must say they intersect.
         #[test]
