@@ -301,7 +301,11 @@ proptest! {
     ) {
         let meshes = objects.iter().map(|(b, solid)| {
             let (lo, hi) = (b.min, b.max);
-            if *solid { Mesh::of_box(b).unwrap() } else { triangle([lo.x, lo.y, lo.z], [hi.x, lo.y, hi.z], [lo.x, hi.y, hi.z]) }
+            if *solid {
+                Mesh::of_box(b).unwrap()
+            } else {
+                triangle([lo.x, lo.y, lo.z], [hi.x, lo.y, hi.z], [lo.x, hi.y, hi.z])
+            }
         });
         let scene = Scene::new(meshes.enumerate().map(|(i, m)| Object::new(format!("o{i}"), m)).collect());
         let db = lod_db(&scene, m, 2048, cap, LodParams::default());
@@ -320,7 +324,8 @@ proptest! {
             let oracle = brute_force_region(&scene, &region);
             for (i, (b, solid)) in objects.iter().enumerate() {
                 if *solid {
-                    prop_assert_eq!(oracle.contains(&ObjectId(i as u32)), region_meets_surface(q, b), "{:?} {:?}", q, b);
+                    let found = oracle.contains(&ObjectId(i as u32));
+                    prop_assert_eq!(found, region_meets_surface(q, b), "{:?} {:?}", q, b);
                 }
             }
             let got = query_region(&r, &region, &QueryOptions::default(), None).unwrap();
@@ -337,7 +342,8 @@ proptest! {
         d in prop::sample::select(vec![0.25, 0.5, 14.0]),
         m in 2u8..=4,
     ) {
-        let scene = Scene::new(objects.iter().enumerate().map(|(i, b)| Object::new(format!("o{i}"), Mesh::of_box(b).unwrap())).collect());
+        let boxes = objects.iter().map(|b| Mesh::of_box(b).unwrap());
+        let scene = Scene::new(boxes.enumerate().map(|(i, m)| Object::new(format!("o{i}"), m)).collect());
         let db = lod_db(&scene, m, 2048, 2, LodParams::default());
         check_everything(&scene, &db, d);
     }

@@ -216,7 +216,7 @@ mod tests {
         ) {
             let sorted = |v: [i32; 6]| {
                 let v = v.map(|x| f64::from(x) * 0.1);
-                b([v[0].min(v[3]), v[1].min(v[4]), v[2].min(v[5]), v[0].max(v[3]), v[1].max(v[4]), v[2].max(v[5])])
+                Aabb::from_points(&[Point::new(v[0], v[1], v[2]), Point::new(v[3], v[4], v[5])])
             };
             let (x, y, d) = (sorted(p), sorted(q), f64::from(d) * 0.1);
             prop_assert_eq!(x.within(&y, d), y.within(&x, d));

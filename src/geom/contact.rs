@@ -243,7 +243,9 @@ mod tests {
         /// A triangle with a corner on another (at an exact point of its
         /// face, edge or corner) touches it, whatever its other corners.
         #[test]
-        fn a_corner_on_a_triangle_touches_it(a in arb_dyadic(), rest in arb_dyadic(), s in 0u8..=4, t in 0u8..=4) {
+        fn a_corner_on_a_triangle_touches_it(
+            a in arb_dyadic(), rest in arb_dyadic(), s in 0u8..=4, t in 0u8..=4,
+        ) {
             let t = t.min(4 - s);
             let (s, t) = (f64::from(s) / 4.0, f64::from(t) / 4.0);
             let x = a[0] + (a[1] - a[0]) * s + (a[2] - a[0]) * t;

@@ -185,6 +185,11 @@ mod tests {
         assert!(!intersects_triangle_box(&t, &b));
     }
 
+    /// The box with opposite corners `[x0, y0, z0]` and `[x1, y1, z1]`, in any order.
+    fn corners(v: [f64; 6]) -> Aabb {
+        Aabb::from_points(&[p(v[0], v[1], v[2]), p(v[3], v[4], v[5])])
+    }
+
     /// The box's surface as 12 triangles.
     fn faces(b: &Aabb) -> Vec<[Point; 3]> {
         let c = b.corners();
@@ -202,8 +207,7 @@ mod tests {
         ) {
             let c = c.map(|x| f64::from(x) * 0.1);
             let t = [p(c[0], c[1], c[2]), p(c[3], c[4], c[5]), p(c[6], c[7], c[8])];
-            let b = b.map(|x| f64::from(x) * 0.1);
-            let b = Aabb::from_array([b[0].min(b[3]), b[1].min(b[4]), b[2].min(b[5]), b[0].max(b[3]), b[1].max(b[4]), b[2].max(b[5])]);
+            let b = corners(b.map(|x| f64::from(x) * 0.1));
             let via_faces = t.iter().any(|x| b.contains_point(x))
                 || faces(&b).iter().any(|f| super::super::intersects_triangle_triangle(&t, f));
             prop_assert_eq!(intersects_triangle_box(&t, &b), via_faces);
@@ -219,13 +223,13 @@ mod tests {
         ) {
             let at = |x: i32, j: f64| offset + (f64::from(x) + j) * scale;
             let j = |i: usize| if sliver { jitter[i] } else { 0.0 };
-            let mut t = [0, 1, 2].map(|v| p(at(c[3 * v], j(3 * v)), at(c[3 * v + 1], j(3 * v + 1)), at(c[3 * v + 2], j(3 * v + 2))));
+            let corner = |v: usize| [0, 1, 2].map(|k| at(c[3 * v + k], j(3 * v + k)));
+            let mut t = [0, 1, 2].map(|v| Point::from(corner(v)));
             if sliver {
                 // The third corner on the first edge, off it by the jitter only.
                 t[2] = t[0] + (t[1] - t[0]) * 0.5 + Vector::new(jitter[0], jitter[4], jitter[8]);
             }
-            let b = b.map(|x| at(x, 0.0));
-            let b = Aabb::from_array([b[0].min(b[3]), b[1].min(b[4]), b[2].min(b[5]), b[0].max(b[3]), b[1].max(b[4]), b[2].max(b[5])]);
+            let b = corners(b.map(|x| at(x, 0.0)));
             if let Some(r) = rounded_axes(&t, &b).filter(|_| !box_normals_separate(&t, &b)) {
                 prop_assert_eq!(r, exact_axes(&t, &b));
             }
