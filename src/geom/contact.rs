@@ -17,6 +17,15 @@ use robust::{Coord, Coord3D, orient2d, orient3d};
 /// sign is exact (0 on the plane); `-((b - a) x (c - a)) . (d - a)` up to a
 /// positive factor.
 pub(crate) fn side3(a: &Point, b: &Point, c: &Point, d: &Point) -> f64 {
+    // Four points with two alike (a shared corner), or on one axis-aligned
+    // plane (faces of boxes, plates), are coplanar: the adaptive predicate
+    // would take its slowest path to say so.
+    if a == d || b == d || c == d || a == b || b == c || c == a {
+        return 0.0;
+    }
+    if (0..3).any(|i| a[i] == b[i] && a[i] == c[i] && a[i] == d[i]) {
+        return 0.0;
+    }
     let k = |p: &Point| Coord3D { x: p.x, y: p.y, z: p.z };
     orient3d(k(a), k(b), k(c), k(d))
 }
@@ -26,6 +35,12 @@ pub(crate) fn side3(a: &Point, b: &Point, c: &Point, d: &Point) -> f64 {
 /// sign of component `along` of `(b - a) x (c - a)`.
 pub(crate) fn side2(along: usize, a: &Point, b: &Point, c: &Point) -> f64 {
     let (i, j) = ((along + 1) % 3, (along + 2) % 3);
+    // Three points with two alike, or on one axis-aligned line, are
+    // collinear (as for `side3`).
+    let alike = |p: &Point, q: &Point| p[i] == q[i] && p[j] == q[j];
+    if alike(a, b) || alike(b, c) || alike(c, a) || [i, j].iter().any(|&i| a[i] == b[i] && a[i] == c[i]) {
+        return 0.0;
+    }
     let k = |p: &Point| Coord { x: p[i], y: p[j] };
     orient2d(k(a), k(b), k(c))
 }

@@ -33,56 +33,66 @@ fn rounded_axes(tri: &[Point; 3], b: &Aabb) -> Option<bool> {
     const U: f64 = f64::EPSILON / 2.0;
     let c = b.center();
     let v = tri.map(|p| p - c);
-    let (lo, hi) = (b.min - c, b.max - c);
+    // About c the box reaches at most `outer` and at least `inner` each way.
+    let (lo, hi) = (c - b.min, b.max - c);
+    let (outer, inner) = (lo.sup(&hi), lo.inf(&hi));
     // Per coordinate, a bound on every point's size.
-    let size = Vector::from_fn(|k, _| {
-        v[0][k].abs().max(v[1][k].abs()).max(v[2][k].abs()).max(lo[k].abs()).max(hi[k].abs())
-    });
+    let size = v[0].abs().sup(&v[1].abs()).sup(&v[2].abs()).sup(&outer);
+    // How far rounding may move a gap on an axis whose components are off
+    // by `off`: points are off by U of themselves, products and sums by a
+    // few U; twice that, for both projections, is generous.
+    let bound = |a: Vector, off: Vector| 2.0 * (off + a.abs() * (8.0 * U)).dot(&size);
     // Edges from the coordinates themselves: a component is 0 exactly when
     // the coordinates agree, and otherwise off by at most U of itself.
     let e = [tri[1] - tri[0], tri[2] - tri[1], tri[0] - tri[2]];
     let mut close = false;
-    // True when axis `a` (each component within `off` of the exact axis's)
-    // surely separates; marks `close` when it may separate or touch.
-    let mut separates = |a: Vector, off: Vector| {
-        // A null axis (an edge along the box axis) is null exactly: no test.
-        if a == Vector::zeros() && off == Vector::zeros() {
-            return false;
-        }
-        let (t_lo, t_hi) = min_max([a.dot(&v[0]), a.dot(&v[1]), a.dot(&v[2])]);
-        let (mut b_lo, mut b_hi) = (0.0, 0.0);
-        for k in 0..3 {
-            let (x, y) = (a[k] * lo[k], a[k] * hi[k]);
-            b_lo += x.min(y);
-            b_hi += x.max(y);
-        }
-        let gap = (t_lo - b_hi).max(b_lo - t_hi);
-        // Points are off by U of themselves, the axis by `off`, products and
-        // sums by a few U: twice that, for both projections, is generous.
-        let err = 2.0 * (off + a.abs() * (8.0 * U)).dot(&size);
-        if gap > err {
-            return true;
-        }
-        // Too close to call, or no number (an overflow): the exact test decides.
-        close |= gap.partial_cmp(&-err) != Some(std::cmp::Ordering::Less);
-        false
-    };
-    let perm = Vector::from_fn(|k, _| {
+    // The plane; each normal component is off by at most 5 U of its two products.
+    let n = e[0].cross(&e[1]);
+    let n_off = Vector::from_fn(|k, _| {
         let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-        (e[0][i] * e[1][j]).abs() + (e[0][j] * e[1][i]).abs()
+        5.0 * U * ((e[0][i] * e[1][j]).abs() + (e[0][j] * e[1][i]).abs())
     });
-    if separates(e[0].cross(&e[1]), perm * (5.0 * U)) {
-        return Some(false);
+    if n != Vector::zeros() || n_off != Vector::zeros() {
+        let t = v.map(|p| n.dot(&p));
+        match apart(t, n.abs().dot(&outer), n.abs().dot(&inner), bound(n, n_off)) {
+            Some(true) => return Some(false),
+            Some(false) => {}
+            None => close = true,
+        }
     }
-    for axis in [Vector::x(), Vector::y(), Vector::z()] {
+    // Box axis k crossed with an edge: its components i, j are (-edge_j,
+    // edge_i), each an edge component, so one bound serves all nine.
+    let longest = e[0].abs().sup(&e[1].abs()).sup(&e[2].abs()).max();
+    let err = bound(Vector::repeat(longest), Vector::repeat(longest * U));
+    for (i, j) in [(1, 2), (2, 0), (0, 1)] {
         for edge in &e {
-            let a = axis.cross(edge);
-            if separates(a, a.abs() * U) {
-                return Some(false);
+            let (ai, aj) = (-edge[j], edge[i]);
+            // An edge along box axis k gives a null axis, null exactly: no test.
+            if ai == 0.0 && aj == 0.0 {
+                continue;
+            }
+            let t = v.map(|p| ai * p[i] + aj * p[j]);
+            let reach = |r: &Vector| ai.abs() * r[i] + aj.abs() * r[j];
+            match apart(t, reach(&outer), reach(&inner), err) {
+                Some(true) => return Some(false),
+                Some(false) => {}
+                None => close = true,
             }
         }
     }
     (!close).then_some(true)
+}
+
+/// On one axis, a triangle projecting to `t` and a box reaching at most
+/// `outer` and at least `inner` either way from 0, each off by up to `err`:
+/// `Some(true)` when they are surely apart, `Some(false)` when they surely
+/// overlap, `None` when too close to call (or not numbers: an overflow).
+fn apart(t: [f64; 3], outer: f64, inner: f64, err: f64) -> Option<bool> {
+    let (lo, hi) = min_max(t);
+    if (lo - outer).max(-outer - hi) > err {
+        return Some(true);
+    }
+    ((lo - inner).max(-inner - hi) < -err).then_some(false)
 }
 
 /// The plane and edge axes by exact signs, where the box normals do not
