@@ -60,14 +60,15 @@ fn rounded_axes(tri: &[Point; 3], b: &Aabb) -> Option<bool> {
             None => close = true,
         }
     }
-    // Box axis k crossed with an edge: its components i, j are (-edge_j,
-    // edge_i), each an edge component, so one bound serves all nine.
+    // The box axis other than i and j crossed with an edge: its components
+    // i, j are (-edge_j, edge_i), each an edge component, so one bound
+    // serves all nine.
     let longest = e[0].abs().sup(&e[1].abs()).sup(&e[2].abs()).max();
     let err = bound(Vector::repeat(longest), Vector::repeat(longest * U));
     for (i, j) in [(1, 2), (2, 0), (0, 1)] {
         for edge in &e {
             let (ai, aj) = (-edge[j], edge[i]);
-            // An edge along box axis k gives a null axis, null exactly: no test.
+            // An edge along that box axis gives a null axis, null exactly: no test.
             if ai == 0.0 && aj == 0.0 {
                 continue;
             }
