@@ -108,9 +108,17 @@ impl Aabb {
         best
     }
 
-    /// True when the closed boxes share a point.
+    /// True when the closed boxes share a point (touching boxes do).
     pub fn intersects(&self, other: &Aabb) -> bool {
         (0..3).all(|i| self.min[i] <= other.max[i] && other.min[i] <= self.max[i])
+    }
+
+    /// True when the gap between the boxes is at most `d` on every axis (with
+    /// `d` = 0, exactly [`Aabb::intersects`]). The same for `a.within(b)` and
+    /// `b.within(a)`, bit for bit, unlike growing one of them by `d`; and a
+    /// larger box is within whenever a box it holds is.
+    pub fn within(&self, other: &Aabb, d: f64) -> bool {
+        (0..3).all(|i| (self.min[i] - other.max[i]).max(other.min[i] - self.max[i]) <= d)
     }
 
     /// True when `other` lies inside this closed box.
@@ -173,6 +181,19 @@ mod tests {
     }
 
     #[test]
+    fn within_is_symmetric_and_closed() {
+        let a = b([0.1, 0.2, 0.3, 0.4, 0.5, 0.6]);
+        let touching = b([0.4, 0.5, 0.6, 1.0, 1.0, 1.0]);
+        assert!(a.intersects(&touching) && a.within(&touching, 0.0) && touching.within(&a, 0.0));
+        let apart = b([0.4f64.next_up(), 0.5, 0.6, 1.0, 1.0, 1.0]);
+        assert!(!a.intersects(&apart) && !a.within(&apart, 0.0) && !apart.within(&a, 0.0));
+        assert!(a.within(&apart, 1e-15) && apart.within(&a, 1e-15));
+        let far = b([0.7, 0.2, 0.3, 0.9, 0.5, 0.6]);
+        assert!(!a.within(&far, 0.2) && a.within(&far, 0.3) && far.within(&a, 0.3));
+        assert!(!Aabb::EMPTY.within(&a, 1e9) && !a.within(&Aabb::EMPTY, 1e9));
+    }
+
+    #[test]
     fn longest_axis_prefers_x_on_ties() {
         assert_eq!(b([0.0; 6]).longest_axis(), Axis::X);
         assert_eq!(b([0.0, 0.0, 0.0, 1.0, 3.0, 2.0]).longest_axis(), Axis::Y);
@@ -187,6 +208,19 @@ mod tests {
             let a = b([x0, y0, z0, x0 + dx, y0 + dy, z0 + dz]);
             let (lo, hi) = a.to_f32_outward();
             prop_assert!(Aabb::from_f32(lo, hi).contains(&a));
+        }
+
+        #[test]
+        fn within_is_symmetric_and_intersects_at_zero(
+            p in prop::array::uniform6(-10i32..10), q in prop::array::uniform6(-10i32..10), d in 0i32..4,
+        ) {
+            let sorted = |v: [i32; 6]| {
+                let v = v.map(|x| f64::from(x) * 0.1);
+                Aabb::from_points(&[Point::new(v[0], v[1], v[2]), Point::new(v[3], v[4], v[5])])
+            };
+            let (x, y, d) = (sorted(p), sorted(q), f64::from(d) * 0.1);
+            prop_assert_eq!(x.within(&y, d), y.within(&x, d));
+            prop_assert_eq!(x.within(&y, 0.0), x.intersects(&y));
         }
     }
 }

@@ -3,10 +3,12 @@
 //! the query shapes (spheres, frusta, posed meshes) with their exact tests.
 //!
 //! `parry.rs` is the only place that imports parry; everything else uses
-//! nalgebra's `Point3<f64>`.
+//! nalgebra's `Point3<f64>`. `contact.rs` holds the contact rule every query
+//! decides by: closed sets, touching (distance 0) is contact, decided exactly.
 
 mod aabb;
 mod axis;
+mod contact;
 mod frustum;
 mod parry;
 mod pose;
@@ -17,10 +19,9 @@ mod triangle_box;
 
 pub use aabb::Aabb;
 pub use axis::Axis;
+pub use contact::{intersects_triangle_triangle, triangles_within};
 pub use frustum::{Camera, Frustum};
-pub use parry::{
-    SurfaceDistance, distance_point_triangle, distance_triangle_triangle, intersects_triangle_triangle,
-};
+pub use parry::{SurfaceDistance, distance_point_triangle, distance_triangle_triangle};
 pub use pose::Pose;
 pub use round::{round_down_f32, round_up_f32};
 pub use shape_error::ShapeError;

@@ -1,6 +1,8 @@
 //! The only place that imports parry: a triangle set's BVH for point
-//! distances, and the exact triangle-triangle intersection and distance tests
-//! of collision and clearance queries.
+//! distances, and the triangle-triangle distances of clearance queries.
+//! (Whether two triangles touch is decided exactly in `contact.rs`: parry's
+//! GJK decides touching within a tolerance, and differently for (a, b) and
+//! (b, a).)
 
 use super::Point;
 use parry3d_f64::math::Isometry;
@@ -44,18 +46,19 @@ impl Simplex {
     }
 }
 
-/// True when the closed triangles share a point (parry's GJK on the two
-/// simplices; degenerate triangles are segments or points).
-pub fn intersects_triangle_triangle(a: &[Point; 3], b: &[Point; 3]) -> bool {
+/// The distance between two closed triangles (about 0 when they meet:
+/// within parry's rounding). The same bits for (a, b) and (b, a): the pair
+/// is handed to parry in one order.
+pub fn distance_triangle_triangle(a: &[Point; 3], b: &[Point; 3]) -> f64 {
+    let first =
+        a.iter().flat_map(|p| p.iter()).zip(b.iter().flat_map(|p| p.iter())).map(|(x, y)| x.total_cmp(y));
+    let (a, b) = if first.into_iter().find(|o| o.is_ne()) == Some(std::cmp::Ordering::Greater) {
+        (b, a)
+    } else {
+        (a, b)
+    };
     let id = Isometry::identity();
     // Triangles and segments are support maps: parry supports every pair of them.
-    parry3d_f64::query::intersection_test(&id, Simplex::of(a).shape(), &id, Simplex::of(b).shape())
-        .unwrap_or(true)
-}
-
-/// The distance between two closed triangles (0 when they meet).
-pub fn distance_triangle_triangle(a: &[Point; 3], b: &[Point; 3]) -> f64 {
-    let id = Isometry::identity();
     parry3d_f64::query::distance(&id, Simplex::of(a).shape(), &id, Simplex::of(b).shape()).unwrap_or(0.0)
 }
 
@@ -154,18 +157,27 @@ mod tests {
     }
 
     #[test]
-    fn triangle_pairs_crossing_apart_and_degenerate() {
+    fn triangle_pairs_apart_and_degenerate() {
         let p = Point::new;
         let flat = [p(0.0, 0.0, 0.0), p(2.0, 0.0, 0.0), p(0.0, 2.0, 0.0)];
-        let through = [p(0.5, 0.5, -1.0), p(0.5, 0.5, 1.0), p(0.6, 0.6, 1.0)];
-        assert!(intersects_triangle_triangle(&flat, &through));
         let above = [p(0.5, 0.5, 3.0), p(1.5, 0.5, 3.0), p(0.5, 1.5, 3.0)];
-        assert!(!intersects_triangle_triangle(&flat, &above));
         assert!((distance_triangle_triangle(&flat, &above) - 3.0).abs() < 1e-9);
         // A zero-area "triangle" is the segment it spans.
-        let segment = [p(0.5, 0.5, -1.0), p(0.5, 0.5, 1.0), p(0.5, 0.5, 0.0)];
-        assert!(intersects_triangle_triangle(&flat, &segment));
-        assert!((distance_point_triangle(&p(0.5, 0.5, 2.0), &segment) - 1.0).abs() < 1e-12);
+        let segment = [p(0.5, 0.5, 4.0), p(0.5, 0.5, 6.0), p(0.5, 0.5, 5.0)];
+        assert!((distance_triangle_triangle(&segment, &above) - 1.0).abs() < 1e-9);
+        assert!((distance_point_triangle(&p(0.5, 0.5, 2.0), &segment) - 2.0).abs() < 1e-12);
         assert!((distance_point_triangle(&p(0.5, 0.5, 2.0), &flat) - 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn distance_is_the_same_bits_either_way() {
+        // Coplanar faces of tanker2 that parry measured differently by order.
+        let p = Point::new;
+        let a = [p(4330.5, 0.0, 3651.4375), p(4330.5, 14.0, 3651.4375), p(14.0, 14.0, 3651.4375)];
+        let b = [p(2830.5, 14.0, 14.0), p(2840.5, 14.0, 14.0), p(2840.5, 14.0, 5470.1875)];
+        assert_eq!(
+            distance_triangle_triangle(&a, &b).to_bits(),
+            distance_triangle_triangle(&b, &a).to_bits()
+        );
     }
 }

@@ -29,8 +29,14 @@ impl Pose {
         Ok(Pose { rotation: Rotation3::from_euler_angles(rx, ry, rz), translation: Vector::from(t) })
     }
 
-    /// `p` rotated about `center`, then translated.
+    /// `p` rotated about `center`, then translated. Without a rotation `p`
+    /// is only translated, exactly: an object posed where it stands keeps its
+    /// coordinates to the bit (`c + (p - c)` need not be `p`), so it touches
+    /// what it touched.
     pub fn apply(&self, center: &Point, p: &Point) -> Point {
+        if self.rotation == Rotation3::identity() {
+            return p + self.translation;
+        }
         center + self.rotation * (p - center) + self.translation
     }
 }
@@ -45,5 +51,14 @@ mod tests {
         let q = pose.apply(&Point::new(1.0, 1.0, 0.0), &Point::new(2.0, 1.0, 0.0));
         assert!((q - Point::new(11.0, 2.0, 0.0)).norm() < 1e-12);
         assert!(Pose::from_degrees([f64::INFINITY, 0.0, 0.0], [0.0; 3]).is_err());
+    }
+
+    #[test]
+    fn no_rotation_keeps_the_point_to_the_bit() {
+        let (c, p) = (Point::new(0.4, 0.4, 0.4), Point::new(0.1, 0.7, 0.1));
+        assert_ne!(c + (p - c), p, "the rounding this avoids");
+        assert_eq!(Pose::default().apply(&c, &p), p);
+        let moved = Pose::from_degrees([1.5, 0.0, 0.0], [0.0; 3]).unwrap();
+        assert_eq!(moved.apply(&c, &p), Point::new(0.1 + 1.5, 0.7, 0.1));
     }
 }

@@ -1,5 +1,6 @@
 //! The oracles of the tests: every query answered by testing every object
-//! (or pair) of the scene exactly, with no tree and no file.
+//! (or pair) of the scene exactly, with no tree and no file, by the same
+//! contact rule as the queries (closed sets, touching counts).
 
 use super::select::{Region, Selection, Triangles};
 use crate::geom::Pose;
@@ -13,12 +14,12 @@ fn all<P: Selection + ?Sized>(scene: &Scene, probe: &P) -> Vec<ObjectId> {
         .collect()
 }
 
-/// The objects whose triangles meet `region`.
+/// The objects whose triangles meet the closed `region` (touching counts).
 pub fn brute_force_region(scene: &Scene, region: &Region) -> Vec<ObjectId> {
     all(scene, region)
 }
 
-/// The objects within `clearance` of `mesh` under `pose` (sorted).
+/// The objects within `clearance` of `mesh` under `pose` (touching at 0; sorted).
 pub fn brute_force_collide(
     scene: &Scene,
     mesh: &Mesh,
@@ -30,18 +31,17 @@ pub fn brute_force_collide(
     Ok(all(scene, &probe).into_iter().filter(|&id| Some(id) != exclude).collect())
 }
 
-/// Every pair (a, b), a < b, of objects within `clearance` (sorted).
+/// Every pair (a, b), a < b, of objects within `clearance` (touching at 0; sorted).
 pub fn brute_force_clash(
     scene: &Scene,
     clearance: f64,
 ) -> Result<Vec<(ObjectId, ObjectId)>, crate::geom::ShapeError> {
-    let boxes: Vec<_> = scene.objects().iter().map(|o| o.aabb().grown(clearance)).collect();
     let mut pairs = Vec::new();
     let mut n = 0;
     for (i, a) in scene.objects().iter().enumerate() {
         let probe = Triangles::posed(&a.mesh, &Pose::default(), clearance)?;
         for (j, b) in scene.objects().iter().enumerate().skip(i + 1) {
-            if boxes[i].intersects(&b.aabb()) && probe.meets_mesh(&b.mesh, &mut n) {
+            if probe.meets_mesh(&b.mesh, &mut n) {
                 pairs.push((ObjectId(i as u32), ObjectId(j as u32)));
             }
         }

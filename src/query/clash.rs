@@ -1,12 +1,13 @@
-//! Clash detection: every pair of scene objects that intersect or come
-//! closer than a clearance d. The tree is walked once to list the objects
-//! with their boxes; then each object, as the probe, is run through the one
-//! traversal against the objects of higher id: its box grown by d at level
-//! 1, its voxel-level bound tests at 1 < k < M, its exact surface with
-//! clearance d at M (a pair is tested one way, lower id as the probe, as
-//! brute force does, since parry decides touching contacts within a
-//! tolerance). Every block goes through one pool for the whole run, so the
-//! reads are at most the file's blocks (reported beside them).
+//! Clash detection: every pair of scene objects that touch (share a point:
+//! a face, edge or vertex in common counts) or come within a clearance d.
+//! The tree is walked once to list the objects with their boxes; then each
+//! object, as the probe, is run through the one traversal against the
+//! objects of higher id: its box grown by d at level 1, its voxel-level
+//! bound tests at 1 < k < M, its exact surface with clearance d at M. A pair
+//! is tested once, lower id as the probe: the contact rule is symmetric
+//! (`geom::contact`), so at M the pairs are exactly those that `collide` of
+//! either object reports. Every block goes through one pool for the whole
+//! run, so the reads are at most the file's blocks (reported beside them).
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -14,7 +15,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::QueryError;
-use super::select::{Everything, Region, Triangles};
+use super::select::{Everything, Region, Triangles, reach};
 use super::traverse::{QueryOptions, Seen, TraverseStats, Visitor, levels, walk};
 use crate::db::{ReadTransaction, Reads, view};
 use crate::geom::{Aabb, Pose};
@@ -29,14 +30,15 @@ use crate::store::{Block, BlockCache, StorageError};
 pub struct ClashOptions {
     /// The level k (1 ..= M); `None` is M, the exact pairs.
     pub lod: Option<u8>,
-    /// d, mm: objects closer than d clash (0: touching or intersecting).
+    /// d, mm: objects within d clash (0: touching or intersecting).
     pub clearance: f64,
 }
 
 /// Every clashing pair, with the run's reads.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ClashAnswer {
-    /// Sorted pairs (a, b), a < b: exact at M, a superset below.
+    /// Sorted pairs (a, b), a < b: exact at M (the unordered pairs of
+    /// `collide` over every object), a superset below.
     pub pairs: Vec<(ObjectId, ObjectId)>,
     pub level: u8,
     /// Blocks in the file, to set the reads against.
@@ -89,8 +91,9 @@ fn add(total: &mut TraverseStats, s: &TraverseStats) {
     total.triangles_tested += s.triangles_tested;
 }
 
-/// Every pair of objects of `txn`'s tree within `opts.clearance`, at level k.
-/// Reads go through `cache`, or a pool of the run's own when `None`.
+/// Every pair of objects of `txn`'s tree within `opts.clearance` (touching
+/// at 0), at level k. Reads go through `cache`, or a pool of the run's own
+/// when `None`.
 pub fn clash(
     txn: &ReadTransaction,
     opts: &ClashOptions,
@@ -117,7 +120,7 @@ pub fn clash(
     for group in list.objects.chunk_by(|x, y| x.id == y.id) {
         let id = group[0].id;
         let aabb = group.iter().fold(Aabb::EMPTY, |b, p| b.union(&p.aabb));
-        let near = Region::Box(aabb.grown(d));
+        let near = Region::Box(reach(&aabb, d));
         let at = QueryOptions { lod: Some(if k == m { 1 } else { k }), ..Default::default() };
         let found = walk(txn, root, &near, &at, &mut Reads::new(Some(pool)), &mut ())?;
         add(&mut total, &found.stats);

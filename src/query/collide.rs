@@ -1,6 +1,9 @@
 //! Collision and proximity (clearance) of a query object under a rigid pose
 //! against the scene, through the one traversal: bounds grown by the
 //! clearance d below M, exact triangle contacts and distances (parry) at M.
+//! Surfaces are closed sets: a shared face, edge or vertex is a contact,
+//! and the test is symmetric, so object a's answer holds b exactly when
+//! b's holds a.
 
 use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
@@ -20,7 +23,8 @@ use crate::store::{Block, BlockCache, StorageError};
 pub struct CollideOptions {
     /// Level and block budget.
     pub query: QueryOptions,
-    /// d, mm: objects within d of the query object collide (0: touching).
+    /// d, mm: objects within d of the query object collide (0: touching or
+    /// intersecting).
     pub clearance: f64,
     /// An object left out of the answer: the query object itself when it is
     /// one of the scene's objects.
@@ -28,7 +32,8 @@ pub struct CollideOptions {
 }
 
 /// The objects whose surfaces come within `opts.clearance` of `mesh` placed
-/// by `pose` (rotated about its box centre, then moved).
+/// by `pose` (rotated about its box centre, then moved); at clearance 0 the
+/// objects that share a point with it (touching counts, decided exactly).
 pub fn collide(
     txn: &ReadTransaction,
     mesh: &Mesh,

@@ -1,6 +1,10 @@
 //! Region queries (box, sphere, frustum) at a level k through the one
 //! traversal: the objects whose exact geometry (their triangles, as
-//! surfaces) meets the region at level M, a superset below.
+//! surfaces) meets the region at level M, a superset below. Region and
+//! triangles are closed sets: an object that only touches a box region (a
+//! face on the box's face, a corner on its edge) is in the answer, decided
+//! exactly. Spheres and frusta are tested in floating point, so an exact
+//! tie with them may go either way.
 
 use super::QueryError;
 use super::select::Region;

@@ -7,10 +7,16 @@
 //! Witnesses hold for the true geometry, not for rounded bounds: a box face
 //! is tested as its quantized slab (which holds the true face), a voxel
 //! cell grown by its tolerance (which holds the surface piece that set it).
+//!
+//! Every decision follows one contact rule (`geom::contact`): shapes and
+//! objects are closed sets, and sharing a point (distance 0: a common face,
+//! edge or vertex) is contact, decided exactly; with a clearance d, distance
+//! at most d is. Bounds are closed and hold what they bound, so a "may
+//! meet" never rules out a touching object.
 
 use crate::geom::{
-    Aabb, Frustum, Point, Pose, ShapeError, Sphere, distance_point_triangle, distance_triangle_triangle,
-    intersects_triangle_box, intersects_triangle_triangle,
+    Aabb, Frustum, Point, Pose, ShapeError, Sphere, distance_point_triangle, intersects_triangle_box,
+    triangles_within,
 };
 use crate::lod::Voxels;
 use crate::scene::Mesh;
@@ -32,7 +38,8 @@ pub trait Selection {
     fn confirms_voxels(&self, v: &Voxels) -> bool {
         v.cell_boxes().any(|c| self.holds_box(&c))
     }
-    /// The shape meets the exact surface of `mesh`; counts triangle tests.
+    /// The shape meets the exact surface of `mesh` (closed sets: touching
+    /// counts); counts triangle tests.
     fn meets_mesh(&self, mesh: &Mesh, triangles_tested: &mut u64) -> bool;
 }
 
@@ -106,12 +113,14 @@ impl Selection for Region {
 }
 
 /// A query object in world position: its triangles and their boxes, and the
-/// clearance d within which a scene object counts as touching it.
+/// clearance d within which a scene object counts as touching it. It meets
+/// a scene object when a triangle of each are within d (touching at d = 0),
+/// the same test whichever of the two is the query.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Triangles {
     triangles: Vec<[Point; 3]>,
     boxes: Vec<Aabb>,
-    aabb: Aabb,
+    bounds: Aabb,
     clearance: f64,
 }
 
@@ -125,14 +134,14 @@ impl Triangles {
         let c = mesh.aabb().center();
         let triangles: Vec<[Point; 3]> =
             mesh.triangle_points().map(|t| t.map(|p| pose.apply(&c, &p))).collect();
-        let boxes: Vec<Aabb> = triangles.iter().map(|t| Aabb::from_points(t).grown(clearance)).collect();
-        let aabb = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(b));
-        Ok(Triangles { triangles, boxes, aabb, clearance })
+        let boxes: Vec<Aabb> = triangles.iter().map(Aabb::from_points).collect();
+        let bounds = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(b));
+        Ok(Triangles { triangles, boxes, bounds, clearance })
     }
 
     /// The box holding every point within the clearance of the object.
     pub fn aabb(&self) -> Aabb {
-        self.aabb
+        self.bounds.grown(self.clearance)
     }
 
     /// The clearance d, mm.
@@ -141,18 +150,25 @@ impl Triangles {
     }
 }
 
-/// A relative margin for the conservative tests of a mesh probe: parry's
-/// GJK decides contact within a tolerance, so a bound that an exact contact
-/// only grazes must still count as met.
+/// A relative margin for the conservative tests of a mesh probe with a
+/// clearance: parry measures distances within a rounding error, so a bound
+/// that a contact at distance d only grazes must still count as met.
 fn slack(b: &Aabb) -> f64 {
     let a = b.to_array();
     1e-9 * a.iter().fold(1.0f64, |m, c| m.max(c.abs()))
 }
 
+/// A box holding every point that may be in contact with `b` under a
+/// clearance `d`: `b` itself at d = 0 (touching is decided exactly), else
+/// `b` grown by d and the slack parry's distances need.
+pub(crate) fn reach(b: &Aabb, d: f64) -> Aabb {
+    if d == 0.0 { *b } else { b.grown(d + slack(b)) }
+}
+
 impl Selection for Triangles {
     fn may_meet_box(&self, b: &Aabb) -> bool {
-        let g = b.grown(self.clearance + slack(b));
-        g.intersects(&self.aabb)
+        let g = reach(b, self.clearance);
+        g.intersects(&self.bounds)
             && self
                 .triangles
                 .iter()
@@ -165,31 +181,31 @@ impl Selection for Triangles {
     /// slack parry's distances need).
     fn holds_box(&self, b: &Aabb) -> bool {
         let reach = self.clearance - b.extent().norm() / 2.0 - slack(b);
-        if reach <= 0.0 || !b.intersects(&self.aabb) {
+        if reach <= 0.0 || !b.within(&self.bounds, self.clearance) {
             return false;
         }
         let c = b.center();
         self.triangles.iter().any(|t| distance_point_triangle(&c, t) <= reach)
     }
 
+    /// Some triangle pair within d by `triangles_within`, its boxes first
+    /// within d by `Aabb::within`: both symmetric, and the outer box tests
+    /// only drop pairs whose boxes are not within d, so the answer is the
+    /// same with the mesh as the query and this object in the scene.
     fn meets_mesh(&self, mesh: &Mesh, n: &mut u64) -> bool {
         let d = self.clearance;
-        if !mesh.aabb().intersects(&self.aabb) {
+        if !mesh.aabb().within(&self.bounds, d) {
             return false;
         }
         mesh.triangle_points().any(|t| {
             let tb = Aabb::from_points(&t);
-            tb.intersects(&self.aabb)
+            tb.within(&self.bounds, d)
                 && self.triangles.iter().zip(&self.boxes).any(|(q, qb)| {
-                    if !qb.intersects(&tb) {
+                    if !qb.within(&tb, d) {
                         return false;
                     }
                     *n += 1;
-                    if d == 0.0 {
-                        intersects_triangle_triangle(q, &t)
-                    } else {
-                        distance_triangle_triangle(q, &t) <= d
-                    }
+                    triangles_within(q, &t, d)
                 })
         })
     }
