@@ -234,7 +234,13 @@ impl Plan {
         block_size: u32,
     ) -> Vec<f64> {
         let sizes = self.sizes(tree, &stored.bounds);
-        let (packing, _) = self.choose(tree, &sizes, node::capacity(block_size));
+        let capacity = node::capacity(block_size);
+        let scales = self.samples.len().div_ceil(SAMPLES_PER_SCALE);
+        if sizes.iter().any(|&s| s > capacity) {
+            // Bounds that swell a record past a block cannot be written: never worth keeping.
+            return vec![f64::INFINITY; scales];
+        }
+        let (packing, _) = self.choose(tree, &sizes, capacity);
         // Every object's box as its leaf stores it.
         let boxes: Vec<Vec<Option<QuantBox>>> = (0..tree.nodes.len())
             .map(|i| {
@@ -247,7 +253,7 @@ impl Plan {
                     .collect()
             })
             .collect();
-        let mut reads = vec![0usize; self.samples.len().div_ceil(SAMPLES_PER_SCALE)];
+        let mut reads = vec![0usize; scales];
         let mut blocks = std::collections::HashSet::new();
         let mut stack = Vec::new();
         for (qi, q) in self.samples.iter().enumerate() {
