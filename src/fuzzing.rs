@@ -4,7 +4,15 @@
 //! bugs. No count read from the input is capped here: the decoders must
 //! bound their own work.
 
+mod api;
+mod edit;
+pub mod forge;
+mod structure;
+
 use std::sync::Arc;
+
+pub use api::api_sequence;
+pub use structure::{Structure, forged};
 
 use crate::db::{Database, check, read_hierarchy};
 use crate::geom::Aabb;
@@ -106,4 +114,35 @@ pub fn open_and_query(data: &[u8]) {
         }
     }
     let _ = check(&db);
+}
+
+/// Block 0 (fixed header, both copies of both slots) and the meta block
+/// forged with every checksum re-sealed (`structure.rs`).
+pub fn forge_header(data: &[u8]) {
+    structure::forge(structure::Structure::Header, data)
+}
+
+/// Node blocks forged with every checksum re-sealed.
+pub fn forge_node(data: &[u8]) {
+    structure::forge(structure::Structure::Node, data)
+}
+
+/// Geometry blocks and the leaves' spans over them forged with every checksum re-sealed.
+pub fn forge_geometry(data: &[u8]) {
+    structure::forge(structure::Structure::Geometry, data)
+}
+
+/// Inline bounds (voxel blobs) and the lattice forged with every checksum re-sealed.
+pub fn forge_lod(data: &[u8]) {
+    structure::forge(structure::Structure::Lod, data)
+}
+
+/// The names run forged with every checksum re-sealed.
+pub fn forge_names(data: &[u8]) {
+    structure::forge(structure::Structure::Names, data)
+}
+
+/// The free list forged with every checksum re-sealed.
+pub fn forge_free_list(data: &[u8]) {
+    structure::forge(structure::Structure::FreeList, data)
 }

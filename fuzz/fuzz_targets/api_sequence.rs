@@ -1,0 +1,10 @@
+//! API calls, crashes and reopens against a model of the committed scene.
+#![no_main]
+
+#[path = "../alloc_limit.rs"]
+mod alloc_limit;
+
+#[global_allocator]
+static ALLOC: alloc_limit::Limited = alloc_limit::Limited;
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| mktree::fuzzing::api_sequence(data));

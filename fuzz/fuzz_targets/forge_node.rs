@@ -1,0 +1,10 @@
+//! Node blocks of a valid file forged, every checksum re-sealed.
+#![no_main]
+
+#[path = "../alloc_limit.rs"]
+mod alloc_limit;
+
+#[global_allocator]
+static ALLOC: alloc_limit::Limited = alloc_limit::Limited;
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| mktree::fuzzing::forge_node(data));

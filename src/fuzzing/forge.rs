@@ -1,0 +1,443 @@
+//! A forger's view of a file image, after format-spec/: where each block's
+//! checksum is vouched for (the commit slots name the meta and first
+//! free-list blocks, the meta block the root node block and the names run,
+//! node records their children's blocks and their leaves' geometry blocks,
+//! a run or a free list each next block), and a re-seal that makes every
+//! checksum up those chains match again after bytes were changed, as an
+//! attacker who knows the format would. Nothing here trusts the image: a
+//! reference that leaves it is skipped, and a chain that loops is sealed
+//! once (its stale link is for the reader to catch).
+
+use crate::store::format::frame::block_checksum;
+use crate::store::format::header::{SLOT_LEN, SlotRead, decode_slots, slot_offset};
+
+/// How a block is read, as its referrer expects it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    Meta,
+    Node,
+    Geometry,
+    /// The names run's first block.
+    Names,
+    /// A continuation block of a run with `left` blocks after it.
+    Continuation {
+        left: u32,
+    },
+    FreeList,
+}
+
+/// Where block `target`'s checksum is held: the 4 bytes at `field`
+/// (absolute), in a block that reads `target` as `kind`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Reference {
+    pub field: usize,
+    pub target: u32,
+    pub kind: Kind,
+}
+
+/// A record of a node block, as its bytes describe it (absolute offsets).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Record {
+    Internal { at: usize },
+    Leaf(LeafAt),
+}
+
+/// A leaf record's layout (format-spec/node.md), absolute offsets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LeafAt {
+    pub at: usize,
+    pub objects: usize,
+    pub span: usize,
+    /// The first object entry.
+    pub objects_at: usize,
+    /// The `end` word, just after the object entries.
+    pub end_at: usize,
+    /// The bounds area and its length.
+    pub bounds_at: usize,
+    pub bounds_len: usize,
+}
+
+impl Record {
+    pub fn at(&self) -> usize {
+        match self {
+            Record::Internal { at } => *at,
+            Record::Leaf(l) => l.at,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        match self {
+            Record::Internal { .. } => INTERNAL_LEN,
+            Record::Leaf(l) => l.bounds_at + l.bounds_len - l.at,
+        }
+    }
+
+    /// Never true: a record has a head.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+}
+
+/// A bound entry of a leaf (format-spec/node.md, "Bounds"): its head and blob.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BoundAt {
+    pub head: usize,
+    pub target: u16,
+    pub level: u8,
+    pub blob: usize,
+    pub len: usize,
+}
+
+const INTERNAL_LEN: usize = 84;
+const RECORDS_START: usize = 24;
+
+/// A file's bytes in blocks of `bs` bytes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Image {
+    pub bytes: Vec<u8>,
+    pub bs: usize,
+}
+
+impl Image {
+    /// Whole blocks in the image.
+    pub fn blocks(&self) -> u32 {
+        u32::try_from(self.bytes.len() / self.bs).unwrap_or(u32::MAX)
+    }
+
+    /// The absolute offset of block `id`, when the image holds it.
+    pub fn base(&self, id: u32) -> Option<usize> {
+        (id >= 1 && id < self.blocks()).then(|| id as usize * self.bs)
+    }
+
+    pub fn u8(&self, at: usize) -> u8 {
+        self.bytes.get(at).copied().unwrap_or(0)
+    }
+
+    pub fn u16(&self, at: usize) -> u16 {
+        u16::from_le_bytes([self.u8(at), self.u8(at + 1)])
+    }
+
+    pub fn u32(&self, at: usize) -> u32 {
+        u32::from_le_bytes([self.u8(at), self.u8(at + 1), self.u8(at + 2), self.u8(at + 3)])
+    }
+
+    pub fn u64(&self, at: usize) -> u64 {
+        u64::from(self.u32(at)) | u64::from(self.u32(at + 4)) << 32
+    }
+
+    /// Writes `bytes` at `at`, as much of them as the image holds.
+    pub fn put(&mut self, at: usize, bytes: &[u8]) {
+        if let Some(dst) = self.bytes.get_mut(at..) {
+            let n = dst.len().min(bytes.len());
+            dst[..n].copy_from_slice(&bytes[..n]);
+        }
+    }
+
+    pub fn put_u32(&mut self, at: usize, v: u32) {
+        self.put(at, &v.to_le_bytes());
+    }
+
+    /// The records of node block `id` as its head and record heads lay them
+    /// out, up to the first that does not fit.
+    pub fn records(&self, id: u32) -> Vec<Record> {
+        let Some(base) = self.base(id) else { return Vec::new() };
+        let used = self.u32(base + 16) as usize;
+        let end = (base + RECORDS_START).saturating_add(used).min(base + self.bs);
+        let mut out = Vec::new();
+        let mut at = base + RECORDS_START;
+        for _ in 0..self.u16(base + 20) {
+            let len = match self.u8(at) {
+                1 => INTERNAL_LEN,
+                2 => {
+                    let (n, span) = (usize::from(self.u16(at + 2)), usize::from(self.u16(at + 12)));
+                    let objects_at = at + 20 + 4 * span;
+                    let end_at = objects_at + 20 * n;
+                    let bounds_at = end_at + 4;
+                    let bounds_len = self.u32(at + 16) as usize;
+                    let leaf = LeafAt { at, objects: n, span, objects_at, end_at, bounds_at, bounds_len };
+                    let len = bounds_at.saturating_add(bounds_len) - at;
+                    if at.saturating_add(len) <= end {
+                        out.push(Record::Leaf(leaf));
+                    }
+                    len
+                }
+                _ => break,
+            };
+            if at.saturating_add(len) > end {
+                break;
+            }
+            if len == INTERNAL_LEN && self.u8(at) == 1 {
+                out.push(Record::Internal { at });
+            }
+            at += len;
+        }
+        out
+    }
+
+    /// The bound entries of a leaf's bounds area, while their heads and
+    /// blobs fit it.
+    pub fn bounds(&self, leaf: &LeafAt) -> Vec<BoundAt> {
+        let end = leaf.bounds_at + leaf.bounds_len;
+        let mut at = leaf.bounds_at;
+        let mut out = Vec::new();
+        while at + 4 <= end {
+            let lb = self.u16(at + 2);
+            let len = usize::from(lb >> 4);
+            if at + 4 + len > end {
+                break;
+            }
+            out.push(BoundAt { head: at, target: self.u16(at), level: (lb & 0xf) as u8, blob: at + 4, len });
+            at += 4 + len;
+        }
+        out
+    }
+
+    /// The references block `id`, read as `kind`, holds.
+    pub fn references(&self, id: u32, kind: Kind) -> Vec<Reference> {
+        let Some(base) = self.base(id) else { return Vec::new() };
+        let r = |field: usize, target: u32, kind: Kind| Reference { field, target, kind };
+        match kind {
+            Kind::Meta => {
+                let mut out = vec![r(base + 20, self.u32(base + 16), Kind::Node)];
+                let names = self.u32(base + 144);
+                if names != 0 {
+                    out.push(r(base + 148, names, Kind::Names));
+                }
+                out
+            }
+            Kind::Node => {
+                let mut out = Vec::new();
+                for rec in self.records(id) {
+                    match rec {
+                        Record::Internal { at } => {
+                            for c in 0..2 {
+                                let e = at + 20 + 32 * c;
+                                let b = self.u32(e + 12);
+                                if b != 0 {
+                                    out.push(r(e + 16, b, Kind::Node));
+                                }
+                            }
+                        }
+                        Record::Leaf(l) => {
+                            let first = self.u32(l.at + 8);
+                            for i in 0..l.span {
+                                if let Some(g) = u32::try_from(i).ok().and_then(|i| first.checked_add(i)) {
+                                    out.push(r(l.at + 20 + 4 * i, g, Kind::Geometry));
+                                }
+                            }
+                        }
+                    }
+                }
+                out
+            }
+            Kind::Names => match self.u32(base + 16) {
+                n if n > 1 => vec![r(base + 32, id.saturating_add(1), Kind::Continuation { left: n - 2 })],
+                _ => Vec::new(),
+            },
+            Kind::Continuation { left } if left > 0 => {
+                vec![r(base + 16, id.saturating_add(1), Kind::Continuation { left: left - 1 })]
+            }
+            Kind::FreeList => match self.u32(base + 16) {
+                0 => Vec::new(),
+                next => vec![r(base + 20, next, Kind::FreeList)],
+            },
+            Kind::Continuation { .. } | Kind::Geometry => Vec::new(),
+        }
+    }
+
+    /// The slot copies in use: (slot, copy, absolute offset), all-zero (empty) ones left out.
+    pub fn slot_copies(&self) -> Vec<(usize, usize, usize)> {
+        let mut out = Vec::new();
+        for copy in 0..2 {
+            for slot in 0..2 {
+                let at = slot_offset(slot, copy);
+                if self.bytes.get(at..at + SLOT_LEN).is_some_and(|s| s.iter().any(|&b| b != 0)) {
+                    out.push((slot, copy, at));
+                }
+            }
+        }
+        out
+    }
+
+    /// The committed slot in force (format-spec/commit.md): (slot, the
+    /// absolute offset of its copy 0, its transaction).
+    pub fn newest(&self) -> Option<(usize, usize, u64)> {
+        let slots = decode_slots(self.bytes.get(..1024)?);
+        (0..2)
+            .filter_map(|i| match slots[i].value() {
+                SlotRead::Committed(c) => Some((i, slot_offset(i, 0), c.txn)),
+                _ => None,
+            })
+            .max_by_key(|s| s.2)
+    }
+
+    /// The absolute offset of the meta block of the commit in force.
+    pub fn meta(&self) -> Option<usize> {
+        self.newest().and_then(|(_, at, _)| self.base(self.u32(at + 12)))
+    }
+
+    /// Every block the slot copies reach, children before the blocks that
+    /// hold their checksums, each once (the first way it is reached), with
+    /// the references it holds.
+    pub fn reachable(&self) -> Vec<(u32, Kind, Vec<Reference>)> {
+        let mut roots = Vec::new();
+        for (_, _, at) in self.slot_copies() {
+            roots.push(Reference { field: at + 16, target: self.u32(at + 12), kind: Kind::Meta });
+            roots.push(Reference { field: at + 28, target: self.u32(at + 24), kind: Kind::FreeList });
+        }
+        self.postorder(&roots)
+    }
+
+    /// The blocks `roots` reach, in postorder (see [`Image::reachable`]).
+    pub fn postorder(&self, roots: &[Reference]) -> Vec<(u32, Kind, Vec<Reference>)> {
+        let mut seen = vec![false; self.blocks() as usize];
+        let mut order = Vec::new();
+        let mut stack: Vec<(u32, Kind, Vec<Reference>, usize)> = Vec::new();
+        let enter = |r: &Reference, seen: &mut Vec<bool>, stack: &mut Vec<_>| {
+            if self.base(r.target).is_some() && !seen[r.target as usize] {
+                seen[r.target as usize] = true;
+                stack.push((r.target, r.kind, self.references(r.target, r.kind), 0));
+            }
+        };
+        for root in roots {
+            enter(root, &mut seen, &mut stack);
+            while let Some(top) = stack.last_mut() {
+                if let Some(&r) = top.2.get(top.3) {
+                    top.3 += 1;
+                    enter(&r, &mut seen, &mut stack);
+                } else if let Some((id, kind, refs, _)) = stack.pop() {
+                    order.push((id, kind, refs));
+                }
+            }
+        }
+        order
+    }
+
+    /// The checksum block `id` carries (0 past the image).
+    pub fn carried(&self, id: u32) -> u32 {
+        self.base(id).map_or(0, |b| self.u32(b))
+    }
+
+    /// Seals block `id`: its checksum over its id and bytes (format-spec/blocks.md).
+    pub fn seal(&mut self, id: u32) {
+        if let Some(b) = self.base(id) {
+            let sum = block_checksum(id, &self.bytes[b..b + self.bs]);
+            self.put_u32(b, sum);
+        }
+    }
+
+    /// Makes every checksum match again: each reachable block's own, each
+    /// referrer's copy of it (children first, so a parent holds its
+    /// children's final checksums), the slot copies' checksums of the meta
+    /// and free-list blocks and their own, and the fixed header's.
+    pub fn reseal(&mut self) {
+        for (id, _, refs) in self.reachable() {
+            for r in refs {
+                let sum = self.carried(r.target);
+                self.put_u32(r.field, sum);
+            }
+            self.seal(id);
+        }
+        for (slot, copy, at) in self.slot_copies() {
+            for (pointer, field) in [(at + 12, at + 16), (at + 24, at + 28)] {
+                let target = self.u32(pointer);
+                if target != 0 && self.base(target).is_some() {
+                    let sum = self.carried(target);
+                    self.put_u32(field, sum);
+                }
+            }
+            self.seal_slot(slot, copy);
+        }
+        self.seal_header();
+    }
+
+    /// Seals copy `copy` of slot `slot` (format-spec/header.md).
+    pub fn seal_slot(&mut self, slot: usize, copy: usize) {
+        let at = slot_offset(slot, copy);
+        let Some(bytes) = self.bytes.get(at..at + SLOT_LEN - 4) else { return };
+        let mut h = crc32fast::Hasher::new();
+        h.update(bytes);
+        h.update(&(slot as u32).to_le_bytes());
+        h.update(&(copy as u32).to_le_bytes());
+        let sum = h.finalize();
+        self.put_u32(at + SLOT_LEN - 4, sum);
+    }
+
+    /// Seals the fixed header: bytes 0 .. 508, then block 0's tail.
+    pub fn seal_header(&mut self) {
+        let Some(tail) = self.bytes.get(1024..self.bs) else { return };
+        let mut h = crc32fast::Hasher::new();
+        h.update(&self.bytes[..508]);
+        h.update(tail);
+        let sum = h.finalize();
+        self.put_u32(508, sum);
+    }
+
+    /// Inserts (`delta` > 0) zero bytes or removes (`delta` < 0) bytes at
+    /// absolute offset `at` of node block `id`, inside the record starting at
+    /// `record`, shifting the records after it and every offset that names
+    /// them: the block's `used_bytes`, its in-block child entries, other
+    /// blocks' child entries into it, the meta block's root offset. False
+    /// (and nothing changed) when the records would not fit the block.
+    pub fn splice(&mut self, id: u32, record: usize, at: usize, delta: isize) -> bool {
+        let Some(base) = self.base(id) else { return false };
+        let used = self.u32(base + 16) as usize;
+        let end = base + RECORDS_START + used;
+        let Some(new_used) = used.checked_add_signed(delta) else { return false };
+        if at < base + RECORDS_START || at > end || end > base + self.bs || new_used + RECORDS_START > self.bs
+        {
+            return false;
+        }
+        if delta < 0 && at + delta.unsigned_abs() > end {
+            return false;
+        }
+        // Offsets of records after `record` move; the rest stay.
+        let moved = |o: u32| (o as usize) > record - base && base + o as usize >= at;
+        let shift = |o: u32| o.wrapping_add_signed(delta as i32);
+        let mut fixes = Vec::new();
+        for node in self.node_blocks() {
+            for rec in self.records(node) {
+                if let Record::Internal { at: r } = rec {
+                    for c in 0..2 {
+                        let e = r + 20 + 32 * c;
+                        let (b, o) = (self.u32(e + 12), self.u32(e + 20));
+                        let removed = delta < 0 && node == id && e >= at && e < at + delta.unsigned_abs();
+                        if (b == id || (b == 0 && node == id)) && moved(o) && !removed {
+                            // The entry itself moves with its record when it is after `at`.
+                            let field = if node == id && e >= at { e.wrapping_add_signed(delta) } else { e };
+                            fixes.push((field + 20, shift(o)));
+                        }
+                    }
+                }
+            }
+        }
+        for (_, _, slot) in self.slot_copies() {
+            if let Some(meta) = self.base(self.u32(slot + 12))
+                && self.u32(meta + 16) == id
+                && moved(self.u32(meta + 24))
+            {
+                fixes.push((meta + 24, shift(self.u32(meta + 24))));
+            }
+        }
+        let block = &mut self.bytes[base..base + self.bs];
+        let (at, end) = (at - base, end - base);
+        if delta > 0 {
+            block.copy_within(at..end, at + delta as usize);
+            block[at..at + delta as usize].fill(0);
+        } else {
+            let d = delta.unsigned_abs();
+            block.copy_within(at + d..end, at);
+            block[end - d..end].fill(0);
+        }
+        self.put_u32(base + 16, new_used as u32);
+        for (field, v) in fixes {
+            self.put_u32(field, v);
+        }
+        true
+    }
+
+    /// Blocks whose frame says node (type 2).
+    pub fn node_blocks(&self) -> Vec<u32> {
+        (1..self.blocks()).filter(|&b| self.base(b).is_some_and(|at| self.u8(at + 4) == 2)).collect()
+    }
+}

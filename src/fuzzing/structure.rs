@@ -1,0 +1,1012 @@
+//! Structure-aware targets: each starts from one valid file (built once),
+//! lets the input choose fields of one structure and what to write there,
+//! re-seals every checksum up the chain as an attacker would
+//! ([`Image::reseal`]), and then opens, queries, walks and checks the
+//! forgery. Errors are fine; a panic, a hang or an unbounded allocation is
+//! a bug, and so is a wrong answer from a file `check` passes: a forged
+//! file that `check` accepts is a valid file of other objects, so its
+//! answers must be those of brute force over the objects it returns.
+
+use std::collections::{HashSet, VecDeque};
+use std::sync::{Arc, Mutex, OnceLock};
+
+use super::edit::{Catalog, Choices, Width, copy_chunk, edit_field, edit_raw};
+use super::forge::{Image, Kind, Record, Reference};
+use crate::build::{BuildParams, LeafRule, Method};
+use crate::db::{CreateOptions, Database, check, read_hierarchy, view};
+use crate::geom::{Aabb, Point, Pose};
+use crate::lod::{Lattice, LodParams};
+use crate::query::{
+    ClashOptions, CollideOptions, QueryOptions, Region, Visitor, brute_force_region, clash, collide,
+    object_meshes, query_region, walk,
+};
+use crate::scene::{Mesh, Object, ObjectId, Scene};
+use crate::store::device::MemDevice;
+use crate::store::format::header::{SLOT_LEN, slot_offset};
+use crate::store::format::node::NodeView;
+use crate::store::format::quant::QuantBox;
+use crate::store::format::run;
+use crate::store::{Block, BlockDevice, StorageError};
+
+/// The structure a target forges.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Structure {
+    /// Block 0 (fixed header, both copies of both slots) and the meta block.
+    Header,
+    Node,
+    /// Geometry blocks and the leaves' spans over them.
+    Geometry,
+    /// The inline bounds (voxel blobs) of leaf records and the lattice.
+    Lod,
+    Names,
+    FreeList,
+}
+
+const STRUCTURES: [Structure; 6] = [
+    Structure::Header,
+    Structure::Node,
+    Structure::Geometry,
+    Structure::Lod,
+    Structure::Names,
+    Structure::FreeList,
+];
+
+/// Bytes per block of the base file.
+const BS: usize = 1024;
+/// Levels of detail of the base file: bounds at levels 2 and 3.
+const M: u8 = 4;
+
+/// A leaf record of the base file holding bounds: its block, its index
+/// among the block's records, and each entry's box as the leaf decodes it.
+#[derive(Debug, Clone)]
+struct BoundSite {
+    block: u32,
+    record: usize,
+    boxes: Vec<Aabb>,
+}
+
+/// The base file and what the forgers need to know of it.
+struct Base {
+    image: Image,
+    catalogs: Vec<Catalog>,
+    lattice: Lattice,
+    sites: Vec<BoundSite>,
+    names_block: u32,
+    names: Vec<Vec<u8>>,
+    /// The newest commit slot and its transaction.
+    slot: usize,
+    txn: u64,
+    free_lists: Vec<u32>,
+    /// The oracle's box queries.
+    boxes: Vec<Aabb>,
+}
+
+fn mesh(vertices: &[[f64; 3]], triangles: Vec<[u32; 3]>) -> Mesh {
+    let points: Vec<Point> = vertices.iter().map(|&v| v.into()).collect();
+    Mesh::from_world(&points, triangles).unwrap_or_else(|e| panic!("the base scene's mesh: {e}"))
+}
+
+fn slanted(i: usize) -> Mesh {
+    let o = [(i % 4) as f64 * 120.0, (i / 4) as f64 * 120.0, (i % 3) as f64 * 40.0];
+    mesh(
+        &[o, [o[0] + 100.0, o[1] + 10.0, o[2] + 60.0], [o[0] + 20.0, o[1] + 90.0, o[2] + 30.0]],
+        vec![[0, 1, 2]],
+    )
+}
+
+fn cuboid(lo: [f64; 3], hi: [f64; 3]) -> Mesh {
+    Mesh::of_box(&Aabb::new(lo.into(), hi.into())).unwrap_or_else(|| panic!("the base scene's box {lo:?}"))
+}
+
+/// A wavy strip of 46 triangles: its record (1,168 bytes) is larger than
+/// a geometry block's payload, so it is stored as parts.
+fn strip() -> Mesh {
+    let mut v = Vec::new();
+    for j in 0..24 {
+        let (x, z) = (j as f64 * 20.0, 20.0 * (j as f64 / 2.0).sin() + 30.0);
+        v.push([x, 400.0, z]);
+        v.push([x, 430.0, z + 10.0]);
+    }
+    let t =
+        (0..23u32).flat_map(|j| [[2 * j, 2 * j + 1, 2 * j + 2], [2 * j + 1, 2 * j + 3, 2 * j + 2]]).collect();
+    mesh(&v, t)
+}
+
+/// Long names, some not ASCII, so that the names run takes several blocks.
+fn name(kind: &str, i: usize) -> String {
+    format!("{kind}-{i}: größe {}", "name ".repeat(20 + 2 * i))
+}
+
+/// The base scene: slanted triangles, boxes and a strip stored as parts.
+fn base_scene() -> Scene {
+    let mut objects: Vec<Object> = (0..6).map(|i| Object::new(name("triangle", i), slanted(i))).collect();
+    objects.push(Object::new(name("box", 6), cuboid([500.0, 0.0, 0.0], [560.0, 40.0, 80.0])));
+    objects.push(Object::new(name("box", 7), cuboid([500.0, 100.0, 20.0], [590.0, 150.0, 60.0])));
+    objects.push(Object::new(name("strip", 8), strip()));
+    Scene::new(objects)
+}
+
+/// Levels of detail on coarse grids, judged by few samples: `check`
+/// voxelizes every bound on every run, and a write plans them.
+pub(super) fn cheap_lods() -> LodParams {
+    LodParams {
+        eps: Some(vec![200.0]),
+        cuberille_bits: 64,
+        cuberille_object_bits: 64,
+        error_samples: 4,
+        model_samples: 4,
+        ..LodParams::default()
+    }
+}
+
+fn commit(db: &Database, scene: &Scene, store_all: bool) {
+    let mut w = db.begin_write().unwrap_or_else(|e| panic!("the base file: {e}"));
+    w.set_lod_params(LodParams { store_all, ..cheap_lods() });
+    // A leaf per object: records enough for several node blocks.
+    let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(1), ..BuildParams::default() };
+    w.bulk_load(scene, &params, &|_| {}).unwrap_or_else(|e| panic!("the base file: {e}"));
+    w.commit().unwrap_or_else(|e| panic!("the base file: {e}"));
+}
+
+/// The base file: two small trees, each committed while a reader held the
+/// one before (so the free list holds ranges freed by two commits), then the
+/// base scene with every bound stored.
+fn base_file() -> Vec<u8> {
+    let dev = Arc::new(MemDevice::new());
+    let db = Database::create_on(dev.clone(), CreateOptions { block_size: BS as u32, lod_levels: M })
+        .unwrap_or_else(|e| panic!("the base file: {e}"));
+    let boxes = Scene::new(
+        (0..3)
+            .map(|i| {
+                Object::new(format!("old{i}"), cuboid([i as f64 * 50.0; 3], [i as f64 * 50.0 + 30.0; 3]))
+            })
+            .collect(),
+    );
+    commit(&db, &boxes, false);
+    let first = db.begin_read();
+    let triangles = Scene::new((0..4).map(|i| Object::new(format!("older{i}"), slanted(i))).collect());
+    commit(&db, &triangles, false);
+    let second = db.begin_read();
+    commit(&db, &base_scene(), true);
+    drop((first, second, db));
+    dev.to_bytes()
+}
+
+/// Records each leaf with its frame: (block, offset, frame).
+#[derive(Default)]
+struct Leaves(Vec<(u32, u32, Aabb)>);
+
+impl Visitor for Leaves {
+    fn node(&mut self, block: &Arc<Block>, offset: u32, frame: &Aabb) -> Result<(), StorageError> {
+        if let NodeView::Leaf(_) = view(block, offset)? {
+            self.0.push((block.id(), offset, *frame));
+        }
+        Ok(())
+    }
+}
+
+/// Fields of the meta block (format-spec/meta.md) at `m`.
+fn meta_fields(c: &mut Catalog, m: usize) {
+    c.add(m, Width::U32, [16, 24, 28, 32, 36, 40, 44, 124, 144, 448, 452, 456, 460]);
+    c.add(m, Width::U64, [48, 56, 64, 136, 736, 744]);
+    c.add(m, Width::U64, (0..32).map(|i| 480 + 8 * i));
+    c.add(m, Width::F64, (0..6).map(|i| 72 + 8 * i));
+    c.add(m, Width::F64, [128, 152, 416, 424, 432, 440, 752, 760, 768]);
+    c.add(m, Width::F64, (0..32).map(|i| 160 + 8 * i));
+    c.add(m, Width::U8, [120, 121, 122, 123, 904, BS - 1]);
+    c.add(m, Width::U8, 464..480);
+    c.add(m, Width::F32, (0..32).map(|i| 776 + 4 * i));
+}
+
+/// Where stream byte `s` of a names run starting at block `first` lies.
+fn run_byte(first: u32, s: usize) -> usize {
+    let head = BS - run::FIRST_DATA;
+    if s < head {
+        first as usize * BS + run::FIRST_DATA + s
+    } else {
+        let rest = BS - 24;
+        (first as usize + 1 + (s - head) / rest) * BS + 24 + (s - head) % rest
+    }
+}
+
+impl Base {
+    fn build() -> Base {
+        let image = Image { bytes: base_file(), bs: BS };
+        let (slot, at, txn) = image.newest().unwrap_or_else(|| panic!("the base file has a committed slot"));
+        let roots = [
+            Reference { field: at + 16, target: image.u32(at + 12), kind: Kind::Meta },
+            Reference { field: at + 28, target: image.u32(at + 24), kind: Kind::FreeList },
+        ];
+        let reached = image.postorder(&roots);
+        let of = |k: fn(Kind) -> bool| -> Vec<u32> {
+            reached.iter().filter(|(_, kind, _)| k(*kind)).map(|(id, _, _)| *id).collect()
+        };
+        let nodes = of(|k| k == Kind::Node);
+        let geometry = of(|k| k == Kind::Geometry);
+        let run_blocks = of(|k| matches!(k, Kind::Names | Kind::Continuation { .. }));
+        let free_lists = of(|k| k == Kind::FreeList);
+        let meta = image.u32(at + 12) as usize * BS;
+        let names_block = image.u32(meta + 144);
+        // The leaves' frames, from the engine's own walk.
+        let db = Database::open_on(Arc::new(MemDevice::from_bytes(image.bytes.clone())))
+            .unwrap_or_else(|e| panic!("the base file opens: {e}"));
+        let r = db.begin_read().unwrap_or_else(|e| panic!("the base file reads: {e}"));
+        let mut leaves = Leaves::default();
+        let root = r.root().unwrap_or_else(|| panic!("the base file has a tree"));
+        walk(
+            &r,
+            root,
+            &crate::query::Everything,
+            &QueryOptions { lod: Some(1), ..Default::default() },
+            &mut crate::db::Reads::new(None),
+            &mut leaves,
+        )
+        .unwrap_or_else(|e| panic!("the base file walks: {e}"));
+        let lattice = r.lattice().unwrap_or_else(|| panic!("the base file has a lattice"));
+        let names = r.names().unwrap_or_else(|e| panic!("the base file's names: {e}"));
+        let ids: Vec<ObjectId> = (0..names.len() as u32).map(ObjectId).collect();
+        let meshes = object_meshes(&r, &ids).unwrap_or_else(|e| panic!("the base file's meshes: {e}"));
+        drop((r, db));
+
+        let mut header = Catalog::default();
+        header.add(0, Width::U8, (0..8).chain([16, 17, 300, 507, 1024, BS - 1]));
+        header.add(0, Width::U32, [8, 12]);
+        for s in 0..2 {
+            for copy in 0..2 {
+                let o = slot_offset(s, copy);
+                header.add(o, Width::U64, [0]);
+                header.add(o, Width::U8, [8, 9, 36, SLOT_LEN - 5]);
+                header.add(o, Width::U32, [12, 20, 24, 32]);
+                header.anchors.push(o);
+            }
+        }
+        meta_fields(&mut header, meta);
+        header.ranges = vec![(0, 1024), (meta + 16, BS - 16)];
+
+        let mut node = Catalog::default();
+        let mut geo = Catalog::default();
+        let mut lod = Catalog::default();
+        let mut sites = Vec::new();
+        let payload = BS - 16;
+        for &b in &nodes {
+            let base = b as usize * BS;
+            node.add(base, Width::U32, [16]);
+            node.add(base, Width::U16, [20]);
+            node.add(base, Width::U8, [22, 23]);
+            node.ranges.push((base + 16, BS - 16));
+            for (index, rec) in image.records(b).into_iter().enumerate() {
+                node.anchors.push(rec.at());
+                match rec {
+                    Record::Internal { at } => {
+                        node.add(at, Width::U8, [0, 1, 2, 3]);
+                        node.add(at, Width::U32, [4, 8]);
+                        node.add(at, Width::F32, [12, 16]);
+                        for c in 0..2 {
+                            let e = at + 20 + 32 * c;
+                            node.anchors.push(e);
+                            node.add(e, Width::U16, (0..6).map(|i| 2 * i));
+                            node.add(e, Width::U32, [12, 20, 24, 28]);
+                        }
+                    }
+                    Record::Leaf(l) => {
+                        node.add(l.at, Width::U8, [0, 1, 14, 15]);
+                        node.add(l.at, Width::U16, [2, 12]);
+                        node.add(l.at, Width::U32, [4, 8, 16]);
+                        node.add(l.end_at, Width::U32, [0]);
+                        geo.add(l.at, Width::U32, [8]);
+                        geo.add(l.at, Width::U16, [12]);
+                        geo.add(l.end_at, Width::U32, [0]);
+                        let first = image.u32(l.at + 8) as usize;
+                        for i in 0..l.objects {
+                            let e = l.objects_at + 20 * i;
+                            node.anchors.push(e);
+                            node.add(e, Width::U32, [0, 16]);
+                            node.add(e, Width::U16, (0..6).map(|j| 4 + 2 * j));
+                            geo.add(e, Width::U32, [16]);
+                            // The object's record in its span (format-spec/geometry.rs).
+                            let s = image.u32(e + 16) as usize * 4;
+                            let r = (first + s / payload) * BS + 16 + s % payload;
+                            let (v, t) = (image.u32(r + 4) as usize, image.u32(r + 8) as usize);
+                            if s % payload + 40 + 12 * (v + t) <= payload {
+                                geo.anchors.extend([r, r + 16]);
+                                geo.add(r, Width::U32, [0, 4, 8, 12]);
+                                geo.add(r, Width::F64, [16, 24, 32]);
+                                geo.add(r + 40, Width::F32, (0..3 * v).map(|j| 4 * j));
+                                geo.add(r + 40 + 12 * v, Width::U32, (0..3 * t).map(|j| 4 * j));
+                                geo.anchors.extend((0..v).map(|j| r + 40 + 12 * j));
+                                geo.anchors.extend((0..t).map(|j| r + 40 + 12 * (v + j)));
+                            }
+                        }
+                        let bounds = image.bounds(&l);
+                        if !bounds.is_empty() {
+                            let frame = leaves
+                                .0
+                                .iter()
+                                .find(|x| x.0 == b && x.0 as usize * BS + x.1 as usize == l.at);
+                            let boxes = (0..l.objects)
+                                .map(|i| {
+                                    let e = l.objects_at + 20 * i + 4;
+                                    let q = std::array::from_fn(|j| image.u16(e + 2 * j));
+                                    frame
+                                        .and_then(|f| QuantBox::decode(&f.2, q))
+                                        .map_or(Aabb::EMPTY, |q| q.outer)
+                                })
+                                .collect();
+                            sites.push(BoundSite { block: b, record: index, boxes });
+                            for i in 0..l.objects {
+                                lod.add(l.objects_at + 20 * i, Width::U16, (0..6).map(|j| 4 + 2 * j));
+                            }
+                        }
+                        for bound in bounds {
+                            lod.anchors.extend([bound.head, bound.blob]);
+                            lod.add(bound.head, Width::U16, [0, 2]);
+                            lod.add(bound.blob, Width::U8, 0..bound.len);
+                            lod.ranges.push((bound.blob, bound.len));
+                        }
+                    }
+                }
+            }
+        }
+        for &g in &geometry {
+            geo.ranges.push((g as usize * BS + 16, payload));
+        }
+        lod.add(meta, Width::F64, (0..16).map(|k| 160 + 16 * k).chain([416, 424, 432, 440]));
+        lod.add(meta, Width::U8, 464..480);
+        lod.add(meta, Width::U32, [452, 456]);
+        lod.add(0, Width::U8, [16]);
+
+        // The run and the meta block's pointer to it (its object count is the header target's).
+        let mut names_c = Catalog::default();
+        names_c.add(meta, Width::U32, [144]);
+        for &b in &run_blocks {
+            let base = b as usize * BS;
+            if b == names_block {
+                names_c.add(base, Width::U32, [16, 20]);
+                names_c.add(base, Width::U64, [24]);
+                names_c.add(base, Width::U8, [36, 39]);
+            } else {
+                names_c.add(base, Width::U32, [20]);
+            }
+            names_c.ranges.push((base + 16, BS - 16));
+        }
+        let mut s = 0;
+        let mut stream_names = Vec::new();
+        for n in &names {
+            let at = run_byte(names_block, s);
+            names_c.anchors.push(at);
+            // A length word that does not straddle two blocks.
+            if run_byte(names_block, s + 3) == at + 3 {
+                names_c.add(at, Width::U32, [0]);
+            }
+            names_c.fields.extend(
+                (0..n.len())
+                    .map(|j| super::edit::Field { at: run_byte(names_block, s + 4 + j), width: Width::U8 }),
+            );
+            s += (4 + n.len()).next_multiple_of(4);
+            stream_names.push(n.as_bytes().to_vec());
+        }
+
+        let mut free = Catalog::default();
+        for &b in &free_lists {
+            let base = b as usize * BS;
+            free.add(base, Width::U32, [16, 24]);
+            free.add(base, Width::U8, [28, 31]);
+            let per = (BS - 32) / 16;
+            free.add(base + 32, Width::U32, (0..per).flat_map(|i| [16 * i, 16 * i + 4]));
+            free.add(base + 32, Width::U64, (0..per).map(|i| 16 * i + 8));
+            free.anchors.extend((0..per).map(|i| base + 32 + 16 * i));
+            free.ranges.push((base + 16, BS - 16));
+        }
+        for copy in 0..2 {
+            free.add(slot_offset(slot, copy), Width::U32, [20, 24, 32]);
+        }
+
+        Base {
+            catalogs: vec![header, node, geo, lod, names_c, free],
+            lattice,
+            sites,
+            names_block,
+            names: stream_names,
+            slot,
+            txn,
+            free_lists,
+            boxes: oracle_boxes(&meshes),
+            image,
+        }
+    }
+}
+
+/// The oracle's queries: the scene's box and its octants, and a cube at
+/// each object's centre.
+fn oracle_boxes(meshes: &[Mesh]) -> Vec<Aabb> {
+    let scene = meshes.iter().fold(Aabb::EMPTY, |b, m| b.union(&m.aabb()));
+    let c = scene.center();
+    let mut out = vec![scene];
+    for i in 0..8 {
+        let pick = |a: usize| if i >> a & 1 == 0 { (scene.min[a], c[a]) } else { (c[a], scene.max[a]) };
+        let (x, y, z) = (pick(0), pick(1), pick(2));
+        out.push(Aabb::from_array([x.0, y.0, z.0, x.1, y.1, z.1]));
+    }
+    for m in meshes {
+        let b = m.aabb();
+        let half = crate::geom::Vector::repeat(b.extent().max() * 0.2);
+        out.push(Aabb::new(b.center() - half, b.center() + half));
+    }
+    out
+}
+
+fn base() -> &'static Base {
+    static BASE: OnceLock<Base> = OnceLock::new();
+    BASE.get_or_init(Base::build)
+}
+
+/// Opens the forged image and runs what `s` can change: every query kind
+/// for the tree's structures, `names` for the names run, a write for the
+/// slots and the free list; then `check`, and the oracles when it passes.
+fn exercise(s: Structure, bytes: Vec<u8>) {
+    let dev = Arc::new(MemDevice::from_bytes(bytes));
+    let Ok(db) = Database::open_on(dev.clone()) else { return };
+    if let Ok(r) = db.begin_read() {
+        let m = r.pager().lod_levels();
+        let levels: Vec<u8> = match s {
+            Structure::Header | Structure::Node | Structure::Lod => (1..=m).collect(),
+            Structure::Geometry => vec![m],
+            Structure::Names | Structure::FreeList => Vec::new(),
+        };
+        let corner = Aabb::from_array([0.0, 0.0, 0.0, 150.0, 150.0, 60.0]);
+        for &k in &levels {
+            let _ = query_region(
+                &r,
+                &Region::Box(corner),
+                &QueryOptions { lod: Some(k), ..Default::default() },
+                None,
+            );
+            let _ = r.fetch_level(0, k, true, &mut Default::default());
+        }
+        if !levels.is_empty() {
+            let budget = QueryOptions { budget: Some(3), ..Default::default() };
+            let _ = query_region(&r, &Region::Box(corner), &budget, None);
+            let probe = cuboid([90.0, 90.0, 20.0], [130.0, 130.0, 50.0]);
+            let opts = CollideOptions { clearance: 5.0, ..Default::default() };
+            let _ = collide(&r, &probe, &Pose::default(), &opts, None);
+            let k = if s == Structure::Lod { 2.min(m) } else { m };
+            let _ = clash(&r, &ClashOptions { lod: Some(k), clearance: 1.0 }, None);
+        }
+        if matches!(s, Structure::Header | Structure::Node) {
+            let _ = read_hierarchy(&r);
+            let _ = r.fetch_level(0, 1, false, &mut Default::default());
+            if let Some(info) = r.info() {
+                let _ = r.fetch_level(info.nodes.saturating_sub(1), m, true, &mut Default::default());
+            }
+        }
+        if matches!(s, Structure::Header | Structure::Names) {
+            let _ = r.names();
+        }
+    }
+    let sound = check(&db).is_ok_and(|r| r.ok());
+    if sound && matches!(s, Structure::Header | Structure::Node | Structure::Geometry | Structure::Lod) {
+        answers_match_brute_force(&db, &base().boxes);
+    }
+    if matches!(s, Structure::Header | Structure::FreeList) {
+        write_after(&dev, db, sound);
+    }
+}
+
+/// The "never silently wrong" oracle for a file `check` passed: its box
+/// queries answer at level M as brute force over the objects the file
+/// returns, and below M with a superset.
+fn answers_match_brute_force(db: &Database, boxes: &[Aabb]) {
+    let Ok(r) = db.begin_read() else { return };
+    let Some(info) = r.info() else { return };
+    let ids: Vec<ObjectId> = (0..info.objects).map(ObjectId).collect();
+    let Ok(meshes) = object_meshes(&r, &ids) else { return };
+    let scene = Scene::new(meshes.into_iter().map(|m| Object::new("", m)).collect());
+    let m = info.lod_levels;
+    for b in boxes {
+        let exact = brute_force_region(&scene, &Region::Box(*b));
+        // Level 2 uses the voxel bounds (when M > 2), M the geometry too.
+        for k in [2.min(m), m] {
+            let opts = QueryOptions { lod: Some(k), ..Default::default() };
+            let Ok(a) = query_region(&r, &Region::Box(*b), &opts, None) else { continue };
+            if k == m {
+                assert_eq!(
+                    a.objects, exact,
+                    "a file check passes answers {b:?} unlike brute force over its objects"
+                );
+            } else {
+                assert!(
+                    exact.iter().all(|o| a.objects.binary_search(o).is_ok()),
+                    "a file check passes answers {b:?} at level {k} without {:?} of the exact {exact:?}",
+                    a.objects
+                );
+            }
+        }
+    }
+}
+
+/// Three boxes, the tree a write puts over a forged file.
+fn small_scene() -> Scene {
+    Scene::new(
+        (0..3)
+            .map(|i| {
+                let lo = [i as f64 * 70.0, 10.0, 5.0];
+                Object::new(format!("n{i}"), cuboid(lo, [lo[0] + 50.0, 60.0, 45.0]))
+            })
+            .collect(),
+    )
+}
+
+/// A write over the forged file: if it commits, the file reopens at the new
+/// tree, which answers as brute force does, and `check` passes if it passed
+/// before (the writer reuses only what the file says is free).
+fn write_after(dev: &Arc<MemDevice>, db: Database, sound: bool) {
+    let scene = small_scene();
+    {
+        let Ok(mut w) = db.begin_write() else { return };
+        w.set_lod_params(LodParams { store_all: true, ..cheap_lods() });
+        let params = BuildParams { leaf: LeafRule::Objects(2), ..BuildParams::default() };
+        if w.bulk_load(&scene, &params, &|_| {}).is_err() || w.commit().is_err() {
+            return;
+        }
+    }
+    drop(db);
+    let db = Database::open_on(dev.clone() as Arc<dyn BlockDevice>)
+        .unwrap_or_else(|e| panic!("a committed write over a forged file does not reopen: {e}"));
+    let r = db.begin_read().unwrap_or_else(|e| panic!("{e}"));
+    let everything = Region::Box(Aabb::from_array([-1e3, -1e3, -1e3, 1e3, 1e3, 1e3]));
+    let a = query_region(&r, &everything, &QueryOptions::default(), None)
+        .unwrap_or_else(|e| panic!("the tree written over a forged file: {e}"));
+    assert_eq!(a.objects, brute_force_region(&scene, &everything), "the tree written over a forged file");
+    drop(r);
+    if sound {
+        let report = check(&db).unwrap_or_else(|e| panic!("check after a write over a sound file: {e}"));
+        assert!(report.ok(), "a write over a file check passed leaves faults: {:?}", report.faults);
+    }
+}
+
+/// Forges `s` in a copy of the base file as `data` chooses, and exercises it.
+pub fn forge(s: Structure, data: &[u8]) {
+    let img = forged(s, data);
+    // Edits that changed nothing (or were undone) forge the base file, which
+    // is sound; and many inputs forge a file already run. The same bytes take
+    // the same paths: only a new file is run.
+    if img != base().image.bytes && first_seen(s, &img) {
+        exercise(s, img);
+    }
+}
+
+/// Files run lately, remembered by a 64-bit digest of the structure and bytes.
+const REMEMBERED: usize = 1 << 14;
+
+/// True unless `s` forged `bytes` among the last [`REMEMBERED`] files.
+fn first_seen(s: Structure, bytes: &[u8]) -> bool {
+    type Memory = (HashSet<u64>, VecDeque<u64>);
+    static SEEN: Mutex<Option<Memory>> = Mutex::new(None);
+    let digest = |seed: u32| {
+        let mut h = crc32fast::Hasher::new_with_initial(seed);
+        h.update(&[s as u8]);
+        h.update(bytes);
+        h.finalize()
+    };
+    let key = u64::from(digest(0)) | u64::from(digest(0x9e37_79b9)) << 32;
+    let mut guard = SEEN.lock().unwrap_or_else(|e| e.into_inner());
+    let (set, order) = guard.get_or_insert_with(Memory::default);
+    if !set.insert(key) {
+        return false;
+    }
+    order.push_back(key);
+    if order.len() > REMEMBERED
+        && let Some(old) = order.pop_front()
+    {
+        set.remove(&old);
+    }
+    true
+}
+
+/// The file the target of `s` exercises for input `data`: the base file
+/// with the structure forged as `data` chooses, every checksum re-sealed.
+pub fn forged(s: Structure, data: &[u8]) -> Vec<u8> {
+    let base = base();
+    let mut img = base.image.clone();
+    let catalog = &base.catalogs[STRUCTURES.iter().position(|&x| x == s).unwrap_or(0)];
+    let mut c = Choices::new(data);
+    let mut tears = Vec::new();
+    while !c.is_empty() {
+        match c.u8() % 12 {
+            0..=5 => edit_field(&mut img, catalog, &mut c),
+            6 | 7 => edit_raw(&mut img, catalog, &mut c),
+            8 => copy_chunk(&mut img, catalog, &mut c),
+            op => special(s, base, &mut img, op - 9, &mut c, &mut tears),
+        }
+    }
+    img.reseal();
+    for (at, x) in tears {
+        if let Some(b) = img.bytes.get_mut(at) {
+            *b ^= x;
+        }
+    }
+    img.bytes
+}
+
+/// The structure's own forgeries (`op` in 0 ..= 2).
+fn special(
+    s: Structure,
+    base: &Base,
+    img: &mut Image,
+    op: u8,
+    c: &mut Choices,
+    tears: &mut Vec<(usize, u8)>,
+) {
+    match s {
+        Structure::Header => match op {
+            // A copy moved over another (and re-signed for its new place).
+            0 => {
+                let (from, to) = (slot_offset(c.below(2), c.below(2)), slot_offset(c.below(2), c.below(2)));
+                img.bytes.copy_within(from..from + SLOT_LEN, to);
+            }
+            // A copy torn after sealing: the other copy must hold the slot.
+            1 => tears.push((slot_offset(c.below(2), c.below(2)) + c.below(SLOT_LEN), c.u8() | 1)),
+            _ => {
+                let at = slot_offset(c.below(2), c.below(2));
+                img.bytes[at..at + SLOT_LEN].fill(0);
+            }
+        },
+        Structure::Node => node_op(img, op, c),
+        Structure::Geometry => {
+            // Two vertices or triangles of records swapped.
+            let catalog = &base.catalogs[2];
+            let (a, b) = (
+                catalog.anchors.get(c.below(catalog.anchors.len())),
+                catalog.anchors.get(c.below(catalog.anchors.len())),
+            );
+            if let (Some(&a), Some(&b)) = (a, b)
+                && a.abs_diff(b) >= 12
+            {
+                let x: Vec<u8> = img.bytes[a..a + 12].to_vec();
+                img.bytes.copy_within(b..b + 12, a);
+                img.put(b, &x);
+            }
+        }
+        Structure::Lod => lod_op(base, img, op, c),
+        Structure::Names => names_op(base, img, op, c),
+        Structure::FreeList => free_op(base, img, op, c),
+    }
+}
+
+/// Node forgeries: children swapped, an object entry duplicated or removed.
+fn node_op(img: &mut Image, op: u8, c: &mut Choices) {
+    let nodes = img.node_blocks();
+    let Some(&b) = nodes.get(c.below(nodes.len())) else { return };
+    let records = img.records(b);
+    let Some(&rec) = records.get(c.below(records.len())) else { return };
+    match (rec, op) {
+        (Record::Leaf(l), _) if l.objects == 0 => {}
+        (Record::Internal { at }, _) => {
+            let first: Vec<u8> = img.bytes[at + 20..at + 52].to_vec();
+            img.bytes.copy_within(at + 52..at + 84, at + 20);
+            img.put(at + 52, &first);
+        }
+        (Record::Leaf(l), 0) => {
+            // A copy of entry j appended to the leaf's entries.
+            let j = c.below(l.objects);
+            let entry: Vec<u8> = img.bytes[l.objects_at + 20 * j..l.objects_at + 20 * j + 20].to_vec();
+            if img.splice(b, l.at, l.end_at, 20) {
+                img.put(l.end_at, &entry);
+                let n = img.u16(l.at + 2).wrapping_add(1);
+                img.put(l.at + 2, &n.to_le_bytes());
+            }
+        }
+        (Record::Leaf(l), _) => {
+            let j = c.below(l.objects);
+            if img.splice(b, l.at, l.objects_at + 20 * j, -20) {
+                let n = img.u16(l.at + 2).wrapping_sub(1);
+                img.put(l.at + 2, &n.to_le_bytes());
+            }
+        }
+    }
+}
+
+/// Replaces the bounds area of leaf `record` of block `block` by `entries`
+/// (target, level, blob), resizing the record. False when it cannot be written.
+fn rewrite_bounds(img: &mut Image, block: u32, record: usize, entries: &[(u16, u8, Vec<u8>)]) -> bool {
+    let Some(Record::Leaf(l)) = img.records(block).get(record).copied() else { return false };
+    let mut area = Vec::new();
+    for (t, k, blob) in entries {
+        let Ok(len) = u16::try_from(blob.len()) else { return false };
+        if len > 4095 {
+            return false;
+        }
+        area.extend_from_slice(&t.to_le_bytes());
+        area.extend_from_slice(&(u16::from(k & 0xf) | len << 4).to_le_bytes());
+        area.extend_from_slice(blob);
+    }
+    area.resize(area.len().next_multiple_of(4), 0);
+    let (old, new) = (l.bounds_len, area.len());
+    let done = match new.cmp(&old) {
+        std::cmp::Ordering::Greater => img.splice(block, l.at, l.bounds_at + old, (new - old) as isize),
+        std::cmp::Ordering::Less => img.splice(block, l.at, l.bounds_at + new, -((old - new) as isize)),
+        std::cmp::Ordering::Equal => true,
+    };
+    if done {
+        img.put(l.bounds_at, &area);
+        img.put_u32(l.at + 16, new as u32);
+    }
+    done
+}
+
+/// LOD forgeries: cells of a bound flipped (re-encoded, so the blob stays
+/// well formed), a blob replaced by the input's bytes, a bound added (a copy
+/// of another, retargeted) or removed.
+fn lod_op(base: &Base, img: &mut Image, op: u8, c: &mut Choices) {
+    let Some(site) = base.sites.get(c.below(base.sites.len())) else { return };
+    let Some(Record::Leaf(l)) = img.records(site.block).get(site.record).copied() else { return };
+    let mut entries: Vec<(u16, u8, Vec<u8>)> = img
+        .bounds(&l)
+        .iter()
+        .map(|b| (b.target, b.level, img.bytes[b.blob..b.blob + b.len].to_vec()))
+        .collect();
+    let j = c.below(entries.len());
+    match op {
+        0 => {
+            let Some((t, _, blob)) = entries.get_mut(j) else { return };
+            let Some(outer) = site.boxes.get(usize::from(*t)) else { return };
+            let Ok(mut v) = crate::lod::decode(blob, &base.lattice, outer) else { return };
+            let cells = v.grid().cells() as usize;
+            for _ in 0..1 + c.below(4) {
+                let i = c.below(cells);
+                if let Some(w) = v.bits.get_mut(i / 64) {
+                    *w ^= 1 << (i % 64);
+                }
+            }
+            *blob = crate::lod::encode(&v);
+        }
+        1 => {
+            let Some((_, _, blob)) = entries.get_mut(j) else { return };
+            let n = c.below(64);
+            *blob = c.bytes(n);
+        }
+        _ if c.u8() & 1 == 0 => {
+            let Some(mut e) = entries.get(j).cloned() else { return };
+            e.0 = c.below(l.objects + 1) as u16;
+            e.1 = c.u8() % 16;
+            let at = c.below(entries.len() + 1);
+            entries.insert(at, e);
+        }
+        _ => {
+            if j < entries.len() {
+                entries.remove(j);
+            }
+        }
+    }
+    rewrite_bounds(img, site.block, site.record, &entries);
+}
+
+/// Names forgeries: the run rewritten from an edited list of names (a name
+/// replaced by the input's bytes, valid UTF-8 or not; one dropped; one
+/// repeated), as long as the new stream needs, over the blocks after the first.
+fn names_op(base: &Base, img: &mut Image, op: u8, c: &mut Choices) {
+    let mut names = base.names.clone();
+    let j = c.below(names.len());
+    match op {
+        0 => {
+            let n = c.below(300);
+            names[j] = c.bytes(n);
+        }
+        1 => {
+            names.remove(j);
+        }
+        _ => {
+            let again = names[j].clone();
+            names.insert(j, again);
+        }
+    }
+    let mut stream = Vec::new();
+    for n in &names {
+        stream.extend_from_slice(&(n.len() as u32).to_le_bytes());
+        stream.extend_from_slice(n);
+        stream.resize(stream.len().next_multiple_of(4), 0);
+    }
+    let records = if c.u8() & 1 == 0 { names.len() as u32 } else { base.names.len() as u32 };
+    let txn = img.u64(base.names_block as usize * BS + 8);
+    for (i, payload) in run::encode(&stream, records, BS as u32).into_iter().enumerate() {
+        let Some(at) = img.base(base.names_block + i as u32) else { break };
+        img.put(at + 16, &payload[16..]);
+        img.put(at + 4, &[if i == 0 { 6 } else { 4 }, 0, 0, 0]);
+        img.put(at + 8, &txn.to_le_bytes());
+    }
+}
+
+/// Free-list forgeries: the list split into a chain of two blocks (the
+/// second taken from a free range), or blocks appended to the file as free.
+fn free_op(base: &Base, img: &mut Image, op: u8, c: &mut Choices) {
+    let Some(&list) = base.free_lists.first() else { return };
+    let at = list as usize * BS;
+    let n = (img.u32(at + 24) as usize).min((BS - 32) / 16);
+    let mut ranges: Vec<(u32, u32, u64)> = (0..n)
+        .map(|i| (img.u32(at + 32 + 16 * i), img.u32(at + 36 + 16 * i), img.u64(at + 40 + 16 * i)))
+        .collect();
+    let slots = [slot_offset(base.slot, 0), slot_offset(base.slot, 1)];
+    let frame = |img: &mut Image, id: u32| {
+        if let Some(b) = img.base(id) {
+            img.bytes[b..b + BS].fill(0);
+            img.put(b + 4, &[5]);
+            img.put(b + 8, &base.txn.to_le_bytes());
+        }
+    };
+    let write = |img: &mut Image, id: u32, next: u32, ranges: &[(u32, u32, u64)]| {
+        let Some(b) = img.base(id) else { return };
+        img.put_u32(b + 16, next);
+        img.put_u32(b + 24, ranges.len() as u32);
+        for (i, r) in ranges.iter().enumerate() {
+            img.put_u32(b + 32 + 16 * i, r.0);
+            img.put_u32(b + 36 + 16 * i, r.1);
+            img.put(b + 40 + 16 * i, &r.2.to_le_bytes());
+        }
+    };
+    match op {
+        0 | 1 => {
+            // The second block: the first block of a free range, which leaves the range.
+            let i = c.below(ranges.len());
+            let Some(&(second, count, freed)) = ranges.get(i).filter(|r| r.1 > 0) else { return };
+            ranges[i] = (second.wrapping_add(1), count - 1, freed);
+            if count == 1 {
+                ranges.remove(i);
+            }
+            let cut = c.below(ranges.len() + 1);
+            let next = img.u32(at + 16);
+            img.bytes[at + 16..at + BS].fill(0);
+            write(img, list, second, &ranges[..cut]);
+            frame(img, second);
+            write(img, second, next, &ranges[cut..]);
+            for s in slots {
+                let free = img.u32(s + 32).wrapping_sub(1);
+                img.put_u32(s + 32, free);
+            }
+        }
+        _ => {
+            let k = 1 + c.below(4) as u32;
+            let end = img.blocks();
+            img.bytes.resize(img.bytes.len() + k as usize * BS, 0);
+            for id in end..end + k {
+                if let Some(b) = img.base(id) {
+                    img.put(b + 4, &[7]);
+                    img.put(b + 8, &base.txn.to_le_bytes());
+                    img.seal(id);
+                }
+            }
+            if n < (BS - 32) / 16 {
+                ranges.push((end, k, base.txn));
+                let next = img.u32(at + 16);
+                write(img, list, next, &ranges);
+            }
+            for s in slots {
+                let (count, free) = (img.u32(s + 20).wrapping_add(k), img.u32(s + 32).wrapping_add(k));
+                img.put_u32(s + 20, count);
+                img.put_u32(s + 32, free);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::db::Warning;
+
+    /// Opens `bytes` and checks it: it must be sound.
+    fn sound(bytes: Vec<u8>) -> Database {
+        let db = Database::open_on(Arc::new(MemDevice::from_bytes(bytes))).expect("the forgery opens");
+        let report = check(&db).expect("check runs");
+        assert!(report.ok(), "{:?}", report.faults);
+        db
+    }
+
+    #[test]
+    fn the_base_file_has_every_structure_the_targets_forge() {
+        let b = base();
+        let img = &b.image;
+        let (_, at, _) = img.newest().expect("a committed slot");
+        let meta = img.u32(at + 12) as usize * BS;
+        let reached = img.reachable();
+        let nodes = reached.iter().filter(|r| r.1 == Kind::Node).count();
+        assert!(nodes >= 2, "several node blocks: {nodes}");
+        let run = img.u32(b.names_block as usize * BS + 16);
+        assert!(run >= 2, "the names run takes {run} blocks");
+        let entries: usize = img
+            .node_blocks()
+            .iter()
+            .filter(|&&n| reached.iter().any(|r| r.0 == n))
+            .flat_map(|&n| img.records(n))
+            .map(|r| if let Record::Leaf(l) = r { l.objects } else { 0 })
+            .sum();
+        assert!(entries > img.u32(meta + 28) as usize, "an object is stored as parts");
+        assert!(b.sites.len() >= 2 && b.catalogs[3].ranges.len() >= 4, "leaves hold bounds");
+        let list = b.free_lists[0] as usize * BS;
+        let freed: HashSet<u64> =
+            (0..img.u32(list + 24) as usize).map(|i| img.u64(list + 40 + 16 * i)).collect();
+        assert!(freed.len() >= 2, "free ranges freed by two commits: {freed:?}");
+        assert!(b.catalogs.iter().all(|c| !c.fields.is_empty() && !c.ranges.is_empty()));
+    }
+
+    #[test]
+    fn resealing_the_base_file_changes_nothing() {
+        let mut img = base().image.clone();
+        img.reseal();
+        assert!(img == base().image);
+    }
+
+    #[test]
+    fn a_harmless_edit_resealed_passes_every_checksum_and_unsealed_does_not() {
+        let mut img = base().image.clone();
+        let (_, at, _) = img.newest().expect("a committed slot");
+        let meta = img.u32(at + 12) as usize * BS;
+        // The root record's split overlap: any finite value >= 0 is sound.
+        let root = img.u32(meta + 16) as usize * BS + img.u32(meta + 24) as usize;
+        img.put(root + 12, &1.5f32.to_le_bytes());
+        let unsealed = img.bytes.clone();
+        img.reseal();
+        sound(img.bytes);
+        let db = Database::open_on(Arc::new(MemDevice::from_bytes(unsealed))).expect("opens");
+        assert!(!check(&db).is_ok_and(|r| r.ok()), "the edit breaks the block's checksum");
+    }
+
+    #[test]
+    fn a_bound_removed_leaves_a_sound_file_that_answers_as_brute_force() {
+        let b = base();
+        let mut img = b.image.clone();
+        let site = &b.sites[0];
+        let Some(Record::Leaf(l)) = img.records(site.block).get(site.record).copied() else {
+            panic!("a leaf")
+        };
+        let kept: Vec<(u16, u8, Vec<u8>)> = img
+            .bounds(&l)
+            .iter()
+            .skip(1)
+            .map(|x| (x.target, x.level, img.bytes[x.blob..x.blob + x.len].to_vec()))
+            .collect();
+        assert!(rewrite_bounds(&mut img, site.block, site.record, &kept));
+        img.reseal();
+        assert!(img != b.image, "the leaf lost a bound");
+        answers_match_brute_force(&sound(img.bytes), &b.boxes);
+    }
+
+    #[test]
+    fn the_free_list_split_into_a_chain_of_two_blocks_is_sound() {
+        let b = base();
+        let mut img = b.image.clone();
+        // Range 0 gives the second block; the first block keeps one range.
+        free_op(b, &mut img, 0, &mut Choices::new(&[0, 1]));
+        img.reseal();
+        let at = slot_offset(b.slot, 0);
+        let first = Reference { field: at + 28, target: img.u32(at + 24), kind: Kind::FreeList };
+        assert_eq!(img.postorder(&[first]).len(), 2, "the newest commit's list is a chain of two blocks");
+        sound(img.bytes);
+    }
+
+    #[test]
+    fn a_name_rewritten_is_read_back() {
+        let b = base();
+        let mut img = b.image.clone();
+        // Name 0 becomes the 5 bytes "hello" (a length below 300 takes two
+        // bytes); the record count stays.
+        let mut choices = vec![0, 5, 0];
+        choices.extend_from_slice(b"hello");
+        choices.push(0);
+        names_op(b, &mut img, 0, &mut Choices::new(&choices));
+        img.reseal();
+        let db = sound(img.bytes);
+        let names = db.begin_read().expect("reads").names().expect("names");
+        assert_eq!(names[0], "hello");
+        assert_eq!(names.len(), b.names.len());
+    }
+
+    #[test]
+    fn a_torn_slot_copy_loses_nothing() {
+        let b = base();
+        // Op 10: tear copy 0 of the newest slot at byte 5 after sealing.
+        let torn = forged(Structure::Header, &[10, b.slot as u8, 0, 5, 1]);
+        let db = sound(torn);
+        assert_eq!(db.warnings(), &[Warning::DamagedSlotCopy { slot: b.slot as u8, copy: 0 }]);
+        answers_match_brute_force(&db, &b.boxes);
+    }
+}
