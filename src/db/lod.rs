@@ -131,7 +131,7 @@ impl ReadTransaction {
         }
         let mut at = self.root().ok_or_else(|| StorageError::Invalid("the file holds no tree".into()))?;
         // With the root's record in hand, its subtree is every other node block.
-        let mut below = (u64::from(meta.node_blocks) - 1, meta.geometry_blocks);
+        let mut below = (u64::from(meta.node_blocks).saturating_sub(1), meta.geometry_blocks);
         let mut reads = Reads::new(None);
         // One level per step: a path longer than the tree is deep means the links loop.
         for _ in 0..=meta.depth {
@@ -152,7 +152,16 @@ impl ReadTransaction {
                 .ok_or_else(|| StorageError::corrupt(at.block, "child_box", "backwards"))?
                 .outer;
             // The child's count excludes this block; with the child's own record in hand, its block too.
-            below = (u64::from(nb) - u64::from(r.block != 0), u64::from(gb));
+            below = (
+                u64::from(nb).checked_sub(u64::from(r.block != 0)).ok_or_else(|| {
+                    StorageError::corrupt(
+                        at.block,
+                        "node_blocks",
+                        "a child in another block claims no node block",
+                    )
+                })?,
+                u64::from(gb),
+            );
             at = if r.block == 0 {
                 NodeRef { block: at.block, checksum: at.checksum, offset: r.offset, aabb: frame }
             } else {
@@ -207,7 +216,7 @@ impl ReadTransaction {
         })?;
         *stats += reads.stats;
         let mut level = Level {
-            predicted_reads: node_blocks + if k == m { geometry_blocks } else { 0 },
+            predicted_reads: node_blocks.saturating_add(if k == m { geometry_blocks } else { 0 }),
             ..Level::default()
         };
         if !gather.boxes.is_empty() {
