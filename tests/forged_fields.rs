@@ -12,7 +12,7 @@ mod common;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::{Arc, OnceLock};
 
-use common::{box_mesh, forge, triangle};
+use common::{box_mesh, forge};
 use mktree::build::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database, Piece, check};
 use mktree::geom::{Aabb, Point};
@@ -85,17 +85,7 @@ fn strip(o: [f64; 3], n: u32) -> Mesh {
 
 /// Slanted triangles (whose bounds pay), boxes, and two strips stored as parts.
 fn scene() -> Scene {
-    let mut objects: Vec<Object> = (0..18)
-        .map(|i| {
-            let o = [(i % 4) as f64 * 120.0, (i / 4) as f64 * 120.0, (i % 3) as f64 * 40.0];
-            let m = triangle(
-                o,
-                [o[0] + 100.0, o[1] + 10.0, o[2] + 60.0],
-                [o[0] + 20.0, o[1] + 90.0, o[2] + 30.0],
-            );
-            Object::new(format!("t{i}"), m)
-        })
-        .collect();
+    let mut objects = common::slanted_triangles(18);
     for i in 0..4 {
         let lo = [500.0 + 70.0 * f64::from(i), 40.0 * f64::from(i), 20.0];
         objects.push(Object::new(format!("b{i}"), box_mesh(lo, [lo[0] + 50.0, lo[1] + 30.0, lo[2] + 45.0])));

@@ -21,13 +21,13 @@ use std::sync::mpsc::{self, RecvTimeoutError};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
-use common::{forge, triangle};
+use common::forge;
 use mktree::build::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database, check};
 use mktree::fuzzing::forge::{Image, Record};
 use mktree::geom::{Aabb, Point};
 use mktree::lod::{Lattice, LodParams, Voxels, aligned_grid, decode, encode};
-use mktree::scene::{Object, Scene};
+use mktree::scene::Scene;
 use mktree::store::BlockDevice;
 use mktree::store::device::MemDevice;
 use mktree::store::format::frame::BlockType;
@@ -77,19 +77,7 @@ fn the_corpus_replays_without_a_panic() {
 /// 24 slanted triangles in 1 KiB blocks with every bound stored (M = 4):
 /// several node blocks, leaves with inline bounds of levels 2 and 3.
 fn store_all_file() -> Vec<u8> {
-    let scene = Scene::new(
-        (0..24)
-            .map(|i| {
-                let o = [(i % 4) as f64 * 120.0, (i / 4) as f64 * 120.0, (i % 3) as f64 * 40.0];
-                let m = triangle(
-                    o,
-                    [o[0] + 100.0, o[1] + 10.0, o[2] + 60.0],
-                    [o[0] + 20.0, o[1] + 90.0, o[2] + 30.0],
-                );
-                Object::new(format!("t{i}"), m)
-            })
-            .collect(),
-    );
+    let scene = Scene::new(common::slanted_triangles(24));
     let dev = Arc::new(MemDevice::new());
     let db = Database::create_on(
         dev.clone() as Arc<dyn BlockDevice>,

@@ -268,19 +268,7 @@ fn check_catches_a_forged_bound_that_misses_part_of_its_surface() {
     use mktree::store::format::frame::BlockType;
     // Slanted triangles, stored with every bound, in 1 KiB blocks: several
     // node blocks, so the forged leaf's checksum is held by a parent entry.
-    let scene = Scene::new(
-        (0..24)
-            .map(|i| {
-                let o = [(i % 4) as f64 * 120.0, (i / 4) as f64 * 120.0, (i % 3) as f64 * 40.0];
-                let m = triangle(
-                    o,
-                    [o[0] + 100.0, o[1] + 10.0, o[2] + 60.0],
-                    [o[0] + 20.0, o[1] + 90.0, o[2] + 30.0],
-                );
-                Object::new(format!("t{i}"), m)
-            })
-            .collect(),
-    );
+    let scene = Scene::new(common::slanted_triangles(24));
     let (db, dev) = build(&scene, 4, 1024, 3, store_all());
     assert!(check(&db).unwrap().ok());
     drop(db);

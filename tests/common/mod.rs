@@ -60,6 +60,22 @@ pub fn arb_boxes(min: usize, max: usize) -> impl Strategy<Value = Vec<Aabb>> {
     prop_oneof![prop::collection::vec(grid, min..max), prop::collection::vec(free, min..max)]
 }
 
+/// `n` slanted triangles on a grid, named `t0`, `t1`, ...: their levels of
+/// detail below M are worth storing.
+pub fn slanted_triangles(n: usize) -> Vec<Object> {
+    (0..n)
+        .map(|i| {
+            let o = [(i % 4) as f64 * 120.0, (i / 4) as f64 * 120.0, (i % 3) as f64 * 40.0];
+            let m = triangle(
+                o,
+                [o[0] + 100.0, o[1] + 10.0, o[2] + 60.0],
+                [o[0] + 20.0, o[1] + 90.0, o[2] + 30.0],
+            );
+            Object::new(format!("t{i}"), m)
+        })
+        .collect()
+}
+
 /// A deterministic scene of `n` boxes on a jittered grid.
 pub fn grid_scene(n: usize) -> Scene {
     let side = (n as f64).cbrt().ceil() as usize;

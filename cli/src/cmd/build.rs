@@ -10,8 +10,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use mktree::build::{BuildProgress, Hierarchy, Report, build, estimate_work};
 use mktree::db::{CreateOptions, Database, WriterWait};
 use mktree::scene::Scene;
-use mktree::store::format::geometry::record_len;
 use mktree::store::StorageError;
+use mktree::store::format::geometry::record_len;
 use serde_json::json;
 
 use crate::args::{BuildArgs, LodArgs};
