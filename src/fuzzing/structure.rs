@@ -128,11 +128,12 @@ fn base_scene() -> Scene {
     Scene::new(objects)
 }
 
-/// Levels of detail on coarse grids, judged by few samples: `check`
-/// voxelizes every bound on every run, and a write plans them.
-pub(super) fn cheap_lods() -> LodParams {
+/// Levels of detail of a file of `m` levels on coarse grids, judged by few
+/// samples: `check` voxelizes every bound on every run, and a write plans
+/// them. One eps per polyhedral level (3 .. M-1).
+pub(super) fn cheap_lods(m: u8) -> LodParams {
     LodParams {
-        eps: Some(vec![60.0]),
+        eps: Some(vec![60.0; usize::from(m.saturating_sub(3))]),
         cuberille_bits: 64,
         cuberille_object_bits: 64,
         error_samples: 4,
@@ -143,7 +144,7 @@ pub(super) fn cheap_lods() -> LodParams {
 
 fn commit(db: &Database, scene: &Scene, store_all: bool) {
     let mut w = db.begin_write().unwrap_or_else(|e| panic!("the base file: {e}"));
-    w.set_lod_params(LodParams { store_all, ..cheap_lods() });
+    w.set_lod_params(LodParams { store_all, ..cheap_lods(M) });
     // A leaf per object: records enough for several node blocks.
     let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(1), ..BuildParams::default() };
     w.bulk_load(scene, &params, &|_| {}).unwrap_or_else(|e| panic!("the base file: {e}"));
@@ -554,7 +555,7 @@ fn write_after(dev: &Arc<MemDevice>, db: Database, sound: bool, s: Structure) {
             let _ = w.abort();
             return;
         }
-        w.set_lod_params(LodParams { store_all: true, ..cheap_lods() });
+        w.set_lod_params(LodParams { store_all: true, ..cheap_lods(db.lod_levels()) });
         let params = BuildParams { leaf: LeafRule::Objects(2), ..BuildParams::default() };
         if w.bulk_load(&scene, &params, &|_| {}).is_err() || w.commit().is_err() {
             return;
