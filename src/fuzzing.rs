@@ -2,7 +2,10 @@
 //! `cargo test` replays the checked-in corpus (`tests/fuzz_corpus.rs`). Each
 //! must return normally on any input: errors are fine, panics and hangs are
 //! bugs. No count read from the input is capped here: the decoders must
-//! bound their own work.
+//! bound their own work. The structure-aware targets (`structure.rs`)
+//! forge one structure of a valid file past its checksums, and a file
+//! `check` passes must also answer right; `api.rs` runs API calls and
+//! crashes against a model of the committed scene.
 
 mod api;
 mod edit;

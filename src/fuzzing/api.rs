@@ -135,12 +135,13 @@ impl Life {
             leaf: LeafRule::Objects(1 + c.below(4) as u32),
             ..BuildParams::default()
         };
-        let store_all = c.u8() & 1 == 1;
+        let lods =
+            LodParams { store_all: c.u8() & 1 == 1, ..super::structure::cheap_lods(self.db.lod_levels()) };
         let finish = c.u8() % 4;
         let mut in_commit = false;
         let result = (|| -> Result<bool, crate::Error> {
             let mut w = self.db.begin_write()?;
-            w.set_lod_params(LodParams { store_all, ..super::structure::cheap_lods() });
+            w.set_lod_params(lods);
             w.bulk_load(&s, &params, &|_| {})?;
             match finish {
                 0 | 1 => {
@@ -268,5 +269,62 @@ pub fn api_sequence(data: &[u8]) {
     if !life.dev.crashed() {
         life.check_readers();
         life.verify(&model);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fresh file of `m` levels, opened on a device that never crashes.
+    fn fresh(m: u8) -> Life {
+        let dev = Arc::new(MemDevice::new());
+        Database::create_on(
+            dev.clone() as Arc<dyn BlockDevice>,
+            CreateOptions { block_size: 1024, lod_levels: m },
+        )
+        .expect("create");
+        Life::open(dev.to_bytes(), u64::MAX)
+    }
+
+    #[test]
+    fn a_write_commits_a_scene_at_every_number_of_levels() {
+        for m in 1..=4 {
+            let mut life = fresh(m);
+            // Two boxes; MOA; leaves of one object; no stored bounds; commit.
+            let choices = [1, 0, 1, 1, 1, 2, 2, 2, 1, 0, 4, 4, 4, 0, 2, 2, 2, 1, 0, 0, 0, 0];
+            match life.write(&mut Choices::new(&choices)) {
+                Outcome::Committed(s) => life.verify(&Some(s)),
+                _ => panic!("M = {m}: the write did not commit"),
+            }
+        }
+    }
+
+    #[test]
+    fn a_crash_inside_a_commit_reopens_at_one_side_of_it() {
+        // Crash at each early event of a commit: each reopens at no tree or the new one.
+        let mut sides = [0; 2];
+        for crash_at in 0..40 {
+            let dev = Arc::new(MemDevice::new());
+            Database::create_on(
+                dev.clone() as Arc<dyn BlockDevice>,
+                CreateOptions { block_size: 1024, lod_levels: 2 },
+            )
+            .expect("create");
+            let mut life = Life::open(dev.to_bytes(), crash_at);
+            let choices = [1, 0, 1, 1, 1, 2, 2, 2, 1, 0, 4, 4, 4, 0, 2, 2, 2, 1, 0, 0, 0, 0];
+            let during = match life.write(&mut Choices::new(&choices)) {
+                Outcome::Crashed { during_commit } => during_commit,
+                _ => continue,
+            };
+            let after = Life::open(life.dev.image(CrashImage::TearLast), u64::MAX);
+            let got = answers(&after.db.begin_read().expect("reads")).expect("answers");
+            let new = during.map(Some);
+            let side = usize::from(new.as_ref().is_some_and(|n| got == expected(n)));
+            assert!(side == 1 || got == expected(&None), "crash at {crash_at}: neither side");
+            sides[side] += 1;
+            after.verify(&if side == 1 { new.unwrap_or_default() } else { None });
+        }
+        assert!(sides[0] > 0 && sides[1] > 0, "both sides occur: {sides:?}");
     }
 }

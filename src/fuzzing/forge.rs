@@ -64,18 +64,6 @@ impl Record {
             Record::Leaf(l) => l.at,
         }
     }
-
-    pub fn len(&self) -> usize {
-        match self {
-            Record::Internal { .. } => INTERNAL_LEN,
-            Record::Leaf(l) => l.bounds_at + l.bounds_len - l.at,
-        }
-    }
-
-    /// Never true: a record has a head.
-    pub fn is_empty(&self) -> bool {
-        false
-    }
 }
 
 /// A bound entry of a leaf (format-spec/node.md, "Bounds"): its head and blob.

@@ -79,6 +79,8 @@ struct Base {
     free_lists: Vec<u32>,
     /// The oracle's box queries.
     boxes: Vec<Aabb>,
+    /// The base objects' boxes, which the input's probes split.
+    objects: Vec<Aabb>,
 }
 
 fn mesh(vertices: &[[f64; 3]], triangles: Vec<[u32; 3]>) -> Mesh {
@@ -126,11 +128,12 @@ fn base_scene() -> Scene {
     Scene::new(objects)
 }
 
-/// Levels of detail on coarse grids, judged by few samples: `check`
-/// voxelizes every bound on every run, and a write plans them.
-pub(super) fn cheap_lods() -> LodParams {
+/// Levels of detail of a file of `m` levels on coarse grids, judged by few
+/// samples: `check` voxelizes every bound on every run, and a write plans
+/// them. One eps per polyhedral level (3 .. M-1).
+pub(super) fn cheap_lods(m: u8) -> LodParams {
     LodParams {
-        eps: Some(vec![200.0]),
+        eps: Some(vec![60.0; usize::from(m.saturating_sub(3))]),
         cuberille_bits: 64,
         cuberille_object_bits: 64,
         error_samples: 4,
@@ -141,7 +144,7 @@ pub(super) fn cheap_lods() -> LodParams {
 
 fn commit(db: &Database, scene: &Scene, store_all: bool) {
     let mut w = db.begin_write().unwrap_or_else(|e| panic!("the base file: {e}"));
-    w.set_lod_params(LodParams { store_all, ..cheap_lods() });
+    w.set_lod_params(LodParams { store_all, ..cheap_lods(M) });
     // A leaf per object: records enough for several node blocks.
     let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(1), ..BuildParams::default() };
     w.bulk_load(scene, &params, &|_| {}).unwrap_or_else(|e| panic!("the base file: {e}"));
@@ -303,7 +306,7 @@ impl Base {
                             node.add(e, Width::U32, [0, 16]);
                             node.add(e, Width::U16, (0..6).map(|j| 4 + 2 * j));
                             geo.add(e, Width::U32, [16]);
-                            // The object's record in its span (format-spec/geometry.rs).
+                            // The object's record in its span (format-spec/geometry.md).
                             let s = image.u32(e + 16) as usize * 4;
                             let r = (first + s / payload) * BS + 16 + s % payload;
                             let (v, t) = (image.u32(r + 4) as usize, image.u32(r + 8) as usize);
@@ -411,6 +414,7 @@ impl Base {
             txn,
             free_lists,
             boxes: oracle_boxes(&meshes),
+            objects: meshes.iter().map(|m| m.aabb()).collect(),
             image,
         }
     }
@@ -443,7 +447,7 @@ fn base() -> &'static Base {
 /// Opens the forged image and runs what `s` can change: every query kind
 /// for the tree's structures, `names` for the names run, a write for the
 /// slots and the free list; then `check`, and the oracles when it passes.
-fn exercise(s: Structure, bytes: Vec<u8>) {
+fn exercise(s: Structure, bytes: Vec<u8>, probes: &[Aabb]) {
     let dev = Arc::new(MemDevice::from_bytes(bytes));
     let Ok(db) = Database::open_on(dev.clone()) else { return };
     if let Ok(r) = db.begin_read() {
@@ -485,10 +489,11 @@ fn exercise(s: Structure, bytes: Vec<u8>) {
     }
     let sound = check(&db).is_ok_and(|r| r.ok());
     if sound && matches!(s, Structure::Header | Structure::Node | Structure::Geometry | Structure::Lod) {
-        answers_match_brute_force(&db, &base().boxes);
+        let boxes: Vec<Aabb> = base().boxes.iter().chain(probes).copied().collect();
+        answers_match_brute_force(&db, &boxes);
     }
     if matches!(s, Structure::Header | Structure::FreeList) {
-        write_after(&dev, db, sound);
+        write_after(&dev, db, sound, s);
     }
 }
 
@@ -539,11 +544,18 @@ fn small_scene() -> Scene {
 /// A write over the forged file: if it commits, the file reopens at the new
 /// tree, which answers as brute force does, and `check` passes if it passed
 /// before (the writer reuses only what the file says is free).
-fn write_after(dev: &Arc<MemDevice>, db: Database, sound: bool) {
+fn write_after(dev: &Arc<MemDevice>, db: Database, sound: bool, s: Structure) {
     let scene = small_scene();
     {
+        // Beginning recovers and repairs slot copies; a tree's commit writes
+        // a free list from the file's. A forged free list is worth a tree
+        // whatever check says; forged slots or meta only when it passes.
         let Ok(mut w) = db.begin_write() else { return };
-        w.set_lod_params(LodParams { store_all: true, ..cheap_lods() });
+        if !sound && s != Structure::FreeList {
+            let _ = w.abort();
+            return;
+        }
+        w.set_lod_params(LodParams { store_all: true, ..cheap_lods(db.lod_levels()) });
         let params = BuildParams { leaf: LeafRule::Objects(2), ..BuildParams::default() };
         if w.bulk_load(&scene, &params, &|_| {}).is_err() || w.commit().is_err() {
             return;
@@ -566,26 +578,29 @@ fn write_after(dev: &Arc<MemDevice>, db: Database, sound: bool) {
 
 /// Forges `s` in a copy of the base file as `data` chooses, and exercises it.
 pub fn forge(s: Structure, data: &[u8]) {
-    let img = forged(s, data);
+    let (img, probes) = forgery(s, data);
     // Edits that changed nothing (or were undone) forge the base file, which
-    // is sound; and many inputs forge a file already run. The same bytes take
-    // the same paths: only a new file is run.
-    if img != base().image.bytes && first_seen(s, &img) {
-        exercise(s, img);
+    // is sound; and many inputs forge a file already run. The same bytes
+    // (and probes) take the same paths: only a new file is run.
+    if img != base().image.bytes && first_seen(s, &img, &probes) {
+        exercise(s, img, &probes);
     }
 }
 
 /// Files run lately, remembered by a 64-bit digest of the structure and bytes.
 const REMEMBERED: usize = 1 << 14;
 
-/// True unless `s` forged `bytes` among the last [`REMEMBERED`] files.
-fn first_seen(s: Structure, bytes: &[u8]) -> bool {
+/// True unless `s` forged `bytes` with `probes` among the last [`REMEMBERED`] files.
+fn first_seen(s: Structure, bytes: &[u8], probes: &[Aabb]) -> bool {
     type Memory = (HashSet<u64>, VecDeque<u64>);
     static SEEN: Mutex<Option<Memory>> = Mutex::new(None);
     let digest = |seed: u32| {
         let mut h = crc32fast::Hasher::new_with_initial(seed);
         h.update(&[s as u8]);
         h.update(bytes);
+        for x in probes.iter().flat_map(|p| p.to_array()) {
+            h.update(&x.to_le_bytes());
+        }
         h.finalize()
     };
     let key = u64::from(digest(0)) | u64::from(digest(0x9e37_79b9)) << 32;
@@ -606,16 +621,22 @@ fn first_seen(s: Structure, bytes: &[u8]) -> bool {
 /// The file the target of `s` exercises for input `data`: the base file
 /// with the structure forged as `data` chooses, every checksum re-sealed.
 pub fn forged(s: Structure, data: &[u8]) -> Vec<u8> {
+    forgery(s, data).0
+}
+
+/// The forged file for `data`, and the box queries it adds to the oracle's.
+fn forgery(s: Structure, data: &[u8]) -> (Vec<u8>, Vec<Aabb>) {
     let base = base();
     let mut img = base.image.clone();
     let catalog = &base.catalogs[STRUCTURES.iter().position(|&x| x == s).unwrap_or(0)];
     let mut c = Choices::new(data);
-    let mut tears = Vec::new();
+    let (mut tears, mut probes) = (Vec::new(), Vec::new());
     while !c.is_empty() {
-        match c.u8() % 12 {
+        match c.u8() % 13 {
             0..=5 => edit_field(&mut img, catalog, &mut c),
             6 | 7 => edit_raw(&mut img, catalog, &mut c),
             8 => copy_chunk(&mut img, catalog, &mut c),
+            12 => probes.extend(probe(base, &mut c)),
             op => special(s, base, &mut img, op - 9, &mut c, &mut tears),
         }
     }
@@ -625,7 +646,21 @@ pub fn forged(s: Structure, data: &[u8]) -> Vec<u8> {
             *b ^= x;
         }
     }
-    img.bytes
+    (img.bytes, probes)
+}
+
+/// A box query for the oracle: one of an n x n x n split of a base
+/// object's box (n <= 4: about a voxel cell of a bound), grown a little. A
+/// forged bound or box that check accepts yet answers wrongly shows only
+/// in a query that holds or meets part of it, so the input aims one.
+fn probe(base: &Base, c: &mut Choices) -> Option<Aabb> {
+    let b = base.objects.get(c.below(base.objects.len()))?;
+    let n = 1 + c.below(4);
+    let (lo, step) = (b.min, b.extent() / n as f64);
+    let at = crate::geom::Vector::new(c.below(n) as f64, c.below(n) as f64, c.below(n) as f64);
+    let min = lo + step.component_mul(&at);
+    let grow = f64::from(c.u8()) / 8.0;
+    Some(Aabb::new(min, min + step).grown(grow))
 }
 
 /// The structure's own forgeries (`op` in 0 ..= 2).
@@ -1008,5 +1043,45 @@ mod tests {
         let db = sound(torn);
         assert_eq!(db.warnings(), &[Warning::DamagedSlotCopy { slot: b.slot as u8, copy: 0 }]);
         answers_match_brute_force(&db, &b.boxes);
+    }
+
+    #[test]
+    fn a_bound_with_a_cell_its_surface_does_not_touch_fails_check_or_answers_right() {
+        let b = base();
+        let site = &b.sites[0];
+        let mut img = b.image.clone();
+        let Some(Record::Leaf(l)) = img.records(site.block).get(site.record).copied() else {
+            panic!("a leaf")
+        };
+        let mut entries: Vec<(u16, u8, Vec<u8>)> = img
+            .bounds(&l)
+            .iter()
+            .map(|x| (x.target, x.level, img.bytes[x.blob..x.blob + x.len].to_vec()))
+            .collect();
+        // Object 0's finest bound (the one queries use) gains its first empty cell.
+        let finest = entries.iter().rposition(|e| e.0 == 0).expect("a bound of entry 0");
+        let mut v =
+            crate::lod::decode(&entries[finest].2, &b.lattice, &site.boxes[0]).expect("the bound decodes");
+        let empty = (0..v.grid().cells() as usize).find(|&i| !v.get(i)).expect("a cell the surface misses");
+        v.set(empty);
+        let d = v.grid().dims().map(|x| x as usize);
+        let cell = [empty % d[0], empty / d[0] % d[1], empty / (d[0] * d[1])].map(|x| x as u32);
+        let query = v.grid().cell_box(cell).grown(4.0 * v.grid().tolerance());
+        entries[finest].2 = crate::lod::encode(&v);
+        assert!(rewrite_bounds(&mut img, site.block, site.record, &entries));
+        img.reseal();
+        let db = Database::open_on(Arc::new(MemDevice::from_bytes(img.bytes))).expect("opens");
+        let report = check(&db).expect("check runs");
+        let r = db.begin_read().expect("reads");
+        let got =
+            query_region(&r, &Region::Box(query), &QueryOptions::default(), None).expect("answers").objects;
+        let ids: Vec<ObjectId> = (0..r.info().expect("a tree").objects).map(ObjectId).collect();
+        let meshes = object_meshes(&r, &ids).expect("meshes");
+        let scene = Scene::new(meshes.into_iter().map(|m| Object::new("", m)).collect());
+        let exact = brute_force_region(&scene, &Region::Box(query));
+        assert!(
+            !report.ok() || got == exact,
+            "check passes, yet {query:?} answers {got:?}, brute force {exact:?}"
+        );
     }
 }
