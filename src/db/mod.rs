@@ -503,6 +503,10 @@ fn load(pager: &Pager) -> Result<Loaded, StorageError> {
 
 fn load_state(pager: &Pager, slots: &[SlotPair; 2]) -> Result<Loaded, StorageError> {
     let (committed_slot, committed) = newest(slots)?;
+    // Block 0 is the header, so every committed state holds it.
+    if committed.block_count == 0 {
+        return Err(StorageError::corrupt(0, "block_count", "a commit of no blocks, not even the header"));
+    }
     let blocks_on_disk = pager.block_count()?;
     if blocks_on_disk < u64::from(committed.block_count) {
         return Err(StorageError::Truncated {
