@@ -20,7 +20,9 @@ use mktree::scene::{Object, Scene};
 use mktree::store::BlockDevice;
 use mktree::store::device::MemDevice;
 use mktree::store::format::freelist::FreeListBlock;
-use mktree::store::format::header::{SLOT_LEN, SlotRead, decode_slots, slot_offset};
+use mktree::store::format::header::{
+    Commit, MAX_TXN, SLOT_LEN, Slot, SlotRead, SlotState, decode_slots, slot_offset,
+};
 
 const BS: usize = 1024;
 
@@ -173,6 +175,27 @@ fn both_copies_of_the_newest_slot_damaged_is_an_error_not_an_older_tree() {
     let err =
         Database::open_on(Arc::new(MemDevice::from_bytes(damaged)) as Arc<dyn BlockDevice>).unwrap_err();
     assert!(err.is_corruption() && err.to_string().contains("both copies"), "{err}");
+}
+
+#[test]
+fn a_file_at_the_largest_transaction_id_reads_and_refuses_a_writer() {
+    let [.., image] = images(1.0, 0);
+    let slots = decode_slots(&image);
+    let newest = (0..2).find(|&s| matches!(slots[s].value(), SlotRead::Committed(c) if c.txn == 4)).unwrap();
+    let SlotRead::Committed(c) = slots[newest].value() else { unreachable!() };
+    let mut last = image.clone();
+    for copy in 0..2 {
+        let at = slot_offset(newest, copy);
+        let sealed = Slot::encode(newest, copy, SlotState::Committed, &Commit { txn: MAX_TXN, ..c });
+        last[at..at + SLOT_LEN].copy_from_slice(&sealed);
+    }
+    let dev = Arc::new(MemDevice::from_bytes(last.clone()));
+    let db = Database::open_on(dev.clone() as Arc<dyn BlockDevice>).unwrap();
+    answers(&db).unwrap();
+    // The next id would name no reader lock byte (and wrap at 2^64).
+    let err = db.begin_write().err().expect("the writer is refused");
+    assert!(err.to_string().contains("exhausted"), "{err}");
+    assert_eq!(dev.to_bytes(), last, "nothing is written");
 }
 
 #[test]

@@ -54,6 +54,9 @@ impl<'db> WriteTransaction<'db> {
             recover(&pager, &loaded.committed, &loaded.free, &mut recovery)?;
         }
         let (base, c_slot) = (loaded.committed, loaded.committed_slot);
+        if base.txn >= header::MAX_TXN {
+            return Err(StorageError::Invalid(format!("transaction ids are exhausted at {}", base.txn)));
+        }
         // A damaged copy of the slot in force is rewritten from the other.
         let in_force = loaded.slots[c_slot];
         for copy in in_force.invalid_copies() {

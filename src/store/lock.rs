@@ -16,6 +16,8 @@ use std::fs::File;
 use std::io;
 use std::os::fd::AsRawFd;
 
+use crate::store::format::header::MAX_TXN;
+
 #[cfg(any(target_os = "linux", target_os = "android"))]
 const SET: libc::c_int = libc::F_OFD_SETLK;
 #[cfg(any(target_os = "linux", target_os = "android"))]
@@ -33,8 +35,6 @@ const GET: libc::c_int = libc::F_GETLK;
 const WRITER: u64 = 1 << 62;
 /// Transaction `t`'s reader byte is `READERS + t`.
 const READERS: u64 = WRITER + 1;
-/// Transaction ids a reader byte can name.
-const MAX_TXN: u64 = (i64::MAX as u64) - READERS;
 
 /// The kind of a lock.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -120,12 +120,12 @@ impl FileLocks {
 
     /// Marks the state of transaction `txn` as read by this owner.
     pub fn pin(&self, txn: u64) -> io::Result<()> {
-        self.set(Kind::Shared, READERS + txn.min(MAX_TXN), true).map(drop)
+        self.set(Kind::Shared, READERS + txn, true).map(drop)
     }
 
     /// Ends [`pin`](Self::pin).
     pub fn unpin(&self, txn: u64) -> io::Result<()> {
-        self.set(Kind::Unlock, READERS + txn.min(MAX_TXN), false).map(drop)
+        self.set(Kind::Unlock, READERS + txn, false).map(drop)
     }
 
     /// The oldest transaction below `below` whose state another owner reads.

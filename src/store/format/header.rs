@@ -8,6 +8,11 @@ use super::{FORMAT_VERSION, all_zero, validate_block_size, validate_lod_levels};
 use crate::store::StorageError;
 
 /// `\x89MKT\r\n\x1a\n`.
+/// The largest transaction id: every id names a reader's lock byte
+/// (`store/lock.rs`), which must stay below 2^63. No file reaches it by
+/// committing; a slot beyond it is forged or damaged.
+pub const MAX_TXN: u64 = (1 << 62) - 2;
+
 pub const MAGIC: [u8; 8] = [0x89, b'M', b'K', b'T', b'\r', b'\n', 0x1a, b'\n'];
 /// Bytes a reader needs to learn the block size and read both slots.
 pub const PREFIX_LEN: usize = 1024;
@@ -173,6 +178,7 @@ impl Slot {
             || !all_zero(&s.reserved0)
             || !all_zero(&s.reserved1)
             || s.txn.get() == 0
+            || s.txn.get() > MAX_TXN
         {
             return SlotRead::Invalid;
         }
@@ -285,6 +291,15 @@ mod tests {
         );
         assert_eq!(Slot::decode(1, 1, &bytes), SlotRead::Invalid, "a copy moved to the other copy is caught");
         assert_eq!(Slot::decode(0, 0, &[0u8; SLOT_LEN]), SlotRead::Empty);
+    }
+
+    #[test]
+    fn a_transaction_id_past_the_largest_is_invalid() {
+        let c = |txn| Commit { txn, meta_block: 4, block_count: 12, ..Commit::default() };
+        let at = |txn| Slot::decode(0, 1, &Slot::encode(0, 1, SlotState::Committed, &c(txn)));
+        assert_eq!(at(MAX_TXN), SlotRead::Committed(c(MAX_TXN)));
+        assert_eq!(at(MAX_TXN + 1), SlotRead::Invalid);
+        assert_eq!(at(u64::MAX), SlotRead::Invalid, "a writer's next id would wrap to 0");
     }
 
     #[test]
