@@ -21,4 +21,6 @@ pub enum Error {
     Lod(#[from] crate::lod::LodError),
     #[error(transparent)]
     Query(#[from] crate::query::QueryError),
+    #[error(transparent)]
+    Key(#[from] crate::scene::KeyError),
 }

@@ -26,7 +26,7 @@ use crate::store::format::freelist::FreeListBlock;
 use crate::store::format::meta::Meta;
 use crate::store::format::node::{self, Limits};
 use crate::store::format::quant::QuantBox;
-use crate::store::format::{frame, geometry, run};
+use crate::store::format::{frame, geometry, keys, run};
 
 /// Decodes one block of arbitrary bytes as every block type, and the bytes
 /// after the first as every blob kind. The first byte chooses M (1..=16);
@@ -64,6 +64,12 @@ pub fn decode_block(data: &[u8]) {
                         boxes.push(QuantBox::decode(&frame, ob.qbox).map(|q| (q.outer, q.face_slabs())));
                     }
                     let _ = (l.geometry().1.count(), l.object_count());
+                    // A validated leaf holds one key per object.
+                    for i in 0..l.len() {
+                        if l.key(i).is_none() {
+                            panic!("entry {i} of record {o} validated but has no key")
+                        }
+                    }
                     for b in l.bounds() {
                         if let Some(Some((outer, _))) = boxes.get(usize::from(b.target)) {
                             let _ = crate::lod::decode(b.blob, &lattice, outer);
@@ -74,6 +80,22 @@ pub fn decode_block(data: &[u8]) {
         }
     }
     let _ = Meta::decode(7, &block);
+    for leaf in [true, false] {
+        // A decoded key block re-encodes to its own bytes (the encoding is canonical).
+        if let Ok(kb) = keys::decode(7, &block, leaf) {
+            let mut again = vec![0u8; block.len()];
+            match &kb {
+                keys::KeyBlock::Leaf(entries) => keys::encode_leaf(entries, &mut again),
+                keys::KeyBlock::Branch(children) => keys::encode_branch(children, &mut again),
+            }
+            .unwrap_or_else(|e| panic!("a decoded key block does not encode: {e}"));
+            assert_eq!(
+                again[frame::FRAME_LEN..],
+                block[frame::FRAME_LEN..],
+                "a key block's encoding is canonical"
+            );
+        }
+    }
     let _ = FreeListBlock::decode(7, &block);
     let _ = crate::lod::decode(rest, &lattice, &Aabb::from_array([0.0, 0.0, 0.0, 40.0, 30.0, 20.0]));
     let _ = geometry::decode_object(7, rest);

@@ -82,6 +82,10 @@ pub enum Command {
         /// If another process is writing the file, wait for it instead of failing.
         #[arg(long)]
         wait: bool,
+        /// Key each object by its name (names must then be unique); by default an
+        /// object's key is its id, its position in the input.
+        #[arg(long)]
+        key_names: bool,
         #[arg(long)]
         json: bool,
     },
@@ -201,6 +205,21 @@ pub enum Command {
         /// Directory for tradeoff.svg and tradeoff.png.
         #[arg(long, default_value = ".")]
         out: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
+    /// One object by its key, through the key index: id, box, payload and the block reads.
+    Get {
+        file: PathBuf,
+        /// The key: an integer, or text (with --text, or when it is not a number).
+        #[arg(long)]
+        key: String,
+        /// Take the key as text even when it reads as a number.
+        #[arg(long)]
+        text: bool,
+        /// Also read the object's exact mesh (its leaf and geometry blocks).
+        #[arg(long)]
+        mesh: bool,
         #[arg(long)]
         json: bool,
     },

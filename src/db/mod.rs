@@ -6,6 +6,7 @@
 mod check;
 mod codes;
 mod hierarchy;
+mod key_index;
 mod lod;
 mod read;
 mod tree_writer;
@@ -19,6 +20,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 pub use check::{CheckReport, check};
 pub use codes::{method_from_code, method_to_code};
 pub use hierarchy::read_hierarchy;
+pub use key_index::ObjectRecord;
 pub use lod::{Level, LodInfo, Piece};
 pub(crate) use read::view;
 pub use read::{NodeRef, ReadTransaction, Reads, TreeInfo};
@@ -711,6 +713,9 @@ pub(crate) fn read_meta(pager: &Pager, c: &Commit) -> Result<Option<Meta>, Stora
         .or_else(|| too_many("node_count", meta.node_count.into(), entries))
         .or_else(|| too_many("object_count", meta.object_count.into(), entries))
         .or_else(|| too_many("depth", meta.depth.into(), u64::from(meta.node_count).saturating_sub(1)))
+        .or_else(|| too_many("keys_blocks", meta.keys_blocks.into(), c.block_count.into()))
+        .or_else(|| too_many("keys_height", meta.keys_height.into(), meta.keys_blocks.into()))
+        .or_else(|| too_many("keys_block", meta.keys_block.into(), u64::from(c.block_count) - 1))
     {
         return Err(e);
     }

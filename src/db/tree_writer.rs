@@ -9,9 +9,10 @@ use crate::build::{Hierarchy, Order, QueryMix};
 use crate::geom::Aabb;
 use crate::lod::LeafEntry;
 use crate::lod::StoredBounds;
-use crate::scene::{Mesh, ObjectId, Scene};
+use crate::scene::{Key, Mesh, ObjectId, Scene};
 use crate::store::format::frame::{BlockType, FRAME_LEN};
 use crate::store::format::geometry::{self, Placement};
+use crate::store::format::keys::LeafLocator;
 use crate::store::format::node::{
     self, BoundEntry, ChildEntry, ObjectEntry, RecordDraft, RecordRef, SplitInfo, leaf_len,
 };
@@ -38,6 +39,9 @@ pub(crate) struct Written {
     pub geometry_bytes: u64,
     /// Vertices as stored (a vertex two parts of an object share counts twice).
     pub vertices: u64,
+    /// Per object (by id): the leaf record holding it and its first entry
+    /// there, and its box as the tree holds it (the union of its parts').
+    pub leaves: Vec<(LeafLocator, Aabb)>,
 }
 
 /// Everything about a tree's layout that does not depend on its bounds:
@@ -51,6 +55,8 @@ pub(crate) struct Plan {
     child_q: Vec<[u16; 6]>,
     /// Per leaf: its entries, each an object or a part of one.
     entries: Vec<Vec<Entry>>,
+    /// Per node: bytes of its leaf record's keys area.
+    key_bytes: Vec<usize>,
     payload: u64,
     stream_end: u64,
     samples: Vec<Aabb>,
@@ -125,10 +131,18 @@ impl Plan {
                 frames[c.index()] = qb.outer;
             }
         }
+        let key_bytes = entries
+            .iter()
+            .map(|es| {
+                let keys: Vec<Key> = object_ids(es).filter_map(|id| scene.key(id)).collect();
+                node::keys_len(&keys)
+            })
+            .collect();
         let mut plan = Plan {
             frames,
             child_q,
             entries,
+            key_bytes,
             payload,
             stream_end: placement.end(),
             samples: mix.sample_centred(&nodes[0].aabb, SAMPLES_PER_SCALE),
@@ -187,7 +201,7 @@ impl Plan {
                 match tree.nodes[i].objects() {
                     Some(_) => {
                         let (a, b) = self.leaf_span(i);
-                        leaf_len(self.entries[i].len(), (b - a + 1) as usize, extra)
+                        leaf_len(self.entries[i].len(), (b - a + 1) as usize, extra, self.key_bytes[i])
                     }
                     None => node::INTERNAL_LEN + extra,
                 }
@@ -507,6 +521,7 @@ pub(crate) fn write(
                             })
                             .collect();
                         let end = plan.entries[i].last().map_or(0, |e| e.pos + e.len);
+                        let keys = object_ids(&plan.entries[i]).filter_map(|id| scene.key(id)).collect();
                         RecordDraft::Leaf {
                             node_id: i as u32,
                             first_block: first_geometry + a as u32,
@@ -514,6 +529,7 @@ pub(crate) fn write(
                             objects,
                             end: end - base,
                             bounds: bounds[i].clone(),
+                            keys,
                         }
                     }
                 }
@@ -524,6 +540,23 @@ pub(crate) fn write(
         node_bytes += records.iter().map(|r| r.len() as u64).sum::<u64>();
         checksums[b] = pager.write(first_node + b as u32, &mut bytes, BlockType::Node, txn)?;
     }
+    let nowhere = LeafLocator { block: 0, checksum: 0, offset: 0, entry: 0 };
+    let mut leaves = vec![(nowhere, Aabb::EMPTY); scene.len()];
+    for (i, es) in plan.entries.iter().enumerate() {
+        let (b, _) = packing.place[i];
+        for (j, e) in es.iter().enumerate() {
+            let (at, aabb) = &mut leaves[e.id.index()];
+            if j == 0 || es[j - 1].id != e.id {
+                *at = LeafLocator {
+                    block: first_node + b,
+                    checksum: checksums[b as usize],
+                    offset: offset[i],
+                    entry: j as u16,
+                };
+            }
+            *aabb = aabb.union(&e.mesh(scene).map_or(Aabb::EMPTY, |m| m.aabb()));
+        }
+    }
     let (rb, _) = packing.place[0];
     Ok(Written {
         root: (first_node + rb, checksums[rb as usize], offset[0]),
@@ -532,7 +565,13 @@ pub(crate) fn write(
         geometry_blocks,
         geometry_bytes,
         vertices,
+        leaves,
     })
+}
+
+/// The distinct objects of a leaf's entries, in entry order (an object's parts are consecutive).
+fn object_ids(entries: &[Entry]) -> impl Iterator<Item = ObjectId> + '_ {
+    entries.iter().enumerate().filter(|(j, e)| *j == 0 || entries[j - 1].id != e.id).map(|(_, e)| e.id)
 }
 
 fn object_count(tree: &Hierarchy, i: usize) -> u32 {

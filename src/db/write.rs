@@ -4,7 +4,9 @@
 use std::sync::{Arc, MutexGuard};
 use std::time::Instant;
 
-use super::{Inner, Recovery, Snapshot, WriterLock, codes, interrupted, load, recover, tree_writer};
+use super::{
+    Inner, Recovery, Snapshot, WriterLock, codes, interrupted, key_index, load, recover, tree_writer,
+};
 use crate::build::{BuildParams, BuildProgress, CostModel, Hierarchy, QueryMix, build, check_range};
 use crate::lod::{Layout, LodParams, StoredBounds, plan_bounds};
 use crate::scene::Scene;
@@ -132,6 +134,7 @@ impl<'db> WriteTransaction<'db> {
             return Err(StorageError::Invalid("a transaction writes one tree".into()).into());
         }
         check_range(scene, geometry::MAX_COORDINATE)?;
+        scene.check_keys()?;
         let started = Instant::now();
         let boxes = scene.object_boxes();
         let sizes: Vec<u64> = scene.objects().iter().map(|o| geometry::record_len(&o.mesh)).collect();
@@ -155,6 +158,7 @@ impl<'db> WriteTransaction<'db> {
             return Err(StorageError::Invalid("a transaction writes one tree".into()));
         }
         check_range(scene, geometry::MAX_COORDINATE).map_err(|e| StorageError::Invalid(e.to_string()))?;
+        scene.check_keys().map_err(|e| StorageError::Invalid(e.to_string()))?;
         let boxes = scene.object_boxes();
         let sizes: Vec<u64> = scene.objects().iter().map(|o| geometry::record_len(&o.mesh)).collect();
         tree.validate(&boxes, Some(&sizes), params)
@@ -189,6 +193,10 @@ impl<'db> WriteTransaction<'db> {
         let written = {
             let mut allocate = |count: u32| self.allocate(count);
             tree_writer::write(&pager, txn, scene, tree, &plan, &stored.bounds, &mut allocate)?
+        };
+        let keys = {
+            let mut allocate = |count: u32| self.allocate(count);
+            key_index::write(&pager, txn, scene, &written.leaves, &mut allocate)?
         };
         // Names, apart from geometry so queries never read them.
         let mut stream = Vec::new();
@@ -251,6 +259,10 @@ impl<'db> WriteTransaction<'db> {
                 query_extent: stored.query_extent,
                 predicted,
             },
+            keys_block: keys.block,
+            keys_checksum: keys.checksum,
+            keys_height: keys.height,
+            keys_blocks: keys.blocks,
         };
         let meta_block = self.allocate(1)?;
         let mut block = vec![0u8; bs as usize];

@@ -24,6 +24,10 @@ pub enum Kind {
         left: u32,
     },
     FreeList,
+    /// A key index block `level` levels above the leaves (0: a key leaf).
+    Key {
+        level: u32,
+    },
 }
 
 /// Where block `target`'s checksum is held: the 4 bytes at `field`
@@ -55,6 +59,9 @@ pub struct LeafAt {
     /// The bounds area and its length.
     pub bounds_at: usize,
     pub bounds_len: usize,
+    /// The keys area (after the bounds) and its length.
+    pub keys_at: usize,
+    pub keys_len: usize,
 }
 
 impl Record {
@@ -142,8 +149,20 @@ impl Image {
                     let end_at = objects_at + 20 * n;
                     let bounds_at = end_at + 4;
                     let bounds_len = self.u32(at + 16) as usize;
-                    let leaf = LeafAt { at, objects: n, span, objects_at, end_at, bounds_at, bounds_len };
-                    let len = bounds_at.saturating_add(bounds_len) - at;
+                    let keys_at = bounds_at.saturating_add(bounds_len);
+                    let keys_len = usize::from(self.u16(at + 14));
+                    let leaf = LeafAt {
+                        at,
+                        objects: n,
+                        span,
+                        objects_at,
+                        end_at,
+                        bounds_at,
+                        bounds_len,
+                        keys_at,
+                        keys_len,
+                    };
+                    let len = keys_at.saturating_add(keys_len) - at;
                     if at.saturating_add(len) <= end {
                         out.push(Record::Leaf(leaf));
                     }
@@ -191,6 +210,10 @@ impl Image {
                 if names != 0 {
                     out.push(r(base + 148, names, Kind::Names));
                 }
+                let (keys, height) = (self.u32(base + 904), self.u32(base + 912));
+                if keys != 0 && height >= 1 {
+                    out.push(r(base + 908, keys, Kind::Key { level: height - 1 }));
+                }
                 out
             }
             Kind::Node => {
@@ -229,8 +252,52 @@ impl Image {
                 0 => Vec::new(),
                 next => vec![r(base + 20, next, Kind::FreeList)],
             },
+            Kind::Key { level } => self.key_references(base, level),
             Kind::Continuation { .. } | Kind::Geometry => Vec::new(),
         }
+    }
+
+    /// A key block's references (format-spec/keys.md): a branch's children,
+    /// a leaf's entries' node blocks.
+    fn key_references(&self, base: usize, level: u32) -> Vec<Reference> {
+        self.key_entries(base, level > 0)
+            .into_iter()
+            .map(|at| match level {
+                0 => Reference { field: at + 8, target: self.u32(at + 4), kind: Kind::Node },
+                _ => Reference { field: at + 4, target: self.u32(at), kind: Kind::Key { level: level - 1 } },
+            })
+            .collect()
+    }
+
+    /// Where each entry of the key block at `base` has its fixed part (a
+    /// leaf's: the object id, node block, checksum, record offset, ...; a
+    /// branch's: the child's block and checksum), while entries fit its
+    /// used bytes.
+    fn key_entries(&self, base: usize, branch: bool) -> Vec<usize> {
+        let end = (base + 24).saturating_add(self.u32(base + 20) as usize).min(base + self.bs);
+        let key_len = |at: usize| match self.u8(at) {
+            0 => Some(9),
+            1 => Some(2 + usize::from(self.u8(at + 1))),
+            _ => None,
+        };
+        let mut out = Vec::new();
+        let mut at = base + 24;
+        for i in 0..self.u16(base + 16) {
+            let (fixed, next) = if branch {
+                let Some(k) = (if i == 0 { Some(0) } else { key_len(at) }) else { break };
+                (at + k, at + k + 8)
+            } else {
+                let Some(k) = key_len(at) else { break };
+                let fixed = at + k + 2 + usize::from(self.u16(at + k));
+                (fixed, fixed + 68)
+            };
+            if next > end {
+                break;
+            }
+            out.push(fixed);
+            at = next;
+        }
+        out
     }
 
     /// The slot copies in use: (slot, copy, absolute offset), all-zero (empty) ones left out.
@@ -396,6 +463,15 @@ impl Image {
                             fixes.push((field + 20, shift(o)));
                         }
                     }
+                }
+            }
+        }
+        // Key index entries name their object's leaf record by offset.
+        for key_leaf in (1..self.blocks()).filter(|&b| self.base(b).is_some_and(|at| self.u8(at + 4) == 8)) {
+            let Some(kb) = self.base(key_leaf) else { continue };
+            for e in self.key_entries(kb, false) {
+                if self.u32(e + 4) == id && moved(self.u32(e + 12)) {
+                    fixes.push((e + 12, shift(self.u32(e + 12))));
                 }
             }
         }

@@ -4,11 +4,14 @@
 mod export;
 pub mod generate;
 pub mod import;
+mod key;
 mod mesh;
 mod object;
 mod stats;
 
 pub use export::{ObjWriter, write_obj};
+pub(crate) use key::KeyRef;
+pub use key::{Key, KeyTooLong};
 pub use mesh::{Mesh, MeshError};
-pub use object::{Object, ObjectId, Scene};
+pub use object::{KeyError, Object, ObjectId, Scene};
 pub use stats::{Distribution, SceneInfo};

@@ -1,6 +1,6 @@
 //! Objects and scenes: S = {o_1, ..., o_N} (Definition 1.2.1).
 
-use super::Mesh;
+use super::{Key, KeyTooLong, Mesh};
 use crate::geom::Aabb;
 
 /// An object's id: its 0-based position in the input.
@@ -21,17 +21,38 @@ impl std::fmt::Display for ObjectId {
     }
 }
 
-/// One object of a scene: a name and a triangle mesh in millimetres.
+/// One object of a scene: a name and a triangle mesh in millimetres, with
+/// the application's key and payload.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Object {
     pub name: String,
     pub mesh: Mesh,
+    /// The application's key; `None` is the object's id as an integer key.
+    pub key: Option<Key>,
+    /// Opaque bytes kept with the key (at most [`Object::MAX_PAYLOAD`]),
+    /// returned by a lookup by key, never read by a query.
+    pub payload: Vec<u8>,
 }
 
 impl Object {
-    /// An object named `name` with geometry `mesh`.
+    /// The largest payload, bytes.
+    pub const MAX_PAYLOAD: usize = 1024;
+
+    /// An object named `name` with geometry `mesh`, keyed by its id.
     pub fn new(name: impl Into<String>, mesh: Mesh) -> Object {
-        Object { name: name.into(), mesh }
+        Object { name: name.into(), mesh, key: None, payload: Vec::new() }
+    }
+
+    /// This object with the application's key `key`.
+    pub fn with_key(mut self, key: impl Into<Key>) -> Object {
+        self.key = Some(key.into());
+        self
+    }
+
+    /// This object with `payload` kept beside its key.
+    pub fn with_payload(mut self, payload: impl Into<Vec<u8>>) -> Object {
+        self.payload = payload.into();
+        self
     }
 
     /// The object's box.
@@ -78,6 +99,38 @@ impl Scene {
         ObjectId((self.objects.len() - 1) as u32)
     }
 
+    /// Object `id`'s key: its own, or its id as an integer.
+    pub fn key(&self, id: ObjectId) -> Option<Key> {
+        let o = self.objects.get(id.index())?;
+        Some(o.key.clone().unwrap_or(Key::Int(u64::from(id.0))))
+    }
+
+    /// Keys every object by its name (as bytes); `check_keys` then says
+    /// whether the names are unique.
+    pub fn key_by_names(&mut self) -> Result<(), KeyTooLong> {
+        for o in &mut self.objects {
+            o.key = Some(Key::bytes(o.name.as_bytes())?);
+        }
+        Ok(())
+    }
+
+    /// Checks that every key is unique and every payload short enough.
+    pub fn check_keys(&self) -> Result<(), KeyError> {
+        let mut keys: Vec<(Key, ObjectId)> = (0..self.objects.len() as u32)
+            .map(|i| (self.key(ObjectId(i)).unwrap_or(Key::Int(u64::from(i))), ObjectId(i)))
+            .collect();
+        if let Some((i, o)) =
+            self.objects.iter().enumerate().find(|(_, o)| o.payload.len() > Object::MAX_PAYLOAD)
+        {
+            return Err(KeyError::PayloadTooLong { object: ObjectId(i as u32), len: o.payload.len() });
+        }
+        keys.sort();
+        match keys.windows(2).find(|w| w[0].0 == w[1].0) {
+            Some(w) => Err(KeyError::Duplicate { key: w[0].0.clone(), first: w[0].1, second: w[1].1 }),
+            None => Ok(()),
+        }
+    }
+
     /// The box of every object, indexed by id.
     pub fn object_boxes(&self) -> Vec<Aabb> {
         self.objects.iter().map(Object::aabb).collect()
@@ -97,4 +150,13 @@ impl Scene {
     pub fn vertex_count(&self) -> usize {
         self.objects.iter().map(|o| o.mesh.vertex_count()).sum()
     }
+}
+
+/// Keys a scene cannot be stored with.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum KeyError {
+    #[error("objects {first} and {second} share the key {key}: keys are unique")]
+    Duplicate { key: Key, first: ObjectId, second: ObjectId },
+    #[error("object {object}'s payload has {len} bytes (at most {max})", max = Object::MAX_PAYLOAD)]
+    PayloadTooLong { object: ObjectId, len: usize },
 }

@@ -15,6 +15,8 @@ pub struct ReadStats {
     pub node: u64,
     /// Geometry blocks read from the device.
     pub geometry: u64,
+    /// Key index blocks read from the device.
+    pub keys: u64,
     /// Other blocks (meta, names, free list) read from the device.
     pub other: u64,
     /// Blocks found in a cache instead of read.
@@ -24,13 +26,14 @@ pub struct ReadStats {
 impl ReadStats {
     /// All device reads.
     pub fn total(&self) -> u64 {
-        self.node + self.geometry + self.other
+        self.node + self.geometry + self.keys + self.other
     }
 
     fn count(&mut self, t: BlockType) {
         match t {
             BlockType::Node => self.node += 1,
             BlockType::Geometry | BlockType::Continuation => self.geometry += 1,
+            BlockType::KeyLeaf | BlockType::KeyBranch => self.keys += 1,
             _ => self.other += 1,
         }
     }
@@ -40,6 +43,7 @@ impl std::ops::AddAssign for ReadStats {
     fn add_assign(&mut self, o: ReadStats) {
         self.node += o.node;
         self.geometry += o.geometry;
+        self.keys += o.keys;
         self.other += o.other;
         self.cache_hits += o.cache_hits;
     }

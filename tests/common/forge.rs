@@ -6,6 +6,7 @@
 
 use mktree::store::format::frame::{BlockType, seal};
 use mktree::store::format::header::{Commit, SlotRead, SlotState, decode_slots, put_slot};
+use mktree::store::format::keys::{self, KeyBlock};
 
 /// A file's bytes in blocks of `bs` bytes.
 pub struct Image {
@@ -42,14 +43,14 @@ impl Image {
     }
 
     /// Bytes of the record at `r`: an internal record's 84, or a leaf's
-    /// head, span checksums, objects, `end` and bounds.
+    /// head, span checksums, objects, `end`, bounds and keys.
     pub fn record_len(&self, r: usize) -> usize {
         let f = &self.bytes;
         match f[r] {
             1 => 84,
             2 => {
                 let (n, s) = (u16_at(f, r + 2), u16_at(f, r + 12));
-                20 + 4 * s + 20 * n + 4 + u32_at(f, r + 16) as usize
+                20 + 4 * s + 20 * n + 4 + u32_at(f, r + 16) as usize + u16_at(f, r + 14)
             }
             k => panic!("record kind {k} at {r}"),
         }
@@ -165,8 +166,49 @@ impl Image {
                 for p in parents {
                     self.reseal_above(p, BlockType::Node, forged);
                 }
+                // Key index entries hold their leaf's node block checksum.
+                if t == BlockType::Node {
+                    for p in self.blocks_of(BlockType::KeyLeaf).into_iter().filter(|&p| p != forged) {
+                        let at = p * self.bs;
+                        let Ok(KeyBlock::Leaf(mut entries)) =
+                            keys::decode(p as u32, &self.bytes[at..at + self.bs], true)
+                        else {
+                            continue;
+                        };
+                        let mut changed = false;
+                        for e in entries.iter_mut().filter(|e| e.leaf.block == b as u32) {
+                            e.leaf.checksum = sum;
+                            changed = true;
+                        }
+                        if changed {
+                            keys::encode_leaf(&entries, &mut self.bytes[at..at + self.bs]).unwrap();
+                            self.reseal_above(p, BlockType::KeyLeaf, forged);
+                        }
+                    }
+                }
                 let root = meta * self.bs + 16;
                 if t == BlockType::Node && u32_at(&self.bytes, root) == b as u32 {
+                    self.bytes[root + 4..root + 8].copy_from_slice(&sum.to_le_bytes());
+                    self.reseal_above(meta, BlockType::Meta, forged);
+                }
+            }
+            BlockType::KeyLeaf | BlockType::KeyBranch => {
+                // Branches are re-encoded with the new checksum (the encoding is canonical).
+                for p in self.blocks_of(BlockType::KeyBranch).into_iter().filter(|&p| p != forged) {
+                    let at = p * self.bs;
+                    let Ok(KeyBlock::Branch(mut children)) =
+                        keys::decode(p as u32, &self.bytes[at..at + self.bs], false)
+                    else {
+                        continue;
+                    };
+                    if let Some(c) = children.iter_mut().find(|c| c.block == b as u32) {
+                        c.checksum = sum;
+                        keys::encode_branch(&children, &mut self.bytes[at..at + self.bs]).unwrap();
+                        self.reseal_above(p, BlockType::KeyBranch, forged);
+                    }
+                }
+                let root = meta * self.bs + 904;
+                if u32_at(&self.bytes, root) == b as u32 {
                     self.bytes[root + 4..root + 8].copy_from_slice(&sum.to_le_bytes());
                     self.reseal_above(meta, BlockType::Meta, forged);
                 }
@@ -198,7 +240,7 @@ impl Image {
 /// root's first child pointed back at the root, and, if given, the meta
 /// block's `node_count` forged; every checksum resealed.
 pub fn golden_with_looping_root(node_count: Option<u32>) -> Vec<u8> {
-    let mut f = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v4.mkt")).unwrap();
+    let mut f = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v5.mkt")).unwrap();
     let block = |i: usize| i * 1024..(i + 1) * 1024;
     let of_type = |f: &[u8], t: BlockType| (1..f.len() / 1024).find(|&i| f[i * 1024 + 4] == t as u8).unwrap();
     let (node, meta) = (of_type(&f, BlockType::Node), of_type(&f, BlockType::Meta));

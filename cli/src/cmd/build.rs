@@ -64,15 +64,24 @@ pub fn build_in_memory(scene: &Scene, args: &BuildArgs) -> Result<Hierarchy> {
     Ok(tree)
 }
 
+/// How `build` writes: wait for another writer, key objects by their names.
+pub struct Write {
+    pub wait: bool,
+    pub key_names: bool,
+}
+
 pub fn run(
     scene_path: &Path,
     out: &Path,
     args: &BuildArgs,
     lod: &LodArgs,
-    wait: bool,
+    Write { wait, key_names }: Write,
     as_json: bool,
 ) -> Result<()> {
-    let scene = crate::cmd::read_scene(scene_path, &args.import.options())?;
+    let mut scene = crate::cmd::read_scene(scene_path, &args.import.options())?;
+    if key_names {
+        scene.key_by_names()?;
+    }
     let started = Instant::now();
     let (db, created) = open_output(out, args, lod)?;
     let pb = progress_bar(&scene, args);

@@ -10,6 +10,7 @@ mod collide;
 mod demo;
 mod dump;
 mod gen_info;
+mod get;
 mod lods;
 mod navigate;
 mod query;
@@ -37,8 +38,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Sweep { scene, pages, rates, look_ahead, json, import } => {
             sweep::run(&scene, &import.options(), pages, &rates, look_ahead, json)
         }
-        Command::Build { scene, output, build, lod, wait, json } => {
-            build::run(&scene, &output, &build, &lod, wait, json)
+        Command::Build { scene, output, build, lod, wait, key_names, json } => {
+            build::run(&scene, &output, &build, &lod, build::Write { wait, key_names }, json)
         }
         Command::Lods { file, json } => lods::table(&file, json),
         Command::Node { file, node, lod, objects, export, json } => {
@@ -57,6 +58,9 @@ pub fn run(cli: Cli) -> Result<()> {
         }
         Command::Tradeoff { files, queries, seed, out, json } => {
             tradeoff::run(&files, queries, seed, &out, json)
+        }
+        Command::Get { file, key, text, mesh, json } => {
+            get::run(&file, &get::parse_key(&key, text)?, mesh, json)
         }
         Command::Check { file, json } => check::run(&file, json),
         Command::Demo { dir } => demo::run(&dir),

@@ -12,6 +12,8 @@
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::sync::Arc;
 
+mod keys;
+
 use super::{Database, ReadTransaction, Reads, Warning, view};
 use crate::geom::{Aabb, Point};
 use crate::lod::{LodParams, LodPlan, Voxels, bound_grid};
@@ -19,11 +21,13 @@ use crate::query::{Everything, QueryError, QueryOptions, Visitor, walk};
 use crate::scene::Mesh;
 use crate::store::format::frame::{self, BlockType};
 use crate::store::format::freelist::FreeListBlock;
+use crate::store::format::keys::LeafLocator;
 use crate::store::format::meta::LOD_TABLE_LEN;
 use crate::store::format::node::{BoundView, NodeView};
 use crate::store::format::quant::QuantBox;
 use crate::store::format::run;
 use crate::store::{Block, ReadStats, StorageError};
+use keys::KeyedObject;
 
 /// What `check` found.
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -169,6 +173,8 @@ struct Walker<'t> {
     eps: Vec<f64>,
     triangles: u64,
     vertices: u64,
+    /// Per object id: its key, where its first entry is, and the union of its parts' boxes.
+    keyed: HashMap<u32, KeyedObject>,
 }
 
 impl Walker<'_> {
@@ -275,6 +281,14 @@ impl Visitor for Walker<'_> {
                         self.faults.push(format!("{here}: object {id}'s parts have different anchors"));
                     }
                     previous = Some((id.0, mesh.anchor()));
+                    let at =
+                        LeafLocator { block: block.id(), checksum: block.checksum, offset, entry: i as u16 };
+                    let k = self.keyed.entry(id.0).or_insert_with(|| KeyedObject {
+                        key: leaf.key(i),
+                        at,
+                        aabb: Aabb::EMPTY,
+                    });
+                    k.aabb = k.aabb.union(&mesh.aabb());
                     let Some(q) = QuantBox::decode(frame, o.qbox) else {
                         self.faults.push(format!("{here}: object {id}'s box is backwards"));
                         continue;
@@ -341,6 +355,7 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
         eps: txn.lod_info().map(|l| l.eps).unwrap_or_default(),
         triangles: 0,
         vertices: 0,
+        keyed: HashMap::new(),
     };
     let all = QueryOptions { lod: Some(1), budget: None, ..Default::default() };
     walk(txn, root, &Everything, &all, &mut Reads::new(None), &mut w).map_err(|e| match e {
@@ -422,5 +437,5 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
     }
     c.report.objects = u64::from(info.objects);
     c.report.nodes = n as u64;
-    Ok(())
+    keys::check_keys(c, txn, &meta, &w.keyed)
 }

@@ -32,13 +32,17 @@ pub enum BlockType {
     FreeList = 5,
     Names = 6,
     Free = 7,
+    KeyLeaf = 8,
+    KeyBranch = 9,
 }
 
 impl BlockType {
     /// The type with this code, if any.
     pub fn from_code(code: u8) -> Option<BlockType> {
         use BlockType::*;
-        [Meta, Node, Geometry, Continuation, FreeList, Names, Free].into_iter().find(|t| *t as u8 == code)
+        [Meta, Node, Geometry, Continuation, FreeList, Names, Free, KeyLeaf, KeyBranch]
+            .into_iter()
+            .find(|t| *t as u8 == code)
     }
 
     /// Lower-case name for reports.
@@ -51,6 +55,8 @@ impl BlockType {
             BlockType::FreeList => "free-list",
             BlockType::Names => "names",
             BlockType::Free => "free",
+            BlockType::KeyLeaf => "key-leaf",
+            BlockType::KeyBranch => "key-branch",
         }
     }
 }

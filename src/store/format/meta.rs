@@ -5,6 +5,7 @@ use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
 use super::all_zero;
 use super::frame::FRAME_LEN;
+use super::keys;
 use crate::store::StorageError;
 
 /// Levels the LOD table has room for.
@@ -48,8 +49,12 @@ pub(crate) struct MetaRecord {
     pub(crate) geometry_bytes: U64,
     pub(crate) query_extent: [F64; 3],
     pub(crate) lod_predicted: [[F32; 2]; LOD_TABLE_LEN],
+    pub(crate) keys_block: U32,
+    pub(crate) keys_checksum: U32,
+    pub(crate) keys_height: U32,
+    pub(crate) keys_blocks: U32,
 }
-const _: () = assert!(FRAME_LEN + size_of::<MetaRecord>() == 904);
+const _: () = assert!(FRAME_LEN + size_of::<MetaRecord>() == 920);
 
 /// How the levels of detail below M were built (format-spec/meta.md).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -113,6 +118,12 @@ pub struct Meta {
     /// (eps_k, measured error) for k = 1 .. 16.
     pub lod_table: [[f64; 2]; LOD_TABLE_LEN],
     pub lods: LodCodes,
+    /// The key index's root block and its checksum, its levels (1: the
+    /// root is a leaf) and its blocks (format-spec/keys.md).
+    pub keys_block: u32,
+    pub keys_checksum: u32,
+    pub keys_height: u32,
+    pub keys_blocks: u32,
 }
 
 /// Largest valid method, tie-break and leaf-rule codes.
@@ -160,6 +171,10 @@ impl Meta {
             geometry_bytes: self.geometry_bytes.into(),
             query_extent: self.lods.query_extent.map(f),
             lod_predicted: self.lods.predicted.map(|p| p.map(F32::new)),
+            keys_block: self.keys_block.into(),
+            keys_checksum: self.keys_checksum.into(),
+            keys_height: self.keys_height.into(),
+            keys_blocks: self.keys_blocks.into(),
         };
         let end = FRAME_LEN + size_of::<MetaRecord>();
         block[FRAME_LEN..end].copy_from_slice(r.as_bytes());
@@ -217,6 +232,19 @@ impl Meta {
         if r.lod_table.iter().flatten().any(|x| !(x.get().is_finite() && x.get() >= 0.0)) {
             return bad("lod_table", "an error is negative or not finite".into());
         }
+        let (keys_height, keys_blocks) = (r.keys_height.get(), r.keys_blocks.get());
+        if r.keys_block.get() == 0
+            || !(1..=keys::MAX_HEIGHT).contains(&keys_height)
+            || keys_blocks < keys_height
+        {
+            return bad(
+                "keys_height",
+                format!(
+                    "a key index of {keys_height} levels in {keys_blocks} blocks at block {}",
+                    r.keys_block.get()
+                ),
+            );
+        }
         Ok(Meta {
             root_block: r.root_block.get(),
             root_checksum: r.root_checksum.get(),
@@ -255,6 +283,10 @@ impl Meta {
                 query_extent,
                 predicted: r.lod_predicted.map(|p| p.map(|x| x.get())),
             },
+            keys_block: r.keys_block.get(),
+            keys_checksum: r.keys_checksum.get(),
+            keys_height,
+            keys_blocks,
         })
     }
 }

@@ -9,6 +9,7 @@ use super::all_zero;
 use super::frame::FRAME_LEN;
 use super::quant::QuantBox;
 use crate::geom::{Aabb, Axis};
+use crate::scene::{Key, KeyRef};
 use crate::store::StorageError;
 
 /// Offset of the first record in a node block.
@@ -68,7 +69,7 @@ pub(crate) struct LeafRaw {
     pub(crate) node_id: U32,
     pub(crate) first_block: U32,
     pub(crate) span: U16,
-    pub(crate) reserved1: [u8; 2],
+    pub(crate) keys_bytes: U16,
     pub(crate) bounds_bytes: U32,
 }
 const _: () = assert!(size_of::<LeafRaw>() == LEAF_HEAD_LEN);
@@ -174,6 +175,8 @@ pub enum RecordDraft {
         /// Byte offset in the span just past the last object's record.
         end: u64,
         bounds: Vec<BoundEntry>,
+        /// Each object's key, in entry order (one per object, not per part).
+        keys: Vec<Key>,
     },
 }
 
@@ -182,10 +185,15 @@ pub fn bounds_len(bounds: &[BoundEntry]) -> usize {
     bounds.iter().map(|b| BOUND_HEAD_LEN + b.blob.len()).sum::<usize>().next_multiple_of(4)
 }
 
-/// Bytes of a leaf record with `objects` objects over `span` geometry
-/// blocks and `bounds` bytes of inline bounds.
-pub const fn leaf_len(objects: usize, span: usize, bounds: usize) -> usize {
-    LEAF_HEAD_LEN + 4 * span + OBJECT_LEN * objects + 4 + bounds
+/// Bytes of a leaf's keys area: the keys, then zero padding to a multiple of 4.
+pub fn keys_len<'a>(keys: impl IntoIterator<Item = &'a Key>) -> usize {
+    keys.into_iter().map(Key::encoded_len).sum::<usize>().next_multiple_of(4)
+}
+
+/// Bytes of a leaf record with `objects` entries over `span` geometry
+/// blocks, `bounds` bytes of inline bounds and `keys` bytes of keys.
+pub const fn leaf_len(objects: usize, span: usize, bounds: usize, keys: usize) -> usize {
+    LEAF_HEAD_LEN + 4 * span + OBJECT_LEN * objects + 4 + bounds + keys
 }
 
 impl RecordDraft {
@@ -193,8 +201,8 @@ impl RecordDraft {
     pub fn len(&self) -> usize {
         match self {
             RecordDraft::Internal { .. } => INTERNAL_LEN,
-            RecordDraft::Leaf { checksums, objects, bounds, .. } => {
-                leaf_len(objects.len(), checksums.len(), bounds_len(bounds))
+            RecordDraft::Leaf { checksums, objects, bounds, keys, .. } => {
+                leaf_len(objects.len(), checksums.len(), bounds_len(bounds), keys_len(keys))
             }
         }
     }
@@ -228,7 +236,7 @@ impl RecordDraft {
                 };
                 out.extend_from_slice(raw.as_bytes());
             }
-            RecordDraft::Leaf { node_id, first_block, checksums, objects, end, bounds } => {
+            RecordDraft::Leaf { node_id, first_block, checksums, objects, end, bounds, keys } => {
                 let raw = LeafRaw {
                     kind: KIND_LEAF,
                     reserved0: 0,
@@ -242,7 +250,9 @@ impl RecordDraft {
                             format!("a leaf over {} geometry blocks (at most 65,535)", checksums.len())
                         })?
                         .into(),
-                    reserved1: [0; 2],
+                    keys_bytes: u16::try_from(keys_len(keys))
+                        .map_err(|_| format!("a leaf of {} bytes of keys (at most 65,535)", keys_len(keys)))?
+                        .into(),
                     bounds_bytes: (bounds_len(bounds) as u32).into(),
                 };
                 out.extend_from_slice(raw.as_bytes());
@@ -262,6 +272,10 @@ impl RecordDraft {
                 }
                 out.extend_from_slice(&words(*end)?.to_le_bytes());
                 encode_bounds(bounds, out)?;
+                for k in keys {
+                    k.encode(out);
+                }
+                out.resize(out.len().next_multiple_of(4), 0);
             }
         }
         debug_assert_eq!(out.len() - start, self.len());
@@ -412,7 +426,7 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
         }
         Some(&KIND_LEAF) => {
             let (raw, _) = LeafRaw::ref_from_prefix(bytes).map_err(|_| bad("record", "short".into()))?;
-            if raw.reserved0 != 0 || raw.reserved1 != [0; 2] {
+            if raw.reserved0 != 0 {
                 return Err(bad("reserved", "reserved bytes are not zero".into()));
             }
             let (n, span) = (usize::from(raw.object_count.get()), usize::from(raw.span.get()));
@@ -423,7 +437,8 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
                 ));
             }
             let bounds = raw.bounds_bytes.get() as usize;
-            let len = bounds.checked_add(leaf_len(n, span, 0)).filter(|&l| l <= bytes.len());
+            let keys = usize::from(raw.keys_bytes.get());
+            let len = bounds.checked_add(leaf_len(n, span, 0, keys)).filter(|&l| l <= bytes.len());
             let Some(len) = len else {
                 return Err(bad("bounds_bytes", "the record overruns the block".into()));
             };
@@ -460,6 +475,7 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
                 }
                 prev = Some(p);
             }
+            let starts_in_order = starts.len();
             starts.sort_unstable();
             if let Some(w) = starts.windows(2).find(|w| w[0] == w[1]) {
                 return Err(bad("object_id", format!("object {}'s entries are not consecutive", w[0])));
@@ -479,12 +495,26 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
             if (end - 1) / payload + 1 != span as u64 {
                 return Err(bad("span", format!("{span} blocks for records ending at byte {end}")));
             }
-            validate_bounds(&bytes[end_at + 4..len], n, limits).map_err(|d| bad("bounds", d))?;
+            let bounds_end = end_at + 4 + bounds;
+            validate_bounds(&bytes[end_at + 4..bounds_end], n, limits).map_err(|d| bad("bounds", d))?;
+            validate_keys(&bytes[bounds_end..len], starts_in_order).map_err(|d| bad("keys", d))?;
             Ok(len)
         }
         Some(k) => Err(bad("kind", format!("{k} is neither internal (1) nor leaf (2)"))),
         None => Err(bad("record", "empty".into())),
     }
+}
+
+/// A leaf's keys area holds one key per object, then fewer than 4 zero bytes.
+fn validate_keys(mut area: &[u8], objects: usize) -> Result<(), String> {
+    for i in 0..objects {
+        let (_, n) = KeyRef::decode(area).ok_or_else(|| format!("object {i}'s key is cut or unknown"))?;
+        area = &area[n..];
+    }
+    if area.len() >= 4 || !all_zero(area) {
+        return Err("bytes after the keys are not padding".into());
+    }
+    Ok(())
 }
 
 fn validate_bounds(mut area: &[u8], targets: usize, limits: &Limits) -> Result<(), String> {
@@ -539,6 +569,7 @@ pub struct LeafView<'a> {
     objects: &'a [ObjectRaw],
     end: u64,
     bounds: &'a [u8],
+    keys: &'a [u8],
 }
 
 impl<'a> NodeView<'a> {
@@ -559,13 +590,16 @@ impl<'a> NodeView<'a> {
                     <[ObjectRaw]>::ref_from_prefix_with_elems(rest, usize::from(raw.object_count.get()))
                         .map_err(|_| "short")?;
                 let (end, rest) = U32::ref_from_prefix(rest).map_err(|_| "short")?;
-                let bounds = rest.get(..raw.bounds_bytes.get() as usize).ok_or("bounds overrun")?;
+                let (bounds, rest) =
+                    rest.split_at_checked(raw.bounds_bytes.get() as usize).ok_or("bounds overrun")?;
+                let keys = rest.get(..usize::from(raw.keys_bytes.get())).ok_or("keys overrun")?;
                 Ok(NodeView::Leaf(LeafView {
                     raw,
                     checksums,
                     objects,
                     end: u64::from(end.get()) * 4,
                     bounds,
+                    keys,
                 }))
             }
             _ => Err("not a record".into()),
@@ -685,6 +719,26 @@ impl<'a> LeafView<'a> {
     pub fn bounds(&self) -> impl Iterator<Item = BoundView<'a>> + 'a {
         bounds_iter(self.bounds)
     }
+
+    /// Each object's key, with the index of its first entry, in entry order.
+    pub(crate) fn keys(&self) -> impl Iterator<Item = (usize, KeyRef<'a>)> + 'a {
+        let objects = self.objects;
+        let starts = (0..objects.len())
+            .filter(move |&i| i == 0 || objects[i - 1].object_id.get() != objects[i].object_id.get());
+        let mut area = self.keys;
+        starts.map_while(move |i| {
+            let (k, n) = KeyRef::decode(area)?;
+            area = &area[n..];
+            Some((i, k))
+        })
+    }
+
+    /// The key of entry `i`'s object.
+    pub fn key(&self, i: usize) -> Option<Key> {
+        let id = self.objects.get(i)?.object_id.get();
+        let first = (0..=i).rev().take_while(|&j| self.objects[j].object_id.get() == id).last()?;
+        self.keys().find(|&(j, _)| j == first).map(|(_, k)| k.to_key())
+    }
 }
 
 #[cfg(test)]
@@ -707,6 +761,7 @@ mod tests {
             ],
             end: 300,
             bounds: vec![BoundEntry { target: 1, level: 2, blob: vec![1, 1, 4] }],
+            keys: vec![Key::Int(3), Key::bytes("four").unwrap()],
         };
         let inner = RecordDraft::Internal {
             node_id: 0,
@@ -742,6 +797,9 @@ mod tests {
         assert_eq!(l.len(), 3);
         assert_eq!(l.object_count(), 2, "the parts of object 4 are one object");
         assert_eq!(l.object(1).unwrap().span, (100, 200));
+        assert_eq!(l.key(0), Some(Key::Int(3)));
+        assert_eq!(l.key(2), Some(Key::bytes("four").unwrap()), "a part has its object's key");
+        assert_eq!(l.key(3), None);
         let blob = [1, 1, 4];
         assert_eq!(l.bounds().collect::<Vec<_>>(), vec![BoundView { target: 1, level: 2, blob: &blob }]);
         assert_eq!(l.geometry().1.collect::<Vec<_>>(), vec![77]);
@@ -754,10 +812,16 @@ mod tests {
         // (byte, value): the kind, the used bytes, an in-block child offset,
         // the reserved tail, an object id out of range, the third entry's id
         // made 3 (object 3 again, after 4), the bound's bitmap (its blob:
-        // level 1, form 1, one byte) cleared.
+        // level 1, form 1, one byte) cleared; a key's unknown tag, a key's
+        // length past the keys, padding that is not zero.
         let third = offsets[1] as usize + 20 + 4 + 2 * 20;
         let bitmap = offsets[1] as usize + 20 + 4 + 3 * 20 + 4 + 4 + 2;
+        // The keys after the bound's 8 bytes: 9 of an integer, 6 of "four", 1 of padding.
+        let keys = offsets[1] as usize + 20 + 4 + 3 * 20 + 4 + 8;
         let cases = [
+            (keys, 5),
+            (keys + 10, 9),
+            (keys + 15, 1),
             (24, 7),
             (16, 1),
             (24 + 20 + 16, 1),

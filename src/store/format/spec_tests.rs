@@ -101,7 +101,11 @@ fn spec_tables_match_the_records() {
         node_bytes,
         geometry_bytes,
         query_extent,
-        lod_predicted
+        lod_predicted,
+        keys_block,
+        keys_checksum,
+        keys_height,
+        keys_blocks
     );
 
     let node = include_str!("../../../format-spec/node.md");
@@ -114,7 +118,7 @@ fn spec_tables_match_the_records() {
     macro_rules! child { ($($f:ident),*) => { $( field!(node, Some("### Child entry"), 0, ChildRaw, $f); )* } }
     child!(qbox, block, checksum, offset, node_blocks, geometry_blocks);
     macro_rules! leaf { ($($f:ident),*) => { $( field!(node, Some("## Leaf record"), 0, LeafRaw, $f); )* } }
-    leaf!(kind, reserved0, object_count, node_id, first_block, span, reserved1, bounds_bytes);
+    leaf!(kind, reserved0, object_count, node_id, first_block, span, keys_bytes, bounds_bytes);
     macro_rules! object { ($($f:ident),*) => { $( field!(node, Some("### Object entry"), 0, ObjectRaw, $f); )* } }
     object!(object_id, qbox, position);
     macro_rules! bound { ($($f:ident),*) => { $( field!(node, Some("## Bounds"), 0, BoundRaw, $f); )* } }

@@ -1,0 +1,239 @@
+//! The key index (format-spec/keys.md): written bottom-up after the tree,
+//! read by lookups that descend it and never walk the MKtree.
+
+use std::sync::Arc;
+
+use super::{ReadTransaction, Reads};
+use crate::geom::Aabb;
+use crate::scene::{Key, Mesh, ObjectId, Scene};
+use crate::store::format::frame::BlockType;
+use crate::store::format::geometry;
+use crate::store::format::keys::{self, ChildRef, KeyBlock, KeyEntry, LeafLocator};
+use crate::store::format::node::NodeView;
+use crate::store::{Block, Pager, StorageError};
+
+/// The key index as written: its root, levels and blocks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct WrittenKeys {
+    pub block: u32,
+    pub checksum: u32,
+    pub height: u32,
+    pub blocks: u32,
+}
+
+/// Writes the key index of `scene`, whose objects' leaf records and boxes
+/// are `leaves` (by id), allocating through `allocate`. Keys must be unique
+/// (`Scene::check_keys`).
+pub(crate) fn write(
+    pager: &Pager,
+    txn: u64,
+    scene: &Scene,
+    leaves: &[(LeafLocator, Aabb)],
+    allocate: &mut dyn FnMut(u32) -> Result<u32, StorageError>,
+) -> Result<WrittenKeys, StorageError> {
+    let bs = pager.block_size();
+    let capacity = keys::capacity(bs);
+    let mut entries: Vec<KeyEntry> = scene
+        .objects()
+        .iter()
+        .zip(leaves)
+        .enumerate()
+        .map(|(i, (o, &(leaf, aabb)))| KeyEntry {
+            key: scene.key(ObjectId(i as u32)).unwrap_or(Key::Int(i as u64)),
+            payload: o.payload.clone(),
+            object_id: i as u32,
+            leaf,
+            aabb,
+        })
+        .collect();
+    entries.sort_by(|a, b| a.key.cmp(&b.key));
+    if let Some(w) = entries.windows(2).find(|w| w[0].key == w[1].key) {
+        return Err(StorageError::Invalid(format!("the key {} is not unique", w[0].key)));
+    }
+    if let Some(e) = entries.iter().find(|e| e.len() > capacity) {
+        return Err(StorageError::Invalid(format!(
+            "the key {} with its payload takes {} bytes and a key block holds {capacity}: use larger blocks",
+            e.key,
+            e.len()
+        )));
+    }
+    let mut block = vec![0u8; bs as usize];
+    let mut level: Vec<ChildRef> = Vec::new();
+    let mut blocks = 0u32;
+    for group in pack(&entries.iter().map(KeyEntry::len).collect::<Vec<_>>(), capacity) {
+        let part = &entries[group];
+        keys::encode_leaf(part, &mut block).map_err(StorageError::Invalid)?;
+        let id = allocate(1)?;
+        let checksum = pager.write(id, &mut block, BlockType::KeyLeaf, txn)?;
+        level.push(ChildRef { first_key: part[0].key.clone(), block: id, checksum });
+        blocks += 1;
+    }
+    let mut height = 1;
+    while level.len() > 1 {
+        let sizes: Vec<usize> =
+            level.iter().enumerate().map(|(i, c)| keys::child_len(&c.first_key, i == 0)).collect();
+        let mut up = Vec::new();
+        for group in pack(&sizes, capacity) {
+            let part = &level[group];
+            keys::encode_branch(part, &mut block).map_err(StorageError::Invalid)?;
+            let id = allocate(1)?;
+            let checksum = pager.write(id, &mut block, BlockType::KeyBranch, txn)?;
+            up.push(ChildRef { first_key: part[0].first_key.clone(), block: id, checksum });
+            blocks += 1;
+        }
+        level = up;
+        height += 1;
+    }
+    let root = level.pop().ok_or_else(|| StorageError::Invalid("a key index of no keys".into()))?;
+    Ok(WrittenKeys { block: root.block, checksum: root.checksum, height, blocks })
+}
+
+/// Consecutive groups of items of `sizes` bytes filling blocks of
+/// `capacity` bytes in order. A group after the first holds at least two
+/// items when there are two: a branch has at least two children. (Every
+/// item fits a third of a block in a branch, so the block before a lone
+/// last item holds at least three and can give one.)
+fn pack(sizes: &[usize], capacity: usize) -> Vec<std::ops::Range<usize>> {
+    let mut groups: Vec<std::ops::Range<usize>> = Vec::new();
+    let (mut start, mut used) = (0, 0);
+    for (i, &s) in sizes.iter().enumerate() {
+        // A branch's first child takes no key; sizes are what each adds.
+        if i > start && used + s > capacity {
+            groups.push(start..i);
+            (start, used) = (i, 0);
+        }
+        used += s;
+    }
+    groups.push(start..sizes.len());
+    let n = groups.len();
+    if n >= 2 && groups[n - 1].len() == 1 && groups[n - 2].len() >= 3 {
+        groups[n - 2].end -= 1;
+        groups[n - 1].start -= 1;
+    }
+    groups
+}
+
+/// What a lookup by key finds: the object's id, key, exact box and payload.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObjectRecord {
+    pub id: ObjectId,
+    pub key: Key,
+    pub aabb: Aabb,
+    pub payload: Vec<u8>,
+}
+
+impl ReadTransaction {
+    /// The key block `id` of the snapshot, decoded.
+    pub(crate) fn key_block(
+        &self,
+        id: u32,
+        checksum: u32,
+        leaf: bool,
+        reads: &mut Reads,
+    ) -> Result<KeyBlock, StorageError> {
+        let t = if leaf { BlockType::KeyLeaf } else { BlockType::KeyBranch };
+        let b = self.block(id, t, checksum, reads)?;
+        keys::decode(id, &b.bytes, leaf)
+    }
+
+    /// The entry of `key`, descending the key index (its height in reads at most).
+    fn key_entry(&self, key: &Key, reads: &mut Reads) -> Result<Option<KeyEntry>, StorageError> {
+        let Some(m) = self.snapshot.meta.as_ref() else { return Ok(None) };
+        let (mut block, mut checksum) = (m.keys_block, m.keys_checksum);
+        for level in (1..=m.keys_height).rev() {
+            match self.key_block(block, checksum, level == 1, reads)? {
+                KeyBlock::Leaf(entries) => {
+                    return Ok(entries.into_iter().find(|e| e.key == *key));
+                }
+                KeyBlock::Branch(children) => {
+                    let c = keys::child_for(&children, key)
+                        .ok_or_else(|| StorageError::corrupt(block, "children", "a branch of no children"))?;
+                    (block, checksum) = (c.block, c.checksum);
+                }
+            }
+        }
+        Err(StorageError::corrupt(
+            m.keys_block,
+            "keys_height",
+            "the index is deeper than the meta block says",
+        ))
+    }
+
+    /// The object with key `key`: its id, exact box and payload, in the
+    /// index's height of block reads (counted in `reads`).
+    pub fn get_with(&self, key: &Key, reads: &mut Reads) -> Result<Option<ObjectRecord>, StorageError> {
+        Ok(self.key_entry(key, reads)?.map(|e| ObjectRecord {
+            id: ObjectId(e.object_id),
+            key: e.key,
+            aabb: e.aabb,
+            payload: e.payload,
+        }))
+    }
+
+    /// The object with key `key` (see [`ReadTransaction::get_with`]).
+    pub fn get(&self, key: &Key) -> Result<Option<ObjectRecord>, StorageError> {
+        self.get_with(key, &mut Reads::new(Some(self.cache())))
+    }
+
+    /// The exact box of the object with key `key`.
+    pub fn aabb(&self, key: &Key) -> Result<Option<Aabb>, StorageError> {
+        Ok(self.get(key)?.map(|r| r.aabb))
+    }
+
+    /// The exact mesh of the object with key `key`: the index's path, the
+    /// leaf record's node block and the object's geometry blocks (counted
+    /// in `reads`).
+    pub fn mesh_with(&self, key: &Key, reads: &mut Reads) -> Result<Option<Mesh>, StorageError> {
+        let Some(e) = self.key_entry(key, reads)? else { return Ok(None) };
+        let b: Arc<Block> = self.block(e.leaf.block, BlockType::Node, e.leaf.checksum, reads)?;
+        let NodeView::Leaf(leaf) = super::view(&b, e.leaf.offset)? else {
+            return Err(StorageError::corrupt(e.leaf.block, "key_leaf", "the key's record is not a leaf"));
+        };
+        let first = usize::from(e.leaf.entry);
+        let mut parts = Vec::new();
+        for i in first..leaf.len() {
+            match leaf.object(i) {
+                Some(o) if o.object_id == e.object_id => {
+                    parts.push(self.read_object(b.id(), &leaf, i, reads)?.1);
+                }
+                _ => break,
+            }
+        }
+        if parts.is_empty() || leaf.key(first).as_ref() != Some(&e.key) {
+            return Err(StorageError::corrupt(
+                e.leaf.block,
+                "key_leaf",
+                format!("entry {first} of the leaf is not the object of key {}", e.key),
+            ));
+        }
+        geometry::join(&parts)
+            .map(Some)
+            .ok_or_else(|| StorageError::corrupt(e.leaf.block, "parts", "an object's parts do not join"))
+    }
+
+    /// The exact mesh of the object with key `key` (see [`ReadTransaction::mesh_with`]).
+    pub fn mesh(&self, key: &Key) -> Result<Option<Mesh>, StorageError> {
+        self.mesh_with(key, &mut Reads::new(Some(self.cache())))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn groups_fill_blocks_in_order_and_never_leave_a_lone_branch_child() {
+        assert_eq!(pack(&[4, 4, 4], 8), vec![0..2, 2..3]);
+        assert_eq!(
+            pack(&[3, 3, 3, 3], 9),
+            vec![0..2, 2..4],
+            "a lone last item takes one from the block before"
+        );
+        assert_eq!(pack(&[5], 8), vec![0..1]);
+        assert_eq!(
+            pack(&[9, 2], 8),
+            vec![0..1, 1..2],
+            "an item larger than a block stands alone (the caller refuses it)"
+        );
+    }
+}

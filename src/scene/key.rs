@@ -1,0 +1,231 @@
+//! Keys: the application's own identity for an object (parry's "the caller
+//! chooses the leaf data"), a 64-bit integer such as a database row id, or
+//! up to 255 bytes such as an IFC GlobalId. Keys are unique in a tree, and
+//! answers give them.
+
+use std::cmp::Ordering;
+use std::fmt;
+
+/// An object's key. Integers order numerically and before byte strings,
+/// which order lexicographically.
+#[derive(Clone, PartialEq, Eq, Hash)]
+pub enum Key {
+    /// A 64-bit integer (a row id, an index).
+    Int(u64),
+    /// At most [`Key::MAX_BYTES`] bytes (a GUID, a path).
+    Bytes(Box<[u8]>),
+}
+
+/// A key too long to store.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("a key of {len} bytes (at most {max})", max = Key::MAX_BYTES)]
+pub struct KeyTooLong {
+    pub len: usize,
+}
+
+impl Key {
+    /// The longest byte-string key.
+    pub const MAX_BYTES: usize = 255;
+
+    /// A byte-string key.
+    pub fn bytes(bytes: impl Into<Vec<u8>>) -> Result<Key, KeyTooLong> {
+        let bytes = bytes.into();
+        if bytes.len() > Key::MAX_BYTES {
+            return Err(KeyTooLong { len: bytes.len() });
+        }
+        Ok(Key::Bytes(bytes.into_boxed_slice()))
+    }
+
+    /// The integer, for an integer key.
+    pub fn as_int(&self) -> Option<u64> {
+        match self {
+            Key::Int(x) => Some(*x),
+            Key::Bytes(_) => None,
+        }
+    }
+
+    /// Bytes of its stored form (format-spec/keys.md).
+    pub fn encoded_len(&self) -> usize {
+        match self {
+            Key::Int(_) => 9,
+            Key::Bytes(b) => 2 + b.len(),
+        }
+    }
+
+    /// Appends its stored form: tag 0 and 8 big-endian bytes, or tag 1, a
+    /// length byte and the bytes.
+    pub(crate) fn encode(&self, out: &mut Vec<u8>) {
+        match self {
+            Key::Int(x) => {
+                out.push(0);
+                out.extend_from_slice(&x.to_be_bytes());
+            }
+            Key::Bytes(b) => {
+                out.push(1);
+                out.push(b.len() as u8);
+                out.extend_from_slice(b);
+            }
+        }
+    }
+}
+
+/// A stored key in place.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub(crate) enum KeyRef<'a> {
+    Int(u64),
+    Bytes(&'a [u8]),
+}
+
+impl<'a> KeyRef<'a> {
+    /// The key at the start of `bytes` and its stored length.
+    pub(crate) fn decode(bytes: &'a [u8]) -> Option<(KeyRef<'a>, usize)> {
+        match bytes.first()? {
+            0 => Some((KeyRef::Int(u64::from_be_bytes(bytes.get(1..9)?.try_into().ok()?)), 9)),
+            1 => {
+                let n = usize::from(*bytes.get(1)?);
+                Some((KeyRef::Bytes(bytes.get(2..2 + n)?), 2 + n))
+            }
+            _ => None,
+        }
+    }
+
+    pub(crate) fn to_key(self) -> Key {
+        match self {
+            KeyRef::Int(x) => Key::Int(x),
+            KeyRef::Bytes(b) => Key::Bytes(b.into()),
+        }
+    }
+}
+
+impl Key {
+    pub(crate) fn as_ref(&self) -> KeyRef<'_> {
+        match self {
+            Key::Int(x) => KeyRef::Int(*x),
+            Key::Bytes(b) => KeyRef::Bytes(b),
+        }
+    }
+}
+
+impl Ord for KeyRef<'_> {
+    fn cmp(&self, o: &Self) -> Ordering {
+        match (self, o) {
+            (KeyRef::Int(a), KeyRef::Int(b)) => a.cmp(b),
+            (KeyRef::Int(_), KeyRef::Bytes(_)) => Ordering::Less,
+            (KeyRef::Bytes(_), KeyRef::Int(_)) => Ordering::Greater,
+            (KeyRef::Bytes(a), KeyRef::Bytes(b)) => a.cmp(b),
+        }
+    }
+}
+
+impl PartialOrd for KeyRef<'_> {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+impl Ord for Key {
+    fn cmp(&self, o: &Self) -> Ordering {
+        self.as_ref().cmp(&o.as_ref())
+    }
+}
+
+impl PartialOrd for Key {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+impl From<u64> for Key {
+    fn from(x: u64) -> Key {
+        Key::Int(x)
+    }
+}
+
+/// Integers as themselves; byte strings as text when they are UTF-8 with
+/// no control characters, else as `0x` and hex digits.
+impl fmt::Display for Key {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Key::Int(x) => x.fmt(f),
+            Key::Bytes(b) => match std::str::from_utf8(b) {
+                Ok(s) if !s.chars().any(char::is_control) && !s.starts_with("0x") => f.write_str(s),
+                _ => {
+                    f.write_str("0x")?;
+                    b.iter().try_for_each(|x| write!(f, "{x:02x}"))
+                }
+            },
+        }
+    }
+}
+
+impl fmt::Debug for Key {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Key::Int(x) => write!(f, "Key({x})"),
+            Key::Bytes(_) => write!(f, "Key({:?})", self.to_string()),
+        }
+    }
+}
+
+/// JSON: an integer key as a number, a byte-string key as its display form.
+impl serde::Serialize for Key {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Key::Int(x) => s.serialize_u64(*x),
+            Key::Bytes(_) => s.serialize_str(&self.to_string()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn key() -> impl Strategy<Value = Key> {
+        prop_oneof![
+            any::<u64>().prop_map(Key::Int),
+            proptest::collection::vec(any::<u8>(), 0..=Key::MAX_BYTES)
+                .prop_map(|b| Key::bytes(b).expect("short")),
+        ]
+    }
+
+    proptest! {
+        #[test]
+        fn stored_keys_round_trip_and_keep_their_order(a in key(), b in key()) {
+            let (mut x, mut y) = (Vec::new(), Vec::new());
+            a.encode(&mut x);
+            b.encode(&mut y);
+            prop_assert_eq!(x.len(), a.encoded_len());
+            x.push(7);
+            let (back, n) = KeyRef::decode(&x).expect("decodes");
+            prop_assert_eq!(&back.to_key(), &a);
+            prop_assert_eq!(&x[n..], &[7u8][..]);
+            let (ra, _) = KeyRef::decode(&x).expect("decodes");
+            let (rb, _) = KeyRef::decode(&y).expect("decodes");
+            prop_assert_eq!(ra.cmp(&rb), a.cmp(&b));
+        }
+    }
+
+    #[test]
+    fn integers_order_numerically_before_byte_strings() {
+        let mut keys = vec![Key::bytes("a").unwrap(), Key::Int(300), Key::Int(2), Key::bytes("").unwrap()];
+        keys.sort();
+        assert_eq!(keys, vec![Key::Int(2), Key::Int(300), Key::bytes("").unwrap(), Key::bytes("a").unwrap()]);
+    }
+
+    #[test]
+    fn long_and_truncated_keys_are_refused() {
+        assert_eq!(Key::bytes(vec![0; 256]), Err(KeyTooLong { len: 256 }));
+        assert!(KeyRef::decode(&[0, 1, 2]).is_none());
+        assert!(KeyRef::decode(&[1, 5, b'a']).is_none());
+        assert!(KeyRef::decode(&[2]).is_none());
+    }
+
+    #[test]
+    fn keys_display_as_numbers_text_or_hex() {
+        assert_eq!(Key::Int(42).to_string(), "42");
+        assert_eq!(Key::bytes("2O2Fr$t4X7Zf8NOew3FLOH").unwrap().to_string(), "2O2Fr$t4X7Zf8NOew3FLOH");
+        assert_eq!(Key::bytes(vec![0, 255]).unwrap().to_string(), "0x00ff");
+    }
+}

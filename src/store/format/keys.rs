@@ -1,0 +1,314 @@
+//! The key index (format-spec/keys.md): a B+tree from each object's key to
+//! its id, its exact box, the leaf record holding it and its payload, so a
+//! lookup by key reads the index's path and never walks the MKtree.
+//! Written bottom-up by a bulk load; a block is validated whole when read.
+
+use super::all_zero;
+use super::frame::FRAME_LEN;
+use crate::geom::Aabb;
+use crate::scene::{Key, KeyRef, Object};
+use crate::store::StorageError;
+
+/// Bytes of a key block's head after the frame: entry count, reserved, used bytes.
+const HEAD_LEN: usize = 8;
+/// Entries start here.
+pub const ENTRIES_START: usize = FRAME_LEN + HEAD_LEN;
+/// Bytes of an entry after its key and payload: id, node block, its
+/// checksum, record offset, entry index, reserved, box.
+const FIXED_LEN: usize = 4 + 4 + 4 + 4 + 2 + 2 + 48;
+/// Bytes of a branch's child reference: block and checksum.
+const CHILD_LEN: usize = 8;
+/// The deepest key index a file may claim (a branch has at least two
+/// children, so 2^64 keys need fewer levels).
+pub const MAX_HEIGHT: u32 = 64;
+
+/// Where an object's entries are in the MKtree: the leaf record and the
+/// index of the object's first entry in it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LeafLocator {
+    pub block: u32,
+    pub checksum: u32,
+    pub offset: u32,
+    pub entry: u16,
+}
+
+/// One key's entry.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KeyEntry {
+    pub key: Key,
+    pub payload: Vec<u8>,
+    pub object_id: u32,
+    pub leaf: LeafLocator,
+    /// The object's exact box.
+    pub aabb: Aabb,
+}
+
+impl KeyEntry {
+    /// Encoded bytes.
+    pub fn len(&self) -> usize {
+        self.key.encoded_len() + 2 + self.payload.len() + FIXED_LEN
+    }
+
+    /// Never true: an entry has a key.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    fn encode(&self, out: &mut Vec<u8>) {
+        self.key.encode(out);
+        out.extend_from_slice(&(self.payload.len() as u16).to_le_bytes());
+        out.extend_from_slice(&self.payload);
+        for x in [self.object_id, self.leaf.block, self.leaf.checksum, self.leaf.offset] {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+        out.extend_from_slice(&self.leaf.entry.to_le_bytes());
+        out.extend_from_slice(&[0, 0]);
+        for x in self.aabb.to_array() {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+}
+
+/// A branch's reference to a child block, with the least key below it
+/// (none for the first child).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChildRef {
+    pub first_key: Key,
+    pub block: u32,
+    pub checksum: u32,
+}
+
+/// A key block, decoded and validated.
+#[derive(Debug, Clone, PartialEq)]
+pub enum KeyBlock {
+    Leaf(Vec<KeyEntry>),
+    /// Children in key order; child i >= 1 holds keys from its `first_key`.
+    Branch(Vec<ChildRef>),
+}
+
+/// Bytes of entries a key block holds.
+pub fn capacity(block_size: u32) -> usize {
+    block_size as usize - ENTRIES_START
+}
+
+/// Bytes of a branch's reference to a child whose least key is `key`.
+pub fn child_len(key: &Key, first: bool) -> usize {
+    CHILD_LEN + if first { 0 } else { key.encoded_len() }
+}
+
+/// Encodes a leaf's entries (in key order) into `block`'s payload.
+pub fn encode_leaf(entries: &[KeyEntry], block: &mut [u8]) -> Result<(), String> {
+    let mut bytes = Vec::with_capacity(capacity(block.len() as u32));
+    for e in entries {
+        if e.payload.len() > Object::MAX_PAYLOAD {
+            return Err(format!("a payload of {} bytes (at most {})", e.payload.len(), Object::MAX_PAYLOAD));
+        }
+        e.encode(&mut bytes);
+    }
+    put(block, entries.len(), &bytes)
+}
+
+/// Encodes a branch's children (in key order, at least two) into `block`'s payload.
+pub fn encode_branch(children: &[ChildRef], block: &mut [u8]) -> Result<(), String> {
+    let mut bytes = Vec::with_capacity(capacity(block.len() as u32));
+    for (i, c) in children.iter().enumerate() {
+        if i > 0 {
+            c.first_key.encode(&mut bytes);
+        }
+        bytes.extend_from_slice(&c.block.to_le_bytes());
+        bytes.extend_from_slice(&c.checksum.to_le_bytes());
+    }
+    put(block, children.len(), &bytes)
+}
+
+fn put(block: &mut [u8], count: usize, bytes: &[u8]) -> Result<(), String> {
+    let end = ENTRIES_START + bytes.len();
+    if end > block.len() || count == 0 || count > usize::from(u16::MAX) {
+        return Err(format!("{count} entries in {} bytes do not fit a key block", bytes.len()));
+    }
+    block[FRAME_LEN..FRAME_LEN + 2].copy_from_slice(&(count as u16).to_le_bytes());
+    block[FRAME_LEN + 2..FRAME_LEN + 4].fill(0);
+    block[FRAME_LEN + 4..ENTRIES_START].copy_from_slice(&(bytes.len() as u32).to_le_bytes());
+    block[ENTRIES_START..end].copy_from_slice(bytes);
+    block[end..].fill(0);
+    Ok(())
+}
+
+/// Reads `n` bytes from the front of `at`.
+fn take<'a>(at: &mut &'a [u8], n: usize) -> Option<&'a [u8]> {
+    let (x, rest) = at.split_at_checked(n)?;
+    *at = rest;
+    Some(x)
+}
+
+fn u32_of(at: &mut &[u8]) -> Option<u32> {
+    take(at, 4).and_then(|b| b.try_into().ok()).map(u32::from_le_bytes)
+}
+
+fn u16_of(at: &mut &[u8]) -> Option<u16> {
+    take(at, 2).and_then(|b| b.try_into().ok()).map(u16::from_le_bytes)
+}
+
+fn key_of<'a>(at: &mut &'a [u8]) -> Option<KeyRef<'a>> {
+    let (k, n) = KeyRef::decode(at)?;
+    *at = &at[n..];
+    Some(k)
+}
+
+/// Decodes and validates key block `id` (its checksum verified): a leaf
+/// when `leaf`, else a branch. Entries fill `used` bytes exactly, keys
+/// strictly increase, boxes are boxes, the rest is zero.
+pub fn decode(id: u32, block: &[u8], leaf: bool) -> Result<KeyBlock, StorageError> {
+    let bad = |field, detail: String| StorageError::corrupt(id, field, detail);
+    let head = block.get(FRAME_LEN..ENTRIES_START).ok_or_else(|| bad("key_block", "too small".into()))?;
+    let count = usize::from(u16::from_le_bytes([head[0], head[1]]));
+    let used = u32::from_le_bytes([head[4], head[5], head[6], head[7]]) as usize;
+    if head[2..4] != [0, 0] {
+        return Err(bad("reserved", "reserved bytes are not zero".into()));
+    }
+    let area = block
+        .get(ENTRIES_START..ENTRIES_START.saturating_add(used))
+        .ok_or_else(|| bad("used_bytes", format!("{used} bytes overrun the block")))?;
+    if !all_zero(&block[ENTRIES_START + used..]) {
+        return Err(bad("used_bytes", "bytes past the entries are not zero".into()));
+    }
+    if count == 0 || (!leaf && count < 2) {
+        return Err(bad("entry_count", format!("{count} entries")));
+    }
+    let mut at = area;
+    let short = || bad("entries", "an entry overruns the used bytes".into());
+    let mut last: Option<KeyRef> = None;
+    let increasing = |k: KeyRef<'_>, last: &mut Option<KeyRef<'_>>| -> Result<(), StorageError> {
+        if last.is_some_and(|l| l.cmp(&k).is_ge()) {
+            return Err(bad("key", format!("key {} does not follow the one before", k.to_key())));
+        }
+        Ok(())
+    };
+    // Every entry takes at least 9 bytes, so `count` entries are bounded by
+    // the block before anything is allocated for them.
+    if count > area.len() / 9 + 1 {
+        return Err(bad("entry_count", format!("{count} entries in {used} bytes")));
+    }
+    let result = if leaf {
+        let mut entries = Vec::with_capacity(count);
+        for _ in 0..count {
+            let key = key_of(&mut at).ok_or_else(short)?;
+            increasing(key, &mut last)?;
+            last = Some(key);
+            let n = usize::from(u16_of(&mut at).ok_or_else(short)?);
+            if n > Object::MAX_PAYLOAD {
+                return Err(bad("payload", format!("{n} bytes (at most {})", Object::MAX_PAYLOAD)));
+            }
+            let payload = take(&mut at, n).ok_or_else(short)?.to_vec();
+            let mut words = [0u32; 4];
+            for w in &mut words {
+                *w = u32_of(&mut at).ok_or_else(short)?;
+            }
+            let entry = u16_of(&mut at).ok_or_else(short)?;
+            if u16_of(&mut at).ok_or_else(short)? != 0 {
+                return Err(bad("reserved", "an entry's reserved bytes are not zero".into()));
+            }
+            let mut b = [0f64; 6];
+            for x in &mut b {
+                *x = f64::from_le_bytes(take(&mut at, 8).ok_or_else(short)?.try_into().map_err(|_| short())?);
+            }
+            if b.iter().any(|x| !x.is_finite()) || (0..3).any(|i| b[i] > b[i + 3]) {
+                return Err(bad("box", format!("{b:?} is not a box")));
+            }
+            entries.push(KeyEntry {
+                key: key.to_key(),
+                payload,
+                object_id: words[0],
+                leaf: LeafLocator { block: words[1], checksum: words[2], offset: words[3], entry },
+                aabb: Aabb::from_array(b),
+            });
+        }
+        KeyBlock::Leaf(entries)
+    } else {
+        let mut children = Vec::with_capacity(count);
+        for i in 0..count {
+            let first_key = if i == 0 {
+                Key::Int(0)
+            } else {
+                let k = key_of(&mut at).ok_or_else(short)?;
+                increasing(k, &mut last)?;
+                last = Some(k);
+                k.to_key()
+            };
+            let block = u32_of(&mut at).ok_or_else(short)?;
+            let checksum = u32_of(&mut at).ok_or_else(short)?;
+            children.push(ChildRef { first_key, block, checksum });
+        }
+        KeyBlock::Branch(children)
+    };
+    if !at.is_empty() {
+        return Err(bad("used_bytes", format!("{} bytes after the last entry", at.len())));
+    }
+    Ok(result)
+}
+
+/// The child of a branch whose key range holds `key`.
+pub fn child_for<'a>(children: &'a [ChildRef], key: &Key) -> Option<&'a ChildRef> {
+    let i = children[1..].partition_point(|c| c.first_key <= *key);
+    children.get(i)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entry(key: Key, id: u32) -> KeyEntry {
+        KeyEntry {
+            key,
+            payload: vec![id as u8; id as usize % 5],
+            object_id: id,
+            leaf: LeafLocator { block: 3, checksum: 77, offset: 24, entry: id as u16 },
+            aabb: Aabb::from_array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0 + f64::from(id)]),
+        }
+    }
+
+    #[test]
+    fn leaves_and_branches_round_trip() {
+        let entries: Vec<KeyEntry> = (0..6).map(|i| entry(Key::Int(i * 10), i as u32)).collect();
+        let mut block = vec![0u8; 1024];
+        encode_leaf(&entries, &mut block).unwrap();
+        assert_eq!(decode(5, &block, true).unwrap(), KeyBlock::Leaf(entries));
+        let children = vec![
+            ChildRef { first_key: Key::Int(0), block: 4, checksum: 9 },
+            ChildRef { first_key: Key::bytes("m").unwrap(), block: 6, checksum: 10 },
+        ];
+        let mut block = vec![0u8; 1024];
+        encode_branch(&children, &mut block).unwrap();
+        assert_eq!(decode(5, &block, false).unwrap(), KeyBlock::Branch(children.clone()));
+        assert_eq!(child_for(&children, &Key::Int(u64::MAX)).unwrap().block, 4);
+        assert_eq!(child_for(&children, &Key::bytes("a").unwrap()).unwrap().block, 4);
+        assert_eq!(child_for(&children, &Key::bytes("m").unwrap()).unwrap().block, 6);
+        assert_eq!(child_for(&children, &Key::bytes("z").unwrap()).unwrap().block, 6);
+    }
+
+    #[test]
+    fn broken_key_blocks_are_corruption() {
+        let entries: Vec<KeyEntry> = (0..3).map(|i| entry(Key::Int(i), i as u32)).collect();
+        let mut good = vec![0u8; 1024];
+        encode_leaf(&entries, &mut good).unwrap();
+        let broken = |f: &dyn Fn(&mut Vec<u8>)| {
+            let mut b = good.clone();
+            f(&mut b);
+            decode(5, &b, true).is_err_and(|e| e.is_corruption())
+        };
+        assert!(broken(&|b| b[FRAME_LEN] = 0), "no entries");
+        assert!(broken(&|b| b[FRAME_LEN] = 200), "more entries than bytes");
+        assert!(broken(&|b| b[FRAME_LEN + 4] += 4), "used bytes past the entries");
+        assert!(broken(&|b| b[FRAME_LEN + 4] -= 1), "used bytes cutting an entry");
+        assert!(broken(&|b| b[1000] = 1), "a byte past the entries");
+        assert!(broken(&|b| b[ENTRIES_START] = 7), "an unknown key tag");
+        // The second key made equal to the first.
+        let second = ENTRIES_START + entries[0].len();
+        assert!(broken(&|b| b[second + 8] = 0), "keys that do not increase");
+        assert!(broken(&|b| b[ENTRIES_START + 10] = 0xff), "a payload longer than allowed");
+        assert!(!broken(&|_| {}));
+        let mut one_child = vec![0u8; 1024];
+        encode_branch(&[ChildRef { first_key: Key::Int(0), block: 4, checksum: 9 }], &mut one_child).unwrap();
+        assert!(decode(5, &one_child, false).unwrap_err().is_corruption(), "a branch of one child");
+    }
+}
