@@ -69,3 +69,30 @@ fn a_read_only_file_opens_and_is_never_written() {
     assert!(matches!(db.begin_write(), Err(StorageError::ReadOnly)));
     assert_eq!(std::fs::read(&path).unwrap(), bytes);
 }
+
+#[test]
+fn a_write_transaction_moves_to_another_thread_and_a_second_writer_waits_for_it() {
+    fn send<T: Send>(_: &T) {}
+    let dir = tempfile::tempdir().unwrap();
+    let db = Database::create(dir.path().join("t.mkt"), CreateOptions::default()).unwrap();
+    let w = db.begin_write().unwrap();
+    send(&w);
+    std::thread::scope(|s| {
+        // A second writer of this process waits for the first, wherever it runs.
+        let second = s.spawn(|| {
+            let mut w = db.begin_write().unwrap();
+            w.bulk_load(&common::grid_scene(20), &BuildParams::default(), &|_| {}).unwrap();
+            w.commit().unwrap();
+        });
+        s.spawn(move || {
+            let mut w = w;
+            w.bulk_load(&common::grid_scene(10), &BuildParams::default(), &|_| {}).unwrap();
+            w.commit().unwrap();
+        })
+        .join()
+        .unwrap();
+        second.join().unwrap();
+    });
+    assert_eq!(db.begin_read().unwrap().info().unwrap().objects, 20, "the second writer committed last");
+    assert!(check(&db).unwrap().ok());
+}

@@ -15,7 +15,7 @@ mod write;
 use std::collections::BTreeMap;
 use std::fs::OpenOptions;
 use std::path::Path;
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 
 pub use check::{CheckReport, check};
 pub use codes::{method_from_code, method_to_code};
@@ -131,7 +131,7 @@ pub(crate) struct Inner {
     pager: Pager,
     cache: BlockCache,
     state: Mutex<State>,
-    writer: Mutex<()>,
+    writer: Seat,
     /// Locks shared with other processes (files only).
     locks: Option<FileLocks>,
     read_only: bool,
@@ -298,7 +298,7 @@ impl Database {
                 pager,
                 cache: BlockCache::new(DEFAULT_CACHE_BLOCKS),
                 state: Mutex::new(state),
-                writer: Mutex::new(()),
+                writer: Seat::default(),
                 locks,
                 read_only,
             }),
@@ -332,7 +332,7 @@ impl Database {
         if self.inner.read_only {
             return Err(StorageError::ReadOnly);
         }
-        let guard = self.inner.writer.lock().unwrap_or_else(|e| e.into_inner());
+        let guard = self.inner.writer.take();
         let file_lock = match &self.inner.locks {
             Some(l) if !l.lock_writer(wait == WriterWait::Wait)? => return Err(StorageError::Locked),
             Some(l) => Some(WriterLock(l)),
@@ -373,7 +373,7 @@ impl Database {
     /// Keeps writers out while `check` reads free blocks, and brings the
     /// committed state up to date.
     pub(crate) fn exclude_writers(&self) -> Result<CheckerLock<'_>, StorageError> {
-        let guard = self.inner.writer.lock().unwrap_or_else(|e| e.into_inner());
+        let guard = self.inner.writer.take();
         if let Some(l) = &self.inner.locks {
             l.lock_checker(true)?;
         }
@@ -409,9 +409,40 @@ impl Drop for WriterLock<'_> {
     }
 }
 
+/// The one writer of this process: a flag and a condition variable rather
+/// than a mutex, whose guard may not move to another thread, so that a
+/// write transaction is `Send`.
+#[derive(Default)]
+pub(crate) struct Seat {
+    taken: Mutex<bool>,
+    freed: Condvar,
+}
+
+impl Seat {
+    /// Waits until no writer of this process holds the seat, and takes it.
+    fn take(&self) -> SeatGuard<'_> {
+        let mut taken = self.taken.lock().unwrap_or_else(|e| e.into_inner());
+        while *taken {
+            taken = self.freed.wait(taken).unwrap_or_else(|e| e.into_inner());
+        }
+        *taken = true;
+        SeatGuard(self)
+    }
+}
+
+/// The seat, held until dropped.
+pub(crate) struct SeatGuard<'a>(&'a Seat);
+
+impl Drop for SeatGuard<'_> {
+    fn drop(&mut self) {
+        *self.0.taken.lock().unwrap_or_else(|e| e.into_inner()) = false;
+        self.0.freed.notify_one();
+    }
+}
+
 /// Writers kept out while `check` runs.
 pub(crate) struct CheckerLock<'a> {
-    _guard: MutexGuard<'a, ()>,
+    _guard: SeatGuard<'a>,
     locks: Option<&'a FileLocks>,
 }
 

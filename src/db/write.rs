@@ -1,11 +1,12 @@
 //! The write transaction: bulk-loads a scene into new blocks (copy on write)
 //! and commits it with the protocol of format-spec/commit.md.
 
-use std::sync::{Arc, MutexGuard};
+use std::sync::Arc;
 use std::time::Instant;
 
 use super::{
-    Inner, Recovery, Snapshot, WriterLock, codes, interrupted, key_index, load, recover, tree_writer,
+    Inner, Recovery, SeatGuard, Snapshot, WriterLock, codes, interrupted, key_index, load, recover,
+    tree_writer,
 };
 use crate::build::{BuildParams, BuildProgress, CostModel, Hierarchy, QueryMix, build, check_range};
 use crate::lod::{Layout, LodParams, StoredBounds, plan_bounds};
@@ -22,7 +23,7 @@ use crate::store::format::{geometry, run};
 /// committed state is untouched.
 pub struct WriteTransaction<'db> {
     inner: &'db Arc<Inner>,
-    _guard: MutexGuard<'db, ()>,
+    _guard: SeatGuard<'db>,
     _file_lock: Option<WriterLock<'db>>,
     txn: u64,
     base: Commit,
@@ -44,7 +45,7 @@ pub struct WriteTransaction<'db> {
 impl<'db> WriteTransaction<'db> {
     pub(super) fn begin(
         inner: &'db Arc<Inner>,
-        guard: MutexGuard<'db, ()>,
+        guard: SeatGuard<'db>,
         file_lock: Option<WriterLock<'db>>,
     ) -> Result<WriteTransaction<'db>, StorageError> {
         let pager = inner.pager().clone();
