@@ -1,8 +1,10 @@
 //! Queries through the paged file. Every query runs the one traversal of
-//! `traverse.rs` with a [`Selection`] (`select.rs`): region queries, the
-//! posed-mesh collide, clash (the tree against itself, one probe per
-//! object), navigation, the speed-accuracy trade-off, and the walks of
-//! `check`. Each returns its answer and the blocks it read, counted by the
+//! `traverse.rs`, the [`Select`] iterator, with a [`Selection`]
+//! (`select.rs`): region queries, the posed-mesh collide, clash (the tree
+//! against itself, one probe per object), navigation, the speed-accuracy
+//! trade-off, and the walks of `check`; or best first, ordered by a
+//! distance (`rank.rs`): the nearest objects to a point, the hits along a
+//! ray. Each returns its answer and the blocks it read, counted by the
 //! pager where the reads happen.
 
 mod brute_force;
@@ -10,6 +12,7 @@ mod clash;
 mod collide;
 mod error;
 mod navigate;
+mod rank;
 mod region;
 mod select;
 mod tradeoff;
@@ -25,5 +28,7 @@ pub use select::{Everything, Region, Selection, Triangles};
 pub use tradeoff::{
     LevelBenefit, TRADEOFF_SHIFT_MM, TradeoffRow, collision_workload, level_benefit, tradeoff,
 };
-pub use traverse::{ObjectLevel, Proof, QueryAnswer, QueryOptions, Seen, TraverseStats, traverse};
+pub use traverse::{
+    Hit, ObjectLevel, Proof, QueryAnswer, QueryOptions, Seen, Select, TraverseStats, traverse,
+};
 pub(crate) use traverse::{Visitor, walk};
