@@ -12,17 +12,23 @@ mod clash;
 mod collide;
 mod error;
 mod navigate;
+mod nearest;
 mod rank;
+mod ray;
 mod region;
 mod select;
 mod tradeoff;
 mod traverse;
 
-pub use brute_force::{brute_force_clash, brute_force_collide, brute_force_region};
+pub use brute_force::{
+    brute_force_clash, brute_force_collide, brute_force_nearest, brute_force_ray, brute_force_region,
+};
 pub use clash::{ClashAnswer, ClashOptions, clash};
 pub use collide::{CollideOptions, collide, object_mesh, object_meshes};
 pub use error::QueryError;
 pub use navigate::{NavigateStep, navigate, parse_path};
+pub use nearest::Nearest;
+pub use ray::{RayHit, RayHits};
 pub use region::query_region;
 pub use select::{Everything, Region, Selection, Triangles};
 pub use tradeoff::{
