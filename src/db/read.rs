@@ -64,14 +64,17 @@ pub struct NodeRef {
 }
 
 /// The blocks one operation reads, counted by the pager where they are
-/// read. An operation holds a block while anything refers to it (a step
-/// queued on one of its records, a caller's `Arc`) and while it is among
-/// the last [`Reads::HAND`] blocks the operation used: in that time a
-/// second use costs nothing. A block needed again after that is read and
-/// counted again, unless the shared cache serves it (counted as a cache
-/// hit). So memory stays bounded by the queue, not by the blocks read. An
-/// operation that keeps every block (`keep_all`: a budgeted query, whose
-/// costs count what it holds) reads each block at most once.
+/// read. An operation holds the node blocks it reads to its end (a
+/// traversal may enter a block again through another of the tree's pieces
+/// packed in it; node blocks are a small share of a file). It holds a
+/// geometry block while anything refers to it (a caller's `Arc`) and while
+/// it is among the last [`Reads::HAND`] blocks the operation used: the
+/// blocks neighbouring leaves share are read once, and memory stays
+/// bounded whatever the geometry read. A geometry block needed again after
+/// that is read and counted again, unless the shared cache serves it
+/// (counted as a cache hit). With `keep_all` (a budgeted query, whose
+/// costs count what it holds) every block is held to the end, so each is
+/// read at most once.
 pub struct Reads<'c> {
     pub stats: ReadStats,
     // Block ids hash with Fx: SipHash's resistance buys nothing here and costs a warm query.
@@ -81,16 +84,15 @@ pub struct Reads<'c> {
     prune_at: usize,
     /// The blocks used last, the latest at the back.
     hand: VecDeque<Arc<Block>>,
-    /// Blocks held to the end: taken in hand by `hold`, or all with `keep_all`.
+    /// Blocks held to the end: node blocks, those taken by `hold`, and all with `keep_all`.
     kept: Vec<Arc<Block>>,
     keep_all: bool,
     shared: Option<&'c BlockCache>,
 }
 
 impl<'c> Reads<'c> {
-    /// Blocks an operation holds beyond those its work refers to: the
-    /// geometry blocks neighbouring leaves share, and a node block
-    /// holding pieces entered one after another, stay in hand.
+    /// Blocks an operation holds beyond those it keeps and those its work
+    /// refers to: the geometry blocks neighbouring leaves share stay in hand.
     pub const HAND: usize = 16;
 
     /// Reads through `shared` (a pool kept across operations) when given.
@@ -128,6 +130,18 @@ impl<'c> Reads<'c> {
         self.keep_all = all;
     }
 
+    /// Lends what this holds, with its counts and cache, to another
+    /// operation ([`take_back`](Self::take_back) returns it).
+    pub(crate) fn lend(&mut self) -> Reads<'c> {
+        std::mem::replace(self, Reads::new(self.shared))
+    }
+
+    /// Takes back what `lent` read and holds.
+    pub(crate) fn take_back(&mut self, lent: Reads<'_>) {
+        let Reads { stats, seen, prune_at, hand, kept, keep_all, shared: _ } = lent;
+        *self = Reads { stats, seen, prune_at, hand, kept, keep_all, shared: self.shared };
+    }
+
     /// Block `id` if in hand, as the latest used.
     fn get(&mut self, id: u32) -> Option<Arc<Block>> {
         let b = self.seen.get(&id)?.upgrade()?;
@@ -142,7 +156,7 @@ impl<'c> Reads<'c> {
             self.prune_at = 2 * self.seen.len() + 64;
         }
         self.seen.insert(b.id, Arc::downgrade(b));
-        if self.keep_all {
+        if self.keep_all || b.bytes.get(4) == Some(&(BlockType::Node as u8)) {
             self.kept.push(b.clone());
         }
         self.touch(b);

@@ -364,13 +364,7 @@ impl<'a, S: Selection> Select<'a, S> {
     /// counts) and the decisions made, per level.
     pub fn stats(&self) -> TraverseStats {
         let mut s = self.stats.clone();
-        let (now, before) = (self.reads.stats, self.before);
-        s.reads = ReadStats {
-            node: now.node - before.node,
-            geometry: now.geometry - before.geometry,
-            other: now.other - before.other,
-            cache_hits: now.cache_hits - before.cache_hits,
-        };
+        s.reads = self.reads.stats - self.before;
         if self.rest.is_none() {
             s.seconds = self.started.elapsed().as_secs_f64();
         }
@@ -822,9 +816,8 @@ pub fn traverse<S: Selection + ?Sized>(
 }
 
 /// The traversal from record `start` (its block read through `reads`
-/// unless `reads` holds it), showing `visitor` what it meets. The walk
-/// reads through `reads` (its blocks in hand, its shared cache) and adds
-/// its reads to `reads.stats`; the blocks it held are let go at its end.
+/// unless `reads` holds it), showing `visitor` what it meets; `reads` gets
+/// back what the walk read and holds.
 pub(crate) fn walk<S: Selection + ?Sized>(
     txn: &ReadTransaction,
     start: NodeRef,
@@ -833,16 +826,11 @@ pub(crate) fn walk<S: Selection + ?Sized>(
     reads: &mut Reads,
     visitor: &mut dyn Visitor,
 ) -> Result<QueryAnswer, QueryError> {
-    let lent = std::mem::replace(reads, Reads::new(None));
-    let stats = lent.stats;
-    let mut select = match Select::new(txn, Some(start), sel, opts, lent, None) {
-        Ok(s) => s.visited_by(visitor),
-        Err(e) => {
-            reads.stats = stats;
-            return Err(e);
-        }
-    };
+    // What Select::new may refuse, refused before `reads` is lent.
+    levels(txn, opts.lod)?;
+    txn.info().ok_or(QueryError::NoTree)?;
+    let mut select = Select::new(txn, Some(start), sel, opts, reads.lend(), None)?.visited_by(visitor);
     let answer = select.answer();
-    reads.stats = select.reads.stats;
+    reads.take_back(select.reads);
     answer
 }
