@@ -7,6 +7,7 @@
 //! ray. Each returns its answer and the blocks it read, counted by the
 //! pager where the reads happen.
 
+mod batch;
 mod brute_force;
 mod clash;
 mod collide;
@@ -20,6 +21,7 @@ mod select;
 mod tradeoff;
 mod traverse;
 
+pub use batch::{Request, Response, answer_request};
 pub use brute_force::{
     brute_force_clash, brute_force_collide, brute_force_nearest, brute_force_ray, brute_force_region,
 };
