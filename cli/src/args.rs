@@ -168,6 +168,13 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Many queries in one process: one JSON request per line (stdin, or --queries), one JSON answer per line.
+    Batch {
+        file: PathBuf,
+        /// Read the requests from this file instead of stdin.
+        #[arg(long)]
+        queries: Option<PathBuf>,
+    },
     /// Frustum queries along a camera path with an LRU pool kept across steps: reads and hits per step.
     Navigate {
         file: PathBuf,

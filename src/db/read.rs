@@ -2,7 +2,8 @@
 //! verified, counted block reads (format-spec/node.md, geometry.md).
 
 use rustc_hash::FxHashMap;
-use std::sync::Arc;
+use std::collections::VecDeque;
+use std::sync::{Arc, Weak};
 
 use super::{Inner, Snapshot, codes};
 use crate::build::BuildParams;
@@ -62,35 +63,113 @@ pub struct NodeRef {
     pub aabb: Aabb,
 }
 
-/// The blocks one operation reads: each at most once (kept until the
-/// operation ends), counted, and shared through the database's cache when
-/// it has one.
+/// The blocks one operation reads, counted by the pager where they are
+/// read. An operation holds the node blocks it reads to its end (a
+/// traversal may enter a block again through another of the tree's pieces
+/// packed in it; node blocks are a small share of a file). It holds a
+/// geometry block while anything refers to it (a caller's `Arc`) and while
+/// it is among the last [`Reads::HAND`] blocks the operation used: the
+/// blocks neighbouring leaves share are read once, and memory stays
+/// bounded whatever the geometry read. A geometry block needed again after
+/// that is read and counted again, unless the shared cache serves it
+/// (counted as a cache hit). With `keep_all` (a budgeted query, whose
+/// costs count what it holds) every block is held to the end, so each is
+/// read at most once.
 pub struct Reads<'c> {
     pub stats: ReadStats,
     // Block ids hash with Fx: SipHash's resistance buys nothing here and costs a warm query.
-    held: FxHashMap<u32, Arc<Block>>,
+    /// Blocks read, found while anything still holds them.
+    seen: FxHashMap<u32, Weak<Block>>,
+    /// `seen`'s size at which its dead entries are dropped.
+    prune_at: usize,
+    /// The blocks used last, the latest at the back.
+    hand: VecDeque<Arc<Block>>,
+    /// Blocks held to the end: node blocks, those taken by `hold`, and all with `keep_all`.
+    kept: Vec<Arc<Block>>,
+    keep_all: bool,
     shared: Option<&'c BlockCache>,
 }
 
 impl<'c> Reads<'c> {
+    /// Blocks an operation holds beyond those it keeps and those its work
+    /// refers to: the geometry blocks neighbouring leaves share stay in hand.
+    pub const HAND: usize = 16;
+
     /// Reads through `shared` (a pool kept across operations) when given.
     pub fn new(shared: Option<&'c BlockCache>) -> Reads<'c> {
-        Reads { stats: ReadStats::default(), held: FxHashMap::default(), shared }
+        Reads {
+            stats: ReadStats::default(),
+            seen: FxHashMap::default(),
+            prune_at: 64,
+            hand: VecDeque::new(),
+            kept: Vec::new(),
+            keep_all: false,
+            shared,
+        }
     }
 
-    /// True when block `id` is already in hand (reading it costs nothing).
+    /// True when block `id` is in hand (reading it costs nothing).
     pub fn holds(&self, id: u32) -> bool {
-        self.held.contains_key(&id)
+        self.seen.get(&id).is_some_and(|w| w.strong_count() > 0)
     }
 
     /// Blocks in hand.
     pub fn held(&self) -> usize {
-        self.held.len()
+        self.seen.values().filter(|w| w.strong_count() > 0).count()
     }
 
-    /// Takes `block` in hand without reading it (a record already held).
-    pub(crate) fn hold(&mut self, block: std::sync::Arc<Block>) {
-        self.held.insert(block.id, block);
+    /// Takes `block` in hand for the rest of the operation without reading it
+    /// (a record already held).
+    pub(crate) fn hold(&mut self, block: Arc<Block>) {
+        self.seen.insert(block.id, Arc::downgrade(&block));
+        self.kept.push(block);
+    }
+
+    /// With `all`, keeps every block read until the operation ends.
+    pub(crate) fn keep_all(&mut self, all: bool) {
+        self.keep_all = all;
+    }
+
+    /// Lends what this holds, with its counts and cache, to another
+    /// operation ([`take_back`](Self::take_back) returns it).
+    pub(crate) fn lend(&mut self) -> Reads<'c> {
+        std::mem::replace(self, Reads::new(self.shared))
+    }
+
+    /// Takes back what `lent` read and holds.
+    pub(crate) fn take_back(&mut self, lent: Reads<'_>) {
+        let Reads { stats, seen, prune_at, hand, kept, keep_all, shared: _ } = lent;
+        *self = Reads { stats, seen, prune_at, hand, kept, keep_all, shared: self.shared };
+    }
+
+    /// Block `id` if in hand, as the latest used.
+    fn get(&mut self, id: u32) -> Option<Arc<Block>> {
+        let b = self.seen.get(&id)?.upgrade()?;
+        self.touch(&b);
+        Some(b)
+    }
+
+    /// Takes a block just read (or found in the shared cache) in hand.
+    fn put(&mut self, b: &Arc<Block>) {
+        if self.seen.len() >= self.prune_at {
+            self.seen.retain(|_, w| w.strong_count() > 0);
+            self.prune_at = 2 * self.seen.len() + 64;
+        }
+        self.seen.insert(b.id, Arc::downgrade(b));
+        if self.keep_all || b.bytes.get(4) == Some(&(BlockType::Node as u8)) {
+            self.kept.push(b.clone());
+        }
+        self.touch(b);
+    }
+
+    /// Makes `b` the latest block used, dropping the oldest past `HAND`.
+    fn touch(&mut self, b: &Arc<Block>) {
+        if let Some(i) = self.hand.iter().position(|h| Arc::ptr_eq(h, b)) {
+            self.hand.remove(i);
+        } else if self.hand.len() == Self::HAND {
+            self.hand.pop_front();
+        }
+        self.hand.push_back(b.clone());
     }
 }
 
@@ -166,11 +245,11 @@ impl ReadTransaction {
         checksum: u32,
         reads: &mut Reads,
     ) -> Result<Arc<Block>, StorageError> {
-        if let Some(b) = reads.held.get(&id) {
+        if let Some(b) = reads.get(id) {
             if b.checksum != checksum || b.bytes.get(4) != Some(&(t as u8)) {
                 return Err(StorageError::corrupt(id, "checksum", "two references disagree on this block"));
             }
-            return Ok(b.clone());
+            return Ok(b);
         }
         let hit =
             reads.shared.and_then(|c| c.get(id, checksum)).filter(|b| b.bytes.get(4) == Some(&(t as u8)));
@@ -193,7 +272,7 @@ impl ReadTransaction {
                 b
             }
         };
-        reads.held.insert(id, b.clone());
+        reads.put(&b);
         Ok(b)
     }
 

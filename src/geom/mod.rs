@@ -1,6 +1,6 @@
 //! Geometry shared by every layer: axis-aligned boxes, axes, and the outward
 //! rounding that keeps a box stored at lower precision conservative, and
-//! the query shapes (spheres, frusta, posed meshes) with their exact tests.
+//! the query shapes (spheres, frusta, rays, posed meshes) with their exact tests.
 //!
 //! `parry.rs` is the only place that imports parry; everything else uses
 //! nalgebra's `Point3<f64>`. `contact.rs` holds the contact rule every query
@@ -12,6 +12,7 @@ mod contact;
 mod frustum;
 mod parry;
 mod pose;
+mod ray;
 mod round;
 mod shape_error;
 mod sphere;
@@ -23,6 +24,7 @@ pub use contact::{intersects_triangle_triangle, triangles_within};
 pub use frustum::{Camera, Frustum};
 pub use parry::{SurfaceDistance, distance_point_triangle, distance_triangle_triangle};
 pub use pose::Pose;
+pub use ray::Ray;
 pub use round::{round_down_f32, round_up_f32};
 pub use shape_error::ShapeError;
 pub use sphere::Sphere;

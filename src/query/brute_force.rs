@@ -2,8 +2,10 @@
 //! (or pair) of the scene exactly, with no tree and no file, by the same
 //! contact rule as the queries (closed sets, touching counts).
 
+use super::rank::Rank;
+use super::ray::{RayHit, hit, rank};
 use super::select::{Region, Selection, Triangles};
-use crate::geom::Pose;
+use crate::geom::{Point, Pose, Ray};
 use crate::scene::{Mesh, ObjectId, Scene};
 
 fn all<P: Selection + ?Sized>(scene: &Scene, probe: &P) -> Vec<ObjectId> {
@@ -47,4 +49,25 @@ pub fn brute_force_clash(
         }
     }
     Ok(pairs)
+}
+
+/// Every object with its distance from `point` (the same numbers as
+/// `ReadTransaction::nearest`), nearest first, ties by id.
+pub fn brute_force_nearest(scene: &Scene, point: &Point) -> Vec<(ObjectId, f64)> {
+    ranked(scene, &Rank::Nearest(*point))
+}
+
+/// Every object `ray` meets, followed past the scene's box (or to its
+/// maximum), with the distance it first meets each: nearest first, ties by id.
+pub fn brute_force_ray(scene: &Scene, ray: &Ray) -> Vec<RayHit> {
+    ranked(scene, &rank(ray, &scene.aabb())).into_iter().map(|(id, t)| hit(ray, id, t)).collect()
+}
+
+fn ranked(scene: &Scene, rank: &Rank) -> Vec<(ObjectId, f64)> {
+    let mut n = 0;
+    let mut all: Vec<(ObjectId, f64)> = (0..scene.len() as u32)
+        .filter_map(|i| Some((ObjectId(i), rank.mesh_distance(&scene.object(ObjectId(i))?.mesh, &mut n)?)))
+        .collect();
+    all.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+    all
 }

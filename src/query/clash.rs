@@ -7,7 +7,10 @@
 //! is tested once, lower id as the probe: the contact rule is symmetric
 //! (`geom::contact`), so at M the pairs are exactly those that `collide` of
 //! either object reports. Every block goes through one pool for the whole
-//! run, so the reads are at most the file's blocks (reported beside them).
+//! run (the caller's cache, or one of `DEFAULT_CACHE_BLOCKS` blocks): while
+//! the blocks the run touches fit it, the reads are at most the file's
+//! blocks (reported beside them); past that, memory stays at the pool's
+//! size and a block read again is counted again.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -93,7 +96,7 @@ fn add(total: &mut TraverseStats, s: &TraverseStats) {
 
 /// Every pair of objects of `txn`'s tree within `opts.clearance` (touching
 /// at 0), at level k. Reads go through `cache`, or a pool of the run's own
-/// when `None`.
+/// of `DEFAULT_CACHE_BLOCKS` blocks when `None`.
 pub fn clash(
     txn: &ReadTransaction,
     opts: &ClashOptions,
@@ -107,12 +110,14 @@ pub fn clash(
     let (k, m) = levels(txn, opts.lod)?;
     let info = txn.info().ok_or(QueryError::NoTree)?;
     let root = txn.root().ok_or(QueryError::NoTree)?;
-    let own = BlockCache::new(usize::MAX);
+    let own = BlockCache::new(crate::db::DEFAULT_CACHE_BLOCKS);
     let pool = cache.unwrap_or(&own);
     let mut total = TraverseStats::default();
     let mut list = List::default();
     let boxes = QueryOptions { lod: Some(1), budget: None, ..Default::default() };
-    let listing = walk(txn, root, &Everything, &boxes, &mut Reads::new(Some(pool)), &mut list)?;
+    // One hand for the run: the node blocks are read once, whatever the pool drops.
+    let mut reads = Reads::new(Some(pool));
+    let listing = walk(txn, root, &Everything, &boxes, &mut reads, &mut list)?;
     add(&mut total, &listing.stats);
     list.objects.sort_by_key(|o| o.id);
     let mut pairs = Vec::new();
@@ -122,22 +127,21 @@ pub fn clash(
         let aabb = group.iter().fold(Aabb::EMPTY, |b, p| b.union(&p.aabb));
         let near = Region::Box(reach(&aabb, d));
         let at = QueryOptions { lod: Some(if k == m { 1 } else { k }), ..Default::default() };
-        let found = walk(txn, root, &near, &at, &mut Reads::new(Some(pool)), &mut ())?;
+        let found = walk(txn, root, &near, &at, &mut reads, &mut ())?;
         add(&mut total, &found.stats);
         let mut hits: Vec<ObjectId> = found.objects.into_iter().filter(|&b| b > id).collect();
         if k == m && !hits.is_empty() {
-            let mut reads = Reads::new(Some(pool));
+            let before = reads.stats;
             let mut parts = Vec::with_capacity(group.len());
             for p in group {
                 let (block, offset, index) = &p.leaf;
                 let NodeView::Leaf(leaf) = view(block, *offset)? else { continue };
                 parts.push(txn.read_object(block.id, &leaf, *index, &mut reads)?.1);
             }
-            total.reads += reads.stats;
+            total.reads += reads.stats - before;
             let Some(mesh) = geometry::join(&parts) else { continue };
             let probe = Triangles::posed(&mesh, &Pose::default(), d)?;
-            let exact =
-                walk(txn, root, &probe, &QueryOptions::default(), &mut Reads::new(Some(pool)), &mut ())?;
+            let exact = walk(txn, root, &probe, &QueryOptions::default(), &mut reads, &mut ())?;
             add(&mut total, &exact.stats);
             hits = exact.objects.into_iter().filter(|&b| b > id).collect();
         }

@@ -1,29 +1,42 @@
 //! Queries through the paged file. Every query runs the one traversal of
-//! `traverse.rs` with a [`Selection`] (`select.rs`): region queries, the
-//! posed-mesh collide, clash (the tree against itself, one probe per
-//! object), navigation, the speed-accuracy trade-off, and the walks of
-//! `check`. Each returns its answer and the blocks it read, counted by the
+//! `traverse.rs`, the [`Select`] iterator, with a [`Selection`]
+//! (`select.rs`): region queries, the posed-mesh collide, clash (the tree
+//! against itself, one probe per object), navigation, the speed-accuracy
+//! trade-off, and the walks of `check`; or best first, ordered by a
+//! distance (`rank.rs`): the nearest objects to a point, the hits along a
+//! ray. Each returns its answer and the blocks it read, counted by the
 //! pager where the reads happen.
 
+mod batch;
 mod brute_force;
 mod clash;
 mod collide;
 mod error;
 mod navigate;
+mod nearest;
+mod rank;
+mod ray;
 mod region;
 mod select;
 mod tradeoff;
 mod traverse;
 
-pub use brute_force::{brute_force_clash, brute_force_collide, brute_force_region};
+pub use batch::{Request, Response, answer_request};
+pub use brute_force::{
+    brute_force_clash, brute_force_collide, brute_force_nearest, brute_force_ray, brute_force_region,
+};
 pub use clash::{ClashAnswer, ClashOptions, clash};
 pub use collide::{CollideOptions, collide, object_mesh, object_meshes};
 pub use error::QueryError;
 pub use navigate::{NavigateStep, navigate, parse_path};
+pub use nearest::Nearest;
+pub use ray::{RayHit, RayHits};
 pub use region::query_region;
 pub use select::{Everything, Region, Selection, Triangles};
 pub use tradeoff::{
     LevelBenefit, TRADEOFF_SHIFT_MM, TradeoffRow, collision_workload, level_benefit, tradeoff,
 };
-pub use traverse::{ObjectLevel, Proof, QueryAnswer, QueryOptions, Seen, TraverseStats, traverse};
+pub use traverse::{
+    Hit, ObjectLevel, Proof, QueryAnswer, QueryOptions, Seen, Select, TraverseStats, traverse,
+};
 pub(crate) use traverse::{Visitor, walk};

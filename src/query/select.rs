@@ -43,6 +43,25 @@ pub trait Selection {
     fn meets_mesh(&self, mesh: &Mesh, triangles_tested: &mut u64) -> bool;
 }
 
+/// A selection by reference is the selection (what `ReadTransaction::select` runs).
+impl<T: Selection + ?Sized> Selection for &T {
+    fn may_meet_box(&self, b: &Aabb) -> bool {
+        (**self).may_meet_box(b)
+    }
+    fn holds_box(&self, b: &Aabb) -> bool {
+        (**self).holds_box(b)
+    }
+    fn may_meet_voxels(&self, v: &Voxels) -> bool {
+        (**self).may_meet_voxels(v)
+    }
+    fn confirms_voxels(&self, v: &Voxels) -> bool {
+        (**self).confirms_voxels(v)
+    }
+    fn meets_mesh(&self, mesh: &Mesh, triangles_tested: &mut u64) -> bool {
+        (**self).meets_mesh(mesh, triangles_tested)
+    }
+}
+
 /// A region query's shape.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Region {

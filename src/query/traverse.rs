@@ -1,5 +1,5 @@
 //! The one traversal every query runs (rstar's selection iterator, with the
-//! MKtree's multiresolution decisions, paper §1.5).
+//! MKtree's multiresolution decisions, paper §1.5), as a lazy iterator.
 //!
 //! From the root, each child is tested against the query through its box as
 //! the parent stores it, so a pruned child's block is never read; a child
@@ -14,22 +14,32 @@
 //! first). With a block budget it is a priority queue: the step that settles
 //! the most objects per block it reads goes first; a step that would pass
 //! the budget is set aside, and what is left is the answer's `maybe`
-//! (objects not refined) and `unexplored` (subtrees not read).
+//! (objects not refined) and `unexplored` (subtrees not read). A best-first
+//! query (`rank.rs`: nearest objects, ray hits) orders the queue by a lower
+//! bound of the distance (its boxes'), and an object found at its exact
+//! distance waits in the queue until nothing nearer can come: hits come in
+//! order of distance, ties by id.
+//!
+//! [`Select`] runs the queue on demand: each `next` runs steps until an
+//! object is decided, so a caller that stops early has read only the blocks
+//! its hits needed. `traverse`, and every query built on it, drain the same
+//! iterator.
 
-use std::collections::BinaryHeap;
+use std::collections::{BinaryHeap, VecDeque};
 use std::sync::Arc;
 use std::time::Instant;
 
 use serde::Serialize;
 
 use super::QueryError;
+use super::rank::Rank;
 use super::select::Selection;
 use crate::db::{NodeRef, ReadTransaction, Reads, view};
 use crate::geom::Aabb;
 use crate::lod::Voxels;
-use crate::scene::ObjectId;
+use crate::scene::{Mesh, ObjectId};
 use crate::store::format::geometry;
-use crate::store::format::node::{BoundView, NodeView, RecordRef};
+use crate::store::format::node::{BoundView, LeafView, NodeView, RecordRef};
 use crate::store::format::quant::QuantBox;
 use crate::store::{Block, BlockCache, ReadStats, StorageError};
 
@@ -73,6 +83,19 @@ pub struct ObjectLevel {
     pub level: u8,
     /// In the answer (confirmed, or a candidate below M), or rejected.
     pub accepted: bool,
+    pub proof: Proof,
+}
+
+/// An object a query accepted, as [`Select`] yields it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    pub object: ObjectId,
+    /// Its box as stored (rounded outward; for an object stored as parts,
+    /// the union of the parts' boxes).
+    pub aabb: Aabb,
+    /// The level of the bound that decided it (a candidate below M: the
+    /// finest it passed).
+    pub level: u8,
     pub proof: Proof,
 }
 
@@ -138,14 +161,19 @@ enum Step {
     Unread { at: RecordRef, frame: Aabb, inside: bool, estimate: f64 },
     /// A record in hand.
     Node { block: Arc<Block>, offset: u32, frame: Aabb, inside: bool },
-    /// An object whose geometry decides it: leaf `offset` of `block` (whose
-    /// box is `frame`), object `index`, which passed bounds up to `level`.
-    Exact { block: Arc<Block>, offset: u32, index: usize, level: u8, frame: Aabb },
+    /// A part whose geometry decides its object: leaf `offset` of `block`,
+    /// entry `index` (box `part`, its object's `whole`), which passed bounds
+    /// up to `level`.
+    Exact { block: Arc<Block>, offset: u32, index: usize, level: u8, part: Aabb, whole: Aabb },
+    /// Best first: an object at its exact distance, yielded when nothing
+    /// left in the queue can be nearer.
+    Found { object: u32, aabb: Aabb, distance: f64 },
 }
 
+/// A step in the queue: the greatest (`priority`, then `tie`) goes first.
 struct Queued {
     priority: f64,
-    seq: u64,
+    tie: u64,
     step: Step,
 }
 
@@ -162,7 +190,7 @@ impl PartialOrd for Queued {
 }
 impl Ord for Queued {
     fn cmp(&self, o: &Queued) -> std::cmp::Ordering {
-        self.priority.total_cmp(&o.priority).then(self.seq.cmp(&o.seq))
+        self.priority.total_cmp(&o.priority).then(self.tie.cmp(&o.tie))
     }
 }
 
@@ -172,7 +200,7 @@ impl Ord for Queued {
 pub struct Seen<'a> {
     pub aabb: Aabb,
     pub bound: Option<(u8, &'a Voxels)>,
-    pub mesh: Option<&'a crate::scene::Mesh>,
+    pub mesh: Option<&'a Mesh>,
     pub decision: ObjectLevel,
 }
 
@@ -198,17 +226,54 @@ fn finest<'a>(bounds: impl Iterator<Item = BoundView<'a>>, target: u16, k: u8) -
     bounds.filter(|b| b.target == target && b.level <= k).max_by_key(|b| b.level)
 }
 
-struct Run<'t, 'c, 'v, S: ?Sized> {
-    txn: &'t ReadTransaction,
-    sel: &'t S,
-    visitor: &'v mut dyn Visitor,
+/// The box of the object of entries `parts` of `leaf`: the union of the
+/// parts' stored boxes (one that does not decode is reported where it is
+/// tested).
+fn object_box(leaf: &LeafView, parts: (usize, usize), frame: &Aabb) -> Aabb {
+    (parts.0..parts.1)
+        .filter_map(|i| QuantBox::decode(frame, leaf.object(i)?.qbox))
+        .fold(Aabb::EMPTY, |b, q| b.union(&q.outer))
+}
+
+/// An object decided, in the order the traversal decided it (best first:
+/// in order of distance).
+pub(crate) struct Decision {
+    pub hit: Hit,
+    pub accepted: bool,
+    /// Best first: the exact distance.
+    pub distance: Option<f64>,
+}
+
+/// What a budgeted traversal left when it ended.
+#[derive(Default)]
+struct Rest {
+    maybe: Vec<ObjectId>,
+    unexplored_nodes: u64,
+    level_reached: u8,
+}
+
+/// The one traversal as an iterator over the objects a query accepts
+/// (`ReadTransaction::select`). Blocks are read as `next` needs them and
+/// counted where they are read; [`stats`](Self::stats) tells what the
+/// objects so far cost. Hits come depth first (a budget: the most objects
+/// per block first), not sorted by id.
+pub struct Select<'a, S> {
+    txn: &'a ReadTransaction,
+    sel: S,
+    /// Best first: the distance the queue is ordered by.
+    rank: Option<Rank>,
+    visitor: Option<&'a mut dyn Visitor>,
     k: u8,
     m: u8,
     budget: Option<u64>,
     /// The finest bound level tested.
     bound_level: u8,
-    reads: &'v mut Reads<'c>,
+    reads: Reads<'a>,
+    /// Reads before the traversal began (a caller's reads may be handed in).
+    before: ReadStats,
     heap: BinaryHeap<Queued>,
+    /// Steps that would pass the budget.
+    deferred: Vec<Queued>,
     seq: u64,
     visits: u64,
     visit_limit: u64,
@@ -216,16 +281,219 @@ struct Run<'t, 'c, 'v, S: ?Sized> {
     done: rustc_hash::FxHashSet<u32>,
     /// Objects whose parts are queued for their geometry: parts left.
     parts: rustc_hash::FxHashMap<u32, u32>,
+    /// Best first: objects found at a distance, not yet yielded.
+    found: rustc_hash::FxHashSet<u32>,
+    /// Decided, not yet yielded.
+    out: VecDeque<Decision>,
     stats: TraverseStats,
-    objects: Vec<ObjectId>,
-    decided: Vec<ObjectLevel>,
+    started: Instant,
+    /// Set when the queue is spent (or an error ended it).
+    rest: Option<Rest>,
 }
 
-impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
+impl<'a, S: Selection> Select<'a, S> {
+    /// The traversal of `sel` from record `start` (`None`: an empty tree)
+    /// at `opts`' level and budget, reading through `reads`; best first by
+    /// `rank` when given.
+    pub(crate) fn new(
+        txn: &'a ReadTransaction,
+        start: Option<NodeRef>,
+        sel: S,
+        opts: &QueryOptions,
+        reads: Reads<'a>,
+        rank: Option<Rank>,
+    ) -> Result<Select<'a, S>, QueryError> {
+        let (k, m) = levels(txn, opts.lod)?;
+        let nodes = match start {
+            Some(_) => txn.info().ok_or(QueryError::NoTree)?.nodes,
+            None => 0,
+        };
+        let levels = usize::from(m);
+        let before = reads.stats;
+        let mut s = Select {
+            txn,
+            sel,
+            rank,
+            visitor: None,
+            k,
+            m,
+            budget: opts.budget,
+            bound_level: k.min(m - 1).min(opts.bounds_up_to.unwrap_or(u8::MAX)),
+            reads,
+            before,
+            heap: BinaryHeap::new(),
+            deferred: Vec::new(),
+            seq: 0,
+            visits: 0,
+            visit_limit: u64::from(nodes),
+            done: Default::default(),
+            parts: Default::default(),
+            found: Default::default(),
+            out: VecDeque::new(),
+            stats: TraverseStats {
+                confirmed: vec![0; levels],
+                rejected: vec![0; levels],
+                ..TraverseStats::default()
+            },
+            started: Instant::now(),
+            rest: None,
+        };
+        // A budgeted query's costs count the blocks it holds: it holds all
+        // it reads (at most its budget).
+        s.reads.keep_all(opts.budget.is_some());
+        match start {
+            None => s.rest = Some(Rest { level_reached: k, ..Rest::default() }),
+            Some(start) if s.sel.may_meet_box(&start.aabb) => {
+                let inside = s.sel.holds_box(&start.aabb);
+                let at = RecordRef { block: start.block, checksum: start.checksum, offset: start.offset };
+                let estimate = f64::from(txn.info().map_or(0, |i| i.objects));
+                s.push(Step::Unread { at, frame: start.aabb, inside, estimate })?;
+            }
+            Some(_) => s.stats.pruned += 1,
+        }
+        Ok(s)
+    }
+
+    /// Shows `visitor` each record entered and object decided.
+    pub(crate) fn visited_by(mut self, visitor: &'a mut dyn Visitor) -> Select<'a, S> {
+        self.visitor = Some(visitor);
+        self
+    }
+
+    /// What the traversal has done so far: the blocks read (the pager's
+    /// counts) and the decisions made, per level.
+    pub fn stats(&self) -> TraverseStats {
+        let mut s = self.stats.clone();
+        s.reads = self.reads.stats - self.before;
+        if self.rest.is_none() {
+            s.seconds = self.started.elapsed().as_secs_f64();
+        }
+        s
+    }
+
+    /// Budgeted, once the iterator has ended: objects seen but not refined
+    /// to the level asked for (sorted).
+    pub fn maybe(&self) -> &[ObjectId] {
+        self.rest.as_ref().map_or(&[], |r| &r.maybe)
+    }
+
+    /// Budgeted, once the iterator has ended: subtrees left unread.
+    pub fn unexplored_nodes(&self) -> u64 {
+        self.rest.as_ref().map_or(0, |r| r.unexplored_nodes)
+    }
+
+    /// Once the iterator has ended: the coarsest level an undecided
+    /// candidate stopped at (the level asked for when the budget sufficed).
+    pub fn level_reached(&self) -> Option<u8> {
+        self.rest.as_ref().map(|r| r.level_reached)
+    }
+
+    /// The next object decided, accepted or not.
+    pub(crate) fn next_decision(&mut self) -> Option<Result<Decision, QueryError>> {
+        loop {
+            if let Some(d) = self.out.pop_front() {
+                return Some(Ok(d));
+            }
+            if self.rest.is_some() {
+                return None;
+            }
+            if let Err(e) = self.advance() {
+                self.heap.clear();
+                self.deferred.clear();
+                self.finish();
+                return Some(Err(e));
+            }
+        }
+    }
+
+    /// Drains the iterator into a sorted answer.
+    pub(crate) fn answer(&mut self) -> Result<QueryAnswer, QueryError> {
+        let (mut objects, mut decided) = (Vec::new(), Vec::new());
+        while let Some(d) = self.next_decision() {
+            let d = d?;
+            if d.accepted {
+                objects.push(d.hit.object);
+            }
+            let Hit { object, level, proof, .. } = d.hit;
+            decided.push(ObjectLevel { object, level, accepted: d.accepted, proof });
+        }
+        objects.sort_unstable();
+        decided.sort_unstable_by_key(|d| d.object);
+        let stats = self.stats();
+        let rest = self.rest.take().unwrap_or_default();
+        Ok(QueryAnswer {
+            objects,
+            maybe: rest.maybe,
+            unexplored_nodes: rest.unexplored_nodes,
+            level: self.k,
+            level_reached: rest.level_reached,
+            decided,
+            stats,
+        })
+    }
+
+    fn over_budget(&self, cost: u64) -> bool {
+        let spent = self.reads.stats.total() - self.before.total();
+        self.budget.is_some_and(|b| spent + cost > b)
+    }
+
+    /// Runs one step of the queue, or ends the traversal.
+    fn advance(&mut self) -> Result<(), QueryError> {
+        let Some(q) = self.heap.pop() else {
+            // Blocks read since a step was set aside may have made it affordable.
+            let waiting = self.deferred.len();
+            let mut still = Vec::new();
+            for q in std::mem::take(&mut self.deferred) {
+                if self.over_budget(self.cost(&q.step)?) {
+                    still.push(q);
+                } else {
+                    self.heap.push(q);
+                }
+            }
+            self.deferred = still;
+            if self.deferred.len() == waiting {
+                self.finish();
+            }
+            return Ok(());
+        };
+        if self.budget.is_some() && self.over_budget(self.cost(&q.step)?) {
+            self.deferred.push(q);
+            return Ok(());
+        }
+        Ok(self.step(q.step)?)
+    }
+
+    /// Ends the traversal: what a budget set aside is the rest.
+    fn finish(&mut self) {
+        let mut rest = Rest { level_reached: self.k, ..Rest::default() };
+        for q in std::mem::take(&mut self.deferred) {
+            match q.step {
+                Step::Unread { .. } | Step::Node { .. } => {
+                    rest.unexplored_nodes += 1;
+                    rest.level_reached = 1;
+                }
+                Step::Exact { block, offset, index, level, .. } => {
+                    if let Ok(NodeView::Leaf(leaf)) = view(&block, offset)
+                        && let Some(o) = leaf.object(index)
+                        && !self.done.contains(&o.object_id)
+                    {
+                        rest.maybe.push(ObjectId(o.object_id));
+                        rest.level_reached = rest.level_reached.min(level);
+                    }
+                }
+                Step::Found { .. } => {}
+            }
+        }
+        rest.maybe.sort_unstable();
+        rest.maybe.dedup();
+        self.stats.seconds = self.started.elapsed().as_secs_f64();
+        self.rest = Some(rest);
+    }
+
     fn cost(&self, step: &Step) -> Result<u64, StorageError> {
         Ok(match step {
             Step::Unread { at, .. } => u64::from(!self.reads.holds(at.block)),
-            Step::Node { .. } => 0,
+            Step::Node { .. } | Step::Found { .. } => 0,
             Step::Exact { block, offset, index, .. } => {
                 let NodeView::Leaf(leaf) = view(block, *offset)? else { return Ok(0) };
                 let Some(o) = leaf.object(*index) else { return Ok(0) };
@@ -242,20 +510,33 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
 
     fn push(&mut self, step: Step) -> Result<(), StorageError> {
         self.seq += 1;
-        let priority = match self.budget {
+        let (priority, tie) = match (&self.rank, self.budget) {
+            // Nearest first; at one distance, what may still hold a nearer
+            // or equal object before a found one, and found ones by id.
+            (Some(rank), _) => {
+                let (key, tie) = match &step {
+                    Step::Unread { frame, .. } | Step::Node { frame, .. } => {
+                        (rank.box_distance(frame), (1 << 32) + self.seq)
+                    }
+                    Step::Exact { part, .. } => (rank.box_distance(part), (1 << 32) + self.seq),
+                    Step::Found { object, distance, .. } => (Some(*distance), u64::from(u32::MAX - object)),
+                };
+                // + 0.0: a distance of -0.0 orders as 0.
+                (-(key.unwrap_or(f64::INFINITY) + 0.0), tie)
+            }
             // Depth first: the newest step first.
-            None => self.seq as f64,
-            Some(_) => {
+            (None, None) => (self.seq as f64, self.seq),
+            (None, Some(_)) => {
                 let gain = match &step {
                     Step::Unread { estimate, .. } => *estimate,
-                    Step::Node { .. } => f64::INFINITY,
+                    Step::Node { .. } | Step::Found { .. } => f64::INFINITY,
                     Step::Exact { .. } => 1.0,
                 };
                 let cost = self.cost(&step)? as f64;
-                if cost == 0.0 { f64::INFINITY } else { gain / cost }
+                (if cost == 0.0 { f64::INFINITY } else { gain / cost }, self.seq)
             }
         };
-        self.heap.push(Queued { priority, seq: self.seq, step });
+        self.heap.push(Queued { priority, tie, step });
         Ok(())
     }
 
@@ -265,27 +546,27 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
         entry: (u32, Aabb),
         decision: (u8, bool, Proof),
         bound: Option<(u8, &Voxels)>,
-        mesh: Option<&crate::scene::Mesh>,
+        mesh: Option<&Mesh>,
     ) -> Result<(), StorageError> {
+        let Some(visitor) = self.visitor.as_deref_mut() else { return Ok(()) };
         let (object, aabb) = entry;
         let (level, accepted, proof) = decision;
         let decision = ObjectLevel { object: ObjectId(object), level, accepted, proof };
-        self.visitor.object(&Seen { aabb, bound, mesh, decision })
+        visitor.object(&Seen { aabb, bound, mesh, decision })
     }
 
     /// Records an object's decision (once per object, whatever its parts).
-    fn decide(&mut self, object: u32, level: u8, accepted: bool, proof: Proof) {
+    fn decide(&mut self, object: (u32, Aabb), decision: (u8, bool, Proof), distance: Option<f64>) {
+        let ((id, aabb), (level, accepted, proof)) = (object, decision);
         let i = usize::from(level) - 1;
         match proof {
             Proof::Candidate => {}
             _ if accepted => self.stats.confirmed[i] += 1,
             _ => self.stats.rejected[i] += 1,
         }
-        if accepted {
-            self.objects.push(ObjectId(object));
-        }
-        self.done.insert(object);
-        self.decided.push(ObjectLevel { object: ObjectId(object), level, accepted, proof });
+        self.done.insert(id);
+        let hit = Hit { object: ObjectId(id), aabb, level, proof };
+        self.out.push_back(Decision { hit, accepted, distance });
     }
 
     /// The voxel set of bound `b`, whose target's box is `outer`.
@@ -305,27 +586,47 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
                     at.block,
                     crate::store::format::frame::BlockType::Node,
                     at.checksum,
-                    self.reads,
+                    &mut self.reads,
                 )?;
                 self.push(Step::Node { block, offset: at.offset, frame, inside })
             }
             Step::Node { block, offset, frame, inside } => self.node(block, offset, frame, inside),
-            Step::Exact { block, offset, index, frame, .. } => {
+            Step::Exact { block, offset, index, part, whole, .. } => {
                 let NodeView::Leaf(leaf) = view(&block, offset)? else { return Ok(()) };
                 let Some(o) = leaf.object(index) else { return Ok(()) };
-                // Another part of the object already met the query: this one need not be read.
+                // Another part of the object already decided it: this one need not be read.
                 if self.done.contains(&o.object_id) {
                     return Ok(());
                 }
-                let (id, mesh) = self.txn.read_object(block.id(), &leaf, index, self.reads)?;
+                let (id, mesh) = self.txn.read_object(block.id(), &leaf, index, &mut self.reads)?;
                 self.stats.geometry_tests += 1;
-                let hit = self.sel.meets_mesh(&mesh, &mut self.stats.triangles_tested);
-                let aabb = QuantBox::decode(&frame, o.qbox).map_or(frame, |q| q.outer);
-                self.seen((id.0, aabb), (self.m, hit, Proof::Exact), None, Some(&mesh))?;
+                let n = &mut self.stats.triangles_tested;
+                let distance = match &self.rank {
+                    Some(rank) => rank.mesh_distance(&mesh, n),
+                    None => self.sel.meets_mesh(&mesh, n).then_some(0.0),
+                };
+                let hit = distance.is_some();
+                self.seen((id.0, part), (self.m, hit, Proof::Exact), None, Some(&mesh))?;
                 let left = self.parts.entry(id.0).or_insert(1);
                 *left = left.saturating_sub(1);
-                if hit || *left == 0 {
-                    self.decide(id.0, self.m, hit, Proof::Exact);
+                let last = *left == 0;
+                match distance {
+                    Some(distance) if self.rank.is_some() => {
+                        self.found.insert(id.0);
+                        self.push(Step::Found { object: id.0, aabb: whole, distance })?;
+                    }
+                    Some(_) => self.decide((id.0, whole), (self.m, true, Proof::Exact), None),
+                    None if last && !self.found.contains(&id.0) => {
+                        self.decide((id.0, whole), (self.m, false, Proof::Exact), None);
+                    }
+                    None => {}
+                }
+                Ok(())
+            }
+            Step::Found { object, aabb, distance } => {
+                // Its nearest part's distance comes first; a farther part's is dropped.
+                if !self.done.contains(&object) {
+                    self.decide((object, aabb), (self.m, true, Proof::Exact), Some(distance));
                 }
                 Ok(())
             }
@@ -348,7 +649,9 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
             ));
         }
         self.stats.nodes_visited += 1;
-        self.visitor.node(&block, offset, &frame)?;
+        if let Some(visitor) = self.visitor.as_deref_mut() {
+            visitor.node(&block, offset, &frame)?;
+        }
         let bad = |d: &str| StorageError::corrupt(block.id(), "record", d.to_string());
         match view(&block, offset)? {
             NodeView::Internal(n) => {
@@ -403,12 +706,13 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
         &mut self,
         block: &Arc<Block>,
         offset: u32,
-        leaf: &crate::store::format::node::LeafView,
+        leaf: &LeafView,
         parts: (usize, usize),
         frame: &Aabb,
         inside: bool,
     ) -> Result<(), StorageError> {
         let bad = |d: &str| StorageError::corrupt(block.id(), "record", d.to_string());
+        let whole = object_box(leaf, parts, frame);
         let mut pending: Vec<(usize, u8, Aabb, Option<Voxels>)> = Vec::new();
         let (mut rejected_at, mut reject_proof) = (1u8, Proof::BoxMisses);
         let mut id = 0;
@@ -419,7 +723,7 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
             let aabb = qb.outer;
             if inside {
                 self.seen((id, aabb), (1, true, Proof::InsideNode), None, None)?;
-                self.decide(id, 1, true, Proof::InsideNode);
+                self.decide((id, whole), (1, true, Proof::InsideNode), None);
                 return Ok(());
             }
             if !self.sel.may_meet_box(&aabb) {
@@ -428,7 +732,7 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
             }
             if qb.face_slabs().iter().any(|f| self.sel.holds_box(f)) {
                 self.seen((id, aabb), (1, true, Proof::Face), None, None)?;
-                self.decide(id, 1, true, Proof::Face);
+                self.decide((id, whole), (1, true, Proof::Face), None);
                 return Ok(());
             }
             let mut level = 1;
@@ -443,7 +747,7 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
                 }
                 if self.sel.confirms_voxels(&v) {
                     self.seen((id, aabb), (level, true, Proof::Cell), Some((level, &v)), None)?;
-                    self.decide(id, level, true, Proof::Cell);
+                    self.decide((id, whole), (level, true, Proof::Cell), None);
                     return Ok(());
                 }
                 voxels = Some(v);
@@ -451,58 +755,69 @@ impl<S: Selection + ?Sized> Run<'_, '_, '_, S> {
             pending.push((i, level, aabb, voxels));
         }
         if pending.is_empty() {
-            self.decide(id, rejected_at, false, reject_proof);
+            self.decide((id, whole), (rejected_at, false, reject_proof), None);
         } else if self.k == self.m {
             self.parts.insert(id, pending.len() as u32);
-            for (i, level, _, _) in pending {
-                self.push(Step::Exact { block: block.clone(), offset, index: i, level, frame: *frame })?;
+            for (i, level, part, _) in pending {
+                self.push(Step::Exact { block: block.clone(), offset, index: i, level, part, whole })?;
             }
         } else {
             let level = pending.iter().map(|p| p.1).max().unwrap_or(1);
             for (_, l, aabb, v) in &pending {
                 self.seen((id, *aabb), (*l, true, Proof::Candidate), v.as_ref().map(|v| (*l, v)), None)?;
             }
-            self.decide(id, level, true, Proof::Candidate);
+            self.decide((id, whole), (level, true, Proof::Candidate), None);
         }
         Ok(())
     }
 }
 
+impl<S: Selection> Iterator for Select<'_, S> {
+    type Item = Result<Hit, QueryError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        loop {
+            match self.next_decision()? {
+                Ok(d) if d.accepted => return Some(Ok(d.hit)),
+                Ok(_) => {}
+                Err(e) => return Some(Err(e)),
+            }
+        }
+    }
+}
+
+impl ReadTransaction {
+    /// The objects `sel` accepts at `opts`' level and budget, one at a time
+    /// as the traversal decides them (depth first; with a budget, the most
+    /// objects per block first), reading through `cache` (a pool kept
+    /// across queries) when given. Nothing is read before the first `next`;
+    /// a caller that stops early reads only what its hits needed, and
+    /// [`Select::stats`] counts it.
+    pub fn select<'a, S: Selection + ?Sized>(
+        &'a self,
+        sel: &'a S,
+        opts: &QueryOptions,
+        cache: Option<&'a BlockCache>,
+    ) -> Result<Select<'a, &'a S>, QueryError> {
+        Select::new(self, self.root(), sel, opts, Reads::new(cache), None)
+    }
+}
+
 /// Runs `sel` through `txn`'s tree at `opts`' level and budget, reading
-/// through `cache` (a pool shared across queries) when given. Each block is
-/// read at most once per query.
+/// through `cache` (a pool shared across queries) when given: the whole
+/// [`Select`] iterator, sorted into an answer.
 pub fn traverse<S: Selection + ?Sized>(
     txn: &ReadTransaction,
     sel: &S,
     opts: &QueryOptions,
     cache: Option<&BlockCache>,
 ) -> Result<QueryAnswer, QueryError> {
-    match txn.root() {
-        Some(root) => walk(txn, root, sel, opts, &mut Reads::new(cache), &mut ()),
-        // An empty database answers every query with nothing.
-        None => {
-            let (k, m) = levels(txn, opts.lod)?;
-            let per_level = vec![0; usize::from(m)];
-            let stats = TraverseStats {
-                confirmed: per_level.clone(),
-                rejected: per_level,
-                ..TraverseStats::default()
-            };
-            Ok(QueryAnswer {
-                objects: Vec::new(),
-                maybe: Vec::new(),
-                unexplored_nodes: 0,
-                level: k,
-                level_reached: k,
-                decided: Vec::new(),
-                stats,
-            })
-        }
-    }
+    txn.select(sel, opts, cache)?.answer()
 }
 
 /// The traversal from record `start` (its block read through `reads`
-/// unless `reads` holds it), showing `visitor` what it meets.
+/// unless `reads` holds it), showing `visitor` what it meets; `reads` gets
+/// back what the walk read and holds.
 pub(crate) fn walk<S: Selection + ?Sized>(
     txn: &ReadTransaction,
     start: NodeRef,
@@ -511,109 +826,11 @@ pub(crate) fn walk<S: Selection + ?Sized>(
     reads: &mut Reads,
     visitor: &mut dyn Visitor,
 ) -> Result<QueryAnswer, QueryError> {
-    let started = Instant::now();
-    let (k, m) = levels(txn, opts.lod)?;
-    let info = txn.info().ok_or(QueryError::NoTree)?;
-    let levels = usize::from(m);
-    let before = reads.stats;
-    let mut run = Run {
-        txn,
-        sel,
-        visitor,
-        k,
-        m,
-        budget: opts.budget,
-        bound_level: k.min(m - 1).min(opts.bounds_up_to.unwrap_or(u8::MAX)),
-        reads,
-        heap: BinaryHeap::new(),
-        seq: 0,
-        visits: 0,
-        visit_limit: u64::from(info.nodes),
-        done: Default::default(),
-        parts: Default::default(),
-        stats: TraverseStats {
-            confirmed: vec![0; levels],
-            rejected: vec![0; levels],
-            ..TraverseStats::default()
-        },
-        objects: Vec::new(),
-        decided: Vec::new(),
-    };
-    let mut answer_level = k;
-    if sel.may_meet_box(&start.aabb) {
-        let inside = sel.holds_box(&start.aabb);
-        let at = RecordRef { block: start.block, checksum: start.checksum, offset: start.offset };
-        run.push(Step::Unread { at, frame: start.aabb, inside, estimate: f64::from(info.objects) })?;
-    } else {
-        run.stats.pruned += 1;
-    }
-    let mut deferred: Vec<Queued> = Vec::new();
-    let spent = |r: &Reads| r.stats.total() - before.total();
-    loop {
-        let Some(q) = run.heap.pop() else {
-            // Blocks read since a step was set aside may have made it affordable.
-            let waiting = deferred.len();
-            let mut still = Vec::new();
-            for q in deferred.drain(..) {
-                let cost = run.cost(&q.step)?;
-                if opts.budget.is_some_and(|b| spent(run.reads) + cost > b) {
-                    still.push(q);
-                } else {
-                    run.heap.push(q);
-                }
-            }
-            deferred = still;
-            if deferred.len() == waiting {
-                break;
-            }
-            continue;
-        };
-        let cost = run.cost(&q.step)?;
-        if opts.budget.is_some_and(|b| spent(run.reads) + cost > b) {
-            deferred.push(q);
-            continue;
-        }
-        run.step(q.step)?;
-    }
-    let mut stats = std::mem::take(&mut run.stats);
-    let mut answer = QueryAnswer {
-        objects: std::mem::take(&mut run.objects),
-        maybe: Vec::new(),
-        unexplored_nodes: 0,
-        level: k,
-        level_reached: k,
-        decided: std::mem::take(&mut run.decided),
-        stats: TraverseStats::default(),
-    };
-    for q in deferred {
-        match q.step {
-            Step::Unread { .. } | Step::Node { .. } => {
-                answer.unexplored_nodes += 1;
-                answer_level = 1;
-            }
-            Step::Exact { block, offset, index, level, .. } => {
-                if let Ok(NodeView::Leaf(leaf)) = view(&block, offset)
-                    && let Some(o) = leaf.object(index)
-                    && !run.done.contains(&o.object_id)
-                {
-                    answer.maybe.push(ObjectId(o.object_id));
-                    answer_level = answer_level.min(level);
-                }
-            }
-        }
-    }
-    let mut r = reads.stats;
-    r.node -= before.node;
-    r.geometry -= before.geometry;
-    r.other -= before.other;
-    r.cache_hits -= before.cache_hits;
-    stats.reads = r;
-    stats.seconds = started.elapsed().as_secs_f64();
-    answer.stats = stats;
-    answer.level_reached = answer_level;
-    answer.objects.sort_unstable();
-    answer.maybe.sort_unstable();
-    answer.maybe.dedup();
-    answer.decided.sort_unstable_by_key(|d| d.object);
-    Ok(answer)
+    // What Select::new may refuse, refused before `reads` is lent.
+    levels(txn, opts.lod)?;
+    txn.info().ok_or(QueryError::NoTree)?;
+    let mut select = Select::new(txn, Some(start), sel, opts, reads.lend(), None)?.visited_by(visitor);
+    let answer = select.answer();
+    reads.take_back(select.reads);
+    answer
 }

@@ -49,6 +49,19 @@ impl std::ops::AddAssign for ReadStats {
     }
 }
 
+/// The reads since `o` was taken (counts only grow).
+impl std::ops::Sub for ReadStats {
+    type Output = ReadStats;
+    fn sub(self, o: ReadStats) -> ReadStats {
+        ReadStats {
+            node: self.node - o.node,
+            geometry: self.geometry - o.geometry,
+            other: self.other - o.other,
+            cache_hits: self.cache_hits - o.cache_hits,
+        }
+    }
+}
+
 /// Reads and writes whole blocks of one file.
 #[derive(Clone)]
 pub struct Pager {

@@ -1,5 +1,6 @@
 //! One file per subcommand; `run` dispatches.
 
+mod batch;
 pub mod bench_build;
 pub mod bench_peers;
 mod bench_queries;
@@ -53,6 +54,7 @@ pub fn run(cli: Cli) -> Result<()> {
             collide::run(&file, &query, &level.options(), &import.options(), json)
         }
         Command::Clash { file, clearance, lod, json } => clash::run(&file, clearance, lod, json),
+        Command::Batch { file, queries } => batch::run(&file, queries.as_deref()),
         Command::Navigate { file, path, cache_blocks, fov_deg, aspect, near, far, lod, json } => {
             navigate::run(&file, &path, cache_blocks, [fov_deg, aspect, near, far], lod, json)
         }

@@ -1,0 +1,83 @@
+//! Claim: `mktree batch` answers one JSON line per request, in order, as the
+//! library answers it (objects and reads; nearest and ray hits with their
+//! distances), and a bad line gets a one-line error answer while the rest
+//! are answered and the exit status stays 0.
+
+use std::io::Write;
+use std::process::{Command, Stdio};
+
+use mktree::db::Database;
+use mktree::geom::{Point, Ray, Vector};
+
+fn mktree() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_mktree"))
+}
+
+#[test]
+fn batch_answers_each_line_and_a_bad_line_with_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let (obj, mkt) = (dir.path().join("t1.obj"), dir.path().join("t1.mkt"));
+    for args in [
+        vec!["gen", "tanker1", "-o", obj.to_str().unwrap()],
+        vec!["build", obj.to_str().unwrap(), "-o", mkt.to_str().unwrap(), "--block-size", "4096"],
+    ] {
+        let out = mktree().args(&args).output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    }
+    let db = Database::open_read_only(&mkt).unwrap();
+    let r = db.begin_read().unwrap();
+    // Along x through the middle of the ship, from outside it.
+    let c = r.root().unwrap().aabb.center();
+    let origin = Point::new(r.root().unwrap().aabb.min.x - 1000.0, c.y, c.z);
+    let requests = format!(
+        r#"{{"query": "box", "box": [0, 0, 0, 1000, 1000, 1000]}}
+# a comment, and a blank line
+
+{{"query": "nearest", "point": [100, 200, 300], "k": 3}}
+{{"query": "ray", "origin": [{}, {}, {}], "direction": [1, 0, 0], "all": true}}
+{{"query": "sphere", "center": [0, 0, 0], "radius": -1}}
+not json
+{{"query": "collide", "object": 5, "clearance": 10}}
+{{"query": "box", "box": [0, 0, 0, 1, 1, 1], "lod": 9}}
+"#,
+        origin.x, origin.y, origin.z
+    );
+    let mut child = mktree()
+        .args(["batch", mkt.to_str().unwrap()])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(requests.as_bytes()).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let answers: Vec<serde_json::Value> =
+        String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let lines: Vec<u64> = answers.iter().map(|a| a["line"].as_u64().unwrap()).collect();
+    assert_eq!(lines, [1, 4, 5, 6, 7, 8, 9]);
+    for bad in [3, 4, 6] {
+        assert!(answers[bad]["error"].is_string(), "line {}: {}", lines[bad], answers[bad]);
+    }
+
+    let ids = |v: &serde_json::Value| -> Vec<u32> {
+        v["objects"].as_array().unwrap().iter().map(|x| x.as_u64().unwrap() as u32).collect()
+    };
+    let boxed = r.query_box(&mktree::geom::Aabb::from_array([0.0, 0.0, 0.0, 1e3, 1e3, 1e3])).unwrap();
+    assert_eq!(ids(&answers[0]), boxed.objects.iter().map(|o| o.0).collect::<Vec<_>>());
+    assert_eq!(answers[0]["reads"]["node"].as_u64().unwrap(), boxed.stats.reads.node);
+
+    let near: Vec<_> =
+        r.nearest(Point::new(100.0, 200.0, 300.0), None).unwrap().take(3).map(|x| x.unwrap()).collect();
+    assert_eq!(ids(&answers[1]), near.iter().map(|n| n.0.0).collect::<Vec<_>>());
+    let distances: Vec<f64> =
+        answers[1]["distances"].as_array().unwrap().iter().map(|d| d.as_f64().unwrap()).collect();
+    assert_eq!(distances, near.iter().map(|n| n.1).collect::<Vec<_>>());
+
+    let ray = Ray::new(origin, Vector::x(), None).unwrap();
+    let hits: Vec<_> = r.ray(&ray, None).unwrap().map(|h| h.unwrap()).collect();
+    assert!(!hits.is_empty(), "the ray crosses the ship");
+    assert_eq!(ids(&answers[2]), hits.iter().map(|h| h.object.0).collect::<Vec<_>>());
+    assert_eq!(answers[2]["points"].as_array().unwrap().len(), hits.len());
+    assert!(answers[5]["objects"].is_array(), "collide: {}", answers[5]);
+}

@@ -1,0 +1,148 @@
+//! Many queries in one read transaction, each a [`Request`] (the JSON lines
+//! of `mktree batch`, through serde) answered as a [`Response`]: objects
+//! meeting a box or a sphere, the k nearest to a point, the first hit (or
+//! every hit) along a ray, and the objects touching one of the file's own
+//! objects moved and turned. Each runs the one traversal, reading through
+//! the cache the caller gives, so a block an earlier request read may be a
+//! cache hit.
+
+use serde::{Deserialize, Serialize};
+
+use super::QueryError;
+use super::collide::{CollideOptions, collide, object_mesh};
+use super::region::query_region;
+use super::select::Region;
+use super::traverse::{QueryAnswer, QueryOptions, TraverseStats};
+use crate::db::ReadTransaction;
+use crate::geom::{Aabb, Point, Pose, Ray, Sphere, Vector};
+use crate::scene::ObjectId;
+use crate::store::{BlockCache, ReadStats};
+
+/// One query, as a JSON object tagged by `"query"`, e.g.
+/// `{"query": "nearest", "point": [0, 0, 0], "k": 3}`. Lengths in mm.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(tag = "query", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Request {
+    /// The objects meeting the closed box `[x0, y0, z0, x1, y1, z1]`.
+    Box {
+        #[serde(rename = "box")]
+        aabb: [f64; 6],
+        #[serde(default)]
+        lod: Option<u8>,
+        #[serde(default)]
+        budget: Option<u64>,
+    },
+    /// The objects meeting a closed ball.
+    Sphere {
+        center: [f64; 3],
+        radius: f64,
+        #[serde(default)]
+        lod: Option<u8>,
+        #[serde(default)]
+        budget: Option<u64>,
+    },
+    /// The `k` objects nearest `point`, nearest first, with their distances.
+    Nearest { point: [f64; 3], k: usize },
+    /// The first object the ray meets (`all`: every one, in order), with t
+    /// and the point.
+    Ray {
+        origin: [f64; 3],
+        direction: [f64; 3],
+        #[serde(default)]
+        max_distance: Option<f64>,
+        #[serde(default)]
+        all: bool,
+    },
+    /// The objects within `clearance` of object `object`, rotated about its
+    /// box centre by `rotate_deg` (x, then y, then z) and moved by
+    /// `translate`; the object itself is left out. Its mesh is read first,
+    /// and those reads are not counted.
+    Collide {
+        object: u32,
+        #[serde(default)]
+        translate: [f64; 3],
+        #[serde(default)]
+        rotate_deg: [f64; 3],
+        #[serde(default)]
+        clearance: f64,
+        #[serde(default)]
+        lod: Option<u8>,
+        #[serde(default)]
+        budget: Option<u64>,
+    },
+}
+
+/// A request's answer.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Response {
+    /// Sorted ids (box, sphere, collide); nearest first (nearest, ray).
+    pub objects: Vec<ObjectId>,
+    /// Nearest: each object's distance; ray: each hit's t.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub distances: Option<Vec<f64>>,
+    /// Ray: the points hit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub points: Option<Vec<[f64; 3]>>,
+    /// Budgeted: objects not refined to the level asked for.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub maybe: Vec<ObjectId>,
+    /// Blocks read from the device, by kind, and found in the cache.
+    pub reads: ReadStats,
+}
+
+impl Response {
+    fn of(a: QueryAnswer) -> Response {
+        Response { objects: a.objects, distances: None, points: None, maybe: a.maybe, reads: a.stats.reads }
+    }
+
+    fn ranked(objects: Vec<ObjectId>, distances: Vec<f64>, stats: &TraverseStats) -> Response {
+        Response { objects, distances: Some(distances), points: None, maybe: Vec::new(), reads: stats.reads }
+    }
+}
+
+/// Answers `request` in `txn`, reading through `cache` when given.
+pub fn answer_request(
+    txn: &ReadTransaction,
+    request: &Request,
+    cache: Option<&BlockCache>,
+) -> Result<Response, QueryError> {
+    let opts = |lod: &Option<u8>, budget: &Option<u64>| QueryOptions {
+        lod: *lod,
+        budget: *budget,
+        ..Default::default()
+    };
+    Ok(match request {
+        Request::Box { aabb, lod, budget } => {
+            Response::of(query_region(txn, &Region::Box(Aabb::from_array(*aabb)), &opts(lod, budget), cache)?)
+        }
+        Request::Sphere { center, radius, lod, budget } => {
+            let region = Region::Sphere(Sphere::new(Point::from(*center), *radius)?);
+            Response::of(query_region(txn, &region, &opts(lod, budget), cache)?)
+        }
+        Request::Nearest { point, k } => {
+            let mut it = txn.nearest(Point::from(*point), cache)?;
+            let found = it.by_ref().take(*k).collect::<Result<Vec<_>, _>>()?;
+            let (objects, distances) = found.into_iter().unzip();
+            Response::ranked(objects, distances, &it.stats())
+        }
+        Request::Ray { origin, direction, max_distance, all } => {
+            let ray = Ray::new(Point::from(*origin), Vector::from(*direction), *max_distance)?;
+            let mut it = txn.ray(&ray, cache)?;
+            let hits = it.by_ref().take(if *all { usize::MAX } else { 1 }).collect::<Result<Vec<_>, _>>()?;
+            let mut r = Response::ranked(
+                hits.iter().map(|h| h.object).collect(),
+                hits.iter().map(|h| h.t).collect(),
+                &it.stats(),
+            );
+            r.points = Some(hits.iter().map(|h| h.point).collect());
+            r
+        }
+        Request::Collide { object, translate, rotate_deg, clearance, lod, budget } => {
+            let id = ObjectId(*object);
+            let mesh = object_mesh(txn, id)?;
+            let pose = Pose::from_degrees(*translate, *rotate_deg)?;
+            let o = CollideOptions { query: opts(lod, budget), clearance: *clearance, exclude: Some(id) };
+            Response::of(collide(txn, &mesh, &pose, &o, cache)?)
+        }
+    })
+}

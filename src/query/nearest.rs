@@ -1,0 +1,78 @@
+//! The objects nearest a point, in order of exact distance (best first over
+//! the one traversal: node boxes, then object boxes, then each object's
+//! triangles, read at level M). The distance is to the object's surface,
+//! its triangles as closed sets, measured in floating point (parry's
+//! point-triangle distance); equal distances come by id, so the order is
+//! deterministic. `take(k)` reads only what the k nearest need.
+
+use super::QueryError;
+use super::rank::Rank;
+use super::traverse::{QueryOptions, Select, TraverseStats};
+use crate::db::{ReadTransaction, Reads};
+use crate::geom::{Point, ShapeError};
+use crate::scene::ObjectId;
+use crate::store::BlockCache;
+
+/// The objects of a tree by distance from a point, nearest first
+/// ([`ReadTransaction::nearest`]).
+pub struct Nearest<'a> {
+    select: Select<'a, Rank>,
+}
+
+impl Nearest<'_> {
+    /// What the objects so far cost: blocks read, nodes, geometry tests.
+    pub fn stats(&self) -> TraverseStats {
+        self.select.stats()
+    }
+}
+
+impl Iterator for Nearest<'_> {
+    /// An object and its distance, mm.
+    type Item = Result<(ObjectId, f64), QueryError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        loop {
+            match self.select.next_decision()? {
+                Ok(d) if d.accepted => return Some(Ok((d.hit.object, d.distance.unwrap_or(0.0)))),
+                Ok(_) => {}
+                Err(e) => return Some(Err(e)),
+            }
+        }
+    }
+}
+
+impl ReadTransaction {
+    /// Every object by its exact distance from `point` (finite), nearest
+    /// first, ties by id; reads through `cache` when given. Lazy: the k
+    /// nearest (`.take(k)`) read only the blocks they need.
+    ///
+    /// ```
+    /// # use mktree::db::{CreateOptions, Database};
+    /// # use mktree::build::BuildParams;
+    /// # use mktree::geom::Point;
+    /// # use mktree::scene::generate::{GenOptions, Preset, generate_scene};
+    /// # let dir = tempfile::tempdir()?;
+    /// # let scene = generate_scene(&GenOptions { preset: Preset::Tanker1, objects: None, seed: 1 })?;
+    /// # let db = Database::create(dir.path().join("t1.mkt"), CreateOptions::default())?;
+    /// # let mut w = db.begin_write()?;
+    /// # w.bulk_load(&scene, &BuildParams::default(), &|_| {})?;
+    /// # w.commit()?;
+    /// let r = db.begin_read()?;
+    /// let three: Vec<_> = r.nearest(Point::new(0.0, 0.0, 0.0), None)?.take(3).collect::<Result<_, _>>()?;
+    /// assert!(three.len() == 3 && three[0].1 <= three[1].1 && three[1].1 <= three[2].1);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn nearest<'a>(
+        &'a self,
+        point: Point,
+        cache: Option<&'a BlockCache>,
+    ) -> Result<Nearest<'a>, QueryError> {
+        if !point.iter().all(|c| c.is_finite()) {
+            return Err(ShapeError::NotFinite { what: "a point" }.into());
+        }
+        let rank = Rank::Nearest(point);
+        let select =
+            Select::new(self, self.root(), rank, &QueryOptions::default(), Reads::new(cache), Some(rank))?;
+        Ok(Nearest { select })
+    }
+}
