@@ -9,6 +9,8 @@ use common::{box_mesh, mem_db};
 use mktree::Error;
 use mktree::build::{BuildParams, LeafRule};
 use mktree::db::{CreateOptions, Reads, check};
+use mktree::geom::{Aabb, Point, Ray, Vector};
+use mktree::query::{Near, QueryOptions, Region};
 use mktree::scene::{Key, KeyError, Object, ObjectId, Scene};
 use mktree::store::format::frame::BlockType;
 use proptest::prelude::*;
@@ -85,6 +87,28 @@ fn a_lookup_reads_the_index_path_and_a_mesh_its_leaf_and_geometry() {
         // The index, the leaf's node block, and the one geometry block a box takes.
         assert_eq!((reads.stats.keys, reads.stats.node, reads.stats.geometry), (height, 1, 1));
     }
+}
+
+#[test]
+fn answers_give_the_keys_from_the_leaves_at_no_read_of_their_own() {
+    let scene = keyed(200, guid);
+    let (db, _) = mem_db(&scene, &params(), small_blocks());
+    let r = db.begin_read().unwrap();
+    let region = Aabb::from_array([0.0, 0.0, 0.0, 500.0, 300.0, 100.0]);
+    let a = r.query_box(&region).unwrap();
+    assert!(!a.objects.is_empty());
+    assert_eq!(a.keys, a.objects.iter().map(|o| guid(o.index())).collect::<Vec<_>>());
+    assert_eq!(a.stats.reads.keys, 0, "a query reads no key index block");
+    for hit in r.select(&Region::Box(region), &QueryOptions::default(), None).unwrap() {
+        let hit = hit.unwrap();
+        assert_eq!(hit.key, guid(hit.object.index()));
+    }
+    let near: Vec<Near> =
+        r.nearest(Point::new(0.0, 0.0, 0.0), None).unwrap().take(5).map(|n| n.unwrap()).collect();
+    assert!(near.iter().all(|n| n.key == guid(n.object.index())));
+    let ray = Ray::new(Point::new(-10.0, 20.0, 15.0), Vector::new(1.0, 0.0, 0.0), None).unwrap();
+    let hit = r.first_hit(&ray, None).unwrap().expect("the row of boxes is hit");
+    assert_eq!(hit.key, guid(hit.object.index()));
 }
 
 #[test]

@@ -83,7 +83,7 @@ proptest! {
         let mut all = r.nearest(point, None).unwrap();
         let got: Vec<_> = all.by_ref().map(|x| x.unwrap()).collect();
         prop_assert_eq!(&got, &exact);
-        prop_assert!(got.windows(2).all(|w| w[0].1 <= w[1].1), "distances never decrease");
+        prop_assert!(got.windows(2).all(|w| w[0].distance <= w[1].distance), "distances never decrease");
         let mut first = r.nearest(point, None).unwrap();
         let top: Vec<_> = first.by_ref().take(k).map(|x| x.unwrap()).collect();
         prop_assert_eq!(&top[..], &exact[..k.min(exact.len())]);
@@ -107,7 +107,7 @@ proptest! {
         prop_assert!(got.windows(2).all(|w| w[0].t <= w[1].t), "t never decreases");
         let least = exact.iter().map(|h| h.t).fold(f64::INFINITY, f64::min);
         let first = r.first_hit(&ray, None).unwrap();
-        prop_assert_eq!(first.map(|h| h.t), exact.first().map(|h| h.t));
+        prop_assert_eq!(first.as_ref().map(|h| h.t), exact.first().map(|h| h.t));
         if let Some(h) = first {
             prop_assert_eq!(h.t, least);
             prop_assert!(ray.max_distance().is_none_or(|d| h.t <= d));
@@ -137,8 +137,8 @@ fn stopping_after_a_few_hits_reads_a_few_blocks() {
         whole.stats.reads.total()
     );
     let mut near = r.nearest(Point::new(0.0, 0.0, 0.0), None).unwrap();
-    let (id, d) = near.next().unwrap().unwrap();
-    assert_eq!((id.0, d), (0, 0.0), "the point is a corner of box 0");
+    let n = near.next().unwrap().unwrap();
+    assert_eq!((n.object.0, n.key.as_int(), n.distance), (0, Some(0), 0.0), "the point is a corner of box 0");
     assert!(near.stats().reads.total() * 4 < whole.stats.reads.total());
 }
 

@@ -69,10 +69,10 @@ not json
 
     let near: Vec<_> =
         r.nearest(Point::new(100.0, 200.0, 300.0), None).unwrap().take(3).map(|x| x.unwrap()).collect();
-    assert_eq!(ids(&answers[1]), near.iter().map(|n| n.0.0).collect::<Vec<_>>());
+    assert_eq!(ids(&answers[1]), near.iter().map(|n| n.object.0).collect::<Vec<_>>());
     let distances: Vec<f64> =
         answers[1]["distances"].as_array().unwrap().iter().map(|d| d.as_f64().unwrap()).collect();
-    assert_eq!(distances, near.iter().map(|n| n.1).collect::<Vec<_>>());
+    assert_eq!(distances, near.iter().map(|n| n.distance).collect::<Vec<_>>());
 
     let ray = Ray::new(origin, Vector::x(), None).unwrap();
     let hits: Vec<_> = r.ray(&ray, None).unwrap().map(|h| h.unwrap()).collect();

@@ -15,7 +15,7 @@ use super::select::Region;
 use super::traverse::{QueryAnswer, QueryOptions, TraverseStats};
 use crate::db::ReadTransaction;
 use crate::geom::{Aabb, Point, Pose, Ray, Sphere, Vector};
-use crate::scene::ObjectId;
+use crate::scene::{Key, ObjectId};
 use crate::store::{BlockCache, ReadStats};
 
 /// One query, as a JSON object tagged by `"query"`, e.g.
@@ -77,6 +77,8 @@ pub enum Request {
 pub struct Response {
     /// Sorted ids (box, sphere, collide); nearest first (nearest, ray).
     pub objects: Vec<ObjectId>,
+    /// The application's key of each of `objects`, in the same order.
+    pub keys: Vec<Key>,
     /// Nearest: each object's distance; ray: each hit's t.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub distances: Option<Vec<f64>>,
@@ -92,11 +94,32 @@ pub struct Response {
 
 impl Response {
     fn of(a: QueryAnswer) -> Response {
-        Response { objects: a.objects, distances: None, points: None, maybe: a.maybe, reads: a.stats.reads }
+        Response {
+            objects: a.objects,
+            keys: a.keys,
+            distances: None,
+            points: None,
+            maybe: a.maybe,
+            reads: a.stats.reads,
+        }
     }
 
-    fn ranked(objects: Vec<ObjectId>, distances: Vec<f64>, stats: &TraverseStats) -> Response {
-        Response { objects, distances: Some(distances), points: None, maybe: Vec::new(), reads: stats.reads }
+    /// Objects with their keys and distances (or t), nearest first.
+    fn ranked(found: Vec<(ObjectId, Key, f64)>, stats: &TraverseStats) -> Response {
+        let mut r = Response {
+            objects: Vec::with_capacity(found.len()),
+            keys: Vec::with_capacity(found.len()),
+            distances: Some(Vec::with_capacity(found.len())),
+            points: None,
+            maybe: Vec::new(),
+            reads: stats.reads,
+        };
+        for (o, k, d) in found {
+            r.objects.push(o);
+            r.keys.push(k);
+            r.distances.get_or_insert_default().push(d);
+        }
+        r
     }
 }
 
@@ -122,18 +145,14 @@ pub fn answer_request(
         Request::Nearest { point, k } => {
             let mut it = txn.nearest(Point::from(*point), cache)?;
             let found = it.by_ref().take(*k).collect::<Result<Vec<_>, _>>()?;
-            let (objects, distances) = found.into_iter().unzip();
-            Response::ranked(objects, distances, &it.stats())
+            Response::ranked(found.into_iter().map(|n| (n.object, n.key, n.distance)).collect(), &it.stats())
         }
         Request::Ray { origin, direction, max_distance, all } => {
             let ray = Ray::new(Point::from(*origin), Vector::from(*direction), *max_distance)?;
             let mut it = txn.ray(&ray, cache)?;
             let hits = it.by_ref().take(if *all { usize::MAX } else { 1 }).collect::<Result<Vec<_>, _>>()?;
-            let mut r = Response::ranked(
-                hits.iter().map(|h| h.object).collect(),
-                hits.iter().map(|h| h.t).collect(),
-                &it.stats(),
-            );
+            let mut r =
+                Response::ranked(hits.iter().map(|h| (h.object, h.key.clone(), h.t)).collect(), &it.stats());
             r.points = Some(hits.iter().map(|h| h.point).collect());
             r
         }

@@ -2,11 +2,12 @@
 //! (or pair) of the scene exactly, with no tree and no file, by the same
 //! contact rule as the queries (closed sets, touching counts).
 
+use super::nearest::Near;
 use super::rank::Rank;
 use super::ray::{RayHit, hit, rank};
 use super::select::{Region, Selection, Triangles};
 use crate::geom::{Point, Pose, Ray};
-use crate::scene::{Mesh, ObjectId, Scene};
+use crate::scene::{Key, Mesh, ObjectId, Scene};
 
 fn all<P: Selection + ?Sized>(scene: &Scene, probe: &P) -> Vec<ObjectId> {
     let mut n = 0;
@@ -53,14 +54,24 @@ pub fn brute_force_clash(
 
 /// Every object with its distance from `point` (the same numbers as
 /// `ReadTransaction::nearest`), nearest first, ties by id.
-pub fn brute_force_nearest(scene: &Scene, point: &Point) -> Vec<(ObjectId, f64)> {
+pub fn brute_force_nearest(scene: &Scene, point: &Point) -> Vec<Near> {
     ranked(scene, &Rank::Nearest(*point))
+        .into_iter()
+        .map(|(object, distance)| Near { object, key: key_of(scene, object), distance })
+        .collect()
+}
+
+fn key_of(scene: &Scene, id: ObjectId) -> Key {
+    scene.key(id).unwrap_or(Key::Int(u64::from(id.0)))
 }
 
 /// Every object `ray` meets, followed past the scene's box (or to its
 /// maximum), with the distance it first meets each: nearest first, ties by id.
 pub fn brute_force_ray(scene: &Scene, ray: &Ray) -> Vec<RayHit> {
-    ranked(scene, &rank(ray, &scene.aabb())).into_iter().map(|(id, t)| hit(ray, id, t)).collect()
+    ranked(scene, &rank(ray, &scene.aabb()))
+        .into_iter()
+        .map(|(id, t)| hit(ray, (id, key_of(scene, id)), t))
+        .collect()
 }
 
 fn ranked(scene: &Scene, rank: &Rank) -> Vec<(ObjectId, f64)> {

@@ -29,7 +29,7 @@ pub use clash::{ClashAnswer, ClashOptions, clash};
 pub use collide::{CollideOptions, collide, object_mesh, object_meshes};
 pub use error::QueryError;
 pub use navigate::{NavigateStep, navigate, parse_path};
-pub use nearest::Nearest;
+pub use nearest::{Near, Nearest};
 pub use ray::{RayHit, RayHits};
 pub use region::query_region;
 pub use select::{Everything, Region, Selection, Triangles};

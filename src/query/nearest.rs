@@ -10,8 +10,18 @@ use super::rank::Rank;
 use super::traverse::{QueryOptions, Select, TraverseStats};
 use crate::db::{ReadTransaction, Reads};
 use crate::geom::{Point, ShapeError};
-use crate::scene::ObjectId;
+use crate::scene::{Key, ObjectId};
 use crate::store::BlockCache;
+
+/// An object at its distance from the point asked about.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Near {
+    pub object: ObjectId,
+    /// The application's key for it.
+    pub key: Key,
+    /// From the point to the object's surface, mm.
+    pub distance: f64,
+}
 
 /// The objects of a tree by distance from a point, nearest first
 /// ([`ReadTransaction::nearest`]).
@@ -27,13 +37,15 @@ impl Nearest<'_> {
 }
 
 impl Iterator for Nearest<'_> {
-    /// An object and its distance, mm.
-    type Item = Result<(ObjectId, f64), QueryError>;
+    type Item = Result<Near, QueryError>;
 
     fn next(&mut self) -> Option<Self::Item> {
         loop {
             match self.select.next_decision()? {
-                Ok(d) if d.accepted => return Some(Ok((d.hit.object, d.distance.unwrap_or(0.0)))),
+                Ok(d) if d.accepted => {
+                    let distance = d.distance.unwrap_or(0.0);
+                    return Some(Ok(Near { object: d.hit.object, key: d.hit.key, distance }));
+                }
                 Ok(_) => {}
                 Err(e) => return Some(Err(e)),
             }
@@ -59,7 +71,8 @@ impl ReadTransaction {
     /// # w.commit()?;
     /// let r = db.begin_read()?;
     /// let three: Vec<_> = r.nearest(Point::new(0.0, 0.0, 0.0), None)?.take(3).collect::<Result<_, _>>()?;
-    /// assert!(three.len() == 3 && three[0].1 <= three[1].1 && three[1].1 <= three[2].1);
+    /// let d: Vec<f64> = three.iter().map(|n: &mktree::query::Near| n.distance).collect();
+    /// assert!(three.len() == 3 && d[0] <= d[1] && d[1] <= d[2]);
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     pub fn nearest<'a>(

@@ -12,13 +12,15 @@ use super::rank::Rank;
 use super::traverse::{QueryOptions, Select, TraverseStats};
 use crate::db::{ReadTransaction, Reads};
 use crate::geom::{Point, Ray};
-use crate::scene::ObjectId;
+use crate::scene::{Key, ObjectId};
 use crate::store::BlockCache;
 
 /// Where a ray meets an object first.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RayHit {
     pub object: ObjectId,
+    /// The application's key for it.
+    pub key: Key,
     /// The distance from the ray's origin, mm.
     pub t: f64,
     /// The point at distance t.
@@ -45,7 +47,7 @@ impl Iterator for RayHits<'_> {
         loop {
             match self.select.next_decision()? {
                 Ok(d) if d.accepted => {
-                    return Some(Ok(hit(&self.ray, d.hit.object, d.distance.unwrap_or(0.0))));
+                    return Some(Ok(hit(&self.ray, (d.hit.object, d.hit.key), d.distance.unwrap_or(0.0))));
                 }
                 Ok(_) => {}
                 Err(e) => return Some(Err(e)),
@@ -78,7 +80,7 @@ impl ReadTransaction {
 }
 
 /// `object` met by `ray` at `t`.
-pub(crate) fn hit(ray: &Ray, object: ObjectId, t: f64) -> RayHit {
+pub(crate) fn hit(ray: &Ray, (object, key): (ObjectId, Key), t: f64) -> RayHit {
     let p: Point = ray.at(t);
-    RayHit { object, t, point: [p.x, p.y, p.z] }
+    RayHit { object, key, t, point: [p.x, p.y, p.z] }
 }

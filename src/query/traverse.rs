@@ -37,7 +37,7 @@ use super::select::Selection;
 use crate::db::{NodeRef, ReadTransaction, Reads, view};
 use crate::geom::Aabb;
 use crate::lod::Voxels;
-use crate::scene::{Mesh, ObjectId};
+use crate::scene::{Key, Mesh, ObjectId};
 use crate::store::format::geometry;
 use crate::store::format::node::{BoundView, LeafView, NodeView, RecordRef};
 use crate::store::format::quant::QuantBox;
@@ -87,9 +87,11 @@ pub struct ObjectLevel {
 }
 
 /// An object a query accepted, as [`Select`] yields it.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Hit {
     pub object: ObjectId,
+    /// The application's key for it, from its leaf record (no read of its own).
+    pub key: Key,
     /// Its box as stored (rounded outward; for an object stored as parts,
     /// the union of the parts' boxes).
     pub aabb: Aabb,
@@ -122,6 +124,8 @@ pub struct TraverseStats {
 pub struct QueryAnswer {
     /// Sorted ids: exact at level M; below M a superset of the exact answer.
     pub objects: Vec<ObjectId>,
+    /// The application's key of each of `objects`, in the same order.
+    pub keys: Vec<Key>,
     /// Budgeted: objects seen but not refined to the requested level (sorted).
     pub maybe: Vec<ObjectId>,
     /// Budgeted: subtrees left unread; their objects may meet the query.
@@ -139,7 +143,10 @@ pub struct QueryAnswer {
 impl QueryAnswer {
     /// Drops `id` from the answer (a collision query's own object).
     pub(crate) fn without(mut self, id: ObjectId) -> QueryAnswer {
-        self.objects.retain(|&o| o != id);
+        if let Ok(i) = self.objects.binary_search(&id) {
+            self.objects.remove(i);
+            self.keys.remove(i);
+        }
         self.maybe.retain(|&o| o != id);
         self.decided.retain(|o| o.object != id);
         self
@@ -164,10 +171,10 @@ enum Step {
     /// A part whose geometry decides its object: leaf `offset` of `block`,
     /// entry `index` (box `part`, its object's `whole`), which passed bounds
     /// up to `level`.
-    Exact { block: Arc<Block>, offset: u32, index: usize, level: u8, part: Aabb, whole: Aabb },
+    Exact { block: Arc<Block>, offset: u32, index: usize, level: u8, part: Aabb, whole: Aabb, key: Key },
     /// Best first: an object at its exact distance, yielded when nothing
     /// left in the queue can be nearer.
-    Found { object: u32, aabb: Aabb, distance: f64 },
+    Found { object: u32, aabb: Aabb, key: Key, distance: f64 },
 }
 
 /// A step in the queue: the greatest (`priority`, then `tie`) goes first.
@@ -408,21 +415,23 @@ impl<'a, S: Selection> Select<'a, S> {
 
     /// Drains the iterator into a sorted answer.
     pub(crate) fn answer(&mut self) -> Result<QueryAnswer, QueryError> {
-        let (mut objects, mut decided) = (Vec::new(), Vec::new());
+        let (mut accepted, mut decided) = (Vec::new(), Vec::new());
         while let Some(d) = self.next_decision() {
             let d = d?;
+            let Hit { object, key, level, proof, .. } = d.hit;
             if d.accepted {
-                objects.push(d.hit.object);
+                accepted.push((object, key));
             }
-            let Hit { object, level, proof, .. } = d.hit;
             decided.push(ObjectLevel { object, level, accepted: d.accepted, proof });
         }
-        objects.sort_unstable();
+        accepted.sort_unstable_by_key(|a| a.0);
+        let (objects, keys) = accepted.into_iter().unzip();
         decided.sort_unstable_by_key(|d| d.object);
         let stats = self.stats();
         let rest = self.rest.take().unwrap_or_default();
         Ok(QueryAnswer {
             objects,
+            keys,
             maybe: rest.maybe,
             unexplored_nodes: rest.unexplored_nodes,
             level: self.k,
@@ -556,8 +565,8 @@ impl<'a, S: Selection> Select<'a, S> {
     }
 
     /// Records an object's decision (once per object, whatever its parts).
-    fn decide(&mut self, object: (u32, Aabb), decision: (u8, bool, Proof), distance: Option<f64>) {
-        let ((id, aabb), (level, accepted, proof)) = (object, decision);
+    fn decide(&mut self, object: (u32, Aabb, Key), decision: (u8, bool, Proof), distance: Option<f64>) {
+        let ((id, aabb, key), (level, accepted, proof)) = (object, decision);
         let i = usize::from(level) - 1;
         match proof {
             Proof::Candidate => {}
@@ -565,7 +574,7 @@ impl<'a, S: Selection> Select<'a, S> {
             _ => self.stats.rejected[i] += 1,
         }
         self.done.insert(id);
-        let hit = Hit { object: ObjectId(id), aabb, level, proof };
+        let hit = Hit { object: ObjectId(id), key, aabb, level, proof };
         self.out.push_back(Decision { hit, accepted, distance });
     }
 
@@ -591,7 +600,7 @@ impl<'a, S: Selection> Select<'a, S> {
                 self.push(Step::Node { block, offset: at.offset, frame, inside })
             }
             Step::Node { block, offset, frame, inside } => self.node(block, offset, frame, inside),
-            Step::Exact { block, offset, index, part, whole, .. } => {
+            Step::Exact { block, offset, index, part, whole, key, .. } => {
                 let NodeView::Leaf(leaf) = view(&block, offset)? else { return Ok(()) };
                 let Some(o) = leaf.object(index) else { return Ok(()) };
                 // Another part of the object already decided it: this one need not be read.
@@ -613,20 +622,20 @@ impl<'a, S: Selection> Select<'a, S> {
                 match distance {
                     Some(distance) if self.rank.is_some() => {
                         self.found.insert(id.0);
-                        self.push(Step::Found { object: id.0, aabb: whole, distance })?;
+                        self.push(Step::Found { object: id.0, aabb: whole, key, distance })?;
                     }
-                    Some(_) => self.decide((id.0, whole), (self.m, true, Proof::Exact), None),
+                    Some(_) => self.decide((id.0, whole, key), (self.m, true, Proof::Exact), None),
                     None if last && !self.found.contains(&id.0) => {
-                        self.decide((id.0, whole), (self.m, false, Proof::Exact), None);
+                        self.decide((id.0, whole, key), (self.m, false, Proof::Exact), None);
                     }
                     None => {}
                 }
                 Ok(())
             }
-            Step::Found { object, aabb, distance } => {
+            Step::Found { object, aabb, key, distance } => {
                 // Its nearest part's distance comes first; a farther part's is dropped.
                 if !self.done.contains(&object) {
-                    self.decide((object, aabb), (self.m, true, Proof::Exact), Some(distance));
+                    self.decide((object, aabb, key), (self.m, true, Proof::Exact), Some(distance));
                 }
                 Ok(())
             }
@@ -684,6 +693,8 @@ impl<'a, S: Selection> Select<'a, S> {
                 // An object larger than a geometry block is stored as parts:
                 // consecutive entries of one id. One part proves contact for
                 // the object; it misses only when every part does.
+                // Each object's key, in the order of its first entries.
+                let mut keys = leaf.keys();
                 let mut j = 0;
                 while j < leaf.len() {
                     let id = leaf.object(j).ok_or_else(|| bad("an object is missing"))?.object_id;
@@ -691,7 +702,8 @@ impl<'a, S: Selection> Select<'a, S> {
                     while leaf.object(end).is_some_and(|o| o.object_id == id) {
                         end += 1;
                     }
-                    self.object(&block, offset, &leaf, (j, end), &frame, inside)?;
+                    let key = keys.next().ok_or_else(|| bad("an object has no key"))?.1.to_key();
+                    self.object(&block, offset, &leaf, (j, end, key), &frame, inside)?;
                     j = end;
                 }
             }
@@ -707,11 +719,12 @@ impl<'a, S: Selection> Select<'a, S> {
         block: &Arc<Block>,
         offset: u32,
         leaf: &LeafView,
-        parts: (usize, usize),
+        (first, end, key): (usize, usize, Key),
         frame: &Aabb,
         inside: bool,
     ) -> Result<(), StorageError> {
         let bad = |d: &str| StorageError::corrupt(block.id(), "record", d.to_string());
+        let parts = (first, end);
         let whole = object_box(leaf, parts, frame);
         let mut pending: Vec<(usize, u8, Aabb, Option<Voxels>)> = Vec::new();
         let (mut rejected_at, mut reject_proof) = (1u8, Proof::BoxMisses);
@@ -723,7 +736,7 @@ impl<'a, S: Selection> Select<'a, S> {
             let aabb = qb.outer;
             if inside {
                 self.seen((id, aabb), (1, true, Proof::InsideNode), None, None)?;
-                self.decide((id, whole), (1, true, Proof::InsideNode), None);
+                self.decide((id, whole, key.clone()), (1, true, Proof::InsideNode), None);
                 return Ok(());
             }
             if !self.sel.may_meet_box(&aabb) {
@@ -732,7 +745,7 @@ impl<'a, S: Selection> Select<'a, S> {
             }
             if qb.face_slabs().iter().any(|f| self.sel.holds_box(f)) {
                 self.seen((id, aabb), (1, true, Proof::Face), None, None)?;
-                self.decide((id, whole), (1, true, Proof::Face), None);
+                self.decide((id, whole, key.clone()), (1, true, Proof::Face), None);
                 return Ok(());
             }
             let mut level = 1;
@@ -747,7 +760,7 @@ impl<'a, S: Selection> Select<'a, S> {
                 }
                 if self.sel.confirms_voxels(&v) {
                     self.seen((id, aabb), (level, true, Proof::Cell), Some((level, &v)), None)?;
-                    self.decide((id, whole), (level, true, Proof::Cell), None);
+                    self.decide((id, whole, key.clone()), (level, true, Proof::Cell), None);
                     return Ok(());
                 }
                 voxels = Some(v);
@@ -755,18 +768,26 @@ impl<'a, S: Selection> Select<'a, S> {
             pending.push((i, level, aabb, voxels));
         }
         if pending.is_empty() {
-            self.decide((id, whole), (rejected_at, false, reject_proof), None);
+            self.decide((id, whole, key.clone()), (rejected_at, false, reject_proof), None);
         } else if self.k == self.m {
             self.parts.insert(id, pending.len() as u32);
             for (i, level, part, _) in pending {
-                self.push(Step::Exact { block: block.clone(), offset, index: i, level, part, whole })?;
+                self.push(Step::Exact {
+                    block: block.clone(),
+                    offset,
+                    index: i,
+                    level,
+                    part,
+                    whole,
+                    key: key.clone(),
+                })?;
             }
         } else {
             let level = pending.iter().map(|p| p.1).max().unwrap_or(1);
             for (_, l, aabb, v) in &pending {
                 self.seen((id, *aabb), (*l, true, Proof::Candidate), v.as_ref().map(|v| (*l, v)), None)?;
             }
-            self.decide((id, whole), (level, true, Proof::Candidate), None);
+            self.decide((id, whole, key.clone()), (level, true, Proof::Candidate), None);
         }
         Ok(())
     }

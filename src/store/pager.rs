@@ -56,6 +56,7 @@ impl std::ops::Sub for ReadStats {
         ReadStats {
             node: self.node - o.node,
             geometry: self.geometry - o.geometry,
+            keys: self.keys - o.keys,
             other: self.other - o.other,
             cache_hits: self.cache_hits - o.cache_hits,
         }

@@ -39,6 +39,7 @@ pub fn answer_json(a: &QueryAnswer) -> Value {
     let s = &a.stats;
     json!({
         "objects": a.objects,
+        "keys": a.keys,
         "maybe": a.maybe,
         "unexplored_nodes": a.unexplored_nodes,
         "level": a.level,
