@@ -55,7 +55,7 @@ fn replay(target: &str, body: fn(&[u8])) -> usize {
 type Body = fn(&[u8]);
 
 /// Every fuzz target with its body.
-const TARGETS: [(&str, Body); 9] = [
+const TARGETS: [(&str, Body); 10] = [
     ("decode_block", mktree::fuzzing::decode_block),
     ("open_and_query", mktree::fuzzing::open_and_query),
     ("forge_header", mktree::fuzzing::forge_header),
@@ -64,6 +64,7 @@ const TARGETS: [(&str, Body); 9] = [
     ("forge_lod", mktree::fuzzing::forge_lod),
     ("forge_names", mktree::fuzzing::forge_names),
     ("forge_free_list", mktree::fuzzing::forge_free_list),
+    ("forge_keys", mktree::fuzzing::forge_keys),
     ("api_sequence", mktree::fuzzing::api_sequence),
 ];
 

@@ -73,6 +73,22 @@ impl Record {
     }
 }
 
+/// An entry of a key block (format-spec/keys.md), absolute offsets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct KeyEntryAt {
+    /// Where the entry starts.
+    pub at: usize,
+    /// Its key's stored form and length (none for a branch's first child).
+    pub key: Option<(usize, usize)>,
+    /// A leaf entry's payload length word; its payload follows.
+    pub payload: Option<usize>,
+    /// The fixed part: a leaf's object id, node block, checksum, record
+    /// offset, entry, reserved and box; a branch's child block and checksum.
+    pub fixed: usize,
+    /// Just past the entry.
+    pub end: usize,
+}
+
 /// A bound entry of a leaf (format-spec/node.md, "Bounds"): its head and blob.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct BoundAt {
@@ -274,28 +290,52 @@ impl Image {
     /// branch's: the child's block and checksum), while entries fit its
     /// used bytes.
     fn key_entries(&self, base: usize, branch: bool) -> Vec<usize> {
-        let end = (base + 24).saturating_add(self.u32(base + 20) as usize).min(base + self.bs);
-        let key_len = |at: usize| match self.u8(at) {
+        self.key_block_entries(base, branch).into_iter().map(|e| e.fixed).collect()
+    }
+
+    /// The stored length of the key at `at` (format-spec/keys.md): none for an unknown tag.
+    pub fn key_len(&self, at: usize) -> Option<usize> {
+        match self.u8(at) {
             0 => Some(9),
             1 => Some(2 + usize::from(self.u8(at + 1))),
             _ => None,
-        };
+        }
+    }
+
+    /// The entries of the key block at `base` (absolute) as its head lays
+    /// them out, while they fit its used bytes and the block.
+    pub fn key_block_entries(&self, base: usize, branch: bool) -> Vec<KeyEntryAt> {
+        let end = (base + 24).saturating_add(self.u32(base + 20) as usize).min(base + self.bs);
         let mut out = Vec::new();
         let mut at = base + 24;
         for i in 0..self.u16(base + 16) {
-            let (fixed, next) = if branch {
-                let Some(k) = (if i == 0 { Some(0) } else { key_len(at) }) else { break };
-                (at + k, at + k + 8)
+            let (key, payload, fixed, next) = if branch {
+                let key = if i == 0 { None } else { Some(self.key_len(at)) };
+                let Some(k) = key.unwrap_or(Some(0)) else { break };
+                (key.map(|_| (at, k)), None, at + k, at + k + 8)
             } else {
-                let Some(k) = key_len(at) else { break };
+                let Some(k) = self.key_len(at) else { break };
                 let fixed = at + k + 2 + usize::from(self.u16(at + k));
-                (fixed, fixed + 68)
+                (Some((at, k)), Some(at + k), fixed, fixed + 68)
             };
             if next > end {
                 break;
             }
-            out.push(fixed);
+            out.push(KeyEntryAt { at, key, payload, fixed, end: next });
             at = next;
+        }
+        out
+    }
+
+    /// The keys of a leaf record's keys area (format-spec/node.md, "Keys"):
+    /// (offset, stored length), while they fit the area.
+    pub fn stored_keys(&self, leaf: &LeafAt) -> Vec<(usize, usize)> {
+        let end = leaf.keys_at.saturating_add(leaf.keys_len);
+        let mut out = Vec::new();
+        let mut at = leaf.keys_at;
+        while let Some(k) = self.key_len(at).filter(|k| at + k <= end) {
+            out.push((at, k));
+            at += k;
         }
         out
     }

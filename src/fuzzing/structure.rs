@@ -7,7 +7,7 @@
 //! file that `check` accepts is a valid file of other objects, so its
 //! answers must be those of brute force over the objects it returns.
 
-use std::collections::{HashSet, VecDeque};
+use std::collections::{HashMap, HashSet, VecDeque};
 use std::sync::{Arc, Mutex, OnceLock};
 
 use super::edit::{Catalog, Choices, Width, copy_chunk, edit_field, edit_raw};
@@ -20,7 +20,7 @@ use crate::query::{
     ClashOptions, CollideOptions, QueryOptions, Region, Visitor, brute_force_region, clash, collide,
     object_meshes, query_region, walk,
 };
-use crate::scene::{Mesh, Object, ObjectId, Scene};
+use crate::scene::{Key, Mesh, Object, ObjectId, Scene};
 use crate::store::device::MemDevice;
 use crate::store::format::header::{SLOT_LEN, slot_offset};
 use crate::store::format::node::NodeView;
@@ -40,15 +40,18 @@ pub enum Structure {
     Lod,
     Names,
     FreeList,
+    /// The key index (its blocks and the meta block's root) and the leaves' keys areas.
+    Keys,
 }
 
-const STRUCTURES: [Structure; 6] = [
+const STRUCTURES: [Structure; 7] = [
     Structure::Header,
     Structure::Node,
     Structure::Geometry,
     Structure::Lod,
     Structure::Names,
     Structure::FreeList,
+    Structure::Keys,
 ];
 
 /// Bytes per block of the base file.
@@ -81,6 +84,20 @@ struct Base {
     boxes: Vec<Aabb>,
     /// The base objects' boxes, which the input's probes split.
     objects: Vec<Aabb>,
+    /// The newest tree's node blocks.
+    nodes: Vec<u32>,
+    /// The key index's blocks: (block, level above the leaves).
+    key_blocks: Vec<(u32, u32)>,
+    /// Each base object (by id) as a lookup by its key finds it.
+    keyed: Vec<Keyed>,
+}
+
+/// A base object as a lookup by key must find it.
+#[derive(Debug, Clone)]
+struct Keyed {
+    key: Key,
+    aabb: Aabb,
+    mesh: Mesh,
 }
 
 fn mesh(vertices: &[[f64; 3]], triangles: Vec<[u32; 3]>) -> Mesh {
@@ -119,13 +136,40 @@ fn name(kind: &str, i: usize) -> String {
     format!("{kind}-{i}: größe {}", "name ".repeat(20 + 2 * i))
 }
 
-/// The base scene: slanted triangles, boxes and a strip stored as parts.
+/// The base objects' keys, a mixture in an order unlike the ids': integers
+/// (a boundary among them), byte strings (IFC GlobalIds, an empty one).
+fn base_key(i: usize) -> Key {
+    let bytes = |s: &str| Key::bytes(s).unwrap_or_else(|e| panic!("the base scene's key: {e}"));
+    match i {
+        0 => Key::Int(42),
+        1 => Key::Int(1 << 40),
+        2 => bytes("2O2Fr$t4X7Zf8NoEw0Xs9a"),
+        3 => bytes(""),
+        4 => Key::Int(7),
+        5 => bytes("0K7w7JN$T0xOsnq9vT0VbL"),
+        6 => bytes("box/6"),
+        7 => Key::Int(u64::MAX),
+        _ => bytes("strip"),
+    }
+}
+
+/// The base objects' payloads: none for every third object, else 80 to
+/// 400 bytes, so that the key index takes three leaves under a branch.
+fn base_payload(i: usize) -> Vec<u8> {
+    let n = if i % 3 == 1 { 0 } else { 80 + 40 * i };
+    (0..n).map(|j| (31 * i + j) as u8).collect()
+}
+
+/// The base scene: slanted triangles, boxes and a strip stored as parts,
+/// each with its key and payload.
 fn base_scene() -> Scene {
     let mut objects: Vec<Object> = (0..6).map(|i| Object::new(name("triangle", i), slanted(i))).collect();
     objects.push(Object::new(name("box", 6), cuboid([500.0, 0.0, 0.0], [560.0, 40.0, 80.0])));
     objects.push(Object::new(name("box", 7), cuboid([500.0, 100.0, 20.0], [590.0, 150.0, 60.0])));
     objects.push(Object::new(name("strip", 8), strip()));
-    Scene::new(objects)
+    let keyed =
+        objects.into_iter().enumerate().map(|(i, o)| o.with_key(base_key(i)).with_payload(base_payload(i)));
+    Scene::new(keyed.collect())
 }
 
 /// Levels of detail of a file of `m` levels on coarse grids, judged by few
@@ -249,6 +293,17 @@ impl Base {
         let names = r.names().unwrap_or_else(|e| panic!("the base file's names: {e}"));
         let ids: Vec<ObjectId> = (0..names.len() as u32).map(ObjectId).collect();
         let meshes = object_meshes(&r, &ids).unwrap_or_else(|e| panic!("the base file's meshes: {e}"));
+        let keyed: Vec<Keyed> = meshes
+            .iter()
+            .enumerate()
+            .map(|(i, mesh)| {
+                let key = base_key(i);
+                let found = r.get(&key).unwrap_or_else(|e| panic!("the base file's key {key}: {e}"));
+                let found = found.unwrap_or_else(|| panic!("the base file has no key {key}"));
+                assert_eq!(found.id, ObjectId(i as u32), "the base file's key {key}");
+                Keyed { key, aabb: found.aabb, mesh: mesh.clone() }
+            })
+            .collect();
         drop((r, db));
 
         let mut header = Catalog::default();
@@ -404,8 +459,63 @@ impl Base {
             free.add(slot_offset(slot, copy), Width::U32, [20, 24, 32]);
         }
 
+        // The key index: the meta block's root, each block's head and
+        // entries; and the keys areas of the leaf records.
+        let key_blocks: Vec<(u32, u32)> = reached
+            .iter()
+            .filter_map(|(id, kind, _)| match kind {
+                Kind::Key { level } => Some((*id, *level)),
+                _ => None,
+            })
+            .collect();
+        let mut keys_c = Catalog::default();
+        keys_c.add(meta, Width::U32, [904, 908, 912, 916]);
+        keys_c.ranges.push((meta + 904, 16));
+        for &(b, level) in &key_blocks {
+            let at = b as usize * BS;
+            keys_c.add(at, Width::U16, [16, 18]);
+            keys_c.add(at, Width::U8, [18, 19]);
+            keys_c.add(at, Width::U32, [20]);
+            keys_c.ranges.push((at + 16, BS - 16));
+            for e in image.key_block_entries(at, level > 0) {
+                keys_c.anchors.push(e.at);
+                if let Some((k, len)) = e.key {
+                    key_fields(&mut keys_c, &image, k, len);
+                }
+                if let Some(p) = e.payload {
+                    keys_c.add(p, Width::U16, [0]);
+                    let n = usize::from(image.u16(p));
+                    if n > 0 {
+                        keys_c.add(p + 2, Width::U8, [0, n - 1]);
+                        keys_c.ranges.push((p + 2, n));
+                    }
+                }
+                if level == 0 {
+                    keys_c.anchors.push(e.fixed);
+                    keys_c.add(e.fixed, Width::U32, [0, 4, 8, 12]);
+                    keys_c.add(e.fixed, Width::U16, [16, 18]);
+                    keys_c.add(e.fixed, Width::F64, (0..6).map(|j| 20 + 8 * j));
+                } else {
+                    keys_c.add(e.fixed, Width::U32, [0, 4]);
+                }
+            }
+        }
+        for &b in &nodes {
+            for rec in image.records(b) {
+                if let Record::Leaf(l) = rec {
+                    keys_c.add(l.at, Width::U16, [14]);
+                    if l.keys_len > 0 {
+                        keys_c.ranges.push((l.keys_at, l.keys_len));
+                    }
+                    for (k, len) in image.stored_keys(&l) {
+                        key_fields(&mut keys_c, &image, k, len);
+                    }
+                }
+            }
+        }
+
         Base {
-            catalogs: vec![header, node, geo, lod, names_c, free],
+            catalogs: vec![header, node, geo, lod, names_c, free, keys_c],
             lattice,
             sites,
             names_block,
@@ -415,8 +525,25 @@ impl Base {
             free_lists,
             boxes: oracle_boxes(&meshes),
             objects: meshes.iter().map(|m| m.aabb()).collect(),
+            nodes,
+            key_blocks,
+            keyed,
             image,
         }
+    }
+}
+
+/// Fields of the stored key at `at` of `len` bytes (format-spec/keys.md):
+/// its tag; an integer's 8 bytes and its low byte (big-endian: the last);
+/// a byte string's length and bytes.
+fn key_fields(c: &mut Catalog, image: &Image, at: usize, len: usize) {
+    c.anchors.push(at);
+    c.add(at, Width::U8, [0]);
+    if image.u8(at) == 0 {
+        c.add(at + 1, Width::U64, [0]);
+        c.add(at, Width::U8, [8]);
+    } else {
+        c.add(at, Width::U8, 1..len);
     }
 }
 
@@ -454,7 +581,7 @@ fn exercise(s: Structure, bytes: Vec<u8>, probes: &[Aabb]) {
         let m = r.pager().lod_levels();
         let levels: Vec<u8> = match s {
             Structure::Header | Structure::Node | Structure::Lod => (1..=m).collect(),
-            Structure::Geometry => vec![m],
+            Structure::Geometry | Structure::Keys => vec![m],
             Structure::Names | Structure::FreeList => Vec::new(),
         };
         let corner = Aabb::from_array([0.0, 0.0, 0.0, 150.0, 150.0, 60.0]);
@@ -488,9 +615,20 @@ fn exercise(s: Structure, bytes: Vec<u8>, probes: &[Aabb]) {
         }
     }
     let sound = check(&db).is_ok_and(|r| r.ok());
-    if sound && matches!(s, Structure::Header | Structure::Node | Structure::Geometry | Structure::Lod) {
+    if sound
+        && matches!(
+            s,
+            Structure::Header | Structure::Node | Structure::Geometry | Structure::Lod | Structure::Keys
+        )
+    {
         let boxes: Vec<Aabb> = base().boxes.iter().chain(probes).copied().collect();
         answers_match_brute_force(&db, &boxes);
+    }
+    match s {
+        Structure::Keys => lookups(&db, sound),
+        // Forged slots, meta or node records move what the index points at.
+        Structure::Header | Structure::Node => lookups(&db, false),
+        _ => {}
     }
     if matches!(s, Structure::Header | Structure::FreeList) {
         write_after(&dev, db, sound, s);
@@ -525,6 +663,104 @@ fn answers_match_brute_force(db: &Database, boxes: &[Aabb]) {
                     a.objects
                 );
             }
+        }
+    }
+}
+
+/// Each leaf's objects' keys, as the leaf stores them: id -> key.
+#[derive(Default)]
+struct LeafKeys(HashMap<u32, Key>);
+
+impl Visitor for LeafKeys {
+    fn node(&mut self, block: &Arc<Block>, offset: u32, _: &Aabb) -> Result<(), StorageError> {
+        if let NodeView::Leaf(l) = view(block, offset)? {
+            for i in 0..l.len() {
+                if let (Some(o), Some(k)) = (l.object(i), l.key(i)) {
+                    self.0.entry(o.object_id).or_insert(k);
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Keys near `keys` and at the ends of the order, none of them in `keys`:
+/// an integer one off, a byte string cut, extended or with its last byte
+/// one up, the least and greatest keys.
+fn absent_keys<'a>(keys: impl IntoIterator<Item = &'a Key>) -> Vec<Key> {
+    let keys: HashSet<Key> = keys.into_iter().cloned().collect();
+    let mut out: Vec<Key> =
+        vec![Key::Int(0), Key::Int(u64::MAX), Key::Bytes(Box::new([])), Key::Bytes(Box::new([0]))];
+    out.push(Key::Bytes(vec![0xff; Key::MAX_BYTES].into()));
+    for k in &keys {
+        match k {
+            Key::Int(x) => out.extend([x.wrapping_sub(1), x.wrapping_add(1)].map(Key::Int)),
+            Key::Bytes(b) => {
+                let mut longer = b.to_vec();
+                longer.push(0);
+                out.push(Key::Bytes(longer.into()));
+                if let Some((&last, head)) = b.split_last() {
+                    out.push(Key::Bytes(head.into()));
+                    let mut up = b.to_vec();
+                    up[head.len()] = last.wrapping_add(1);
+                    out.push(Key::Bytes(up.into()));
+                }
+            }
+        }
+    }
+    out.sort();
+    out.dedup();
+    out.retain(|k| !keys.contains(k));
+    out
+}
+
+/// Lookups by key (`get`, `aabb`, `mesh`) of every base object's key and
+/// of keys no object has. They must return (an error is fine) unless the
+/// file is `sound` (check passed); then each object of the base scene is
+/// found by the key its leaf stores (the base scene's, unless a forgery
+/// moved keys between objects everywhere, which makes a valid file of
+/// other keys) with its id, box and mesh as in the base file, and every
+/// other key finds nothing.
+fn lookups(db: &Database, sound: bool) {
+    let base = base();
+    let Ok(r) = db.begin_read() else { return };
+    if !sound {
+        for k in
+            base.keyed.iter().map(|o| &o.key).cloned().chain(absent_keys(base.keyed.iter().map(|o| &o.key)))
+        {
+            let _ = (r.get(&k), r.aabb(&k), r.mesh(&k));
+        }
+        return;
+    }
+    let root = r.root().unwrap_or_else(|| panic!("a file check passes has no tree"));
+    let mut stored = LeafKeys::default();
+    let everything = QueryOptions { lod: Some(1), ..Default::default() };
+    walk(&r, root, &crate::query::Everything, &everything, &mut crate::db::Reads::new(None), &mut stored)
+        .unwrap_or_else(|e| panic!("a file check passes does not walk: {e}"));
+    assert_eq!(stored.0.len(), base.keyed.len(), "a file check passes keys other objects than the base's");
+    for (i, o) in base.keyed.iter().enumerate() {
+        let id = ObjectId(i as u32);
+        let key =
+            stored.0.get(&id.0).unwrap_or_else(|| panic!("a file check passes stores no key for {id:?}"));
+        let found = match r.get(key) {
+            Ok(Some(found)) => found,
+            other => panic!("a file check passes looks up {key} (object {i}) as {other:?}"),
+        };
+        assert_eq!((found.id, &found.key, found.aabb), (id, key, o.aabb), "a file check passes: get({key})");
+        match r.aabb(key) {
+            Ok(Some(b)) if b == o.aabb => {}
+            other => panic!("a file check passes: aabb({key}) of object {i} is {other:?}, not {:?}", o.aabb),
+        }
+        match r.mesh(key) {
+            Ok(Some(m)) if m == o.mesh => {}
+            Ok(Some(_)) => panic!("a file check passes: mesh({key}) is not object {i}'s"),
+            other => panic!("a file check passes: mesh({key}) of object {i} is {other:?}"),
+        }
+    }
+    for k in absent_keys(stored.0.values()) {
+        match (r.get(&k), r.aabb(&k), r.mesh(&k)) {
+            (Ok(None), Ok(None), Ok(None)) => {}
+            other => panic!("a file check passes finds key {k}, which no object has: {other:?}"),
         }
     }
 }
@@ -705,6 +941,192 @@ fn special(
         Structure::Lod => lod_op(base, img, op, c),
         Structure::Names => names_op(base, img, op, c),
         Structure::FreeList => free_op(base, img, op, c),
+        Structure::Keys => keys_op(base, img, op, c),
+    }
+}
+
+/// A key block's entries as bytes: (key, the rest), a branch's first child
+/// with an empty key.
+type RawEntries = Vec<(Vec<u8>, Vec<u8>)>;
+
+/// The entries of key block `block` (level `level`) as they fit its used bytes.
+fn raw_entries(img: &Image, block: u32, level: u32) -> RawEntries {
+    let Some(at) = img.base(block) else { return Vec::new() };
+    img.key_block_entries(at, level > 0)
+        .into_iter()
+        .map(|e| {
+            let (k, len) = e.key.unwrap_or((e.at, 0));
+            (img.bytes[k..k + len].to_vec(), img.bytes[k + len..e.end].to_vec())
+        })
+        .collect()
+}
+
+/// Writes `entries` as key block `block`'s: count, used bytes, entries, the
+/// rest zero. False (and nothing written) when they do not fit.
+fn write_key_block(img: &mut Image, block: u32, entries: &RawEntries) -> bool {
+    let bytes: Vec<u8> = entries.iter().flat_map(|(k, rest)| k.iter().chain(rest)).copied().collect();
+    let (Some(at), Ok(count)) = (img.base(block), u16::try_from(entries.len())) else { return false };
+    if 24 + bytes.len() > BS {
+        return false;
+    }
+    img.put(at + 16, &count.to_le_bytes());
+    img.put_u32(at + 20, bytes.len() as u32);
+    img.bytes[at + 24..at + BS].fill(0);
+    img.put(at + 24, &bytes);
+    true
+}
+
+/// Replaces the keys area of leaf `record` of node block `block` by `keys`
+/// (stored forms), padded, resizing the record. False when it cannot be written.
+fn rewrite_keys(img: &mut Image, block: u32, record: usize, keys: &[Vec<u8>]) -> bool {
+    let Some(Record::Leaf(l)) = img.records(block).get(record).copied() else { return false };
+    let mut area = keys.concat();
+    area.resize(area.len().next_multiple_of(4), 0);
+    let Ok(len) = u16::try_from(area.len()) else { return false };
+    let (old, new) = (l.keys_len, area.len());
+    let done = match new.cmp(&old) {
+        std::cmp::Ordering::Greater => img.splice(block, l.at, l.keys_at + old, (new - old) as isize),
+        std::cmp::Ordering::Less => img.splice(block, l.at, l.keys_at + new, -((old - new) as isize)),
+        std::cmp::Ordering::Equal => true,
+    };
+    if done {
+        img.put(l.keys_at, &area);
+        img.put(l.at + 14, &len.to_le_bytes());
+    }
+    done
+}
+
+/// The fixed parts of the key leaves' entries (absolute offsets).
+fn key_leaf_entries(base: &Base, img: &Image) -> Vec<usize> {
+    let leaves = base.key_blocks.iter().filter(|b| b.1 == 0).filter_map(|b| img.base(b.0));
+    leaves.flat_map(|at| img.key_block_entries(at, false)).map(|e| e.fixed).collect()
+}
+
+/// The leaf records of the base tree's node blocks: (block, record index, layout).
+fn leaf_records(base: &Base, img: &Image) -> Vec<(u32, usize, super::forge::LeafAt)> {
+    let mut out = Vec::new();
+    for &b in &base.nodes {
+        for (i, rec) in img.records(b).into_iter().enumerate() {
+            if let Record::Leaf(l) = rec {
+                out.push((b, i, l));
+            }
+        }
+    }
+    out
+}
+
+/// Key index forgeries. Op 0: two entries' keys swapped (order broken, or
+/// keys moved between objects, between leaves or into a branch's
+/// separators), or two entries' object ids. Op 1: an entry pointed at
+/// another entry's leaf record, or at any leaf record and entry; or a leaf
+/// record's stored key made another's. Op 2: a key block's used bytes cut
+/// at an entry or a byte, or extended, its entry count kept or made to match.
+fn keys_op(base: &Base, img: &mut Image, op: u8, c: &mut Choices) {
+    let how = c.u8();
+    match (op, how & 1) {
+        (0, 0) => {
+            let keyed: Vec<(usize, usize)> = (0..base.key_blocks.len())
+                .flat_map(|b| {
+                    let raw = raw_entries(img, base.key_blocks[b].0, base.key_blocks[b].1);
+                    (0..raw.len()).filter(move |&i| !raw[i].0.is_empty()).map(move |i| (b, i))
+                })
+                .collect();
+            let (Some(&x), Some(&y)) = (keyed.get(c.below(keyed.len())), keyed.get(c.below(keyed.len())))
+            else {
+                return;
+            };
+            if x == y {
+                return;
+            }
+            let blocks = if x.0 == y.0 { vec![x.0] } else { vec![x.0, y.0] };
+            let mut raws: Vec<RawEntries> = blocks
+                .iter()
+                .map(|&b| raw_entries(img, base.key_blocks[b].0, base.key_blocks[b].1))
+                .collect();
+            let (rx, ry) = (usize::from(x.0 != blocks[0]), usize::from(y.0 != blocks[0]));
+            let kx = std::mem::take(&mut raws[rx][x.1].0);
+            let ky = std::mem::replace(&mut raws[ry][y.1].0, kx);
+            raws[rx][x.1].0 = ky;
+            // Both blocks or neither: check each fits before writing.
+            let mut copy = img.clone();
+            if blocks.iter().zip(&raws).all(|(&b, raw)| write_key_block(&mut copy, base.key_blocks[b].0, raw))
+            {
+                *img = copy;
+            }
+        }
+        (0, _) => {
+            let entries = key_leaf_entries(base, img);
+            let (Some(&x), Some(&y)) =
+                (entries.get(c.below(entries.len())), entries.get(c.below(entries.len())))
+            else {
+                return;
+            };
+            let (a, b) = (img.u32(x), img.u32(y));
+            img.put_u32(x, b);
+            img.put_u32(y, a);
+        }
+        (1, 0) => {
+            let entries = key_leaf_entries(base, img);
+            let Some(&e) = entries.get(c.below(entries.len())) else { return };
+            if c.u8() & 1 == 0 {
+                // Another entry's leaf record and entry.
+                let Some(&f) = entries.get(c.below(entries.len())) else { return };
+                let (block, offset, entry) = (img.u32(f + 4), img.u32(f + 12), img.u16(f + 16));
+                img.put_u32(e + 4, block);
+                img.put_u32(e + 12, offset);
+                img.put(e + 16, &entry.to_le_bytes());
+            } else {
+                // Any leaf record of the tree, any entry of it (or one past).
+                let leaves = leaf_records(base, img);
+                let Some(&(block, _, l)) = leaves.get(c.below(leaves.len())) else { return };
+                let entry = c.below(l.objects + 1) as u16;
+                img.put_u32(e + 4, block);
+                img.put_u32(e + 12, (l.at - block as usize * BS) as u32);
+                img.put(e + 16, &entry.to_le_bytes());
+            }
+        }
+        (1, _) => {
+            let leaves = leaf_records(base, img);
+            let Some(&(block, record, l)) = leaves.get(c.below(leaves.len())) else { return };
+            let mut keys: Vec<Vec<u8>> =
+                img.stored_keys(&l).iter().map(|&(k, n)| img.bytes[k..k + n].to_vec()).collect();
+            // Another key: one a leaf stores or one the index holds.
+            let mut pool: Vec<Vec<u8>> = leaves
+                .iter()
+                .flat_map(|(_, _, other)| img.stored_keys(other))
+                .map(|(k, n)| img.bytes[k..k + n].to_vec())
+                .collect();
+            for &(b, level) in &base.key_blocks {
+                pool.extend(raw_entries(img, b, level).into_iter().map(|e| e.0).filter(|k| !k.is_empty()));
+            }
+            let j = c.below(keys.len());
+            let (Some(slot), Some(other)) = (keys.get_mut(j), pool.get(c.below(pool.len()))) else { return };
+            *slot = other.clone();
+            rewrite_keys(img, block, record, &keys);
+        }
+        _ => {
+            let Some(&(block, level)) = base.key_blocks.get(c.below(base.key_blocks.len())) else { return };
+            let Some(at) = img.base(block) else { return };
+            let (used, count) = (img.u32(at + 20) as usize, img.u16(at + 16));
+            let (new_used, new_count) = match how >> 1 & 3 {
+                0 => {
+                    // Cut at an entry: the entries before it kept.
+                    let entries = img.key_block_entries(at, level > 0);
+                    let k = c.below(entries.len());
+                    let Some(e) = entries.get(k) else { return };
+                    (e.at - (at + 24), k as u16)
+                }
+                1 => (c.below(used + 1), count),
+                _ => (used + 1 + c.below(128), count.wrapping_add(1)),
+            };
+            let count = if c.u8() & 1 == 0 { count } else { new_count };
+            if new_used < used {
+                let end = (at + 24 + used).min(at + BS);
+                img.bytes[(at + 24 + new_used).min(end)..end].fill(0);
+            }
+            img.put_u32(at + 20, new_used as u32);
+            img.put(at + 16, &count.to_le_bytes());
+        }
     }
 }
 
@@ -1033,6 +1455,124 @@ mod tests {
         let names = db.begin_read().expect("reads").names().expect("names");
         assert_eq!(names[0], "hello");
         assert_eq!(names.len(), b.names.len());
+    }
+
+    /// The stored form of `key`.
+    fn stored(key: &Key) -> Vec<u8> {
+        let mut out = Vec::new();
+        key.encode(&mut out);
+        out
+    }
+
+    #[test]
+    fn the_base_files_key_index_has_a_branch_over_leaves_of_both_kinds_of_keys() {
+        let b = base();
+        let leaves = b.key_blocks.iter().filter(|k| k.1 == 0).count();
+        let branches = b.key_blocks.iter().filter(|k| k.1 == 1).count();
+        assert!(leaves >= 3 && branches == 1, "{:?}", b.key_blocks);
+        let meta = b.image.meta().expect("a meta block");
+        assert_eq!(b.image.u32(meta + 912), 2, "the index has two levels");
+        let raw: Vec<_> = b.key_blocks.iter().flat_map(|&(k, l)| raw_entries(&b.image, k, l)).collect();
+        assert!(raw.iter().any(|e| e.0.first() == Some(&0)) && raw.iter().any(|e| e.0.first() == Some(&1)));
+        assert!(b.keyed.iter().all(|o| raw.iter().any(|e| e.0 == stored(&o.key))), "every key is in a leaf");
+        // The oracle holds of the base file itself.
+        lookups(&sound(b.image.bytes.clone()), true);
+    }
+
+    #[test]
+    fn an_untouched_key_index_resealed_stays_sound() {
+        let b = base();
+        assert!(forged(Structure::Keys, &[]) == b.image.bytes);
+        // A field edit that writes the value it read: entry_count of the first key block.
+        let mut img = b.image.clone();
+        let at = img.base(b.key_blocks[0].0).expect("a key block");
+        let count = img.u16(at + 16);
+        img.put(at + 16, &count.to_le_bytes());
+        img.reseal();
+        assert!(img == b.image);
+        lookups(&sound(img.bytes), true);
+    }
+
+    /// The forged file for the Keys target's `input`; it must differ from the base file.
+    fn forged_keys(input: &[u8]) -> Database {
+        let bytes = forged(Structure::Keys, input);
+        assert!(bytes != base().image.bytes, "{input:?} changes the file");
+        Database::open_on(Arc::new(MemDevice::from_bytes(bytes))).expect("the forgery opens")
+    }
+
+    fn fails_check(input: &[u8]) {
+        let db = forged_keys(input);
+        assert!(!check(&db).expect("check runs").ok(), "{input:?} is a fault");
+        lookups(&db, false);
+    }
+
+    #[test]
+    fn a_key_swap_or_an_id_swap_fails_check() {
+        // Op 9 (special 0), variant 0: entries 0 and 1 (one leaf) swap keys.
+        fails_check(&[9, 0, 0, 1]);
+        // Entries of two leaves swap keys: order holds in neither leaf.
+        fails_check(&[9, 0, 0, 5]);
+        // A leaf entry's key and a branch's separator.
+        fails_check(&[9, 0, 1, 10]);
+        // Variant 1: two entries swap object ids.
+        fails_check(&[9, 1, 0, 4]);
+    }
+
+    #[test]
+    fn an_entry_pointed_elsewhere_or_a_leafs_key_changed_fails_check() {
+        // Op 10 (special 1), variant 0: entry 2 takes entry 3's leaf record and entry.
+        fails_check(&[10, 0, 2, 0, 3]);
+        // Entry 2 points at leaf record 4, entry 1 (one past its objects).
+        fails_check(&[10, 0, 2, 1, 4, 1]);
+        // Variant 1: leaf record 0's key becomes the 6th key of the pool.
+        fails_check(&[10, 1, 0, 0, 5]);
+    }
+
+    #[test]
+    fn a_key_blocks_used_bytes_cut_or_extended_fail_check() {
+        // Op 11 (special 2): used bytes cut at entry 1 of block 0, count kept, then made to match.
+        fails_check(&[11, 0, 0, 1, 0]);
+        fails_check(&[11, 0, 0, 1, 1]);
+        // Cut at a byte; extended by 79 bytes with one entry more.
+        fails_check(&[11, 2, 1, 100, 0]);
+        fails_check(&[11, 4, 0, 78, 1]);
+    }
+
+    #[test]
+    fn keys_moved_between_two_objects_everywhere_make_a_sound_file_that_finds_them() {
+        let b = base();
+        let mut img = b.image.clone();
+        // Objects 4 and 0 hold keys 7 and 42, adjacent in the first key leaf:
+        // the entries keep their keys and swap the rest (id, place, box, payload).
+        let (leaf, _) = b.key_blocks.iter().copied().find(|k| k.1 == 0).expect("a key leaf");
+        let mut raw = raw_entries(&img, leaf, 0);
+        let (i, j) = (0, 1);
+        assert_eq!((raw[i].0.clone(), raw[j].0.clone()), (stored(&Key::Int(7)), stored(&Key::Int(42))));
+        let rest = raw[i].1.clone();
+        raw[i].1 = raw[j].1.clone();
+        raw[j].1 = rest;
+        assert!(write_key_block(&mut img, leaf, &raw));
+        // And the leaves store each other's key.
+        for (block, record, l) in leaf_records(b, &img.clone()) {
+            let keys: Vec<Vec<u8>> =
+                img.stored_keys(&l).iter().map(|&(k, n)| img.bytes[k..k + n].to_vec()).collect();
+            let swapped: Vec<Vec<u8>> = keys
+                .iter()
+                .map(|k| match k {
+                    k if *k == stored(&Key::Int(7)) => stored(&Key::Int(42)),
+                    k if *k == stored(&Key::Int(42)) => stored(&Key::Int(7)),
+                    k => k.clone(),
+                })
+                .collect();
+            if swapped != keys {
+                assert!(rewrite_keys(&mut img, block, record, &swapped));
+            }
+        }
+        img.reseal();
+        let db = sound(img.bytes);
+        let r = db.begin_read().expect("reads");
+        assert_eq!(r.get(&Key::Int(42)).expect("a lookup").expect("found").id, ObjectId(4));
+        lookups(&db, true);
     }
 
     #[test]
