@@ -4,26 +4,19 @@
 //! are answered and the exit status stays 0.
 
 use std::io::Write;
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 
 use mktree::db::Database;
 use mktree::geom::{Point, Ray, Vector};
 
-fn mktree() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_mktree"))
-}
+mod common;
+
+use common::{mktree, tanker1_in};
 
 #[test]
 fn batch_answers_each_line_and_a_bad_line_with_an_error() {
     let dir = tempfile::tempdir().unwrap();
-    let (obj, mkt) = (dir.path().join("t1.obj"), dir.path().join("t1.mkt"));
-    for args in [
-        vec!["gen", "tanker1", "-o", obj.to_str().unwrap()],
-        vec!["build", obj.to_str().unwrap(), "-o", mkt.to_str().unwrap(), "--block-size", "4096"],
-    ] {
-        let out = mktree().args(&args).output().unwrap();
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    }
+    let (_, mkt) = tanker1_in(dir.path());
     let db = Database::open_read_only(&mkt).unwrap();
     let r = db.begin_read().unwrap();
     // Along x through the middle of the ship, from outside it.

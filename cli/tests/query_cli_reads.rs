@@ -2,27 +2,18 @@
 //! and box it returns the same objects and the same block reads as
 //! `query_region` does, and as `bench-queries` averages.
 
-use std::process::Command;
-
 use mktree::db::Database;
 use mktree::geom::Aabb;
 use mktree::query::{QueryOptions, Region, query_region};
 
-fn mktree() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_mktree"))
-}
+mod common;
+
+use common::{mktree, tanker1_in};
 
 #[test]
 fn the_cli_and_the_library_read_the_same_blocks() {
     let dir = tempfile::tempdir().unwrap();
-    let (obj, mkt) = (dir.path().join("t1.obj"), dir.path().join("t1.mkt"));
-    for args in [
-        vec!["gen", "tanker1", "-o", obj.to_str().unwrap()],
-        vec!["build", obj.to_str().unwrap(), "-o", mkt.to_str().unwrap(), "--block-size", "4096"],
-    ] {
-        let out = mktree().args(&args).output().unwrap();
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    }
+    let (_, mkt) = tanker1_in(dir.path());
     for b in [[0.0, 0.0, 0.0, 1000.0, 1000.0, 1000.0], [500.0, 200.0, 100.0, 2500.0, 900.0, 700.0]] {
         let arg = b.map(|x| x.to_string()).join(",");
         let out = mktree().args(["query", mkt.to_str().unwrap(), "--box", &arg, "--json"]).output().unwrap();

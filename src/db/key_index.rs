@@ -58,15 +58,19 @@ pub(crate) fn write(
         )));
     }
     let mut block = vec![0u8; bs as usize];
-    let mut level: Vec<ChildRef> = Vec::new();
     let mut blocks = 0u32;
+    // Writes the encoded `block` as a new block of type `t` whose least key is `first_key`.
+    let mut put = |block: &mut [u8], t: BlockType, first_key: Key| -> Result<ChildRef, StorageError> {
+        let id = allocate(1)?;
+        let checksum = pager.write(id, block, t, txn)?;
+        blocks += 1;
+        Ok(ChildRef { first_key, block: id, checksum })
+    };
+    let mut level: Vec<ChildRef> = Vec::new();
     for group in pack(&entries.iter().map(KeyEntry::len).collect::<Vec<_>>(), capacity) {
         let part = &entries[group];
         keys::encode_leaf(part, &mut block).map_err(StorageError::Invalid)?;
-        let id = allocate(1)?;
-        let checksum = pager.write(id, &mut block, BlockType::KeyLeaf, txn)?;
-        level.push(ChildRef { first_key: part[0].key.clone(), block: id, checksum });
-        blocks += 1;
+        level.push(put(&mut block, BlockType::KeyLeaf, part[0].key.clone())?);
     }
     let mut height = 1;
     while level.len() > 1 {
@@ -76,10 +80,7 @@ pub(crate) fn write(
         for group in pack(&sizes, capacity) {
             let part = &level[group];
             keys::encode_branch(part, &mut block).map_err(StorageError::Invalid)?;
-            let id = allocate(1)?;
-            let checksum = pager.write(id, &mut block, BlockType::KeyBranch, txn)?;
-            up.push(ChildRef { first_key: part[0].first_key.clone(), block: id, checksum });
-            blocks += 1;
+            up.push(put(&mut block, BlockType::KeyBranch, part[0].first_key.clone())?);
         }
         level = up;
         height += 1;
