@@ -96,3 +96,17 @@ fn a_write_transaction_moves_to_another_thread_and_a_second_writer_waits_for_it(
     assert_eq!(db.begin_read().unwrap().info().unwrap().objects, 20, "the second writer committed last");
     assert!(check(&db).unwrap().ok());
 }
+
+#[test]
+fn an_open_that_fails_names_the_file_and_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("missing.mkt");
+    for err in [Database::open(&missing).err(), Database::open_read_only(&missing).err()] {
+        let text = err.expect("a missing file does not open").to_string();
+        assert!(text.contains("missing.mkt") && text.contains("No such file"), "{text}");
+    }
+    let path = dir.path().join("t.mkt");
+    Database::create(&path, CreateOptions::default()).unwrap();
+    let text = Database::create(&path, CreateOptions::default()).err().unwrap().to_string();
+    assert!(text.contains("t.mkt") && text.contains("exists"), "{text}");
+}

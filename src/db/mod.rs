@@ -180,7 +180,7 @@ pub enum WriterWait {
 impl Database {
     /// Creates a new file at `path` (it must not exist) with an empty tree.
     pub fn create(path: impl AsRef<Path>, options: CreateOptions) -> Result<Database, StorageError> {
-        let file = OpenOptions::new().read(true).write(true).create_new(true).open(path)?;
+        let file = open_file(path.as_ref(), OpenOptions::new().read(true).write(true).create_new(true))?;
         let locks = FileLocks::new(file.try_clone()?);
         // Another process may open the file before its header is written: it
         // sees no magic and gives up, and it cannot write meanwhile.
@@ -204,7 +204,8 @@ impl Database {
         path: impl AsRef<Path>,
         options: CreateOptions,
     ) -> Result<(Database, bool), StorageError> {
-        let file = OpenOptions::new().read(true).write(true).create(true).truncate(false).open(path)?;
+        let file =
+            open_file(path.as_ref(), OpenOptions::new().read(true).write(true).create(true).truncate(false))?;
         if !file.metadata()?.is_file() {
             return Err(StorageError::Invalid("not a regular file".into()));
         }
@@ -234,7 +235,7 @@ impl Database {
     /// Opens an existing file to read and write. Opening never writes: a
     /// crash's leftovers are cleaned up by the next write transaction.
     pub fn open(path: impl AsRef<Path>) -> Result<Database, StorageError> {
-        let file = OpenOptions::new().read(true).write(true).open(path)?;
+        let file = open_file(path.as_ref(), OpenOptions::new().read(true).write(true))?;
         let locks = FileLocks::new(file.try_clone()?);
         Database::open_with(Arc::new(FileDevice::new(file)), Some(locks), false)
     }
@@ -242,7 +243,7 @@ impl Database {
     /// Opens an existing file to read only (a read-only file or mount will
     /// do); [`begin_write`](Self::begin_write) fails with [`StorageError::ReadOnly`].
     pub fn open_read_only(path: impl AsRef<Path>) -> Result<Database, StorageError> {
-        let file = OpenOptions::new().read(true).open(path)?;
+        let file = open_file(path.as_ref(), OpenOptions::new().read(true))?;
         let locks = FileLocks::new(file.try_clone()?);
         Database::open_with(Arc::new(FileDevice::new(file)), Some(locks), true)
     }
@@ -394,6 +395,11 @@ impl Database {
         let w = warnings(&self.inner.pager, &loaded)?;
         Ok((s.committed, s.free.clone(), w))
     }
+}
+
+/// Opens `path` as `options` say; an error names the path.
+fn open_file(path: &Path, options: &OpenOptions) -> Result<std::fs::File, StorageError> {
+    options.open(path).map_err(|error| StorageError::Open { path: path.to_path_buf(), error })
 }
 
 /// Times a reader retries when commits keep landing between its reads.

@@ -8,6 +8,10 @@ use std::io;
 pub enum StorageError {
     #[error("I/O error")]
     Io(#[from] io::Error),
+    /// The file could not be opened or created (the reason is in the message,
+    /// not a source, so that printing the error alone says why).
+    #[error("cannot open {}: {error}", path.display())]
+    Open { path: std::path::PathBuf, error: io::Error },
     #[error("not an MKtree file (bad magic number)")]
     NotMktree,
     #[error("unsupported format version {found} (this build reads version {supported})")]
