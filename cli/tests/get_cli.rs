@@ -51,6 +51,11 @@ fn objects_are_found_by_id_key_or_name_key() {
     assert_eq!((got["id"].as_u64(), got["key"].as_str()), (Some(1), Some("valve")));
     one_line_error(&mktree(&["get", by_name_s, "--key", "1"]), "no object has the key 1");
     one_line_error(&mktree(&["get", by_id_s, "--key", "2"]), "no object has the key 2");
+    // A file that is not there is named once, with the reason.
+    let missing = dir.path().join("missing.mkt");
+    let out = mktree(&["get", missing.to_str().unwrap(), "--key", "1"]);
+    one_line_error(&out, "No such file");
+    assert_eq!(String::from_utf8_lossy(&out.stderr).matches("missing.mkt").count(), 1);
 
     // Two objects named alike cannot both be keyed by their name.
     let twice = dir.path().join("twice.obj");

@@ -42,7 +42,7 @@ fn open_output(out: &Path, args: &BuildArgs, lod: &LodArgs) -> Result<(Database,
     };
     let (db, created) = match Database::open_or_create(out, options) {
         Err(StorageError::NotMktree) => bail!("{} is not an mktree file; not overwriting it", out.display()),
-        opened => opened.with_context(|| format!("opening {}", out.display()))?,
+        opened => opened.map_err(|e| crate::cmd::opening(e, out))?,
     };
     if args.block_size.is_some_and(|b| b != db.block_size()) {
         bail!("{} has {}-byte blocks; a new block size needs a new file", out.display(), db.block_size());

@@ -27,6 +27,7 @@ use mktree::db::{Database, TreeInfo, read_hierarchy};
 use mktree::scene::Scene;
 use mktree::scene::generate::{GenOptions, Preset, generate_scene};
 use mktree::scene::import::{ImportOptions, load};
+use mktree::store::StorageError;
 
 use crate::args::{BuildArgs, Cli, Command};
 
@@ -103,11 +104,19 @@ pub fn scene_or_preset(arg: &str, options: &ImportOptions) -> Result<Scene> {
 /// Opens an .mkt file to read, printing what opening noticed (a damaged
 /// slot copy, an interrupted transaction) to stderr.
 pub fn open_to_read(path: &Path) -> Result<Database> {
-    let db = Database::open_read_only(path).with_context(|| format!("opening {}", path.display()))?;
+    let db = Database::open_read_only(path).map_err(|e| opening(e, path))?;
     for w in db.warnings() {
         eprintln!("warning: {}: {w}", path.display());
     }
     Ok(db)
+}
+
+/// An error opening `path`, naming the file unless the error already does.
+pub fn opening(e: StorageError, path: &Path) -> anyhow::Error {
+    match e {
+        StorageError::Open { .. } => e.into(),
+        e => anyhow::Error::new(e).context(format!("opening {}", path.display())),
+    }
 }
 
 /// True when `path` is an .mkt file (by its magic number).
