@@ -40,16 +40,8 @@ impl Iterator for Nearest<'_> {
     type Item = Result<Near, QueryError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        loop {
-            match self.select.next_decision()? {
-                Ok(d) if d.accepted => {
-                    let distance = d.distance.unwrap_or(0.0);
-                    return Some(Ok(Near { object: d.hit.object, key: d.hit.key, distance }));
-                }
-                Ok(_) => {}
-                Err(e) => return Some(Err(e)),
-            }
-        }
+        let d = self.select.next_accepted()?;
+        Some(d.map(|d| Near { object: d.hit.object, key: d.hit.key, distance: d.distance.unwrap_or(0.0) }))
     }
 }
 

@@ -44,15 +44,8 @@ impl Iterator for RayHits<'_> {
     type Item = Result<RayHit, QueryError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        loop {
-            match self.select.next_decision()? {
-                Ok(d) if d.accepted => {
-                    return Some(Ok(hit(&self.ray, (d.hit.object, d.hit.key), d.distance.unwrap_or(0.0))));
-                }
-                Ok(_) => {}
-                Err(e) => return Some(Err(e)),
-            }
-        }
+        let d = self.select.next_accepted()?;
+        Some(d.map(|d| hit(&self.ray, (d.hit.object, d.hit.key), d.distance.unwrap_or(0.0))))
     }
 }
 

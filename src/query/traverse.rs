@@ -395,6 +395,16 @@ impl<'a, S: Selection> Select<'a, S> {
         self.rest.as_ref().map(|r| r.level_reached)
     }
 
+    /// The next object accepted.
+    pub(crate) fn next_accepted(&mut self) -> Option<Result<Decision, QueryError>> {
+        loop {
+            match self.next_decision()? {
+                Ok(d) if !d.accepted => {}
+                d => return Some(d),
+            }
+        }
+    }
+
     /// The next object decided, accepted or not.
     pub(crate) fn next_decision(&mut self) -> Option<Result<Decision, QueryError>> {
         loop {
@@ -797,13 +807,7 @@ impl<S: Selection> Iterator for Select<'_, S> {
     type Item = Result<Hit, QueryError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        loop {
-            match self.next_decision()? {
-                Ok(d) if d.accepted => return Some(Ok(d.hit)),
-                Ok(_) => {}
-                Err(e) => return Some(Err(e)),
-            }
-        }
+        Some(self.next_accepted()?.map(|d| d.hit))
     }
 }
 
