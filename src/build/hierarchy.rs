@@ -70,6 +70,26 @@ pub struct Split {
     pub gap: f64,
 }
 
+impl Split {
+    /// The gap this split records between children of boxes `left` and
+    /// `right`: MOA2's value for cuts in a sorted order, the signed
+    /// intersection for cuts by box centre (see [`Split::gap`]).
+    pub fn gap_between(&self, left: &Aabb, right: &Aabb) -> f64 {
+        let i = self.axis.index();
+        match self.order {
+            Order::Min | Order::Max => left.max[i] - right.min[i],
+            Order::Center => crate::build::driver::signed_intersection(left, right, self.axis),
+        }
+    }
+
+    /// The split with `gap` and `overlap` recomputed for children that
+    /// changed (an insert or a delete below it); axis and order are kept.
+    pub(crate) fn refit(self, left: &Aabb, right: &Aabb) -> Split {
+        let gap = self.gap_between(left, right);
+        Split { gap, overlap: if gap > 0.0 { gap } else { 0.0 }, ..self }
+    }
+}
+
 /// A leaf or an internal node.
 #[derive(Debug, Clone, PartialEq)]
 pub enum NodeKind {

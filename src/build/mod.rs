@@ -13,6 +13,7 @@
 mod cost;
 mod cut;
 mod driver;
+mod edit;
 mod error;
 mod hierarchy;
 mod hilbert;
@@ -30,6 +31,7 @@ mod walk;
 
 pub use cost::{CostModel, MIX_SHARES, QueryMix};
 pub use driver::build;
+pub(crate) use edit::TreeEdit;
 pub use error::BuildError;
 pub use hierarchy::{Hierarchy, Node, NodeId, NodeKind, Order, Split};
 pub use hilbert::curve_order;

@@ -4,7 +4,7 @@
 //! leaves within the page (`InPage`), plus the preorder layout and the
 //! split records (see [`Split`]).
 
-use super::driver::{check_input, signed_intersection};
+use super::driver::check_input;
 use super::{BuildError, BuildParams, Hierarchy, Method, NodeId, NodeKind, Order, Split};
 use crate::geom::{Aabb, Axis};
 use crate::scene::{ObjectId, Scene};
@@ -201,7 +201,7 @@ impl Hierarchy {
     }
 
     /// Preorder ids and levels; every node reached once from the root.
-    fn check_layout(&self) -> Result<(), HierarchyError> {
+    pub(crate) fn check_layout(&self) -> Result<(), HierarchyError> {
         if self.nodes.is_empty() {
             return Err(HierarchyError::Empty);
         }
@@ -241,7 +241,6 @@ fn check_split(
     right: &Aabb,
     method: Method,
 ) -> Result<(), HierarchyError> {
-    let i = split.axis.index();
     // MOA2's value for cuts in a sorted order; the signed intersection for
     // cuts by box centre. `refine` keeps cuts of both kinds.
     let moa_cut = split.order != Order::Center;
@@ -250,8 +249,7 @@ fn check_split(
         Method::Refine => true,
         Method::Median | Method::Hilbert | Method::Sah | Method::Vsah => !moa_cut,
     };
-    let expected_gap =
-        if moa_cut { left.max[i] - right.min[i] } else { signed_intersection(left, right, split.axis) };
+    let expected_gap = split.gap_between(left, right);
     let clamped = if expected_gap > 0.0 { expected_gap } else { 0.0 };
     if order_fits && split.gap == expected_gap && split.overlap == clamped {
         Ok(())
