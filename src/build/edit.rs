@@ -242,9 +242,9 @@ impl TreeEdit {
         let sizes: Vec<u64> = objects.iter().map(|&o| self.sizes[o as usize]).collect();
         let sub = build(&boxes, Some(&sizes), &self.params, &|_| {})?;
         // Graft: sub's root takes the leaf's place, the rest get new slots.
-        let mut at = vec![leaf; sub.nodes.len()];
-        for i in 1..sub.nodes.len() {
-            at[i] = self.alloc(Slot { aabb: Aabb::EMPTY, parent: None, kind: Kind::Vacant });
+        let mut at = vec![leaf];
+        for _ in 1..sub.nodes.len() {
+            at.push(self.alloc(Slot { aabb: Aabb::EMPTY, parent: None, kind: Kind::Vacant }));
         }
         for (i, node) in sub.nodes.iter().enumerate() {
             let kind = match &node.kind {

@@ -39,4 +39,5 @@ pub use leaf::{LeafRule, object_bytes};
 pub use params::{BuildParams, LookAhead, Method, ParseParamError, QueryExtent, TieBreak};
 pub use progress::{BuildProgress, estimate_work};
 pub use report::{LevelRow, Report, TreeShape};
+pub(crate) use validate::check_object_range;
 pub use validate::{HierarchyError, check_range};

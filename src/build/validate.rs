@@ -7,7 +7,7 @@
 use super::driver::check_input;
 use super::{BuildError, BuildParams, Hierarchy, Method, NodeId, NodeKind, Order, Split};
 use crate::geom::{Aabb, Axis};
-use crate::scene::{ObjectId, Scene};
+use crate::scene::{Mesh, ObjectId, Scene};
 
 /// Refuses `scene` when an object's anchor or a vertex, used or not, has a
 /// coordinate beyond ±`limit` mm, naming the first object and axis at fault.
@@ -17,20 +17,20 @@ use crate::scene::{ObjectId, Scene};
 /// against that; within it, f32 also holds every offset and split value.
 pub fn check_range(scene: &Scene, limit: f64) -> Result<(), BuildError> {
     for (j, object) in scene.objects().iter().enumerate() {
-        let mesh = &object.mesh;
-        // Every vertex lies between the anchor and this corner.
-        let high = mesh.vertices().fold(mesh.anchor(), |corner, v| corner.sup(&v));
-        for corner in [mesh.anchor(), high] {
-            for axis in Axis::ALL {
-                let coordinate = corner[axis.index()];
-                if coordinate.abs() > limit {
-                    return Err(BuildError::OutOfRange {
-                        object: ObjectId(j as u32),
-                        axis,
-                        coordinate,
-                        limit,
-                    });
-                }
+        check_object_range(ObjectId(j as u32), &object.mesh, limit)?;
+    }
+    Ok(())
+}
+
+/// [`check_range`] for one object's mesh, reported as object `object`.
+pub(crate) fn check_object_range(object: ObjectId, mesh: &Mesh, limit: f64) -> Result<(), BuildError> {
+    // Every vertex lies between the anchor and this corner.
+    let high = mesh.vertices().fold(mesh.anchor(), |corner, v| corner.sup(&v));
+    for corner in [mesh.anchor(), high] {
+        for axis in Axis::ALL {
+            let coordinate = corner[axis.index()];
+            if coordinate.abs() > limit {
+                return Err(BuildError::OutOfRange { object, axis, coordinate, limit });
             }
         }
     }

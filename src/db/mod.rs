@@ -3,12 +3,14 @@
 //! all processes sharing the file, and it alone repairs what a crash left.
 //! The protocol is format-spec/commit.md.
 
+mod changes;
 mod check;
 mod codes;
 mod hierarchy;
 mod key_index;
 mod lod;
 mod read;
+mod stored;
 mod tree_writer;
 mod write;
 
@@ -103,6 +105,29 @@ pub(crate) struct Snapshot {
     pub txn: u64,
     pub meta: Option<Meta>,
     pub block_count: u32,
+    /// Blocks on the free list.
+    pub free_blocks: u32,
+}
+
+impl Snapshot {
+    /// The state commit `c` made, with its meta block.
+    pub(crate) fn of(c: &Commit, meta: Option<Meta>) -> Snapshot {
+        Snapshot { txn: c.txn, meta, block_count: c.block_count, free_blocks: c.free_blocks }
+    }
+}
+
+/// What [`Database::compact`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct Compaction {
+    /// The file's blocks before.
+    pub blocks_before: u32,
+    /// The file's blocks after.
+    pub blocks_after: u32,
+    /// Blocks still free after (held for readers of older snapshots, or
+    /// holes the tree did not fill).
+    pub free_after: u32,
+    /// Times the tree was written again.
+    pub rewrites: u32,
 }
 
 /// A committed state as read from the file.
@@ -287,11 +312,7 @@ impl Database {
             committed: loaded.committed,
             committed_slot: loaded.committed_slot,
             free: loaded.free,
-            snapshot: Arc::new(Snapshot {
-                txn: loaded.committed.txn,
-                meta: loaded.meta,
-                block_count: loaded.committed.block_count,
-            }),
+            snapshot: Arc::new(Snapshot::of(&loaded.committed, loaded.meta)),
             readers: BTreeMap::new(),
         };
         Ok(Database {
@@ -342,14 +363,50 @@ impl Database {
         WriteTransaction::begin(&self.inner, guard, file_lock)
     }
 
+    /// Gives the file's free blocks back to the file system: the tree is
+    /// written again into the lowest free blocks (at most twice, until no
+    /// block is free) and the free blocks at the file's end are cut off.
+    /// Blocks a reader of an older snapshot may still read are kept.
+    pub fn compact(&self) -> Result<Compaction, crate::Error> {
+        let space = |db: &Database| -> Result<(u32, u32), StorageError> {
+            let w = db.begin_write()?;
+            let space = w.base_space();
+            w.abort()?;
+            Ok(space)
+        };
+        let (blocks_before, _) = space(self)?;
+        let mut rewrites = 0;
+        loop {
+            // A commit cuts off the free end, or moves the free list below
+            // it; the next one cuts off what the list held.
+            let mut end = space(self)?.0;
+            loop {
+                self.begin_write()?.commit()?;
+                self.begin_write()?.commit()?;
+                let now = space(self)?.0;
+                if now >= end {
+                    break;
+                }
+                end = now;
+            }
+            if space(self)?.1 == 0 || rewrites == 2 {
+                break;
+            }
+            let mut w = self.begin_write()?;
+            w.rewrite()?;
+            w.commit()?;
+            rewrites += 1;
+        }
+        let (blocks_after, free_after) = space(self)?;
+        Ok(Compaction { blocks_before, blocks_after, free_after, rewrites })
+    }
+
     /// A read transaction on the newest committed state, which stays
     /// readable however many commits follow while it lives.
     pub fn begin_read(&self) -> Result<ReadTransaction, StorageError> {
         let inner = &self.inner;
         if inner.locks.is_none() {
-            let snapshot = inner.lock_state().snapshot.clone();
-            inner.pin(snapshot.txn)?;
-            return Ok(ReadTransaction::new(inner.clone(), snapshot));
+            return inner.read_installed();
         }
         // Pin the newest state, then make sure it is still the newest: a
         // writer that began before the pin could otherwise reuse its blocks.
@@ -600,6 +657,14 @@ impl Inner {
         Ok(())
     }
 
+    /// A reader of the state this process last installed (no other process
+    /// can commit: there is none, or this one holds the writer's seat).
+    pub(crate) fn read_installed(self: &Arc<Self>) -> Result<ReadTransaction, StorageError> {
+        let snapshot = self.lock_state().snapshot.clone();
+        self.pin(snapshot.txn)?;
+        Ok(ReadTransaction::new(self.clone(), snapshot))
+    }
+
     /// A reader of snapshot `txn` ended.
     pub(crate) fn release_reader(&self, txn: u64) {
         let mut s = self.lock_state();
@@ -654,8 +719,7 @@ impl Inner {
         s.committed = l.committed;
         s.committed_slot = l.committed_slot;
         s.free = l.free;
-        s.snapshot =
-            Arc::new(Snapshot { txn: l.committed.txn, meta: l.meta, block_count: l.committed.block_count });
+        s.snapshot = Arc::new(Snapshot::of(&l.committed, l.meta));
     }
 
     pub(crate) fn pager(&self) -> &Pager {
@@ -669,7 +733,13 @@ impl Inner {
 
 /// The free ranges the commit's free-list chain holds, checked against the spec.
 pub(crate) fn read_free_list(pager: &Pager, c: &Commit) -> Result<Vec<FreeRange>, StorageError> {
+    Ok(free_list_chain(pager, c)?.0)
+}
+
+/// The free ranges of the commit's free-list chain, and the chain's blocks.
+pub(crate) fn free_list_chain(pager: &Pager, c: &Commit) -> Result<(Vec<FreeRange>, Vec<u32>), StorageError> {
     let mut ranges: Vec<FreeRange> = Vec::new();
+    let mut chain = Vec::new();
     let (mut block, mut sum) = (c.freelist_block, c.freelist_checksum);
     let mut stats = ReadStats::default();
     let mut hops = 0u64;
@@ -680,6 +750,7 @@ pub(crate) fn read_free_list(pager: &Pager, c: &Commit) -> Result<Vec<FreeRange>
         }
         let (b, _) = pager.read(block, BlockType::FreeList, Some(sum), &mut stats)?;
         let fl = FreeListBlock::decode(block, &b)?;
+        chain.push(block);
         for &r in &fl.ranges {
             // Neighbours touch only when different commits freed them.
             let last = ranges.last().map_or(1, |p| p.first + p.count + u32::from(p.freed == r.freed));
@@ -710,7 +781,7 @@ pub(crate) fn read_free_list(pager: &Pager, c: &Commit) -> Result<Vec<FreeRange>
             format!("the slot says {}, the list holds {total}", c.free_blocks),
         ));
     }
-    Ok(ranges)
+    Ok((ranges, chain))
 }
 
 /// The commit's meta block, if it has a tree.

@@ -21,6 +21,9 @@ pub struct TreeInfo {
     pub block_size: u32,
     pub lod_levels: u8,
     pub file_blocks: u32,
+    /// Blocks of the file on its free list: reused by later writes, and
+    /// given back by [`Database::compact`](super::Database::compact).
+    pub free_blocks: u32,
     pub objects: u32,
     pub nodes: u32,
     pub leaves: u32,
@@ -198,6 +201,7 @@ impl ReadTransaction {
             block_size: self.pager().block_size(),
             lod_levels: self.pager().lod_levels(),
             file_blocks: self.snapshot.block_count,
+            free_blocks: self.snapshot.free_blocks,
             objects: m.object_count,
             nodes: m.node_count,
             leaves: m.leaf_count,

@@ -4,13 +4,14 @@
 use std::sync::Arc;
 use std::time::Instant;
 
+use super::changes::Changes;
 use super::{
-    Inner, Recovery, SeatGuard, Snapshot, WriterLock, codes, interrupted, key_index, load, recover,
-    tree_writer,
+    Inner, Recovery, SeatGuard, Snapshot, WriterLock, codes, free_list_chain, interrupted, key_index, load,
+    recover, tree_writer,
 };
 use crate::build::{BuildParams, BuildProgress, CostModel, Hierarchy, QueryMix, build, check_range};
 use crate::lod::{Layout, LodParams, StoredBounds, plan_bounds};
-use crate::scene::Scene;
+use crate::scene::{Key, Object, Scene};
 use crate::store::StorageError;
 use crate::store::alloc::{FreeSpace, label_freed};
 use crate::store::format::frame::BlockType;
@@ -39,6 +40,10 @@ pub struct WriteTransaction<'db> {
     meta: Option<(u32, u32, Meta)>,
     /// How the levels of detail below M are built.
     lod_params: LodParams,
+    /// Objects inserted, updated and deleted, once the first change began.
+    changes: Option<Changes>,
+    /// The oldest snapshot a reader held when the transaction began.
+    oldest_reader: Option<u64>,
     done: bool,
 }
 
@@ -94,6 +99,8 @@ impl<'db> WriteTransaction<'db> {
             written: FreeSpace::new(end, []),
             meta: None,
             lod_params: LodParams::default(),
+            changes: None,
+            oldest_reader: oldest,
             done: false,
         })
     }
@@ -131,9 +138,7 @@ impl<'db> WriteTransaction<'db> {
         params: &BuildParams,
         progress: &(dyn Fn(BuildProgress) + Sync),
     ) -> Result<Hierarchy, crate::Error> {
-        if self.meta.is_some() {
-            return Err(StorageError::Invalid("a transaction writes one tree".into()).into());
-        }
+        self.may_write_tree()?;
         check_range(scene, geometry::MAX_COORDINATE)?;
         scene.check_keys()?;
         let started = Instant::now();
@@ -155,9 +160,7 @@ impl<'db> WriteTransaction<'db> {
         params: &BuildParams,
         build_seconds: f64,
     ) -> Result<(), StorageError> {
-        if self.meta.is_some() {
-            return Err(StorageError::Invalid("a transaction writes one tree".into()));
-        }
+        self.may_write_tree()?;
         check_range(scene, geometry::MAX_COORDINATE).map_err(|e| StorageError::Invalid(e.to_string()))?;
         scene.check_keys().map_err(|e| StorageError::Invalid(e.to_string()))?;
         let boxes = scene.object_boxes();
@@ -165,6 +168,76 @@ impl<'db> WriteTransaction<'db> {
         tree.validate(&boxes, Some(&sizes), params)
             .map_err(|e| StorageError::Invalid(format!("the tree does not fit the scene: {e}")))?;
         self.write(scene, tree, params, build_seconds)
+    }
+
+    fn may_write_tree(&self) -> Result<(), StorageError> {
+        if self.meta.is_some() || self.changes.is_some() {
+            return Err(StorageError::Invalid(
+                "a transaction writes one tree: a bulk load, or changes to objects".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The changes to the committed tree, read back on the first one.
+    fn changes(&mut self) -> Result<&mut Changes, crate::Error> {
+        if self.meta.is_some() {
+            return Err(StorageError::Invalid(
+                "a transaction writes one tree: a bulk load, or changes to objects".into(),
+            )
+            .into());
+        }
+        if self.changes.is_none() {
+            let snapshot = self.inner.read_installed()?;
+            let fresh = BuildParams::for_blocks(self.inner.pager().block_size());
+            self.changes = Some(Changes::load(&snapshot, fresh)?);
+        }
+        Ok(self.changes.as_mut().expect("loaded above"))
+    }
+
+    /// Adds `object` to the committed tree: into the leaf whose box grows
+    /// least, splitting it by the tree's method when it overflows. An
+    /// object without a key gets the integer key one past the largest in
+    /// the tree. Returns the object's key; a key already in the tree is
+    /// [`KeyError::Exists`](crate::scene::KeyError::Exists).
+    ///
+    /// The first change of a transaction reads the committed scene back,
+    /// and `commit` writes the changed tree whole (levels of detail
+    /// included): a commit costs about a bulk load's writes, not its
+    /// clustering.
+    pub fn insert(&mut self, object: Object) -> Result<Key, crate::Error> {
+        self.changes()?.insert(object)
+    }
+
+    /// Removes the object of key `key` (its leaf merges into its sibling
+    /// leaf when both fit one page), returning it; `None` if no object has
+    /// that key.
+    pub fn remove(&mut self, key: &Key) -> Result<Option<Object>, crate::Error> {
+        Ok(self.changes()?.remove(key))
+    }
+
+    /// Replaces the object with `object`'s key by `object`, moved to the
+    /// leaf it now fits best; returns the old object. A key not in the tree
+    /// is [`KeyError::NotFound`](crate::scene::KeyError::NotFound).
+    pub fn update(&mut self, object: Object) -> Result<Object, crate::Error> {
+        self.changes()?.update(object)
+    }
+
+    /// Marks the committed tree to be written again whole, into the
+    /// lowest free blocks ([`Database::compact`](super::Database::compact)).
+    pub(crate) fn rewrite(&mut self) -> Result<(), crate::Error> {
+        self.changes()?.touch();
+        Ok(())
+    }
+
+    /// The committed state's (file blocks, free blocks) this transaction began on.
+    pub(crate) fn base_space(&self) -> (u32, u32) {
+        (self.base.block_count, self.base.free_blocks)
+    }
+
+    /// The object of key `key` as this transaction has it, changes included.
+    pub fn object(&mut self, key: &Key) -> Result<Option<Object>, crate::Error> {
+        Ok(self.changes()?.get(key).cloned())
     }
 
     /// Writes a valid tree of `scene` (built here, or checked by `write_tree`).
@@ -277,23 +350,54 @@ impl<'db> WriteTransaction<'db> {
     /// commit slot, syncs (format-spec/commit.md, steps 3 to 5).
     pub fn commit(mut self) -> Result<(), StorageError> {
         let pager = self.inner.pager().clone();
-        let Some((meta_block, meta_checksum, meta)) = self.meta.take() else {
-            // Nothing loaded: the same state under a new transaction id.
-            let c = Commit { txn: self.txn, ..self.base };
-            return self.finish(c, None);
+        let mut cleared = false;
+        if let Some(changes) = self.changes.take().filter(Changes::changed) {
+            let (scene, tree, params, seconds) = changes.finish();
+            if scene.objects().is_empty() {
+                cleared = true;
+            } else {
+                // What `write_tree` checks: a failure here is a bug, refused before it reaches the file.
+                let sizes: Vec<u64> = scene.objects().iter().map(|o| geometry::record_len(&o.mesh)).collect();
+                tree.validate(&scene.object_boxes(), Some(&sizes), &params)
+                    .map_err(|e| StorageError::Invalid(format!("the changed tree: {e}")))?;
+                self.write(&scene, &tree, &params, seconds)?;
+            }
+        }
+        let (meta_block, meta_checksum, meta) = match self.meta.take() {
+            Some((block, sum, meta)) => (block, sum, Some(meta)),
+            None if cleared => (0, 0, None),
+            None => {
+                let (_, chain) = free_list_chain(&pager, &self.base)?;
+                let mut free = self.base_free.clone();
+                let shorter = self.trim_tail(&mut free, self.base.block_count) < self.base.block_count;
+                // A list block above a reusable hole moves down, so that a
+                // later commit can cut off the end it held.
+                let lowest_hole = self.base_free.iter().find(|r| self.reusable(r)).map(|r| r.first);
+                let list_moves = chain.iter().any(|&b| lowest_hole.is_some_and(|h| h < b));
+                if !shorter && !list_moves {
+                    // Nothing to write: the same state under a new transaction id.
+                    let c = Commit { txn: self.txn, ..self.base };
+                    return self.finish(c, None);
+                }
+                // The same tree, and a shorter file.
+                self.keep_base(&chain);
+                let meta = self.inner.lock_state().snapshot.meta.clone();
+                (self.base.meta_block, self.base.meta_checksum, meta)
+            }
         };
-        // The new free list: everything this transaction did not write. Its own
-        // blocks come from `avail` (never from the blocks it frees).
+        // The new free list: everything this transaction did not write (or
+        // keep). Its own blocks come from `avail` (never from the blocks it frees).
         let per = ranges_per_block(pager.block_size());
         let mut list_blocks: Vec<u32> = Vec::new();
-        let free = loop {
-            let free = label_freed(
+        let (free, end) = loop {
+            let mut free = label_freed(
                 &FreeSpace::complement(self.avail.end(), &self.written),
                 &self.base_free,
                 self.txn,
             );
+            let end = self.trim_tail(&mut free, self.avail.end());
             if free.len().div_ceil(per) <= list_blocks.len() {
-                break free;
+                break (free, end);
             }
             list_blocks.push(self.allocate(1)?);
         };
@@ -314,15 +418,55 @@ impl<'db> WriteTransaction<'db> {
             txn: self.txn,
             meta_block,
             meta_checksum,
-            block_count: self.avail.end(),
+            block_count: end,
             freelist_block: next,
             freelist_checksum: next_sum,
             free_blocks: free.iter().map(|r| r.count).sum(),
         };
-        self.finish(c, Some((meta, free)))
+        self.finish(c, Some((meta, free)))?;
+        if end < self.avail.end() {
+            // After the commit: a crash before this leaves a longer file, which the next writer truncates.
+            pager.device().set_len(u64::from(end) * u64::from(pager.block_size()))?;
+        }
+        Ok(())
     }
 
-    fn finish(&mut self, c: Commit, loaded: Option<(Meta, Vec<FreeRange>)>) -> Result<(), StorageError> {
+    /// Drops the free ranges at the end of a file of `end` blocks that no
+    /// reader can reach (freed by an earlier commit, before the oldest
+    /// reader's snapshot); returns the new end.
+    fn trim_tail(&self, free: &mut Vec<FreeRange>, mut end: u32) -> u32 {
+        while let Some(last) = free.last()
+            && last.first + last.count == end
+            && self.reusable(last)
+        {
+            end = last.first;
+            free.pop();
+        }
+        end
+    }
+
+    /// Whether no reader can reach the blocks of `r`: freed by an earlier
+    /// commit, before the oldest reader's snapshot.
+    fn reusable(&self, r: &FreeRange) -> bool {
+        r.freed < self.txn && self.oldest_reader.is_none_or(|o| r.freed <= o)
+    }
+
+    /// Keeps the committed tree: its blocks count as this transaction's,
+    /// except the free list's (`chain`), which the new list replaces.
+    fn keep_base(&mut self, chain: &[u32]) {
+        let free = FreeSpace::new(self.base.block_count, self.base_free.iter().map(|r| (r.first, r.count)));
+        for (first, count) in FreeSpace::complement(self.base.block_count, &free) {
+            self.written.release(first, count);
+        }
+        let chain: Vec<(u32, u32)> = chain.iter().map(|&b| (b, 1)).collect();
+        self.written.remove_all(&chain);
+    }
+
+    fn finish(
+        &mut self,
+        c: Commit,
+        loaded: Option<(Option<Meta>, Vec<FreeRange>)>,
+    ) -> Result<(), StorageError> {
         let pager = self.inner.pager();
         pager.sync()?;
         // Durable once the first copy is: a crash before the second leaves
@@ -333,7 +477,7 @@ impl<'db> WriteTransaction<'db> {
         self.done = true;
         let mut s = self.inner.lock_state();
         let (meta, free) = match loaded {
-            Some((meta, free)) => (Some(meta), free),
+            Some((meta, free)) => (meta, free),
             None => (s.snapshot.meta.clone(), s.free.clone()),
         };
         let value = header::SlotRead::Committed(c);
@@ -341,7 +485,7 @@ impl<'db> WriteTransaction<'db> {
         s.committed = c;
         s.committed_slot = self.slot;
         s.free = free;
-        s.snapshot = Arc::new(Snapshot { txn: c.txn, meta, block_count: c.block_count });
+        s.snapshot = Arc::new(Snapshot::of(&c, meta));
         Ok(())
     }
 

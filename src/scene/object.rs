@@ -73,6 +73,11 @@ impl Scene {
         Scene { objects }
     }
 
+    /// The objects, by id, taken out of the scene.
+    pub fn into_objects(self) -> Vec<Object> {
+        self.objects
+    }
+
     /// The objects; `objects()[id.index()]` is object `id`.
     pub fn objects(&self) -> &[Object] {
         &self.objects
@@ -159,4 +164,8 @@ pub enum KeyError {
     Duplicate { key: Key, first: ObjectId, second: ObjectId },
     #[error("object {object}'s payload has {len} bytes (at most {max})", max = Object::MAX_PAYLOAD)]
     PayloadTooLong { object: ObjectId, len: usize },
+    #[error("an object with key {key} is already in the tree")]
+    Exists { key: Key },
+    #[error("no object has key {key}")]
+    NotFound { key: Key },
 }
