@@ -4,7 +4,8 @@
 //! the query workloads of `mktree bench-build` and `mktree bench-queries`
 //! (random boxes, cubes and collision boxes from a seed, and the leaves a
 //! box query reaches in a tree held in memory), and the peer benchmark of
-//! `mktree bench-peers`.
+//! `mktree bench-peers`, and the piecewise replacement of `mktree
+//! bench-replace`.
 
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
@@ -14,6 +15,7 @@ mod error;
 pub mod peers;
 mod query_sets;
 pub mod record;
+mod replace;
 mod rng;
 mod workload;
 
@@ -24,4 +26,5 @@ pub use error::BenchError;
 pub use query_sets::{
     COLLISION_MARGIN_MM, QueryKind, TreeQueryCount, collision_boxes, count_in_tree, random_cubes,
 };
+pub use replace::{ReplaceOptions, ReplaceReport, ReplaceRow, bench_replace};
 pub use workload::{WorkloadStats, random_boxes, run_boxes};

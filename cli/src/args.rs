@@ -230,6 +230,24 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Deletes objects by key in one transaction (all or none), refitting the tree.
+    Remove {
+        file: PathBuf,
+        /// The keys: integers, or text (with --text, or when not a number).
+        #[arg(long = "key", required = true)]
+        keys: Vec<String>,
+        /// Take the keys as text even when they read as numbers.
+        #[arg(long)]
+        text: bool,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Give the file's free blocks back: rewrite the tree low and cut the free end.
+    Compact {
+        file: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
     /// Verify every checksum and structural rule; exit 1 on any fault.
     Check {
         file: PathBuf,
@@ -255,6 +273,9 @@ pub enum Command {
     BenchBuild(BenchBuildArgs),
     /// mktree against SQLite's R*Tree with geometry blobs (and rstar): reads per query, file sizes, warm time.
     BenchPeers(crate::cmd::bench_peers::BenchPeersArgs),
+    /// A scene replaced by another object by object (deletes and inserts in
+    /// write transactions): box-query reads against a fresh bulk load, and compact.
+    BenchReplace(crate::cmd::bench_replace::BenchReplaceArgs),
     /// The main job on the built-in scene: tanker2 built with MOA and LAA, stats side by side, box queries.
     Demo {
         /// Where the files and the chart go.

@@ -363,10 +363,11 @@ impl Database {
         WriteTransaction::begin(&self.inner, guard, file_lock)
     }
 
-    /// Gives the file's free blocks back to the file system: the tree is
-    /// written again into the lowest free blocks (at most twice, until no
-    /// block is free) and the free blocks at the file's end are cut off.
-    /// Blocks a reader of an older snapshot may still read are kept.
+    /// Gives the file's free blocks back to the file system. The tree is
+    /// written once past the file's end, so that every block below it is
+    /// free, then again into the lowest blocks, and the free end is cut off
+    /// (VACUUM-like: the file briefly holds the tree three times). Blocks a
+    /// reader of an older snapshot may still read are kept.
     pub fn compact(&self) -> Result<Compaction, crate::Error> {
         let space = |db: &Database| -> Result<(u32, u32), StorageError> {
             let w = db.begin_write()?;
@@ -374,31 +375,42 @@ impl Database {
             w.abort()?;
             Ok(space)
         };
-        let (blocks_before, _) = space(self)?;
+        let blocks_before = space(self)?.0;
         let mut rewrites = 0;
-        loop {
-            // A commit cuts off the free end, or moves the free list below
-            // it; the next one cuts off what the list held.
-            let mut end = space(self)?.0;
-            loop {
-                self.begin_write()?.commit()?;
-                self.begin_write()?.commit()?;
-                let now = space(self)?.0;
-                if now >= end {
-                    break;
-                }
-                end = now;
+        self.trim_end()?;
+        if space(self)?.1 > 0 {
+            for at_end in [true, false] {
+                let mut w = self.begin_write()?;
+                w.rewrite(at_end)?;
+                w.commit()?;
+                rewrites += 1;
+                self.trim_end()?;
             }
-            if space(self)?.1 == 0 || rewrites == 2 {
-                break;
-            }
-            let mut w = self.begin_write()?;
-            w.rewrite()?;
-            w.commit()?;
-            rewrites += 1;
         }
         let (blocks_after, free_after) = space(self)?;
         Ok(Compaction { blocks_before, blocks_after, free_after, rewrites })
+    }
+
+    /// Commits without changes until the file stops shrinking: each commit
+    /// cuts off the free end, or moves the free list below it so that the
+    /// next one can.
+    fn trim_end(&self) -> Result<(), StorageError> {
+        let end = |db: &Database| -> Result<u32, StorageError> {
+            let w = db.begin_write()?;
+            let end = w.base_space().0;
+            w.abort()?;
+            Ok(end)
+        };
+        let mut last = end(self)?;
+        loop {
+            self.begin_write()?.commit()?;
+            self.begin_write()?.commit()?;
+            let now = end(self)?;
+            if now >= last {
+                return Ok(());
+            }
+            last = now;
+        }
     }
 
     /// A read transaction on the newest committed state, which stays

@@ -44,6 +44,8 @@ pub struct WriteTransaction<'db> {
     changes: Option<Changes>,
     /// The oldest snapshot a reader held when the transaction began.
     oldest_reader: Option<u64>,
+    /// Allocates past the file's end only (the first step of a compaction).
+    append_only: bool,
     done: bool,
 }
 
@@ -101,6 +103,7 @@ impl<'db> WriteTransaction<'db> {
             lod_params: LodParams::default(),
             changes: None,
             oldest_reader: oldest,
+            append_only: false,
             done: false,
         })
     }
@@ -122,7 +125,8 @@ impl<'db> WriteTransaction<'db> {
     }
 
     fn allocate(&mut self, count: u32) -> Result<u32, StorageError> {
-        let first = self.avail.allocate(count)?;
+        let first =
+            if self.append_only { self.avail.allocate_at_end(count)? } else { self.avail.allocate(count)? };
         self.written.release(first, count);
         // Readers of older snapshots no longer reach these blocks: drop any cached copy.
         self.inner.cache().forget(first, count);
@@ -223,10 +227,12 @@ impl<'db> WriteTransaction<'db> {
         self.changes()?.update(object)
     }
 
-    /// Marks the committed tree to be written again whole, into the
-    /// lowest free blocks ([`Database::compact`](super::Database::compact)).
-    pub(crate) fn rewrite(&mut self) -> Result<(), crate::Error> {
+    /// Marks the committed tree to be written again whole, into the lowest
+    /// free blocks, or past the file's end when `at_end`
+    /// ([`Database::compact`](super::Database::compact)).
+    pub(crate) fn rewrite(&mut self, at_end: bool) -> Result<(), crate::Error> {
         self.changes()?.touch();
+        self.append_only = at_end;
         Ok(())
     }
 
@@ -351,6 +357,9 @@ impl<'db> WriteTransaction<'db> {
     pub fn commit(mut self) -> Result<(), StorageError> {
         let pager = self.inner.pager().clone();
         let mut cleared = false;
+        // The committed free list's blocks, when this commit keeps the tree:
+        // at the file's end they are cut off once the commit is durable.
+        let mut old_chain = Vec::new();
         if let Some(changes) = self.changes.take().filter(Changes::changed) {
             let (scene, tree, params, seconds) = changes.finish();
             if scene.objects().is_empty() {
@@ -369,7 +378,7 @@ impl<'db> WriteTransaction<'db> {
             None => {
                 let (_, chain) = free_list_chain(&pager, &self.base)?;
                 let mut free = self.base_free.clone();
-                let shorter = self.trim_tail(&mut free, self.base.block_count) < self.base.block_count;
+                let shorter = self.trim_tail(&mut free, self.base.block_count, &[]) < self.base.block_count;
                 // A list block above a reusable hole moves down, so that a
                 // later commit can cut off the end it held.
                 let lowest_hole = self.base_free.iter().find(|r| self.reusable(r)).map(|r| r.first);
@@ -381,6 +390,7 @@ impl<'db> WriteTransaction<'db> {
                 }
                 // The same tree, and a shorter file.
                 self.keep_base(&chain);
+                old_chain = chain;
                 let meta = self.inner.lock_state().snapshot.meta.clone();
                 (self.base.meta_block, self.base.meta_checksum, meta)
             }
@@ -395,7 +405,7 @@ impl<'db> WriteTransaction<'db> {
                 &self.base_free,
                 self.txn,
             );
-            let end = self.trim_tail(&mut free, self.avail.end());
+            let end = self.trim_tail(&mut free, self.avail.end(), &old_chain);
             if free.len().div_ceil(per) <= list_blocks.len() {
                 break (free, end);
             }
@@ -433,11 +443,13 @@ impl<'db> WriteTransaction<'db> {
 
     /// Drops the free ranges at the end of a file of `end` blocks that no
     /// reader can reach (freed by an earlier commit, before the oldest
-    /// reader's snapshot); returns the new end.
-    fn trim_tail(&self, free: &mut Vec<FreeRange>, mut end: u32) -> u32 {
+    /// reader's snapshot), or that only the committed free list (`old_list`)
+    /// held, which readers never read; returns the new end.
+    fn trim_tail(&self, free: &mut Vec<FreeRange>, mut end: u32, old_list: &[u32]) -> u32 {
+        let only_old_list = |r: &FreeRange| (r.first..r.first + r.count).all(|b| old_list.contains(&b));
         while let Some(last) = free.last()
             && last.first + last.count == end
-            && self.reusable(last)
+            && (self.reusable(last) || only_old_list(last))
         {
             end = last.first;
             free.pop();

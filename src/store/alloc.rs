@@ -57,6 +57,11 @@ impl FreeSpace {
             }
             return Ok(first);
         }
+        self.allocate_at_end(count)
+    }
+
+    /// `count` consecutive blocks past the end of the file.
+    pub fn allocate_at_end(&mut self, count: u32) -> Result<u32, StorageError> {
         let first = self.end;
         self.end = self.end.checked_add(count).ok_or(StorageError::FileTooLarge)?;
         Ok(first)

@@ -3,11 +3,13 @@
 mod batch;
 pub mod bench_build;
 pub mod bench_peers;
+pub mod bench_replace;
 mod bench_queries;
 mod build;
 mod check;
 mod clash;
 mod collide;
+mod compact;
 mod demo;
 mod dump;
 mod gen_info;
@@ -15,6 +17,7 @@ mod get;
 mod lods;
 mod navigate;
 mod query;
+mod remove;
 mod stats;
 mod sweep;
 mod tradeoff;
@@ -66,12 +69,18 @@ pub fn run(cli: Cli) -> Result<()> {
             get::run(&file, &get::parse_key(&key, text)?, mesh, json)
         }
         Command::Check { file, json } => check::run(&file, json),
+        Command::Compact { file, json } => compact::run(&file, json),
+        Command::Remove { file, keys, text, json } => {
+            let keys = keys.iter().map(|k| get::parse_key(k, text)).collect::<Result<Vec<_>>>()?;
+            remove::run(&file, &keys, json)
+        }
         Command::Demo { dir } => demo::run(&dir),
         Command::BenchQueries { files, queries, shares, seed, json } => {
             bench_queries::run(&files, queries, &shares, seed, json)
         }
         Command::BenchBuild(args) => bench_build::run(&args),
         Command::BenchPeers(args) => bench_peers::run(&args),
+        Command::BenchReplace(args) => bench_replace::run(&args),
     }
 }
 
@@ -87,6 +96,11 @@ pub fn read_scene(path: &Path, options: &ImportOptions) -> Result<Scene> {
 /// A scene named on the command line: a scene file, or else a preset of
 /// the generator (`tanker1`, ..., `ship`, `ship:N` for N objects, seed 0).
 pub fn scene_or_preset(arg: &str, options: &ImportOptions) -> Result<Scene> {
+    scene_or_seeded_preset(arg, options, 0)
+}
+
+/// [`scene_or_preset`] with the generator's seed.
+pub fn scene_or_seeded_preset(arg: &str, options: &ImportOptions, seed: u64) -> Result<Scene> {
     let path = Path::new(arg);
     if path.exists() {
         return read_scene(path, options);
@@ -98,7 +112,7 @@ pub fn scene_or_preset(arg: &str, options: &ImportOptions) -> Result<Scene> {
         None => (arg, None),
     };
     let preset = name.parse::<Preset>().with_context(|| format!("{arg} is neither a file nor a preset"))?;
-    Ok(generate_scene(&GenOptions { preset, objects, seed: 0 })?)
+    Ok(generate_scene(&GenOptions { preset, objects, seed })?)
 }
 
 /// Opens an .mkt file to read, printing what opening noticed (a damaged

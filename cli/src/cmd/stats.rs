@@ -66,10 +66,11 @@ pub fn run(input: &Path, build: &BuildArgs, as_json: bool) -> Result<()> {
     );
     if let Some(info) = file {
         println!(
-            "file: {} blocks of {} bytes ({} bytes): {} node ({:.1}% full), {} geometry ({:.1}% full); txn {}",
+            "file: {} blocks of {} bytes ({} bytes, {} free): {} node ({:.1}% full), {} geometry ({:.1}% full); txn {}",
             info.file_blocks,
             info.block_size,
             u64::from(info.file_blocks) * u64::from(info.block_size),
+            info.free_blocks,
             info.node_blocks,
             100.0 * info.node_fill,
             info.geometry_blocks,

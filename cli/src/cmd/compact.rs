@@ -1,0 +1,25 @@
+//! `mktree compact`: gives a file's free blocks back to the file system.
+
+use std::path::Path;
+
+use anyhow::Result;
+use mktree::db::Database;
+
+use crate::output;
+
+pub fn run(file: &Path, as_json: bool) -> Result<()> {
+    let db = Database::open(file).map_err(|e| crate::cmd::opening(e, file))?;
+    let c = db.compact()?;
+    if as_json {
+        return output::json(&c);
+    }
+    println!(
+        "{}: {} -> {} blocks ({} free), tree written {} time(s)",
+        file.display(),
+        c.blocks_before,
+        c.blocks_after,
+        c.free_after,
+        c.rewrites
+    );
+    Ok(())
+}
