@@ -1,0 +1,64 @@
+//! Claim (issue 13): `mktree remove` deletes objects by key in one commit,
+//! all or none; `stats` reports free blocks; `compact` gives a file that
+//! grew across rewrites back its size.
+
+mod common;
+
+use std::process::Output;
+
+use common::{mktree, tanker1_in};
+
+fn run(args: &[&str]) -> Output {
+    mktree().args(args).output().unwrap()
+}
+
+fn json(out: &Output) -> serde_json::Value {
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+fn file_stats(mkt: &str) -> serde_json::Value {
+    json(&run(&["stats", mkt, "--json"]))["file"].clone()
+}
+
+#[test]
+fn remove_is_all_or_none_and_compact_shrinks_a_rewritten_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (obj, mkt) = tanker1_in(dir.path());
+    let (obj, mkt) = (obj.to_str().unwrap(), mkt.to_str().unwrap());
+    let before = file_stats(mkt);
+    let objects = before["objects"].as_u64().unwrap();
+
+    // A missing key refuses the whole command: nothing is removed.
+    let out = run(&["remove", mkt, "--key", "0", "--key", "999999"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("no object has the key 999999"), "{stderr}");
+    assert_eq!(file_stats(mkt)["objects"], objects);
+
+    let removed = json(&run(&["remove", mkt, "--key", "0", "--key", "1", "--json"]));
+    assert_eq!((removed["removed"].as_u64(), removed["objects"].as_u64()), (Some(2), Some(objects - 2)));
+    assert!(run(&["get", mkt, "--key", "0"]).status.code() == Some(1), "key 0 is gone");
+    json(&run(&["get", mkt, "--key", "2", "--json"]));
+    let check = run(&["check", mkt]);
+    assert!(check.status.success(), "{}", String::from_utf8_lossy(&check.stdout));
+
+    // Building again into the same file leaves the old tree's blocks free.
+    json(&run(&["build", obj, "-o", mkt, "--block-size", "4096", "--json"]));
+    let grown = file_stats(mkt);
+    assert!(grown["free_blocks"].as_u64().unwrap() > 0, "{grown}");
+    let text = String::from_utf8_lossy(&run(&["stats", mkt]).stdout).to_string();
+    assert!(text.contains("free"), "{text}");
+
+    let c = json(&run(&["compact", mkt, "--json"]));
+    assert_eq!(c["blocks_before"], grown["file_blocks"]);
+    assert_eq!(c["free_after"], 0);
+    let after = file_stats(mkt);
+    assert_eq!(after["file_blocks"], c["blocks_after"]);
+    assert!(after["file_blocks"].as_u64() < grown["file_blocks"].as_u64(), "{after}");
+    assert_eq!(after["objects"], objects);
+    let len = std::fs::metadata(mkt).unwrap().len();
+    assert_eq!(len, after["file_blocks"].as_u64().unwrap() * 4096);
+    assert!(run(&["check", mkt]).status.success());
+}
