@@ -104,7 +104,7 @@ fn rectangle(b: &Aabb) -> Rectangle<[f64; 3]> {
 
 /// The options every line shares; `look_ahead` matters to LAA only.
 fn params(method: Method, look_ahead: LookAhead) -> BuildParams {
-    BuildParams { method, rate: 0.3, leaf: LeafRule::Objects(100), look_ahead, ..BuildParams::default() }
+    BuildParams { method, rate: 0.3, leaf: LeafRule::Objects(100), look_ahead, ..BuildParams::paper() }
 }
 
 fn bench_build(c: &mut Criterion) {

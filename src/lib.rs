@@ -11,7 +11,21 @@
 // The one exception is the byte-range locks of src/store/lock.rs (fcntl).
 #![deny(unsafe_code)]
 
+pub use build::{BuildParams, LeafRule, Method};
+pub use db::{
+    CheckReport, Compaction, CreateOptions, Database, ReadTransaction, TreeInfo, WriteTransaction, check,
+};
 pub use error::Error;
+pub use geom::{Aabb, Point, Ray, Vector};
+pub use lod::LodParams;
+pub use query::{Hit, Near, QueryAnswer, QueryOptions, RayHit, Region, Selection};
+pub use scene::{Key, KeyError, Mesh, Object, ObjectId, Scene};
+pub use store::StorageError;
+
+/// The README's examples run as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;
 
 pub mod build;
 pub mod db;

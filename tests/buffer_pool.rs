@@ -15,7 +15,7 @@ use mktree::store::device::{CountingDevice, MemDevice};
 #[test]
 fn a_repeated_query_is_served_from_the_pool() {
     let dev = Arc::new(CountingDevice::new(MemDevice::new()));
-    let params = BuildParams { leaf: LeafRule::Objects(5), ..BuildParams::default() };
+    let params = BuildParams { leaf: LeafRule::Objects(5), ..BuildParams::paper() };
     let db = common::load_on(
         dev.clone(),
         &common::grid_scene(200),
@@ -45,7 +45,7 @@ fn a_repeated_query_is_served_from_the_pool() {
 #[test]
 fn reader_threads_share_one_pool() {
     let dev = Arc::new(CountingDevice::new(MemDevice::new()));
-    let params = BuildParams { leaf: LeafRule::Objects(5), ..BuildParams::default() };
+    let params = BuildParams { leaf: LeafRule::Objects(5), ..BuildParams::paper() };
     let db = common::load_on(
         dev.clone(),
         &common::grid_scene(400),

@@ -54,7 +54,7 @@ fn build_all(boxes: &[Aabb], sizes: Option<&[u64]>, base: &BuildParams) -> Vec<(
 }
 
 fn objects(mem_page: u32) -> BuildParams {
-    BuildParams { leaf: LeafRule::Objects(mem_page), ..BuildParams::default() }
+    BuildParams { leaf: LeafRule::Objects(mem_page), ..BuildParams::paper() }
 }
 
 #[test]
@@ -62,7 +62,7 @@ fn an_object_bigger_than_a_page_is_a_leaf_by_itself() {
     let boxes = scattered(40);
     let mut sizes = vec![100u64; 40];
     sizes[17] = 5_000;
-    let base = BuildParams { leaf: LeafRule::Bytes { capacity: 1_000 }, ..BuildParams::default() };
+    let base = BuildParams { leaf: LeafRule::Bytes { capacity: 1_000 }, ..BuildParams::paper() };
     for (p, tree) in build_all(&boxes, Some(&sizes), &base) {
         let leaf = tree.leaves().find(|(_, o)| o.contains(&ObjectId(17))).unwrap().1;
         assert_eq!(leaf, [ObjectId(17)], "{p:?}");

@@ -25,7 +25,7 @@ fn refused(boxes: &[Aabb], sizes: Option<&[u64]>, params: &BuildParams) -> Build
 fn a_rate_outside_zero_to_one_half_is_refused() {
     let boxes = [unit(0.0), unit(2.0)];
     for rate in [-0.1, 0.500_001, f64::NAN] {
-        let p = BuildParams { rate, ..BuildParams::default() };
+        let p = BuildParams { rate, ..BuildParams::paper() };
         assert!(matches!(refused(&boxes, None, &p), BuildError::RateOutOfRange { .. }), "{rate}");
     }
 }
@@ -34,19 +34,19 @@ fn a_rate_outside_zero_to_one_half_is_refused() {
 fn a_zero_capacity_is_refused() {
     let boxes = [unit(0.0)];
     for leaf in [LeafRule::Objects(0), LeafRule::Bytes { capacity: 0 }] {
-        let p = BuildParams { leaf, ..BuildParams::default() };
+        let p = BuildParams { leaf, ..BuildParams::paper() };
         assert_eq!(refused(&boxes, Some(&[1]), &p), BuildError::ZeroCapacity);
     }
 }
 
 #[test]
 fn an_empty_input_is_refused() {
-    assert_eq!(refused(&[], None, &BuildParams::default()), BuildError::EmptyInput);
+    assert_eq!(refused(&[], None, &BuildParams::paper()), BuildError::EmptyInput);
 }
 
 #[test]
 fn a_non_finite_or_inverted_box_is_refused_by_object() {
-    let p = BuildParams::default();
+    let p = BuildParams::paper();
     let mut boxes = vec![unit(0.0), unit(2.0), unit(4.0)];
     boxes[1].max.y = f64::INFINITY;
     assert_eq!(refused(&boxes, None, &p), BuildError::NonFiniteBox { object: ObjectId(1) });
@@ -60,17 +60,17 @@ fn a_non_finite_or_inverted_box_is_refused_by_object() {
 #[test]
 fn sizes_must_be_given_for_the_byte_rule_and_match_the_boxes() {
     let boxes = [unit(0.0), unit(2.0)];
-    let bytes = BuildParams { leaf: LeafRule::Bytes { capacity: 100 }, ..BuildParams::default() };
+    let bytes = BuildParams { leaf: LeafRule::Bytes { capacity: 100 }, ..BuildParams::paper() };
     assert_eq!(refused(&boxes, None, &bytes), BuildError::MissingSizes);
     assert_eq!(refused(&boxes, Some(&[1, 2, 3]), &bytes), BuildError::SizesMismatch { boxes: 2, sizes: 3 });
     assert_eq!(
-        refused(&boxes, Some(&[1]), &BuildParams::default()),
+        refused(&boxes, Some(&[1]), &BuildParams::paper()),
         BuildError::SizesMismatch { boxes: 2, sizes: 1 }
     );
 }
 
 #[test]
 fn errors_say_what_is_wrong() {
-    let p = BuildParams { rate: 0.7, ..BuildParams::default() };
+    let p = BuildParams { rate: 0.7, ..BuildParams::paper() };
     assert_eq!(refused(&[unit(0.0)], None, &p).to_string(), "rate R = 0.7 is outside [0, 0.5]");
 }

@@ -28,7 +28,7 @@ proptest! {
         tie_break in prop::sample::select(TieBreak::ALL.to_vec()),
         levels in 1u32..4,
     ) {
-        let moa = BuildParams { method: Method::Moa, rate, leaf: LeafRule::Objects(mem_page), tie_break, ..BuildParams::default() };
+        let moa = BuildParams { method: Method::Moa, rate, leaf: LeafRule::Objects(mem_page), tie_break, ..BuildParams::paper() };
         let laa = |look_ahead| BuildParams { method: Method::Laa, look_ahead, ..moa.clone() };
         let total = |p: &BuildParams| {
             let tree = build(&boxes, None, p, &|_| {}).unwrap();
@@ -60,7 +60,7 @@ fn laa_max_beats_moa_on_a_scene_where_the_greedy_cut_misleads() {
         })
         .collect();
     let moa =
-        BuildParams { method: Method::Moa, rate: 0.2, leaf: LeafRule::Objects(10), ..BuildParams::default() };
+        BuildParams { method: Method::Moa, rate: 0.2, leaf: LeafRule::Objects(10), ..BuildParams::paper() };
     let laa = BuildParams { method: Method::Laa, look_ahead: LookAhead::Max, ..moa.clone() };
     let m = Report::of(&build(&boxes, None, &moa, &|_| {}).unwrap());
     let l = Report::of(&build(&boxes, None, &laa, &|_| {}).unwrap());

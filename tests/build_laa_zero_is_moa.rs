@@ -18,7 +18,7 @@ proptest! {
         mem_page in 1u32..10,
         tie_break in prop::sample::select(TieBreak::ALL.to_vec()),
     ) {
-        let moa = BuildParams { method: Method::Moa, rate, leaf: LeafRule::Objects(mem_page), tie_break, ..BuildParams::default() };
+        let moa = BuildParams { method: Method::Moa, rate, leaf: LeafRule::Objects(mem_page), tie_break, ..BuildParams::paper() };
         let laa = BuildParams { method: Method::Laa, look_ahead: LookAhead::Levels(0), ..moa.clone() };
         let a = build(&boxes, None, &moa, &|_| {}).unwrap();
         let b = build(&boxes, None, &laa, &|_| {}).unwrap();

@@ -91,7 +91,7 @@ proptest! {
         mem_page in 1u32..8,
         tie in prop::sample::select(TieBreak::ALL.to_vec()),
     ) {
-        let params = BuildParams { method: Method::Moa, rate, leaf: LeafRule::Objects(mem_page), tie_break: tie, ..BuildParams::default() };
+        let params = BuildParams { method: Method::Moa, rate, leaf: LeafRule::Objects(mem_page), tie_break: tie, ..BuildParams::paper() };
         let tree = build(&boxes, None, &params, &|_| {}).unwrap();
         for (i, node) in tree.nodes.iter().enumerate() {
             let (Some(split), Some([left, _])) = (node.split(), node.children()) else { continue };

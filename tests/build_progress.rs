@@ -35,7 +35,7 @@ fn reports(boxes: &[Aabb], params: &BuildParams) -> Vec<BuildProgress> {
 fn progress_starts_with_the_estimate_and_ends_with_every_object_placed() {
     let boxes = lattice();
     for method in Method::ALL {
-        let params = BuildParams { method, leaf: LeafRule::Objects(20), ..BuildParams::default() };
+        let params = BuildParams { method, leaf: LeafRule::Objects(20), ..BuildParams::paper() };
         let seen = reports(&boxes, &params);
         let (first, last) = (seen[0], seen[seen.len() - 1]);
         assert!(seen.len() > 10, "{method}: {} reports", seen.len());
@@ -50,7 +50,7 @@ fn progress_starts_with_the_estimate_and_ends_with_every_object_placed() {
 #[test]
 fn laa_reports_the_look_level_it_reached() {
     let boxes = lattice();
-    let base = BuildParams { method: Method::Laa, leaf: LeafRule::Objects(20), ..BuildParams::default() };
+    let base = BuildParams { method: Method::Laa, leaf: LeafRule::Objects(20), ..BuildParams::paper() };
     let reached = |look_ahead| {
         let seen = reports(&boxes, &BuildParams { look_ahead, ..base.clone() });
         seen[seen.len() - 1].look_level_reached
@@ -69,13 +69,13 @@ fn the_estimate_grows_with_the_look_ahead_and_shrinks_with_the_page() {
         method,
         look_ahead,
         leaf: LeafRule::Objects(mem_page),
-        ..BuildParams::default()
+        ..BuildParams::paper()
     };
     let w = |params: &BuildParams| estimate_work(1_000_000, None, params);
     assert!(w(&p(Method::Laa, LookAhead::Max, 100)) > w(&p(Method::Laa, LookAhead::Levels(2), 100)));
     assert!(w(&p(Method::Laa, LookAhead::Levels(2), 100)) > w(&p(Method::Moa, LookAhead::Max, 100)));
     assert!(w(&p(Method::Moa, LookAhead::Max, 500)) < w(&p(Method::Moa, LookAhead::Max, 100)));
-    let bytes = BuildParams { leaf: LeafRule::Bytes { capacity: 1000 }, ..BuildParams::default() };
+    let bytes = BuildParams { leaf: LeafRule::Bytes { capacity: 1000 }, ..BuildParams::paper() };
     let sizes = vec![100u64; 1000];
     assert_eq!(
         estimate_work(1000, Some(&sizes), &bytes),

@@ -23,7 +23,7 @@ proptest! {
         rate in 0.0f64..=0.5,
         query_extent in extent(),
     ) {
-        let vsah = BuildParams { method: Method::Vsah, rate, leaf: LeafRule::Objects(mem_page), query_extent, ..BuildParams::default() };
+        let vsah = BuildParams { method: Method::Vsah, rate, leaf: LeafRule::Objects(mem_page), query_extent, ..BuildParams::paper() };
         let refine = BuildParams { method: Method::Refine, ..vsah.clone() };
         let a = build(&boxes, None, &vsah, &|_| {}).unwrap();
         let b = build(&boxes, None, &refine, &|_| {}).unwrap();
@@ -46,7 +46,7 @@ fn refine_lowers_the_cost_of_a_scene_of_slabs() {
             boxes.push(mktree::geom::Aabb::from_array([x, 0.0, z, x + 100.0, 3_000.0, z + 10.0]));
         }
     }
-    let vsah = BuildParams { method: Method::Vsah, leaf: LeafRule::Objects(16), ..BuildParams::default() };
+    let vsah = BuildParams { method: Method::Vsah, leaf: LeafRule::Objects(16), ..BuildParams::paper() };
     let refine = BuildParams { method: Method::Refine, ..vsah.clone() };
     let model = CostModel::of_boxes(&boxes, QueryExtent::Auto);
     let a = model.expected_cost(&build(&boxes, None, &vsah, &|_| {}).unwrap());

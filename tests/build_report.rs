@@ -23,7 +23,7 @@ fn moa(tie_break: TieBreak) -> BuildParams {
         rate: 0.0,
         leaf: LeafRule::Objects(1),
         tie_break,
-        ..BuildParams::default()
+        ..BuildParams::paper()
     }
 }
 
@@ -67,7 +67,7 @@ fn most_balanced_halves_the_chain() {
 
 #[test]
 fn a_single_leaf_has_no_grey_nodes_and_a_zero_average() {
-    let tree = build(&chain(), None, &BuildParams::default(), &|_| {}).unwrap();
+    let tree = build(&chain(), None, &BuildParams::paper(), &|_| {}).unwrap();
     let report = Report::of(&tree);
     assert_eq!((report.grey_nodes, report.ov_average, report.depth, report.leaves), (0, 0.0, 1, 1));
     assert_eq!(report.levels[0].ov_min, None);

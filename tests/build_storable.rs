@@ -16,7 +16,7 @@ use mktree::store::format::geometry::MAX_COORDINATE;
 
 /// Small leaves, so that a few objects make internal nodes (splits).
 fn params() -> BuildParams {
-    BuildParams { leaf: LeafRule::Objects(2), ..BuildParams::default() }
+    BuildParams { leaf: LeafRule::Objects(2), ..BuildParams::paper() }
 }
 
 fn mesh(points: &[[f64; 3]]) -> Mesh {

@@ -45,7 +45,7 @@ fn every_method_builds_the_same_tree_on_one_two_and_three_threads() {
     let seed = 0x5EED_0001;
     println!("seed {seed:#x}");
     let boxes = scene(20_000, seed);
-    let base = BuildParams { rate: 0.2, leaf: LeafRule::Objects(64), ..BuildParams::default() };
+    let base = BuildParams { rate: 0.2, leaf: LeafRule::Objects(64), ..BuildParams::paper() };
     let mut cases: Vec<BuildParams> =
         Method::ALL.iter().map(|&method| BuildParams { method, ..base.clone() }).collect();
     cases.push(BuildParams { method: Method::Laa, look_ahead: LookAhead::Max, ..base.clone() });

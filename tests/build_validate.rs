@@ -17,7 +17,7 @@ fn scene() -> Vec<Aabb> {
 }
 
 fn params(method: Method) -> BuildParams {
-    BuildParams { method, leaf: LeafRule::Objects(4), ..BuildParams::default() }
+    BuildParams { method, leaf: LeafRule::Objects(4), ..BuildParams::paper() }
 }
 
 fn tree(boxes: &[Aabb], method: Method) -> Hierarchy {

@@ -87,7 +87,7 @@ proptest! {
         leaf in 2u32..8,
         txns in prop::collection::vec(prop::collection::vec(arb_change(), 1..12), 1..4),
     ) {
-        let params = BuildParams { method, leaf: LeafRule::Objects(leaf), ..BuildParams::default() };
+        let params = BuildParams { method, leaf: LeafRule::Objects(leaf), ..BuildParams::paper() };
         let options = CreateOptions { block_size: 4096, ..CreateOptions::default() };
         let (db, _) = mem_db(&scene, &params, options);
         let mut model = model_of(&scene);
@@ -148,7 +148,7 @@ fn a_tree_grows_from_an_empty_file_one_object_at_a_time() {
 #[test]
 fn deleting_every_object_commits_an_empty_file_that_takes_new_objects() {
     let scene = common::grid_scene(4);
-    let (db, _) = mem_db(&scene, &BuildParams::default(), CreateOptions::default());
+    let (db, _) = mem_db(&scene, &BuildParams::paper(), CreateOptions::default());
     let mut w = db.begin_write().unwrap();
     for i in 0..scene.len() as u64 {
         assert!(w.remove(&Key::Int(i)).unwrap().is_some());
@@ -174,7 +174,7 @@ fn deleting_every_object_commits_an_empty_file_that_takes_new_objects() {
 #[test]
 fn bad_changes_are_typed_errors_and_leave_the_transaction_usable() {
     let scene = common::grid_scene(3);
-    let (db, _) = mem_db(&scene, &BuildParams::default(), CreateOptions::default());
+    let (db, _) = mem_db(&scene, &BuildParams::paper(), CreateOptions::default());
     let mut w = db.begin_write().unwrap();
     let taken = w.insert(cube(0.0, 0.0, 0.0, 1.0).with_key(0u64));
     assert!(matches!(taken, Err(mktree::Error::Key(KeyError::Exists { .. }))), "{taken:?}");
@@ -189,7 +189,7 @@ fn bad_changes_are_typed_errors_and_leave_the_transaction_usable() {
             + 1
     ]);
     assert!(matches!(w.insert(long), Err(mktree::Error::Key(KeyError::PayloadTooLong { .. }))));
-    assert!(w.bulk_load(&scene, &BuildParams::default(), &|_| {}).is_err(), "one tree per transaction");
+    assert!(w.bulk_load(&scene, &BuildParams::paper(), &|_| {}).is_err(), "one tree per transaction");
     w.commit().unwrap();
     let mut model = model_of(&scene);
     model.insert(Key::Int(0), scene.objects()[0].clone());
@@ -199,7 +199,7 @@ fn bad_changes_are_typed_errors_and_leave_the_transaction_usable() {
 #[test]
 fn compact_gives_back_the_blocks_repeated_loads_left_free() {
     let scene = common::grid_scene(6);
-    let params = BuildParams::default();
+    let params = BuildParams::paper();
     let (db, dev) = mem_db(&scene, &params, CreateOptions::default());
     let once = db.begin_read().unwrap().info().unwrap().file_blocks;
     for _ in 0..2 {
@@ -224,7 +224,7 @@ fn compact_gives_back_the_blocks_repeated_loads_left_free() {
 #[test]
 fn compact_keeps_the_blocks_an_open_reader_reads() {
     let scene = common::grid_scene(5);
-    let params = BuildParams::default();
+    let params = BuildParams::paper();
     let (db, _) = mem_db(&scene, &params, CreateOptions::default());
     let old = db.begin_read().unwrap();
     let mut w = db.begin_write().unwrap();

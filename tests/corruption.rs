@@ -24,7 +24,7 @@ fn queries() -> Vec<Aabb> {
 }
 
 fn image() -> Vec<u8> {
-    let params = BuildParams { leaf: LeafRule::Objects(5), ..BuildParams::default() };
+    let params = BuildParams { leaf: LeafRule::Objects(5), ..BuildParams::paper() };
     common::image(&grid_scene(90), &params, CreateOptions { block_size: BS as u32, lod_levels: 2 })
 }
 

@@ -16,11 +16,7 @@ use mktree::store::device::{CrashDevice, CrashImage, MemDevice};
 
 fn load(db: &Database, scene: &Scene, method: Method) -> Result<(), mktree::Error> {
     let mut w = db.begin_write()?;
-    w.bulk_load(
-        scene,
-        &BuildParams { method, leaf: LeafRule::Objects(6), ..BuildParams::default() },
-        &|_| {},
-    )?;
+    w.bulk_load(scene, &BuildParams { method, leaf: LeafRule::Objects(6), ..BuildParams::paper() }, &|_| {})?;
     w.commit()?;
     Ok(())
 }
@@ -98,7 +94,7 @@ fn an_aborted_transaction_leaves_the_file_as_it_was() {
     let before = fingerprint(&db);
     let mut w = db.begin_write().unwrap();
     // Leaves that fit a 1 KiB node block: a version 3 leaf record holds 20 bytes per object.
-    let params = BuildParams { leaf: LeafRule::Objects(6), ..BuildParams::default() };
+    let params = BuildParams { leaf: LeafRule::Objects(6), ..BuildParams::paper() };
     w.bulk_load(&grid_scene(90), &params, &|_| {}).unwrap();
     w.abort().unwrap();
     assert_eq!(fingerprint(&db), before);

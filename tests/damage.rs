@@ -60,7 +60,7 @@ fn images(scale: f64, shift: usize) -> [Vec<u8>; 3] {
     let mut out = Vec::new();
     for method in [Method::Moa, Method::Median, Method::Moa] {
         let mut w = db.begin_write().unwrap();
-        let params = BuildParams { method, leaf: LeafRule::Objects(4), ..BuildParams::default() };
+        let params = BuildParams { method, leaf: LeafRule::Objects(4), ..BuildParams::paper() };
         w.bulk_load(&s, &params, &|_| {}).unwrap();
         w.commit().unwrap();
         out.push(dev.to_bytes());

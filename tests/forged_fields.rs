@@ -107,8 +107,7 @@ fn base() -> &'static [u8] {
         .unwrap();
         let mut w = db.begin_write().unwrap();
         w.set_lod_params(LodParams { store_all: true, ..LodParams::default() });
-        let params =
-            BuildParams { method: Method::Moa, leaf: LeafRule::Objects(3), ..BuildParams::default() };
+        let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(3), ..BuildParams::paper() };
         w.bulk_load(&scene(), &params, &|_| {}).unwrap();
         w.commit().unwrap();
         drop(db);

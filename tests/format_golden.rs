@@ -33,7 +33,7 @@ fn tiny() -> Vec<u8> {
         Object::new("far", triangle([500.0, 0.0, 0.0], [600.0, 0.0, 0.0], [500.0, 10.0, 5.0])),
     ]);
     let params =
-        BuildParams { method: Method::Moa, rate: 0.2, leaf: LeafRule::Objects(2), ..BuildParams::default() };
+        BuildParams { method: Method::Moa, rate: 0.2, leaf: LeafRule::Objects(2), ..BuildParams::paper() };
     let tree = build(&scene.object_boxes(), None, &params, &|_| {}).unwrap();
     let dev = Arc::new(MemDevice::new());
     let db = Database::create_on(

@@ -13,7 +13,7 @@ use mktree::store::BlockDevice;
 use mktree::store::device::{CountingDevice, FaultDevice, FaultOp, MemDevice};
 
 fn base_image() -> Vec<u8> {
-    let params = BuildParams { leaf: LeafRule::Objects(4), ..BuildParams::default() };
+    let params = BuildParams { leaf: LeafRule::Objects(4), ..BuildParams::paper() };
     common::image(&grid_scene(40), &params, CreateOptions { block_size: 1024, lod_levels: 1 })
 }
 
@@ -23,7 +23,7 @@ fn session(dev: Arc<dyn BlockDevice>) -> Result<usize, mktree::Error> {
     let mut w = db.begin_write()?;
     w.bulk_load(
         &grid_scene(60),
-        &BuildParams { leaf: LeafRule::Objects(4), ..BuildParams::default() },
+        &BuildParams { leaf: LeafRule::Objects(4), ..BuildParams::paper() },
         &|_| {},
     )?;
     w.commit()?;

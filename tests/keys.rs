@@ -38,7 +38,7 @@ fn small_blocks() -> CreateOptions {
 }
 
 fn params() -> BuildParams {
-    BuildParams { leaf: LeafRule::Objects(8), ..BuildParams::default() }
+    BuildParams { leaf: LeafRule::Objects(8), ..BuildParams::paper() }
 }
 
 #[test]

@@ -48,7 +48,7 @@ fn build(scene: &Scene, m: u8, bs: u32, cap: u32, lod: LodParams) -> (Database, 
     .unwrap();
     let mut w = db.begin_write().unwrap();
     w.set_lod_params(lod);
-    let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(cap), ..BuildParams::default() };
+    let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(cap), ..BuildParams::paper() };
     w.bulk_load(scene, &params, &|_| {}).unwrap();
     w.commit().unwrap();
     (db, dev)
@@ -209,7 +209,7 @@ fn bad_eps_is_a_typed_error_not_a_panic() {
     for eps in [vec![1.0], vec![1.0, 2.0], vec![-1.0, -2.0], vec![f64::NAN, 1.0]] {
         let mut w = db.begin_write().unwrap();
         w.set_lod_params(LodParams { eps: Some(eps.clone()), ..LodParams::default() });
-        let err = w.bulk_load(&scene, &BuildParams::default(), &|_| {}).unwrap_err();
+        let err = w.bulk_load(&scene, &BuildParams::paper(), &|_| {}).unwrap_err();
         assert!(err.to_string().contains("eps"), "{eps:?}: {err}");
     }
 }

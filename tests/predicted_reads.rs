@@ -61,7 +61,7 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
     #[test]
     fn predicted_reads_equal_actual_reads(scene in arb_scene(80), cap in 1u32..6, bs in prop::sample::select(vec![1024u32, 1536, 4096]), m in 1u8..6) {
-        let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(cap), ..BuildParams::default() };
+        let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(cap), ..BuildParams::paper() };
         let (db, _) = common::mem_db(&scene, &params, CreateOptions { block_size: bs, lod_levels: m });
         check_predictions(&db);
     }
@@ -71,7 +71,7 @@ proptest! {
 fn multi_block_leaves_and_big_objects_are_predicted_too() {
     // 20 objects per leaf of 12-triangle boxes (~280 bytes each) overflow 1 KiB blocks.
     let scene = grid_scene(300);
-    let params = BuildParams { leaf: LeafRule::Objects(20), ..BuildParams::default() };
+    let params = BuildParams { leaf: LeafRule::Objects(20), ..BuildParams::paper() };
     let (db, _) = common::mem_db(&scene, &params, CreateOptions { block_size: 1024, lod_levels: 2 });
     check_predictions(&db);
 }
@@ -81,7 +81,7 @@ fn multi_block_leaves_and_big_objects_are_predicted_too() {
 /// blocks and the pieces are objects.
 #[test]
 fn with_one_level_fetching_level_1_reads_the_exact_objects() {
-    let params = BuildParams { leaf: LeafRule::Objects(4), ..BuildParams::default() };
+    let params = BuildParams { leaf: LeafRule::Objects(4), ..BuildParams::paper() };
     let (db, _) = common::mem_db(&grid_scene(30), &params, CreateOptions { block_size: 1024, lod_levels: 1 });
     check_predictions(&db);
 }
@@ -90,7 +90,7 @@ fn with_one_level_fetching_level_1_reads_the_exact_objects() {
 fn counted_reads_are_the_device_reads() {
     let scene = grid_scene(400);
     let counting = Arc::new(CountingDevice::new(MemDevice::new()));
-    let params = BuildParams { leaf: LeafRule::Objects(8), ..BuildParams::default() };
+    let params = BuildParams { leaf: LeafRule::Objects(8), ..BuildParams::paper() };
     let db =
         common::load_on(counting.clone(), &scene, &params, CreateOptions { block_size: 2048, lod_levels: 2 });
     let r = db.begin_read().unwrap();

@@ -30,7 +30,7 @@ fn everything() -> Aabb {
 
 fn commit(db: &Database, objects: usize) {
     let mut w = db.begin_write_with(WriterWait::Wait).expect("begin_write");
-    let params = BuildParams { method: Method::Median, leaf: LeafRule::Objects(4), ..BuildParams::default() };
+    let params = BuildParams { method: Method::Median, leaf: LeafRule::Objects(4), ..BuildParams::paper() };
     w.bulk_load(&common::grid_scene(objects), &params, &|_| {}).expect("bulk_load");
     w.commit().expect("commit");
 }

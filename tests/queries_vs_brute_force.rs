@@ -12,12 +12,8 @@ use mktree::query::{QueryOptions, Region, brute_force_region, query_region};
 use proptest::prelude::*;
 
 fn methods() -> Vec<BuildParams> {
-    let p = |method, leaf| BuildParams {
-        method,
-        leaf,
-        look_ahead: LookAhead::Levels(2),
-        ..BuildParams::default()
-    };
+    let p =
+        |method, leaf| BuildParams { method, leaf, look_ahead: LookAhead::Levels(2), ..BuildParams::paper() };
     vec![
         p(Method::Moa, LeafRule::Objects(4)),
         p(Method::Laa, LeafRule::Objects(3)),
@@ -47,7 +43,7 @@ proptest! {
 #[test]
 fn a_query_over_everything_returns_everything_from_the_node_blocks_alone() {
     let scene = grid_scene(500);
-    let params = BuildParams { leaf: LeafRule::Objects(10), ..BuildParams::default() };
+    let params = BuildParams { leaf: LeafRule::Objects(10), ..BuildParams::paper() };
     let (db, _) = mem_db(&scene, &params, CreateOptions { block_size: 1024, lod_levels: 2 });
     let r = db.begin_read().unwrap();
     let info = r.info().unwrap();
@@ -99,7 +95,7 @@ proptest! {
         scene in arb_big_scene(),
         q in (prop::array::uniform3(-100.0f64..1100.0), prop::array::uniform3(0.0f64..300.0)),
     ) {
-        let params = BuildParams { leaf: LeafRule::Objects(3), ..BuildParams::default() };
+        let params = BuildParams { leaf: LeafRule::Objects(3), ..BuildParams::paper() };
         let (db, _) = mem_db(&scene, &params, CreateOptions { block_size: 1024, lod_levels: 3 });
         let report = mktree::db::check(&db).unwrap();
         prop_assert!(report.ok(), "{:?}", report.faults);

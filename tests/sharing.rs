@@ -12,7 +12,7 @@ use mktree::store::StorageError;
 
 fn load(db: &Database, objects: usize) {
     let mut w = db.begin_write().unwrap();
-    w.bulk_load(&common::grid_scene(objects), &BuildParams::default(), &|_| {}).unwrap();
+    w.bulk_load(&common::grid_scene(objects), &BuildParams::paper(), &|_| {}).unwrap();
     w.commit().unwrap();
 }
 
@@ -81,12 +81,12 @@ fn a_write_transaction_moves_to_another_thread_and_a_second_writer_waits_for_it(
         // A second writer of this process waits for the first, wherever it runs.
         let second = s.spawn(|| {
             let mut w = db.begin_write().unwrap();
-            w.bulk_load(&common::grid_scene(20), &BuildParams::default(), &|_| {}).unwrap();
+            w.bulk_load(&common::grid_scene(20), &BuildParams::paper(), &|_| {}).unwrap();
             w.commit().unwrap();
         });
         s.spawn(move || {
             let mut w = w;
-            w.bulk_load(&common::grid_scene(10), &BuildParams::default(), &|_| {}).unwrap();
+            w.bulk_load(&common::grid_scene(10), &BuildParams::paper(), &|_| {}).unwrap();
             w.commit().unwrap();
         })
         .join()

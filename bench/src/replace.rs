@@ -106,7 +106,8 @@ pub fn bench_replace(
         w.bulk_load(&now, params, &|_| {})?;
         w.commit()?;
         let (changed, clean) = (db.begin_read()?, fresh.begin_read()?);
-        let info = changed.info().ok_or_else(|| BenchError::Invalid("the changed file holds no tree".into()))?;
+        let info =
+            changed.info().ok_or_else(|| BenchError::Invalid("the changed file holds no tree".into()))?;
         let fresh_blocks = clean.info().map_or(0, |i| i.file_blocks);
         let mut reads = Vec::new();
         for set in sets {
@@ -137,7 +138,9 @@ fn b_key(i: usize) -> Key {
 
 /// `scene` with object i keyed `first + i`.
 fn keyed(scene: &Scene, first: u64) -> Scene {
-    Scene::new(scene.objects().iter().enumerate().map(|(i, o)| o.clone().with_key(first + i as u64)).collect())
+    Scene::new(
+        scene.objects().iter().enumerate().map(|(i, o)| o.clone().with_key(first + i as u64)).collect(),
+    )
 }
 
 /// A's objects not yet replaced, then B's replacing ones, keyed as in the file.
@@ -146,7 +149,9 @@ fn current(a: &Scene, b: &Scene, replaced: &[usize]) -> Scene {
     for &i in replaced {
         gone[i] = true;
     }
-    let from_a = a.objects().iter().enumerate().filter(|(i, _)| !gone[*i]).map(|(i, o)| o.clone().with_key(i as u64));
-    let from_b = replaced.iter().filter_map(|&i| b.objects().get(i).map(|o: &Object| o.clone().with_key(b_key(i))));
+    let from_a =
+        a.objects().iter().enumerate().filter(|(i, _)| !gone[*i]).map(|(i, o)| o.clone().with_key(i as u64));
+    let from_b =
+        replaced.iter().filter_map(|&i| b.objects().get(i).map(|o: &Object| o.clone().with_key(b_key(i))));
     Scene::new(from_a.chain(from_b).collect())
 }

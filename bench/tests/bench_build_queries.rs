@@ -46,7 +46,7 @@ fn bench_queries_equal_brute_force_in_memory_and_through_the_file() {
     let scene = generate_scene(&GenOptions { preset: Preset::Tanker1, objects: None, seed: 0 }).unwrap();
     let boxes = scene.object_boxes();
     for method in [Method::Moa, Method::Vsah, Method::Refine] {
-        let params = BuildParams { method, leaf: LeafRule::Objects(12), ..BuildParams::default() };
+        let params = BuildParams { method, leaf: LeafRule::Objects(12), ..BuildParams::paper() };
         let db = mem_db(&scene, &params, CreateOptions { block_size: 4096, lod_levels: 2 });
         let txn = db.begin_read().unwrap();
         let tree = mktree::db::read_hierarchy(&txn).unwrap();

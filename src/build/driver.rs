@@ -47,7 +47,7 @@ const MAX_OBJECTS: usize = 1 << 31;
 /// let boxes: Vec<Aabb> = (0..50)
 ///     .map(|i| Aabb::from_array([i as f64, 0.0, 0.0, i as f64 + 0.5, 1.0, 1.0]))
 ///     .collect();
-/// let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(10), ..BuildParams::default() };
+/// let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(10), ..BuildParams::paper() };
 /// let tree = build(&boxes, None, &params, &|_| {})?;
 /// tree.validate(&boxes, None, &params)?;
 /// assert!(tree.leaves().all(|(_, objects)| objects.len() <= 10));

@@ -341,7 +341,7 @@ mod tests {
     }
 
     fn params(method: Method, leaf: u32) -> BuildParams {
-        BuildParams { method, leaf: LeafRule::Objects(leaf), ..BuildParams::default() }
+        BuildParams { method, leaf: LeafRule::Objects(leaf), ..BuildParams::paper() }
     }
 
     /// The hierarchy of the live objects, renumbered densely, with their boxes.

@@ -9,9 +9,10 @@ use std::str::FromStr;
 
 use super::{BuildError, LeafRule};
 
-/// Every option of a build. `BuildParams::default()` is MOA with R = 0.2,
-/// `mem_page` = 100 objects, look-ahead 2 (for LAA) and the paper's
-/// first-found tie-break.
+/// Every option of a build. The default is the measured best
+/// ([`BuildParams::for_blocks`] of 16 KiB); [`BuildParams::paper`] is the
+/// paper's MOA with R = 0.2, `mem_page` = 100 objects, look-ahead 2 (for
+/// LAA) and first-found tie-break.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BuildParams {
     /// The splitting method.
@@ -32,8 +33,18 @@ pub struct BuildParams {
     pub query_extent: QueryExtent,
 }
 
+/// The measured best (see [`BuildParams::for_blocks`]) for the default
+/// 16 KiB blocks; a file of other blocks wants `for_blocks(its size)`.
 impl Default for BuildParams {
     fn default() -> BuildParams {
+        BuildParams::for_blocks(crate::db::DEFAULT_BLOCK_SIZE)
+    }
+}
+
+impl BuildParams {
+    /// The paper's setting: MOA, R 0.2, MemPage 100 objects (look-ahead 2
+    /// levels when the method is LAA).
+    pub fn paper() -> BuildParams {
         BuildParams {
             method: Method::Moa,
             rate: 0.2,
@@ -43,9 +54,7 @@ impl Default for BuildParams {
             query_extent: QueryExtent::Auto,
         }
     }
-}
 
-impl BuildParams {
     /// What `mktree build` uses for blocks of `block_size` bytes, and what
     /// the README measures as best: `refine` with R 0.2, and leaves whose
     /// geometry fills one geometry block.
@@ -53,7 +62,7 @@ impl BuildParams {
         BuildParams {
             method: Method::Refine,
             leaf: LeafRule::Bytes { capacity: crate::store::format::geometry::payload(block_size) },
-            ..BuildParams::default()
+            ..BuildParams::paper()
         }
     }
 
@@ -324,11 +333,11 @@ mod tests {
     #[test]
     fn rates_outside_the_closed_half_interval_are_refused() {
         for rate in [-0.01, 0.51, f64::NAN, f64::INFINITY] {
-            let p = BuildParams { rate, ..BuildParams::default() };
+            let p = BuildParams { rate, ..BuildParams::paper() };
             assert!(matches!(p.validate(), Err(BuildError::RateOutOfRange { .. })), "{rate}");
         }
         for rate in [0.0, 0.5] {
-            assert_eq!(BuildParams { rate, ..BuildParams::default() }.validate(), Ok(()));
+            assert_eq!(BuildParams { rate, ..BuildParams::paper() }.validate(), Ok(()));
         }
     }
 }

@@ -136,7 +136,7 @@ mod tests {
 
     #[test]
     fn the_estimate_grows_with_look_ahead_and_vanishes_for_one_page() {
-        let moa = BuildParams { leaf: LeafRule::Objects(100), ..BuildParams::default() };
+        let moa = BuildParams { leaf: LeafRule::Objects(100), ..BuildParams::paper() };
         let laa = |look_ahead| BuildParams { method: Method::Laa, look_ahead, ..moa.clone() };
         assert_eq!(estimate_work(100, None, &moa), 0.0);
         let w = |p: &BuildParams| estimate_work(100_000, None, p);

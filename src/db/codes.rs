@@ -66,7 +66,7 @@ mod tests {
                     method: m,
                     tie_break: t,
                     look_ahead: LookAhead::Max,
-                    ..BuildParams::default()
+                    ..BuildParams::paper()
                 };
                 assert_eq!(decode(&encode(&p, 1.0)), Some(p));
             }

@@ -174,7 +174,7 @@ pub(crate) struct Inner {
 /// let scene = generate_scene(&GenOptions { preset: Preset::Tanker1, objects: None, seed: 1 })?;
 /// let db = Database::create(dir.path().join("t1.mkt"), CreateOptions::default())?;
 /// let mut w = db.begin_write()?;
-/// w.bulk_load(&scene, &BuildParams::default(), &|_| {})?;
+/// w.bulk_load(&scene, &BuildParams::paper(), &|_| {})?;
 /// w.commit()?;
 /// let r = db.begin_read()?;
 /// let hits = r.query_box(&scene.aabb())?;

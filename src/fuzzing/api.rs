@@ -208,7 +208,7 @@ impl Life {
         let params = BuildParams {
             method: Method::ALL[c.below(Method::ALL.len())],
             leaf: LeafRule::Objects(1 + c.below(4) as u32),
-            ..BuildParams::default()
+            ..BuildParams::paper()
         };
         let lods = self.lods(c);
         let finish = c.u8() % 4;

@@ -190,7 +190,7 @@ fn commit(db: &Database, scene: &Scene, store_all: bool) {
     let mut w = db.begin_write().unwrap_or_else(|e| panic!("the base file: {e}"));
     w.set_lod_params(LodParams { store_all, ..cheap_lods(M) });
     // A leaf per object: records enough for several node blocks.
-    let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(1), ..BuildParams::default() };
+    let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(1), ..BuildParams::paper() };
     w.bulk_load(scene, &params, &|_| {}).unwrap_or_else(|e| panic!("the base file: {e}"));
     w.commit().unwrap_or_else(|e| panic!("the base file: {e}"));
 }
@@ -792,7 +792,7 @@ fn write_after(dev: &Arc<MemDevice>, db: Database, sound: bool, s: Structure) {
             return;
         }
         w.set_lod_params(LodParams { store_all: true, ..cheap_lods(db.lod_levels()) });
-        let params = BuildParams { leaf: LeafRule::Objects(2), ..BuildParams::default() };
+        let params = BuildParams { leaf: LeafRule::Objects(2), ..BuildParams::paper() };
         if w.bulk_load(&scene, &params, &|_| {}).is_err() || w.commit().is_err() {
             return;
         }

@@ -59,7 +59,7 @@ impl ReadTransaction {
     /// # let scene = generate_scene(&GenOptions { preset: Preset::Tanker1, objects: None, seed: 1 })?;
     /// # let db = Database::create(dir.path().join("t1.mkt"), CreateOptions::default())?;
     /// # let mut w = db.begin_write()?;
-    /// # w.bulk_load(&scene, &BuildParams::default(), &|_| {})?;
+    /// # w.bulk_load(&scene, &BuildParams::paper(), &|_| {})?;
     /// # w.commit()?;
     /// let r = db.begin_read()?;
     /// let three: Vec<_> = r.nearest(Point::new(0.0, 0.0, 0.0), None)?.take(3).collect::<Result<_, _>>()?;

@@ -128,7 +128,7 @@ pub fn lod_db(scene: &Scene, m: u8, block_size: u32, cap: u32, lod: mktree::lod:
     let params = BuildParams {
         method: mktree::build::Method::Moa,
         leaf: mktree::build::LeafRule::Objects(cap),
-        ..BuildParams::default()
+        ..BuildParams::paper()
     };
     w.bulk_load(scene, &params, &|_| {}).expect("bulk_load");
     w.commit().expect("commit");

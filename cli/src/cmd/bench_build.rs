@@ -125,7 +125,7 @@ pub fn run(o: &BenchBuildArgs) -> Result<()> {
                 rate: o.rate,
                 leaf,
                 look_ahead: LookAhead::Max,
-                ..BuildParams::default()
+                ..BuildParams::paper()
             };
             results.push(bench_method(&scene, &boxes, &params, &sets, &model, o.block_size)?);
         }

@@ -3,8 +3,8 @@
 mod batch;
 pub mod bench_build;
 pub mod bench_peers;
-pub mod bench_replace;
 mod bench_queries;
+pub mod bench_replace;
 mod build;
 mod check;
 mod clash;

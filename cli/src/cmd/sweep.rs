@@ -51,7 +51,7 @@ pub fn run(
                     rate,
                     leaf: LeafRule::Objects(page),
                     look_ahead,
-                    ..BuildParams::default()
+                    ..BuildParams::paper()
                 };
                 let reached = AtomicU32::new(0);
                 if tty {
