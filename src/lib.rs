@@ -30,6 +30,7 @@ struct ReadmeDoctests;
 pub mod build;
 pub mod db;
 mod error;
+#[cfg(any(test, feature = "internals"))]
 pub mod fuzzing;
 pub mod geom;
 pub mod lod;

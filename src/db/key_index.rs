@@ -50,11 +50,11 @@ pub(crate) fn write(
     if let Some(w) = entries.windows(2).find(|w| w[0].key == w[1].key) {
         return Err(StorageError::Invalid(format!("the key {} is not unique", w[0].key)));
     }
-    if let Some(e) = entries.iter().find(|e| e.len() > capacity) {
+    if let Some(e) = entries.iter().find(|e| e.encoded_len() > capacity) {
         return Err(StorageError::Invalid(format!(
             "the key {} with its payload takes {} bytes and a key block holds {capacity}: use larger blocks",
             e.key,
-            e.len()
+            e.encoded_len()
         )));
     }
     let mut block = vec![0u8; bs as usize];
@@ -67,7 +67,7 @@ pub(crate) fn write(
         Ok(ChildRef { first_key, block: id, checksum })
     };
     let mut level: Vec<ChildRef> = Vec::new();
-    for group in pack(&entries.iter().map(KeyEntry::len).collect::<Vec<_>>(), capacity) {
+    for group in pack(&entries.iter().map(KeyEntry::encoded_len).collect::<Vec<_>>(), capacity) {
         let part = &entries[group];
         keys::encode_leaf(part, &mut block).map_err(StorageError::Invalid)?;
         level.push(put(&mut block, BlockType::KeyLeaf, part[0].key.clone())?);

@@ -529,6 +529,14 @@ impl Drop for CheckerLock<'_> {
     }
 }
 
+/// True when the file at `path` starts with an mktree file's magic number
+/// (what it holds is checked by [`Database::open`]).
+pub fn is_mktree_file(path: impl AsRef<Path>) -> bool {
+    let mut magic = [0u8; 8];
+    std::fs::File::open(path).and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic)).is_ok()
+        && magic == header::MAGIC
+}
+
 /// True when `device` holds nothing a reader could use: see [`Database::open_or_create`].
 fn holds_nothing(device: &dyn BlockDevice) -> Result<bool, StorageError> {
     let len = device.len()?;

@@ -537,7 +537,7 @@ pub(crate) fn write(
             .collect();
         let mut bytes = vec![0u8; bs as usize];
         node::encode_block(&records, &mut bytes).map_err(invalid)?;
-        node_bytes += records.iter().map(|r| r.len() as u64).sum::<u64>();
+        node_bytes += records.iter().map(|r| r.encoded_len() as u64).sum::<u64>();
         checksums[b] = pager.write(first_node + b as u32, &mut bytes, BlockType::Node, txn)?;
     }
     let nowhere = LeafLocator { block: 0, checksum: 0, offset: 0, entry: 0 };

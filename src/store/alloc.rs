@@ -31,17 +31,14 @@ impl FreeSpace {
         self.end
     }
 
-    /// Free blocks.
-    pub fn free_blocks(&self) -> u64 {
-        self.ranges.values().map(|&c| u64::from(c)).sum()
-    }
-
     /// The free ranges, sorted.
+    #[cfg(test)]
     pub fn ranges(&self) -> Vec<(u32, u32)> {
         self.ranges.iter().map(|(&f, &c)| (f, c)).collect()
     }
 
     /// True when `block` is free.
+    #[cfg(test)]
     pub fn contains(&self, block: u32) -> bool {
         self.ranges.range(..=block).next_back().is_some_and(|(&f, &c)| block < f + c)
     }

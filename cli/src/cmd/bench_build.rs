@@ -14,7 +14,6 @@ use mktree::build::{
 use mktree::db::{CreateOptions, Database};
 use mktree::geom::Aabb;
 use mktree::scene::Scene;
-use mktree::store::format::geometry::record_len;
 use mktree_bench::{QueryKind, TreeQueryCount, count_in_tree, run_boxes};
 use serde::Serialize;
 
@@ -172,7 +171,7 @@ fn bench_method(
     model: &CostModel,
     block_size: Option<u32>,
 ) -> Result<MethodResult> {
-    let sizes: Vec<u64> = scene.objects().iter().map(|o| record_len(&o.mesh)).collect();
+    let sizes: Vec<u64> = scene.objects().iter().map(|o| mktree::build::object_bytes(&o.mesh)).collect();
     let started = Instant::now();
     let tree = build(boxes, Some(&sizes), params, &|_| {})?;
     let build_seconds = started.elapsed().as_secs_f64();

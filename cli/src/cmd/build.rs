@@ -11,7 +11,6 @@ use mktree::build::{BuildProgress, Hierarchy, Report, build, estimate_work};
 use mktree::db::{CreateOptions, Database, WriterWait};
 use mktree::scene::Scene;
 use mktree::store::StorageError;
-use mktree::store::format::geometry::record_len;
 use serde_json::json;
 
 use crate::args::{BuildArgs, LodArgs};
@@ -55,7 +54,7 @@ fn open_output(out: &Path, args: &BuildArgs, lod: &LodArgs) -> Result<(Database,
 
 /// Builds the tree of `scene` in memory, with a progress bar.
 pub fn build_in_memory(scene: &Scene, args: &BuildArgs) -> Result<Hierarchy> {
-    let sizes: Vec<u64> = scene.objects().iter().map(|o| record_len(&o.mesh)).collect();
+    let sizes: Vec<u64> = scene.objects().iter().map(|o| mktree::build::object_bytes(&o.mesh)).collect();
     let pb = progress_bar(scene, args);
     let tree = build(&scene.object_boxes(), Some(&sizes), &args.params(), &|p: BuildProgress| {
         pb.set_position(p.objects_placed)

@@ -135,9 +135,7 @@ pub fn opening(e: StorageError, path: &Path) -> anyhow::Error {
 
 /// True when `path` is an .mkt file (by its magic number).
 pub fn is_mkt(path: &Path) -> bool {
-    let mut magic = [0u8; 8];
-    std::fs::File::open(path).and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic)).is_ok()
-        && magic == mktree::store::format::header::MAGIC
+    mktree::db::is_mktree_file(path)
 }
 
 /// The tree of an .mkt file, or of a scene built in memory with `build`,

@@ -3,7 +3,9 @@
 //! object store) can be added without touching the tree.
 
 mod counting;
+#[cfg(any(test, feature = "internals"))]
 mod crash;
+#[cfg(any(test, feature = "internals"))]
 mod fault;
 mod file;
 mod mem;
@@ -11,7 +13,9 @@ mod mem;
 use std::io;
 
 pub use counting::{CountingDevice, DeviceCounts};
+#[cfg(any(test, feature = "internals"))]
 pub use crash::{CrashDevice, CrashImage};
+#[cfg(any(test, feature = "internals"))]
 pub use fault::{FaultDevice, FaultOp};
 pub use file::FileDevice;
 pub use mem::MemDevice;

@@ -7,8 +7,6 @@ use crate::store::StorageError;
 
 /// Bytes taken by the frame at the start of every block but block 0.
 pub const FRAME_LEN: usize = 16;
-/// Offset of the type byte in the frame.
-pub const TYPE_OFFSET: usize = 4;
 
 /// The frame (format-spec/blocks.md).
 #[derive(Debug, Clone, Copy, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]

@@ -184,11 +184,6 @@ impl Placement {
     pub fn end(&self) -> u64 {
         self.at
     }
-
-    /// Blocks the stream takes.
-    pub fn blocks(&self) -> u64 {
-        self.at.div_ceil(self.payload)
-    }
 }
 
 /// Stream bytes a geometry block holds.

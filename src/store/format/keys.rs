@@ -45,13 +45,8 @@ pub struct KeyEntry {
 
 impl KeyEntry {
     /// Encoded bytes.
-    pub fn len(&self) -> usize {
+    pub fn encoded_len(&self) -> usize {
         self.key.encoded_len() + 2 + self.payload.len() + FIXED_LEN
-    }
-
-    /// Never true: an entry has a key.
-    pub fn is_empty(&self) -> bool {
-        false
     }
 
     fn encode(&self, out: &mut Vec<u8>) {
@@ -303,7 +298,7 @@ mod tests {
         assert!(broken(&|b| b[1000] = 1), "a byte past the entries");
         assert!(broken(&|b| b[ENTRIES_START] = 7), "an unknown key tag");
         // The second key made equal to the first.
-        let second = ENTRIES_START + entries[0].len();
+        let second = ENTRIES_START + entries[0].encoded_len();
         assert!(broken(&|b| b[second + 8] = 0), "keys that do not increase");
         assert!(broken(&|b| b[ENTRIES_START + 10] = 0xff), "a payload longer than allowed");
         assert!(!broken(&|_| {}));

@@ -198,18 +198,13 @@ pub const fn leaf_len(objects: usize, span: usize, bounds: usize, keys: usize) -
 
 impl RecordDraft {
     /// Encoded bytes (a multiple of 4).
-    pub fn len(&self) -> usize {
+    pub fn encoded_len(&self) -> usize {
         match self {
             RecordDraft::Internal { .. } => INTERNAL_LEN,
             RecordDraft::Leaf { checksums, objects, bounds, keys, .. } => {
                 leaf_len(objects.len(), checksums.len(), bounds_len(bounds), keys_len(keys))
             }
         }
-    }
-
-    /// Never true: a record has a head.
-    pub fn is_empty(&self) -> bool {
-        false
     }
 
     fn encode(&self, out: &mut Vec<u8>) -> Result<(), String> {
@@ -278,7 +273,7 @@ impl RecordDraft {
                 out.resize(out.len().next_multiple_of(4), 0);
             }
         }
-        debug_assert_eq!(out.len() - start, self.len());
+        debug_assert_eq!(out.len() - start, self.encoded_len());
         Ok(())
     }
 }
@@ -695,6 +690,7 @@ impl<'a> LeafView<'a> {
     }
 
     /// Never true for a valid record.
+    #[cfg(feature = "internals")]
     pub fn is_empty(&self) -> bool {
         self.objects.is_empty()
     }
