@@ -6,30 +6,24 @@
 //! oldest state another process still reads and leaves the blocks that
 //! state may reach alone.
 //!
-//! On Linux the locks belong to the open file (`F_OFD_*`), so threads of one
-//! process and several opens of one file behave as separate owners should;
-//! elsewhere they are POSIX record locks, owned by the process.
+//! The platform's byte-range locks do the work: `fcntl` on Unix
+//! (`unix.rs`), `LockFileEx` on Windows (`windows.rs`).
 
 #![allow(unsafe_code)]
 
+#[cfg(unix)]
+mod unix;
+#[cfg(unix)]
+use unix as sys;
+#[cfg(windows)]
+mod windows;
+#[cfg(windows)]
+use windows as sys;
+
 use std::fs::File;
 use std::io;
-use std::os::fd::AsRawFd;
 
 use crate::store::format::header::MAX_TXN;
-
-#[cfg(any(target_os = "linux", target_os = "android"))]
-const SET: libc::c_int = libc::F_OFD_SETLK;
-#[cfg(any(target_os = "linux", target_os = "android"))]
-const SET_WAIT: libc::c_int = libc::F_OFD_SETLKW;
-#[cfg(any(target_os = "linux", target_os = "android"))]
-const GET: libc::c_int = libc::F_OFD_GETLK;
-#[cfg(not(any(target_os = "linux", target_os = "android")))]
-const SET: libc::c_int = libc::F_SETLK;
-#[cfg(not(any(target_os = "linux", target_os = "android")))]
-const SET_WAIT: libc::c_int = libc::F_SETLKW;
-#[cfg(not(any(target_os = "linux", target_os = "android")))]
-const GET: libc::c_int = libc::F_GETLK;
 
 /// The writer's byte: 2^62, past any file of 2^32 blocks of 4 MiB.
 const WRITER: u64 = 1 << 62;
@@ -56,50 +50,12 @@ impl FileLocks {
         FileLocks { file }
     }
 
-    fn flock(kind: Kind, start: u64, len: u64) -> libc::flock {
-        // SAFETY: `flock` is a plain C struct for which all-zero is valid
-        // (and `l_pid` must be 0 for open-file-description locks).
-        let mut fl: libc::flock = unsafe { std::mem::zeroed() };
-        fl.l_type = match kind {
-            Kind::Shared => libc::F_RDLCK,
-            Kind::Exclusive => libc::F_WRLCK,
-            Kind::Unlock => libc::F_UNLCK,
-        } as _;
-        fl.l_whence = libc::SEEK_SET as _;
-        fl.l_start = start as libc::off_t;
-        fl.l_len = len as libc::off_t;
-        fl
-    }
-
-    /// Sets a lock; `Ok(false)` when another owner holds a conflicting one
-    /// and `wait` is false.
     fn set(&self, kind: Kind, start: u64, wait: bool) -> io::Result<bool> {
-        let fl = Self::flock(kind, start, 1);
-        loop {
-            // SAFETY: a valid descriptor and a valid `flock` for the call's duration.
-            let r = unsafe { libc::fcntl(self.file.as_raw_fd(), if wait { SET_WAIT } else { SET }, &fl) };
-            if r == 0 {
-                return Ok(true);
-            }
-            let e = io::Error::last_os_error();
-            match e.raw_os_error() {
-                Some(libc::EINTR) => continue,
-                Some(libc::EAGAIN) | Some(libc::EACCES) if !wait => return Ok(false),
-                _ => return Err(e),
-            }
-        }
+        sys::set(&self.file, kind, start, wait)
     }
 
-    /// True when another owner holds a lock in `start .. start + len` that
-    /// an exclusive lock would conflict with.
     fn taken(&self, start: u64, len: u64) -> io::Result<bool> {
-        let mut fl = Self::flock(Kind::Exclusive, start, len);
-        // SAFETY: as in `set`; the kernel writes the conflicting lock into `fl`.
-        let r = unsafe { libc::fcntl(self.file.as_raw_fd(), GET, &mut fl) };
-        if r != 0 {
-            return Err(io::Error::last_os_error());
-        }
-        Ok(fl.l_type != libc::F_UNLCK as libc::c_short)
+        sys::taken(&self.file, start, len)
     }
 
     /// Takes the writer's byte exclusively: `Ok(false)` when another writer
@@ -153,6 +109,9 @@ impl FileLocks {
 mod tests {
     use super::*;
 
+    /// Two opens of one file: separate owners with open-file locks (Linux)
+    /// and handle locks (Windows), not with POSIX process locks.
+    #[cfg(any(target_os = "linux", target_os = "android", windows))]
     fn two_owners() -> (tempfile::NamedTempFile, FileLocks, FileLocks) {
         let f = tempfile::NamedTempFile::new().unwrap();
         let open =
@@ -161,7 +120,7 @@ mod tests {
         (f, a, b)
     }
 
-    #[cfg(any(target_os = "linux", target_os = "android"))]
+    #[cfg(any(target_os = "linux", target_os = "android", windows))]
     #[test]
     fn writers_exclude_each_other_and_checkers() {
         let (_f, a, b) = two_owners();
@@ -173,6 +132,7 @@ mod tests {
         assert!(!a.lock_writer(false).unwrap(), "a writer waits for the checker");
     }
 
+    // Windows counts a range its own handle holds as taken.
     #[cfg(any(target_os = "linux", target_os = "android"))]
     #[test]
     fn a_writer_finds_the_oldest_pin_of_another_owner() {
