@@ -95,29 +95,30 @@ fn check_position_references(root: &::gltf::json::Root) -> Result<(), String> {
 }
 
 /// Every buffer's bytes, exactly its declared `byteLength`: the GLB binary
-/// chunk, a `data:` URI, or a file in the glTF file's folder (see
+/// chunk, a base64 `data:` URI, or a file in the glTF file's folder (see
 /// [`UriRefusal`] for what is refused). Images are never read.
 fn load_buffers(
     document: &Document,
     path: &Path,
     mut blob: Option<Vec<u8>>,
-) -> Result<Vec<buffer::Data>, ImportError> {
+) -> Result<Vec<Vec<u8>>, ImportError> {
     let gltf_error = |message: String| ImportError::Gltf { file: path.into(), message };
     let mut buffers = Vec::new();
     for buffer in document.buffers() {
         let index = buffer.index();
         let declared = buffer.length();
         let mut data = match buffer.source() {
-            buffer::Source::Uri(uri) if !uri.starts_with("data:") => {
-                let uri = BufferUri { gltf: path, buffer: index, uri };
-                uri.read(&uri.file()?, declared)?
-            }
-            // A data: URI or the GLB chunk: bytes already in memory, without
-            // a base folder so that `gltf` opens no file.
-            source => {
-                buffer::Data::from_source_and_blob(source, None, &mut blob)
-                    .map_err(|e| gltf_error(format!("buffer {index}: {e}")))?
-                    .0
+            buffer::Source::Uri(uri) => match uri.strip_prefix("data:") {
+                Some(data) => {
+                    decode_data_uri(data).map_err(|e| gltf_error(format!("buffer {index}: {e}")))?
+                }
+                None => {
+                    let uri = BufferUri { gltf: path, buffer: index, uri };
+                    uri.read(&uri.file()?, declared)?
+                }
+            },
+            buffer::Source::Bin => {
+                blob.take().ok_or_else(|| gltf_error(format!("buffer {index}: no GLB binary chunk")))?
             }
         };
         if data.len() < declared {
@@ -128,9 +129,21 @@ fn load_buffers(
         }
         // The specification bounds every view by byteLength, not by the padding after it.
         data.truncate(declared);
-        buffers.push(buffer::Data(data));
+        buffers.push(data);
     }
     Ok(buffers)
+}
+
+/// The bytes of a `data:` URI after its scheme: `[media type];base64,` and
+/// the base64 text (the only encoding glTF buffers use). Its length bounds
+/// the allocation.
+fn decode_data_uri(uri: &str) -> Result<Vec<u8>, String> {
+    use base64::Engine;
+    let (head, text) = uri.split_once(',').ok_or("a data: URI without a comma")?;
+    if !head.ends_with(";base64") {
+        return Err(format!("a data: URI that is not base64 ({head:?})"));
+    }
+    base64::engine::general_purpose::STANDARD.decode(text).map_err(|e| format!("its base64: {e}"))
 }
 
 /// The URI of buffer `buffer` of the glTF file at `gltf`, not a `data:` URI.
@@ -303,7 +316,7 @@ impl Instance<'_> {
 
     /// The object of this instance, or `None` when its mesh has no triangle
     /// primitive (only points or lines).
-    fn object(&self, buffers: &[buffer::Data], path: &Path) -> Result<Option<Object>, ImportError> {
+    fn object(&self, buffers: &[Vec<u8>], path: &Path) -> Result<Option<Object>, ImportError> {
         let name = self.name();
         let mirrored = self.world.fixed_view::<3, 3>(0, 0).determinant() < 0.0;
         let mut points: Vec<Point> = Vec::new();
@@ -363,13 +376,10 @@ impl Instance<'_> {
 }
 
 /// A primitive's positions and its vertex order (its indices, or 0..n).
-fn read_primitive(
-    primitive: &Primitive,
-    buffers: &[buffer::Data],
-) -> Result<(Vec<[f32; 3]>, Vec<u32>), String> {
+fn read_primitive(primitive: &Primitive, buffers: &[Vec<u8>]) -> Result<(Vec<[f32; 3]>, Vec<u32>), String> {
     let positions_accessor = primitive.get(&::gltf::Semantic::Positions).ok_or("no POSITION attribute")?;
     check_accessor(&positions_accessor, buffers, &[DataType::F32], Dimensions::Vec3)?;
-    let reader = primitive.reader(|b| buffers.get(b.index()).map(|data| data.0.as_slice()));
+    let reader = primitive.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
     let positions: Vec<[f32; 3]> =
         reader.read_positions().ok_or("the POSITION accessor could not be read")?.collect();
     let corners: Vec<u32> = match primitive.indices() {
@@ -391,7 +401,7 @@ fn read_primitive(
 /// element type, and that every element lies inside its view and buffer.
 fn check_accessor(
     accessor: &Accessor,
-    buffers: &[buffer::Data],
+    buffers: &[Vec<u8>],
     types: &[DataType],
     dimensions: Dimensions,
 ) -> Result<(), String> {
@@ -449,6 +459,15 @@ fn assemble(mode: Mode, v: &[u32]) -> Result<Vec<[u32; 3]>, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn data_uris_are_base64_or_refused() {
+        assert_eq!(decode_data_uri("application/octet-stream;base64,AAEC"), Ok(vec![0, 1, 2]));
+        assert_eq!(decode_data_uri("application/gltf-buffer;base64,"), Ok(vec![]));
+        assert!(decode_data_uri("application/octet-stream,%00%01").unwrap_err().contains("not base64"));
+        assert!(decode_data_uri("application/octet-stream;base64,A$==").unwrap_err().contains("base64"));
+        assert!(decode_data_uri("no comma").unwrap_err().contains("comma"));
+    }
 
     #[test]
     fn strips_and_fans_follow_the_specification() {
