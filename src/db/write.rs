@@ -269,6 +269,7 @@ impl<'db> WriteTransaction<'db> {
         if !self.lod_params.store_all && !stored.is_empty() {
             stored = worth_keeping(&plan, scene, tree, &stored, bs);
         }
+        stored.measure_errors(&entries, self.lod_params.error_samples);
         let txn = self.txn;
         let written = {
             let mut allocate = |count: u32| self.allocate(count);

@@ -28,6 +28,7 @@ pub use ray::Ray;
 pub use round::{round_down_f32, round_up_f32};
 pub use shape_error::ShapeError;
 pub use sphere::Sphere;
+pub(crate) use triangle_box::TriangleBoxTest;
 pub use triangle_box::intersects_triangle_box;
 
 /// A point in world coordinates, millimetres.

@@ -13,87 +13,158 @@ use super::{Aabb, Point, Vector};
 
 /// True when the closed triangle and the closed box share a point (exact).
 pub fn intersects_triangle_box(tri: &[Point; 3], b: &Aabb) -> bool {
-    !b.is_empty()
-        && !box_normals_separate(tri, b)
-        && rounded_axes(tri, b).unwrap_or_else(|| exact_axes(tri, b))
+    TriangleBoxTest::new(tri, b).intersects(b)
 }
 
-/// The box's normals separate them: coordinates compared as they are.
-fn box_normals_separate(tri: &[Point; 3], b: &Aabb) -> bool {
-    (0..3).any(|i| {
-        let (lo, hi) = min_max([tri[0][i], tri[1][i], tri[2][i]]);
-        lo > b.max[i] || hi < b.min[i]
-    })
+/// A triangle prepared for exact overlap tests against many boxes inside
+/// one region (the cells a voxelizer tries): its axes, their projections
+/// and their rounding bounds are computed once, so a box costs a dot
+/// product per axis. Answers equal [`intersects_triangle_box`]'s.
+pub struct TriangleBoxTest {
+    tri: [Point; 3],
+    /// Per coordinate, the triangle's extent (the box normals' test).
+    lo: [f64; 3],
+    hi: [f64; 3],
+    /// Boxes inside it share the rounding bounds below.
+    region: Aabb,
+    /// The plane and edge axes that are not null, `count` of them.
+    axes: [Axis; 10],
+    count: usize,
 }
 
-/// The plane and edge axes in floating point: `Some` answer when every axis
-/// separates or overlaps by more than its rounding can move it, `None` when
-/// one is too close to call.
-fn rounded_axes(tri: &[Point; 3], b: &Aabb) -> Option<bool> {
-    const U: f64 = f64::EPSILON / 2.0;
-    let c = b.center();
-    let v = tri.map(|p| p - c);
-    // About c the box reaches at most `outer` and at least `inner` each way.
-    let (lo, hi) = (c - b.min, b.max - c);
-    let (outer, inner) = (lo.sup(&hi), lo.inf(&hi));
-    // Per coordinate, a bound on every point's size.
-    let size = v[0].abs().sup(&v[1].abs()).sup(&v[2].abs()).sup(&outer);
-    // How far rounding may move a gap on an axis whose components are off
-    // by `off`: points are off by U of themselves, products and sums by a
-    // few U; twice that, for both projections, is generous.
-    let bound = |a: Vector, off: Vector| 2.0 * (off + a.abs() * (8.0 * U)).dot(&size);
-    // Edges from the coordinates themselves: a component is 0 exactly when
-    // the coordinates agree, and otherwise off by at most U of itself.
-    let e = [tri[1] - tri[0], tri[2] - tri[1], tri[0] - tri[2]];
-    let mut close = false;
-    // The plane; each normal component is off by at most 5 U of its two products.
-    let n = e[0].cross(&e[1]);
-    let n_off = Vector::from_fn(|k, _| {
-        let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-        5.0 * U * ((e[0][i] * e[1][j]).abs() + (e[0][j] * e[1][i]).abs())
-    });
-    if n != Vector::zeros() || n_off != Vector::zeros() {
-        let t = v.map(|p| n.dot(&p));
-        match apart(t, n.abs().dot(&outer), n.abs().dot(&inner), bound(n, n_off)) {
-            Some(true) => return Some(false),
-            Some(false) => {}
-            None => close = true,
+/// One candidate separating axis: projections are taken about the
+/// triangle's first corner.
+#[derive(Clone, Copy, Default)]
+struct Axis {
+    a: [f64; 3],
+    abs: [f64; 3],
+    /// The triangle's projection about its first corner.
+    min: f64,
+    max: f64,
+    /// A bound on how far rounding moves a gap on this axis, for any box of the region.
+    err: f64,
+}
+
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+impl TriangleBoxTest {
+    /// Prepares `tri` for boxes inside `region` (a box outside it is still
+    /// answered exactly, only slower).
+    pub fn new(tri: &[Point; 3], region: &Aabb) -> TriangleBoxTest {
+        const U: f64 = f64::EPSILON / 2.0;
+        let (lo, hi) = (
+            [0, 1, 2].map(|i| min_max([tri[0][i], tri[1][i], tri[2][i]]).0),
+            [0, 1, 2].map(|i| min_max([tri[0][i], tri[1][i], tri[2][i]]).1),
+        );
+        let o = tri[0];
+        let w = [Vector::zeros(), tri[1] - o, tri[2] - o];
+        // Per coordinate, a bound on every term a gap sums: the corners and
+        // any box centre about `o`, and any box's reach about its centre.
+        let centre = (region.min - o).abs().sup(&(region.max - o).abs());
+        let size = w[1].abs().sup(&w[2].abs()) + centre + (region.max - region.min);
+        // How far rounding may move a gap on an axis whose components are off
+        // by `off`: corners, centre, products and sums are each off by a few
+        // U of themselves; twice that, for both projections, is generous.
+        let bound = |a: Vector, off: Vector| 2.0 * (off + a.abs() * (8.0 * U)).dot(&size);
+        let mut test = TriangleBoxTest {
+            tri: *tri,
+            lo,
+            hi,
+            region: *region,
+            axes: [Axis::default(); 10],
+            count: 0,
+        };
+        let mut push = |a: Vector, err: f64| {
+            let (min, max) = min_max(w.map(|p| a.dot(&p)));
+            let abs = a.abs();
+            test.axes[test.count] = Axis { a: [a.x, a.y, a.z], abs: [abs.x, abs.y, abs.z], min, max, err };
+            test.count += 1;
+        };
+        // Edges from the coordinates themselves: a component is 0 exactly when
+        // the coordinates agree, and otherwise off by at most U of itself.
+        let e = [tri[1] - tri[0], tri[2] - tri[1], tri[0] - tri[2]];
+        // The plane; each normal component is off by at most 5 U of its two products.
+        let n = e[0].cross(&e[1]);
+        let n_off = Vector::from_fn(|k, _| {
+            let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+            5.0 * U * ((e[0][i] * e[1][j]).abs() + (e[0][j] * e[1][i]).abs())
+        });
+        // A null plane axis (a degenerate triangle) has no test, and one
+        // along a box axis, exactly (both products of two components are
+        // 0), is the box normal's test, done exactly above.
+        let exact_zeros = (0..3).filter(|&k| n[k] == 0.0 && n_off[k] == 0.0).count();
+        if exact_zeros < 2 {
+            push(n, bound(n, n_off));
         }
-    }
-    // The box axis other than i and j crossed with an edge: its components
-    // i, j are (-edge_j, edge_i), each an edge component, so one bound
-    // serves all nine.
-    let longest = e[0].abs().sup(&e[1].abs()).sup(&e[2].abs()).max();
-    let err = bound(Vector::repeat(longest), Vector::repeat(longest * U));
-    for (i, j) in [(1, 2), (2, 0), (0, 1)] {
-        for edge in &e {
-            let (ai, aj) = (-edge[j], edge[i]);
-            // An edge along that box axis gives a null axis, null exactly: no test.
-            if ai == 0.0 && aj == 0.0 {
-                continue;
+        // The box axis other than i and j crossed with an edge: its components
+        // i, j are (-edge_j, edge_i), each an edge component, so one bound
+        // serves all nine.
+        let longest = e[0].abs().sup(&e[1].abs()).sup(&e[2].abs()).max();
+        let err = bound(Vector::repeat(longest), Vector::repeat(longest * U));
+        for (i, j) in [(1, 2), (2, 0), (0, 1)] {
+            for edge in &e {
+                // An edge along that box axis gives a null axis, and an edge
+                // along i or j one along j or i, the box normal's: no test.
+                if edge[i] == 0.0 || edge[j] == 0.0 {
+                    continue;
+                }
+                let mut a = Vector::zeros();
+                (a[i], a[j]) = (-edge[j], edge[i]);
+                push(a, err);
             }
-            let t = v.map(|p| ai * p[i] + aj * p[j]);
-            let reach = |r: &Vector| ai.abs() * r[i] + aj.abs() * r[j];
-            match apart(t, reach(&outer), reach(&inner), err) {
+        }
+        test
+    }
+
+    /// True when the closed triangle and the closed box `b` share a point (exact).
+    pub fn intersects(&self, b: &Aabb) -> bool {
+        if b.is_empty() || (0..3).any(|i| self.lo[i] > b.max[i] || self.hi[i] < b.min[i]) {
+            return false;
+        }
+        if !self.region.contains(b) {
+            return TriangleBoxTest::new(&self.tri, b).intersects(b);
+        }
+        self.rounded_axes(b).unwrap_or_else(|| exact_axes(&self.tri, b))
+    }
+
+    /// The plane and edge axes in floating point, for a box of the region
+    /// the box normals do not separate: `Some` answer when every axis
+    /// separates or overlaps by more than its rounding can move it, `None`
+    /// when one is too close to call.
+    fn rounded_axes(&self, b: &Aabb) -> Option<bool> {
+        let o = &self.tri[0];
+        let (mut centre, mut outer, mut inner) = ([0.0; 3], [0.0; 3], [0.0; 3]);
+        for i in 0..3 {
+            let c = (b.min[i] + b.max[i]) * 0.5;
+            // About c the box reaches at most `outer` and at least `inner` each way.
+            let (l, h) = (c - b.min[i], b.max[i] - c);
+            (outer[i], inner[i]) = if l > h { (l, h) } else { (h, l) };
+            centre[i] = c - o[i];
+        }
+        let mut close = false;
+        for axis in &self.axes[..self.count] {
+            let d = dot(&axis.a, &centre);
+            match apart(axis.min - d, axis.max - d, dot(&axis.abs, &outer), dot(&axis.abs, &inner), axis.err) {
                 Some(true) => return Some(false),
                 Some(false) => {}
                 None => close = true,
             }
         }
+        (!close).then_some(true)
     }
-    (!close).then_some(true)
 }
 
-/// On one axis, a triangle projecting to `t` and a box reaching at most
+/// On one axis, a triangle projecting to [`lo`, `hi`] and a box reaching at most
 /// `outer` and at least `inner` either way from 0, each off by up to `err`:
 /// `Some(true)` when they are surely apart, `Some(false)` when they surely
 /// overlap, `None` when too close to call (or not numbers: an overflow).
-fn apart(t: [f64; 3], outer: f64, inner: f64, err: f64) -> Option<bool> {
-    let (lo, hi) = min_max(t);
-    if (lo - outer).max(-outer - hi) > err {
+fn apart(lo: f64, hi: f64, outer: f64, inner: f64, err: f64) -> Option<bool> {
+    if lo - outer > err || -outer - hi > err {
         return Some(true);
     }
-    ((lo - inner).max(-inner - hi) < -err).then_some(false)
+    (lo - inner < -err && -inner - hi < -err).then_some(false)
 }
 
 /// The plane and edge axes by exact signs, where the box normals do not
@@ -225,12 +296,13 @@ mod tests {
         }
 
         /// The rounded axes, when they decide, decide as the exact ones: on
-        /// grid and free corners, at any scale and offset, slivers included.
+        /// grid and free corners, at any scale and offset, slivers included,
+        /// for a triangle prepared for the box alone or for a larger region.
         #[test]
         fn rounded_axes_decide_as_the_exact_ones(
             c in prop::array::uniform9(-1i32..5), b in prop::array::uniform6(0i32..4),
             jitter in prop::array::uniform9(-1e-6f64..1e-6), scale in prop_oneof![Just(0.1), Just(1e4 + 0.1)],
-            offset in prop_oneof![Just(0.0), Just(5000.3)], sliver in any::<bool>(),
+            offset in prop_oneof![Just(0.0), Just(5000.3)], sliver in any::<bool>(), grown in 0i32..3,
         ) {
             let at = |x: i32, j: f64| offset + (f64::from(x) + j) * scale;
             let j = |i: usize| if sliver { jitter[i] } else { 0.0 };
@@ -241,9 +313,13 @@ mod tests {
                 t[2] = t[0] + (t[1] - t[0]) * 0.5 + Vector::new(jitter[0], jitter[4], jitter[8]);
             }
             let b = corners(b.map(|x| at(x, 0.0)));
-            if let Some(r) = rounded_axes(&t, &b).filter(|_| !box_normals_separate(&t, &b)) {
+            let region = b.grown(f64::from(grown) * scale);
+            let test = TriangleBoxTest::new(&t, &region);
+            let normals_separate = (0..3).any(|i| test.lo[i] > b.max[i] || test.hi[i] < b.min[i]);
+            if let Some(r) = test.rounded_axes(&b).filter(|_| !normals_separate) {
                 prop_assert_eq!(r, exact_axes(&t, &b));
             }
+            prop_assert_eq!(test.intersects(&b), intersects_triangle_box(&t, &b));
         }
 
         /// Against sampling: if any sampled point of the triangle lies in the

@@ -63,7 +63,8 @@ pub struct Layout<'a> {
 pub struct StoredBounds {
     /// Per node (preorder): a leaf's per-object bounds B(o,k).
     pub bounds: Vec<Vec<BoundEntry>>,
-    /// Per level k = 1 .. M: (eps_k, the largest sampled error) of what is stored.
+    /// Per level k = 1 .. M: (eps_k, the largest sampled error) of what is
+    /// stored; the error once [`StoredBounds::measure_errors`] has run.
     pub errors: Vec<[f64; 2]>,
     /// Per level k = 1 .. M: (bytes, bounds) stored.
     pub usage: Vec<[u64; 2]>,
@@ -81,7 +82,7 @@ pub struct StoredBounds {
     worth: Vec<Vec<Worth>>,
 }
 
-/// What a stored bound was judged worth, and measured to err.
+/// What a stored bound was judged worth.
 #[derive(Debug, Clone)]
 struct Worth {
     /// saving - cost of the group of bounds it was chosen with (block reads per query).
@@ -89,9 +90,12 @@ struct Worth {
     saving: f64,
     cost: f64,
     eps: f64,
-    measured: f64,
     voxels: Voxels,
 }
+
+/// The most bounds per level whose error is measured: a sample spread
+/// evenly over the tree, so measuring costs the same for any scene size.
+pub const MEASURED_BOUNDS: usize = 1024;
 
 impl StoredBounds {
     /// The same levels with no bound stored (what a file whose bounds do
@@ -122,7 +126,6 @@ impl StoredBounds {
         self.predicted[k][0] += w.saving;
         self.predicted[k][1] += w.cost;
         self.errors[k][0] = self.errors[k][0].max(w.eps);
-        self.errors[k][1] = self.errors[k][1].max(w.measured);
         self.bounds[node].push(bound);
         self.worth[node].push(w);
     }
@@ -146,6 +149,28 @@ impl StoredBounds {
         let mut v: Vec<f64> = self.worth.iter().flatten().map(|w| w.value).collect();
         v.sort_by(|a, b| b.total_cmp(a));
         v
+    }
+
+    /// Measures the error of the bounds stored (`errors[k][1]`): per level,
+    /// every ceil(n / [`MEASURED_BOUNDS`])-th of its n bounds in node order,
+    /// at `cells` of its cells each (see [`ErrorProbe::measure`]).
+    pub fn measure_errors(&mut self, entries: &[Vec<LeafEntry>], cells: usize) {
+        let mut at_level: Vec<Vec<(&Mesh, &Voxels)>> = vec![Vec::new(); self.errors.len()];
+        for ((bounds, worth), entries) in self.bounds.iter().zip(&self.worth).zip(entries) {
+            for (b, w) in bounds.iter().zip(worth) {
+                if let Some(e) = entries.get(usize::from(b.target)) {
+                    at_level[usize::from(b.level) - 1].push((e.mesh, &w.voxels));
+                }
+            }
+        }
+        for (row, bounds) in self.errors.iter_mut().zip(&at_level) {
+            let stride = bounds.len().div_ceil(MEASURED_BOUNDS).max(1);
+            row[1] = bounds
+                .par_iter()
+                .step_by(stride)
+                .map(|(mesh, v)| ErrorProbe::new([*mesh]).measure(v, cells))
+                .reduce(|| 0.0, f64::max);
+        }
     }
 
     /// True when no bound is stored.
@@ -238,15 +263,11 @@ pub fn plan_bounds(
     chosen.sort_by_key(|(i, _)| *i);
     for (i, picked) in chosen {
         for (j, c) in picked {
-            let measured = layout.entries[i]
-                .get(usize::from(j))
-                .map_or(0.0, |e| ErrorProbe::new([e.mesh]).measure(&c.voxels, params.error_samples));
             let w = Worth {
                 value: c.value,
                 saving: c.saving,
                 cost: c.cost,
                 eps: c.voxels.grid().max_cell_diagonal(),
-                measured,
                 voxels: c.voxels,
             };
             out.push(i, BoundEntry { target: j, level: c.level, blob: c.blob }, w);

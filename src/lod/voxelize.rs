@@ -4,7 +4,7 @@
 
 use super::interior::{Sub, fill_interior};
 use super::{Grid, Voxels, is_closed};
-use crate::geom::{Aabb, Point, intersects_triangle_box};
+use crate::geom::{Aabb, Point, TriangleBoxTest};
 use crate::scene::Mesh;
 
 impl Voxels {
@@ -61,20 +61,23 @@ fn surface(grid: &Grid, planes: &[Vec<f64>; 3], tol: f64, sub: &Sub, t: &[Point;
     let Some(r) = grid.box_range(&tb.grown(2.0 * tol)) else { return };
     // A triangle inside the grid whose range is one cell touches that cell.
     let single = r.iter().all(|&(a, b)| a == b) && grid.bounds().contains(&tb);
+    let cell = |x: u32, y: u32, z: u32| {
+        Aabb::from_array([
+            planes[0][x as usize] - tol,
+            planes[1][y as usize] - tol,
+            planes[2][z as usize] - tol,
+            planes[0][x as usize + 1] + tol,
+            planes[1][y as usize + 1] + tol,
+            planes[2][z as usize + 1] + tol,
+        ])
+    };
+    let test = (!single).then(|| {
+        TriangleBoxTest::new(t, &cell(r[0].0, r[1].0, r[2].0).union(&cell(r[0].1, r[1].1, r[2].1)))
+    });
     for z in r[2].0..=r[2].1 {
         for y in r[1].0..=r[1].1 {
             for x in r[0].0..=r[0].1 {
-                let hit = single || {
-                    let cell = Aabb::from_array([
-                        planes[0][x as usize] - tol,
-                        planes[1][y as usize] - tol,
-                        planes[2][z as usize] - tol,
-                        planes[0][x as usize + 1] + tol,
-                        planes[1][y as usize + 1] + tol,
-                        planes[2][z as usize + 1] + tol,
-                    ]);
-                    intersects_triangle_box(t, &cell)
-                };
+                let hit = test.as_ref().is_none_or(|test| test.intersects(&cell(x, y, z)));
                 if hit && let Some(i) = sub.local([x, y, z]) {
                     local[i / 64] |= 1 << (i % 64);
                 }
