@@ -15,15 +15,16 @@ fn a_closed_pipe_ends_the_cli_without_a_panic() {
     let obj = dir.path().join("t1.obj");
     let out = mktree().args(["gen", "tanker1", "-o", obj.to_str().unwrap()]).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let mut child = mktree()
+    // The reading end is closed before the child starts, so no schedule can
+    // let its output through.
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let out = mktree()
         .args(["dump", obj.to_str().unwrap(), "--json"])
-        .stdout(Stdio::piped())
+        .stdout(writer)
         .stderr(Stdio::piped())
-        .spawn()
+        .output()
         .unwrap();
-    // Close the reading end before the child has built its tree and printed.
-    drop(child.stdout.take());
-    let out = child.wait_with_output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert_eq!(out.status.signal(), Some(13), "status {:?}, stderr {stderr}", out.status);
