@@ -179,9 +179,11 @@ impl StoredBounds {
     }
 }
 
-/// One candidate: an entry's bound at a level, with its model value once judged.
+/// One candidate: an entry's bound at levels `level ..= top` (on one
+/// grid), with its model value once judged.
 struct Candidate {
     level: u8,
+    top: u8,
     blob: Vec<u8>,
     voxels: Voxels,
     saving: f64,
@@ -226,10 +228,7 @@ pub fn plan_bounds(
         .par_iter()
         .enumerate()
         .map(|(i, entries)| {
-            entries
-                .iter()
-                .map(|e| (2..m).filter_map(|k| ctx.candidate(k, i, e).transpose()).collect())
-                .collect::<Result<Vec<Vec<Candidate>>, LodError>>()
+            entries.iter().map(|e| ctx.candidates(m, i, e)).collect::<Result<Vec<Vec<Candidate>>, LodError>>()
         })
         .collect::<Result<_, LodError>>()?;
     // Entries by geometry block: each lies in one (a part never straddles two).
@@ -250,9 +249,9 @@ pub fn plan_bounds(
     let mut candidates = candidates;
     for (i, j, k, saving, cost, value) in judged.into_iter().flatten() {
         let list = &mut candidates[i][j];
-        if let Some(at) = list.iter().position(|c| c.level == k) {
+        if let Some(at) = list.iter().position(|c| c.covers(k)) {
             let mut c = list.swap_remove(at);
-            (c.saving, c.cost, c.value) = (saving, cost, value);
+            (c.level, c.saving, c.cost, c.value) = (k, saving, cost, value);
             picked.entry(i).or_default().push((j as u16, c));
         }
     }
@@ -276,6 +275,12 @@ pub fn plan_bounds(
     Ok(out)
 }
 
+impl Candidate {
+    fn covers(&self, k: u8) -> bool {
+        (self.level..=self.top).contains(&k)
+    }
+}
+
 struct Ctx<'a> {
     plan: &'a LodPlan,
     params: &'a LodParams,
@@ -283,22 +288,37 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    /// Entry `e` of leaf `i` bounded at level k; `None` when the level's
-    /// grid is too large or its blob too long for an inline bound.
-    fn candidate(&self, k: u8, i: usize, e: &LeafEntry) -> Result<Option<Candidate>, LodError> {
+    /// Entry `e` of leaf `i` bounded at levels 2 .. M-1, each `None` when
+    /// its grid is too large or its blob too long for an inline bound. A
+    /// level on the same grid as the level before is the same bound: it is
+    /// voxelized once and stands for both (`Candidate::top`), except with
+    /// `store_all`, which stores every level.
+    fn candidates(&self, m: u8, i: usize, e: &LeafEntry) -> Result<Vec<Candidate>, LodError> {
         let frame = &self.layout.frames[i];
-        let Some(qbox) = QuantBox::decode(frame, quantize(frame, &e.mesh.aabb())) else { return Ok(None) };
-        // The grid over the box the reader holds: the decoded quantized box.
-        let Some(grid) = bound_grid(self.plan, self.params, k, &qbox.outer)? else { return Ok(None) };
-        if grid.cells() > u64::from(u16::MAX) {
-            return Ok(None);
+        let Some(qbox) = QuantBox::decode(frame, quantize(frame, &e.mesh.aabb())) else {
+            return Ok(Vec::new());
+        };
+        let mut out: Vec<Candidate> = Vec::new();
+        let mut previous: Option<Grid> = None;
+        for k in 2..m {
+            // The grid over the box the reader holds: the decoded quantized box.
+            let grid = bound_grid(self.plan, self.params, k, &qbox.outer)?
+                .filter(|g| g.cells() <= u64::from(u16::MAX));
+            if grid.is_some() && grid == previous && !self.params.store_all {
+                if let Some(last) = out.last_mut().filter(|c| c.top == k - 1) {
+                    last.top = k;
+                }
+                continue;
+            }
+            previous.clone_from(&grid);
+            let Some(grid) = grid else { continue };
+            let voxels = Voxels::of_surfaces(grid, [e.mesh]);
+            let blob = encode(&voxels);
+            if blob.len() <= MAX_BOUND_BYTES {
+                out.push(Candidate { level: k, top: k, blob, voxels, saving: 0.0, cost: 0.0, value: 0.0 });
+            }
         }
-        let voxels = Voxels::of_surfaces(grid, [e.mesh]);
-        let blob = encode(&voxels);
-        if blob.len() > MAX_BOUND_BYTES {
-            return Ok(None);
-        }
-        Ok(Some(Candidate { level: k, blob, voxels, saving: 0.0, cost: 0.0, value: 0.0 }))
+        Ok(out)
     }
 }
 
@@ -342,9 +362,19 @@ fn judge(
     let open =
         |b: &QuantBox, q: &Aabb| b.outer.intersects(q) && !b.face_slabs().iter().any(|f| q.contains(f));
     let mut best: Option<(f64, Vec<Judged>)> = None;
+    let mut previous: Vec<Option<&Candidate>> = Vec::new();
     for k in 2..m {
         let at_k: Vec<Option<&Candidate>> =
-            group.iter().map(|e| cands(e).and_then(|c| c.iter().find(|c| c.level == k))).collect();
+            group.iter().map(|e| cands(e).and_then(|c| c.iter().find(|c| c.covers(k)))).collect();
+        // The same bounds as the level before judge the same, and a tie never wins.
+        let same = |a: &Option<&Candidate>, b: &Option<&Candidate>| match (a, b) {
+            (Some(a), Some(b)) => std::ptr::eq(*a, *b),
+            (a, b) => a.is_none() && b.is_none(),
+        };
+        if at_k.len() == previous.len() && at_k.iter().zip(&previous).all(|(a, b)| same(a, b)) {
+            continue;
+        }
+        previous.clone_from(&at_k);
         let mut deciding = vec![false; group.len()];
         let mut saving = 0.0;
         for (s, chunk) in samples.chunks(per_scale).enumerate() {
