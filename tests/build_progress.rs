@@ -82,3 +82,41 @@ fn the_estimate_grows_with_the_look_ahead_and_shrinks_with_the_page() {
         estimate_work(1000, None, &p(Method::Moa, LookAhead::Max, 10))
     );
 }
+
+#[test]
+fn a_bulk_load_reports_each_stage_in_order_from_none_done_to_all_done() {
+    use mktree::build::{LoadProgress, Stage};
+    use mktree::scene::generate::{GenOptions, Preset, generate_scene};
+    use mktree::store::device::MemDevice;
+    use mktree::{CreateOptions, Database};
+
+    let scene = generate_scene(&GenOptions { preset: Preset::Tanker2, objects: None, seed: 0 }).unwrap();
+    let db = Database::create_on(std::sync::Arc::new(MemDevice::new()), CreateOptions::default()).unwrap();
+    let mut w = db.begin_write().unwrap();
+    let seen = Mutex::new(Vec::<LoadProgress>::new());
+    w.bulk_load(&scene, &BuildParams::default(), &|p| seen.lock().unwrap().push(p)).unwrap();
+    w.commit().unwrap();
+    let seen = seen.into_inner().unwrap();
+    let mut stages: Vec<Stage> = seen.iter().map(|p| p.stage).collect();
+    stages.dedup();
+    let order = [
+        Stage::Tree,
+        Stage::Layout,
+        Stage::Levels,
+        Stage::Judge,
+        Stage::Choose,
+        Stage::Geometry,
+        Stage::Nodes,
+    ];
+    assert_eq!(stages, order, "each stage once, in order");
+    for stage in order {
+        let of: Vec<&LoadProgress> = seen.iter().filter(|p| p.stage == stage).collect();
+        let (first, last) = (of[0], of[of.len() - 1]);
+        assert_eq!(first.done, 0, "{stage:?} starts at 0");
+        assert!(last.total > 0 && last.done == last.total, "{stage:?} ends done: {last:?}");
+        // Reports from several threads may arrive out of order, never past the total.
+        assert!(of.iter().all(|p| p.done <= p.total && p.total == last.total), "{stage:?}: {of:?}");
+    }
+    let tree_total = seen[0].total;
+    assert_eq!(tree_total, scene.len() as u64, "the tree stage counts objects");
+}

@@ -129,10 +129,103 @@ impl<'a> Meter<'a> {
     }
 }
 
+/// A stage of a bulk load, in the order they run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Stage {
+    /// Clustering objects into the hierarchy (units: objects placed in leaves).
+    Tree,
+    /// Placing records in geometry and node blocks (one unit).
+    Layout,
+    /// Voxelizing every leaf entry's candidate bounds (units: leaves).
+    Levels,
+    /// Judging which bounds pay, block by block (units: geometry blocks).
+    Judge,
+    /// Keeping the bounds that pay as a whole, and measuring their error (units: steps).
+    Choose,
+    /// Writing geometry blocks (units: blocks).
+    Geometry,
+    /// Writing node blocks and the key index (units: node blocks).
+    Nodes,
+}
+
+impl Stage {
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Tree => "tree",
+            Stage::Layout => "layout",
+            Stage::Levels => "levels",
+            Stage::Judge => "judge",
+            Stage::Choose => "choose",
+            Stage::Geometry => "geometry",
+            Stage::Nodes => "nodes",
+        }
+    }
+}
+
+/// Where a bulk load is: `done` of `total` units of `stage`. Each stage
+/// reports once with `done` = 0, throttled as it goes, and once with
+/// `done` = `total`, so a caller can show a bar and the time left per stage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LoadProgress {
+    pub stage: Stage,
+    pub done: u64,
+    pub total: u64,
+}
+
+/// A stage's running count and its throttled reports (per thousandth).
+pub(crate) struct StageMeter<'a> {
+    report: &'a (dyn Fn(LoadProgress) + Sync),
+    stage: Stage,
+    total: u64,
+    done: AtomicU64,
+    tick: AtomicU64,
+}
+
+impl<'a> StageMeter<'a> {
+    pub(crate) fn new(report: &'a (dyn Fn(LoadProgress) + Sync), stage: Stage, total: u64) -> StageMeter<'a> {
+        report(LoadProgress { stage, done: 0, total });
+        StageMeter { report, stage, total, done: AtomicU64::new(0), tick: AtomicU64::new(0) }
+    }
+
+    /// `n` more units are done.
+    pub(crate) fn add(&self, n: u64) {
+        let done = self.done.fetch_add(n, Relaxed) + n;
+        let tick = done.saturating_mul(TICKS) / self.total.max(1);
+        if self.tick.fetch_max(tick, Relaxed) < tick {
+            (self.report)(LoadProgress { stage: self.stage, done: done.min(self.total), total: self.total });
+        }
+    }
+}
+
+impl Drop for StageMeter<'_> {
+    /// The stage's last report says it is done, however it counted.
+    fn drop(&mut self) {
+        (self.report)(LoadProgress { stage: self.stage, done: self.total, total: self.total });
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::build::{LeafRule, LookAhead};
+
+    #[test]
+    fn a_stage_reports_its_start_at_most_a_thousand_steps_and_its_end() {
+        let seen = std::sync::Mutex::new(Vec::new());
+        let report = |p: LoadProgress| seen.lock().unwrap().push(p);
+        {
+            let meter = StageMeter::new(&report, Stage::Levels, 10_000);
+            for _ in 0..10_000 {
+                meter.add(1);
+            }
+        }
+        let seen = seen.into_inner().unwrap();
+        assert_eq!(seen[0], LoadProgress { stage: Stage::Levels, done: 0, total: 10_000 });
+        assert_eq!(seen[seen.len() - 1].done, 10_000);
+        assert!(seen.len() <= 1002, "{} reports", seen.len());
+        assert!(seen.windows(2).all(|w| w[0].done <= w[1].done));
+    }
 
     #[test]
     fn the_estimate_grows_with_look_ahead_and_vanishes_for_one_page() {

@@ -3,6 +3,7 @@
 
 use std::sync::Arc;
 
+use super::tree_writer::Sink;
 use super::{ReadTransaction, Reads};
 use crate::geom::Aabb;
 use crate::scene::{Key, Mesh, ObjectId, Scene};
@@ -10,7 +11,7 @@ use crate::store::format::frame::BlockType;
 use crate::store::format::geometry;
 use crate::store::format::keys::{self, ChildRef, KeyBlock, KeyEntry, LeafLocator};
 use crate::store::format::node::NodeView;
-use crate::store::{Block, Pager, StorageError};
+use crate::store::{Block, StorageError};
 
 /// The key index as written: its root, levels and blocks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -22,14 +23,12 @@ pub(crate) struct WrittenKeys {
 }
 
 /// Writes the key index of `scene`, whose objects' leaf records and boxes
-/// are `leaves` (by id), allocating through `allocate`. Keys must be unique
+/// are `leaves` (by id), into `sink`. Keys must be unique
 /// (`Scene::check_keys`).
 pub(crate) fn write(
-    pager: &Pager,
-    txn: u64,
+    Sink { pager, txn, allocate }: Sink,
     scene: &Scene,
     leaves: &[(LeafLocator, Aabb)],
-    allocate: &mut dyn FnMut(u32) -> Result<u32, StorageError>,
 ) -> Result<WrittenKeys, StorageError> {
     let bs = pager.block_size();
     let capacity = keys::capacity(bs);

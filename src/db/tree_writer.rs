@@ -5,7 +5,7 @@
 //! among a few piece sizes by the node reads it gives the read model's
 //! sample queries ([`QueryMix`]).
 
-use crate::build::{Hierarchy, Order, QueryMix};
+use crate::build::{Hierarchy, LoadProgress, Order, QueryMix, Stage, StageMeter};
 use crate::geom::Aabb;
 use crate::lod::LeafEntry;
 use crate::lod::StoredBounds;
@@ -357,17 +357,24 @@ fn block_reads(tree: &Hierarchy, p: &Packing, queries: &[Aabb]) -> Vec<u32> {
     reads
 }
 
+/// Where a write transaction's new blocks go: its pager and id, and its
+/// allocator (count -> first block).
+pub(crate) struct Sink<'a> {
+    pub pager: &'a Pager,
+    pub txn: u64,
+    pub allocate: &'a mut dyn FnMut(u32) -> Result<u32, StorageError>,
+}
+
 /// Writes `tree` over `scene` as `plan` lays it out, with the inline
 /// `bounds` of each node (internal: its children's group bounds; leaf: its
-/// objects'), allocating blocks through `allocate` (count -> first block).
+/// objects'), into `sink`.
 pub(crate) fn write(
-    pager: &Pager,
-    txn: u64,
+    Sink { pager, txn, allocate }: Sink,
     scene: &Scene,
     tree: &Hierarchy,
     plan: &Plan,
     bounds: &[Vec<BoundEntry>],
-    allocate: &mut dyn FnMut(u32) -> Result<u32, StorageError>,
+    progress: &(dyn Fn(LoadProgress) + Sync),
 ) -> Result<Written, StorageError> {
     let bs = pager.block_size();
     let nodes = &tree.nodes;
@@ -383,10 +390,12 @@ pub(crate) fn write(
     let mut record = Vec::new();
     let mut geometry_bytes = 0u64;
     let mut vertices = 0u64;
+    let meter = StageMeter::new(progress, Stage::Geometry, geometry_blocks);
     let flush = |block: &mut Vec<u8>, index: u64, sums: &mut Vec<u32>| -> Result<(), StorageError> {
         let id = first_geometry + index as u32;
         sums.push(pager.write(id, block, BlockType::Geometry, txn)?);
         block.fill(0);
+        meter.add(1);
         Ok(())
     };
     for entries in &plan.entries {
@@ -417,6 +426,7 @@ pub(crate) fn write(
         flush(&mut block, filled / p, &mut sums)?;
         filled += p;
     }
+    drop(meter);
     let frame = &plan.frames;
     let child_q = &plan.child_q;
     let leaf_span = |i: usize| plan.leaf_span(i);
@@ -455,7 +465,9 @@ pub(crate) fn write(
     // Blocks last to first: a child's block never precedes its parent's.
     let mut checksums = vec![0u32; packing.blocks.len()];
     let mut node_bytes = 0u64;
+    let meter = StageMeter::new(progress, Stage::Nodes, packing.blocks.len() as u64);
     for b in (0..packing.blocks.len()).rev() {
+        meter.add(1);
         let records: Vec<RecordDraft> = packing.blocks[b]
             .iter()
             .map(|&m| {

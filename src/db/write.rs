@@ -5,11 +5,15 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use super::changes::Changes;
+use super::tree_writer::Sink;
 use super::{
     Inner, Recovery, SeatGuard, Snapshot, WriterLock, codes, free_list_chain, interrupted, key_index, load,
     recover, tree_writer,
 };
-use crate::build::{BuildParams, BuildProgress, CostModel, Hierarchy, QueryMix, build, check_range};
+use crate::build::{
+    BuildParams, BuildProgress, CostModel, Hierarchy, LoadProgress, QueryMix, Stage, StageMeter, build,
+    check_range,
+};
 use crate::lod::{Layout, LodParams, StoredBounds, plan_bounds};
 use crate::scene::{Key, Object, Scene};
 use crate::store::StorageError;
@@ -140,7 +144,7 @@ impl<'db> WriteTransaction<'db> {
         &mut self,
         scene: &Scene,
         params: &BuildParams,
-        progress: &(dyn Fn(BuildProgress) + Sync),
+        progress: &(dyn Fn(LoadProgress) + Sync),
     ) -> Result<Hierarchy, crate::Error> {
         self.may_write_tree()?;
         check_range(scene, geometry::MAX_COORDINATE)?;
@@ -148,9 +152,11 @@ impl<'db> WriteTransaction<'db> {
         let started = Instant::now();
         let boxes = scene.object_boxes();
         let sizes: Vec<u64> = scene.objects().iter().map(|o| geometry::record_len(&o.mesh)).collect();
-        let tree = build(&boxes, Some(&sizes), params, progress)?;
+        let tree = build(&boxes, Some(&sizes), params, &|p: BuildProgress| {
+            progress(LoadProgress { stage: Stage::Tree, done: p.objects_placed, total: p.objects_total })
+        })?;
         let build_seconds = started.elapsed().as_secs_f64();
-        self.write(scene, &tree, params, build_seconds)?;
+        self.write(scene, &tree, params, build_seconds, progress)?;
         Ok(tree)
     }
 
@@ -171,7 +177,7 @@ impl<'db> WriteTransaction<'db> {
         let sizes: Vec<u64> = scene.objects().iter().map(|o| geometry::record_len(&o.mesh)).collect();
         tree.validate(&boxes, Some(&sizes), params)
             .map_err(|e| StorageError::Invalid(format!("the tree does not fit the scene: {e}")))?;
-        self.write(scene, tree, params, build_seconds)
+        self.write(scene, tree, params, build_seconds, &|_| {})
     }
 
     fn may_write_tree(&self) -> Result<(), StorageError> {
@@ -253,6 +259,7 @@ impl<'db> WriteTransaction<'db> {
         tree: &Hierarchy,
         params: &BuildParams,
         build_seconds: f64,
+        progress: &(dyn Fn(LoadProgress) + Sync),
     ) -> Result<(), StorageError> {
         let pager = self.inner.pager().clone();
         let (bs, m) = (pager.block_size(), pager.lod_levels());
@@ -261,23 +268,38 @@ impl<'db> WriteTransaction<'db> {
         }
         let q = CostModel::of_boxes(&scene.object_boxes(), params.query_extent).query_extent();
         let mix = QueryMix::new(&tree.nodes[0].aabb, q);
-        let plan = tree_writer::Plan::new(scene, tree, bs, &mix)?;
+        let plan = {
+            let _layout = StageMeter::new(progress, Stage::Layout, 1);
+            tree_writer::Plan::new(scene, tree, bs, &mix)?
+        };
         let entries = plan.leaf_entries(scene);
-        let layout = Layout { frames: &plan.frames, read_share: &plan.read_share, entries: &entries };
+        let layout =
+            Layout { frames: &plan.frames, read_share: &plan.read_share, entries: &entries, block_size: bs };
         let mut stored =
-            plan_bounds(scene, tree, m, bs, &self.lod_params, &mix, &layout).map_err(lod_error)?;
-        if !self.lod_params.store_all && !stored.is_empty() {
-            stored = worth_keeping(&plan, scene, tree, &stored, bs);
+            plan_bounds(scene, tree, m, &self.lod_params, &mix, &layout, progress).map_err(lod_error)?;
+        {
+            let choose = StageMeter::new(progress, Stage::Choose, 2);
+            if !self.lod_params.store_all && !stored.is_empty() {
+                stored = worth_keeping(&plan, scene, tree, &stored, bs);
+            }
+            choose.add(1);
+            stored.measure_errors(&entries, self.lod_params.error_samples);
         }
-        stored.measure_errors(&entries, self.lod_params.error_samples);
         let txn = self.txn;
         let written = {
-            let mut allocate = |count: u32| self.allocate(count);
-            tree_writer::write(&pager, txn, scene, tree, &plan, &stored.bounds, &mut allocate)?
+            let allocate = &mut |count: u32| self.allocate(count);
+            tree_writer::write(
+                Sink { pager: &pager, txn, allocate },
+                scene,
+                tree,
+                &plan,
+                &stored.bounds,
+                progress,
+            )?
         };
         let keys = {
-            let mut allocate = |count: u32| self.allocate(count);
-            key_index::write(&pager, txn, scene, &written.leaves, &mut allocate)?
+            let allocate = &mut |count: u32| self.allocate(count);
+            key_index::write(Sink { pager: &pager, txn, allocate }, scene, &written.leaves)?
         };
         // Names, apart from geometry so queries never read them.
         let mut stream = Vec::new();
@@ -370,7 +392,7 @@ impl<'db> WriteTransaction<'db> {
                 let sizes: Vec<u64> = scene.objects().iter().map(|o| geometry::record_len(&o.mesh)).collect();
                 tree.validate(&scene.object_boxes(), Some(&sizes), &params)
                     .map_err(|e| StorageError::Invalid(format!("the changed tree: {e}")))?;
-                self.write(&scene, &tree, &params, seconds)?;
+                self.write(&scene, &tree, &params, seconds, &|_| {})?;
             }
         }
         let (meta_block, meta_checksum, meta) = match self.meta.take() {

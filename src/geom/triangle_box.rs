@@ -68,14 +68,8 @@ impl TriangleBoxTest {
         // by `off`: corners, centre, products and sums are each off by a few
         // U of themselves; twice that, for both projections, is generous.
         let bound = |a: Vector, off: Vector| 2.0 * (off + a.abs() * (8.0 * U)).dot(&size);
-        let mut test = TriangleBoxTest {
-            tri: *tri,
-            lo,
-            hi,
-            region: *region,
-            axes: [Axis::default(); 10],
-            count: 0,
-        };
+        let mut test =
+            TriangleBoxTest { tri: *tri, lo, hi, region: *region, axes: [Axis::default(); 10], count: 0 };
         let mut push = |a: Vector, err: f64| {
             let (min, max) = min_max(w.map(|p| a.dot(&p)));
             let abs = a.abs();
@@ -146,7 +140,8 @@ impl TriangleBoxTest {
         let mut close = false;
         for axis in &self.axes[..self.count] {
             let d = dot(&axis.a, &centre);
-            match apart(axis.min - d, axis.max - d, dot(&axis.abs, &outer), dot(&axis.abs, &inner), axis.err) {
+            match apart(axis.min - d, axis.max - d, dot(&axis.abs, &outer), dot(&axis.abs, &inner), axis.err)
+            {
                 Some(true) => return Some(false),
                 Some(false) => {}
                 None => close = true,

@@ -33,7 +33,7 @@ use rayon::prelude::*;
 
 use super::compact::{aligned_grid, encode};
 use super::{ErrorProbe, Grid, Lattice, LodError, LodParams, LodPlan, Voxels};
-use crate::build::{Hierarchy, QueryMix};
+use crate::build::{Hierarchy, LoadProgress, QueryMix, Stage, StageMeter};
 use crate::geom::Aabb;
 use crate::scene::{Mesh, ObjectId, Scene};
 use crate::store::format::node::{BOUND_HEAD_LEN, BoundEntry, MAX_BOUND_BYTES, capacity};
@@ -56,6 +56,8 @@ pub struct Layout<'a> {
     pub read_share: &'a [f64],
     /// Per node: a leaf's entries, in record order (empty for internal nodes).
     pub entries: &'a [Vec<LeafEntry<'a>>],
+    /// The file's block size in bytes (what a node block holds).
+    pub block_size: u32,
 }
 
 /// The bounds a tree stores, and what the meta block records of them.
@@ -193,15 +195,15 @@ struct Candidate {
 }
 
 /// Decides and encodes the bounds of `tree` over `scene` for M = `m`
-/// levels and blocks of `block_size` bytes, judged on `mix` over `layout`.
+/// levels, judged on `mix` over `layout`.
 pub fn plan_bounds(
     scene: &Scene,
     tree: &Hierarchy,
     m: u8,
-    block_size: u32,
     params: &LodParams,
     mix: &QueryMix,
     layout: &Layout,
+    progress: &(dyn Fn(LoadProgress) + Sync),
 ) -> Result<StoredBounds, LodError> {
     let levels = usize::from(m);
     let mut out = StoredBounds {
@@ -223,14 +225,21 @@ pub fn plan_bounds(
     out.lattice = Some(plan.lattice);
     // Every entry's candidate bounds, level by level.
     let ctx = Ctx { plan: &plan, params, layout };
-    let candidates: Vec<Vec<Vec<Candidate>>> = layout
-        .entries
-        .par_iter()
-        .enumerate()
-        .map(|(i, entries)| {
-            entries.iter().map(|e| ctx.candidates(m, i, e)).collect::<Result<Vec<Vec<Candidate>>, LodError>>()
-        })
-        .collect::<Result<_, LodError>>()?;
+    let candidates: Vec<Vec<Vec<Candidate>>> = {
+        let meter = StageMeter::new(progress, Stage::Levels, layout.entries.len() as u64);
+        layout
+            .entries
+            .par_iter()
+            .enumerate()
+            .map(|(i, entries)| {
+                meter.add(1);
+                entries
+                    .iter()
+                    .map(|e| ctx.candidates(m, i, e))
+                    .collect::<Result<Vec<Vec<Candidate>>, LodError>>()
+            })
+            .collect::<Result<_, LodError>>()?
+    };
     // Entries by geometry block: each lies in one (a part never straddles two).
     let mut blocks: HashMap<u64, Vec<(usize, usize)>> = HashMap::new();
     for (i, entries) in layout.entries.iter().enumerate() {
@@ -239,11 +248,17 @@ pub fn plan_bounds(
         }
     }
     let groups: Vec<Vec<(usize, usize)>> = blocks.into_values().collect();
-    let node_capacity = capacity(block_size) as f64;
-    let judged: Vec<Vec<Judged>> = groups
-        .par_iter()
-        .map(|group| judge(group, &candidates, layout, mix, params, m, node_capacity))
-        .collect();
+    let node_capacity = capacity(layout.block_size) as f64;
+    let judged: Vec<Vec<Judged>> = {
+        let meter = StageMeter::new(progress, Stage::Judge, groups.len() as u64);
+        groups
+            .par_iter()
+            .map(|group| {
+                meter.add(1);
+                judge(group, &candidates, layout, mix, params, m, node_capacity)
+            })
+            .collect()
+    };
     let mut chosen: Vec<(usize, Vec<(u16, Candidate)>)> = Vec::new();
     let mut picked: HashMap<usize, Vec<(u16, Candidate)>> = HashMap::new();
     let mut candidates = candidates;

@@ -71,9 +71,8 @@ fn surface(grid: &Grid, planes: &[Vec<f64>; 3], tol: f64, sub: &Sub, t: &[Point;
             planes[2][z as usize + 1] + tol,
         ])
     };
-    let test = (!single).then(|| {
-        TriangleBoxTest::new(t, &cell(r[0].0, r[1].0, r[2].0).union(&cell(r[0].1, r[1].1, r[2].1)))
-    });
+    let test = (!single)
+        .then(|| TriangleBoxTest::new(t, &cell(r[0].0, r[1].0, r[2].0).union(&cell(r[0].1, r[1].1, r[2].1))));
     for z in r[2].0..=r[2].1 {
         for y in r[1].0..=r[1].1 {
             for x in r[0].0..=r[0].1 {

@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
-use mktree::build::{BuildProgress, Hierarchy, Report, build, estimate_work};
+use mktree::build::{BuildProgress, Hierarchy, LoadProgress, Report, Stage, build, estimate_work};
 use mktree::db::{CreateOptions, Database, WriterWait};
 use mktree::scene::Scene;
 use mktree::store::StorageError;
@@ -16,18 +16,32 @@ use serde_json::json;
 use crate::args::{BuildArgs, LodArgs};
 use crate::output;
 
-/// A progress bar over objects placed in leaves (on stderr, hidden when not a terminal).
+/// A progress bar per stage, with the time left (on stderr, hidden when
+/// not a terminal): objects placed while the tree is built, then the units
+/// of each later stage of the bulk load.
 fn progress_bar(scene: &Scene, build: &BuildArgs) -> ProgressBar {
     let pb = ProgressBar::new(scene.len() as u64);
     pb.set_style(
         ProgressStyle::with_template(
-            "{spinner} building [{bar:40}] {pos}/{len} objects placed {msg} ({elapsed})",
+            "{spinner} {prefix:>8} [{bar:40}] {pos}/{len} {msg} ({elapsed}, {eta} left)",
         )
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
+    pb.set_prefix(Stage::Tree.name());
     let work = estimate_work(scene.len(), None, &build.params());
-    pb.set_message(format!("~{work:.2e} object visits estimated"));
+    pb.set_message(format!("objects placed, ~{work:.2e} object visits estimated"));
     pb
+}
+
+/// Shows `p` on `pb`, restarting the bar (and its time left) at each new stage.
+fn show(pb: &ProgressBar, p: LoadProgress) {
+    if pb.prefix() != p.stage.name() {
+        pb.set_prefix(p.stage.name());
+        pb.set_message("");
+        pb.reset();
+    }
+    pb.set_length(p.total);
+    pb.set_position(p.done);
 }
 
 /// The database `build` writes into, and whether this run created its
@@ -77,7 +91,16 @@ pub fn run(
     Write { wait, key_names }: Write,
     as_json: bool,
 ) -> Result<()> {
-    let mut scene = crate::cmd::read_scene(scene_path, &args.import.options())?;
+    let reading =
+        ProgressBar::new_spinner().with_prefix("read").with_message(scene_path.display().to_string());
+    reading.set_style(
+        ProgressStyle::with_template("{spinner} {prefix:>8} {msg} ({elapsed})")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    reading.enable_steady_tick(std::time::Duration::from_millis(200));
+    let read = crate::cmd::read_scene(scene_path, &args.import.options());
+    reading.finish_and_clear();
+    let mut scene = read?;
     if key_names {
         scene.key_by_names()?;
     }
@@ -87,8 +110,10 @@ pub fn run(
     let written = (|| -> Result<Hierarchy> {
         let mut w = db.begin_write_with(if wait { WriterWait::Wait } else { WriterWait::Fail })?;
         w.set_lod_params(lod.params());
-        let tree =
-            w.bulk_load(&scene, &args.params(), &|p: BuildProgress| pb.set_position(p.objects_placed))?;
+        let tree = w.bulk_load(&scene, &args.params(), &|p| show(&pb, p))?;
+        pb.set_prefix("commit");
+        pb.set_length(1);
+        pb.reset();
         w.commit()?;
         Ok(tree)
     })();
