@@ -153,11 +153,15 @@ impl Ctx<'_> {
     /// on `axis`, or, without an axis, on the axis where it is least (the
     /// first on ties).
     pub(crate) fn split_between(&self, left: &[u32], right: &[u32], axis: Option<Axis>) -> Split {
-        let (l, r) = (self.aabb_of(left), self.aabb_of(right));
+        self.split_of(&self.aabb_of(left), &self.aabb_of(right), axis)
+    }
+
+    /// [`Ctx::split_between`] of children with boxes `l` and `r`.
+    pub(crate) fn split_of(&self, l: &Aabb, r: &Aabb, axis: Option<Axis>) -> Split {
         let axes = axis.as_ref().map_or(&Axis::ALL[..], std::slice::from_ref);
         let (axis, gap) = axes
             .iter()
-            .map(|&a| (a, signed_intersection(&l, &r, a)))
+            .map(|&a| (a, signed_intersection(l, r, a)))
             .fold((Axis::X, f64::INFINITY), |best, c| if c.1 < best.1 { c } else { best });
         Split { axis, order: Order::Center, overlap: if gap > 0.0 { gap } else { 0.0 }, gap }
     }

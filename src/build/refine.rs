@@ -56,9 +56,9 @@ impl<'a> Refine<'a> {
         Refine { ctx, keys, vsah: Sah::new(ctx, Heuristic::Volume), model }
     }
 
-    /// The expected cost of the `vsah` subtree of `set`.
-    fn score(&self, set: Vec<u32>) -> f64 {
-        walk(&Trial { ctx: self.ctx, vsah: &self.vsah, model: &self.model }, set, 0)
+    /// The expected cost of the `vsah` subtree of `set`, whose box is `aabb`.
+    fn score(&self, set: Vec<u32>, aabb: Aabb) -> f64 {
+        walk(&Trial { ctx: self.ctx, vsah: &self.vsah, model: &self.model }, (set, aabb), 0)
     }
 }
 
@@ -77,24 +77,28 @@ impl Splitter for Refine<'_> {
         let ctx = self.ctx;
         let n = set[0].len();
         let cands = candidates(self.keys, &set, ctx.rate, ctx.tie);
-        let (first, second, vsah_split) = self.vsah.split(set[0].clone(), aabb);
+        let vsah = self.vsah.halves(set[0].clone(), aabb);
         // Option 0 is the vsah cut, options 1..=6 the candidates.
-        let mut options = vec![(first, second)];
+        let mut options = vec![(vsah.left.clone(), vsah.right.clone())];
         options.extend(cands.iter().map(|c| {
             let list = &set[c.order];
             (list[..=c.cut_index].to_vec(), list[c.cut_index + 1..].to_vec())
         }));
-        let score = |(a, b): &(Vec<u32>, Vec<u32>)| self.score(a.clone()) + self.score(b.clone());
+        let score = |o: usize| {
+            let (a, b) = &options[o];
+            let [l, r] = if o == 0 { vsah.boxes } else { [ctx.aabb_of(a), ctx.aabb_of(b)] };
+            self.score(a.clone(), l) + self.score(b.clone(), r)
+        };
         let scores: Vec<f64> = if n >= PAR_OPTIONS_MIN {
-            options.par_iter().map(score).collect()
+            (0..options.len()).into_par_iter().map(score).collect()
         } else {
-            options.iter().map(score).collect()
+            (0..options.len()).map(score).collect()
         };
         let best = (1..scores.len()).fold(0, |best, i| if scores[i] < scores[best] { i } else { best });
         match best.checked_sub(1) {
             None => {
-                let (left, right) = partition_by(self.keys, &set, &options[0].0);
-                (left, right, vsah_split)
+                let (left, right) = partition_by(self.keys, &set, &vsah.left);
+                (left, right, vsah.split(ctx))
             }
             Some(c) => {
                 let (left, right) = partition(self.keys, &set, &cands[c]);
@@ -111,29 +115,32 @@ struct Trial<'a> {
     model: &'a CostModel,
 }
 
+/// A trial node: its objects and their box.
+type TrialSet = (Vec<u32>, Aabb);
+
 impl Walk for Trial<'_> {
-    type Set = Vec<u32>;
+    type Set = TrialSet;
     type Out = f64;
     type Mark = ();
 
-    fn len(&self, set: &Vec<u32>) -> usize {
-        set.len()
+    fn len(&self, set: &TrialSet) -> usize {
+        set.0.len()
     }
 
     fn start(&self) -> f64 {
         0.0
     }
 
-    fn visit(&self, set: Vec<u32>, _depth: u32, out: &mut f64) -> Option<(Vec<u32>, Vec<u32>, ())> {
-        let aabb = self.ctx.aabb_of(&set);
+    fn visit(&self, (set, aabb): TrialSet, _depth: u32, out: &mut f64) -> Option<(TrialSet, TrialSet, ())> {
         let leaf = self.ctx.leaf.fits(&set);
         *out += self.model.node_cost(&aabb, leaf);
         if leaf {
             return None;
         }
         self.ctx.meter.worked(set.len());
-        let (left, right, _) = self.vsah.split(set, &aabb);
-        Some((left, right, ()))
+        let h = self.vsah.halves(set, &aabb);
+        let [l, r] = h.boxes;
+        Some(((h.left, l), (h.right, r), ()))
     }
 
     fn right_begins(&self, _out: &mut f64, _mark: ()) {}

@@ -90,13 +90,9 @@ struct Binning {
 }
 
 impl Binning {
-    /// The binning of `set`'s centroids along `axis`; none when they all
-    /// have the same coordinate there.
-    fn new(boxes: &[Aabb], set: &[u32], axis: usize) -> Option<Binning> {
-        let (low, high) = set.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &j| {
-            let c = centroid(&boxes[j as usize], axis);
-            (l.min(c), h.max(c))
-        });
+    /// The binning of centroids from `low` to `high` along `axis`; none
+    /// when they all have the same coordinate there.
+    fn new(axis: usize, low: f64, high: f64) -> Option<Binning> {
         let extent = high - low;
         (extent > 0.0).then(|| Binning { axis, low, scale: BINS as f64 / extent })
     }
@@ -106,33 +102,115 @@ impl Binning {
         // `as` saturates, and the ratio is in [0, BINS].
         (((centroid(b, self.axis) - self.low) * self.scale) as usize).min(BINS - 1)
     }
+}
 
-    /// The least cost of a plane, with the plane (planes with an empty side skipped).
-    fn best_plane(&self, boxes: &[Aabb], set: &[u32], parent: f64, measure: Measure) -> Option<(f64, usize)> {
-        let mut bins = [(0usize, Aabb::EMPTY); BINS];
+/// Per bin: the objects whose centroid falls in it, and their boxes' union.
+type Bins = [(usize, Aabb); BINS];
+
+/// The plane of least cost: the objects of bins `..= plane` go left.
+struct Plane {
+    binning: Binning,
+    plane: usize,
+    /// The boxes of the left and right sides.
+    boxes: [Aabb; 2],
+}
+
+/// The least cost of a plane of `bins` (planes with an empty side
+/// skipped), with the plane and its sides' boxes.
+fn best_plane(bins: &Bins, parent: f64, measure: Measure) -> Option<(f64, usize, [Aabb; 2])> {
+    // n A of the right side of each plane, swept from the right.
+    let mut right = [(None, Aabb::EMPTY); BINS - 1];
+    let mut acc = (0usize, Aabb::EMPTY);
+    for plane in (0..BINS - 1).rev() {
+        acc = (acc.0 + bins[plane + 1].0, acc.1.union(&bins[plane + 1].1));
+        right[plane] = ((acc.0 > 0).then(|| acc.0 as f64 * measure.of(&acc.1)), acc.1);
+    }
+    let mut acc = (0usize, Aabb::EMPTY);
+    let mut best: Option<(f64, usize, [Aabb; 2])> = None;
+    for (plane, (right, right_box)) in right.iter().enumerate() {
+        acc = (acc.0 + bins[plane].0, acc.1.union(&bins[plane].1));
+        let Some(right) = right.filter(|_| acc.0 > 0) else { continue };
+        let cost = TRAVERSAL_COST + (acc.0 as f64 * measure.of(&acc.1) + right) / parent;
+        if best.is_none_or(|b| cost < b.0) {
+            best = Some((cost, plane, [acc.1, *right_box]));
+        }
+    }
+    best
+}
+
+impl Sah<'_> {
+    /// The plane of least cost over all three axes (the first axis and
+    /// plane on ties); none when all centroids coincide. Two passes over
+    /// the objects: the centroids' range, then every axis's bins.
+    fn plane(&self, set: &[u32], aabb: &Aabb) -> Option<Plane> {
+        let boxes = self.ctx.boxes;
+        let measure = Measure::of_node(self.heuristic, aabb);
+        // Not zero: some centroids differ whenever a plane is tried below.
+        let parent = measure.of(aabb);
+        let (mut low, mut high) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for &j in set {
             let b = &boxes[j as usize];
-            let slot = &mut bins[self.bin(b)];
-            *slot = (slot.0 + 1, slot.1.union(b));
-        }
-        // n A of the right side of each plane, swept from the right.
-        let mut right = [None; BINS - 1];
-        let mut acc = (0usize, Aabb::EMPTY);
-        for plane in (0..BINS - 1).rev() {
-            acc = (acc.0 + bins[plane + 1].0, acc.1.union(&bins[plane + 1].1));
-            right[plane] = (acc.0 > 0).then(|| acc.0 as f64 * measure.of(&acc.1));
-        }
-        let mut acc = (0usize, Aabb::EMPTY);
-        let mut best: Option<(f64, usize)> = None;
-        for (plane, right) in right.iter().enumerate() {
-            acc = (acc.0 + bins[plane].0, acc.1.union(&bins[plane].1));
-            let Some(right) = right.filter(|_| acc.0 > 0) else { continue };
-            let cost = TRAVERSAL_COST + (acc.0 as f64 * measure.of(&acc.1) + right) / parent;
-            if best.is_none_or(|b| cost < b.0) {
-                best = Some((cost, plane));
+            for axis in 0..3 {
+                let c = centroid(b, axis);
+                (low[axis], high[axis]) = (low[axis].min(c), high[axis].max(c));
             }
         }
-        best
+        let binnings: [Option<Binning>; 3] = std::array::from_fn(|a| Binning::new(a, low[a], high[a]));
+        let mut bins = [[(0usize, Aabb::EMPTY); BINS]; 3];
+        for &j in set {
+            let b = &boxes[j as usize];
+            for (binning, bins) in binnings.iter().zip(&mut bins) {
+                if let Some(binning) = binning {
+                    let slot = &mut bins[binning.bin(b)];
+                    *slot = (slot.0 + 1, slot.1.union(b));
+                }
+            }
+        }
+        let mut best: Option<(f64, Plane)> = None;
+        for (binning, bins) in binnings.into_iter().zip(&bins) {
+            let Some(binning) = binning else { continue };
+            if let Some((cost, plane, sides)) = best_plane(bins, parent, measure)
+                && best.as_ref().is_none_or(|b| cost < b.0)
+            {
+                best = Some((cost, Plane { binning, plane, boxes: sides }));
+            }
+        }
+        best.map(|b| b.1)
+    }
+
+    /// `set` divided by the heuristic, with both sides' boxes and, for a
+    /// plane, its axis (a node whose centroids coincide gets a median cut).
+    pub(crate) fn halves(&self, set: Vec<u32>, aabb: &Aabb) -> Halves {
+        let Some(p) = self.plane(&set, aabb) else {
+            let (left, right, split) = self.median.split(set, aabb);
+            let boxes = [self.ctx.aabb_of(&left), self.ctx.aabb_of(&right)];
+            return Halves { left, right, boxes, plane: None, median: Some(split) };
+        };
+        let boxes = self.ctx.boxes;
+        let (left, right): (Vec<u32>, Vec<u32>) =
+            set.iter().partition(|&&j| p.binning.bin(&boxes[j as usize]) <= p.plane);
+        Halves { left, right, boxes: p.boxes, plane: Axis::from_index(p.binning.axis), median: None }
+    }
+}
+
+/// A node divided by [`Sah::halves`].
+pub(crate) struct Halves {
+    pub(crate) left: Vec<u32>,
+    pub(crate) right: Vec<u32>,
+    pub(crate) boxes: [Aabb; 2],
+    /// The axis of the plane that divided it.
+    plane: Option<Axis>,
+    /// The median cut's record, when the centroids coincided.
+    median: Option<Split>,
+}
+
+impl Halves {
+    /// The split record of the division.
+    pub(crate) fn split(&self, ctx: &Ctx<'_>) -> Split {
+        match self.median {
+            Some(split) => split,
+            None => ctx.split_of(&self.boxes[0], &self.boxes[1], self.plane),
+        }
     }
 }
 
@@ -149,25 +227,8 @@ impl Splitter for Sah<'_> {
     }
 
     fn split(&self, set: Vec<u32>, aabb: &Aabb) -> (Vec<u32>, Vec<u32>, Split) {
-        let boxes = self.ctx.boxes;
-        let measure = Measure::of_node(self.heuristic, aabb);
-        // Not zero: some centroids differ whenever a plane is tried below.
-        let parent = measure.of(aabb);
-        let mut best: Option<(f64, Binning, usize)> = None;
-        for axis in Axis::ALL.map(Axis::index) {
-            let Some(binning) = Binning::new(boxes, &set, axis) else { continue };
-            if let Some((cost, plane)) = binning.best_plane(boxes, &set, parent, measure)
-                && best.as_ref().is_none_or(|b| cost < b.0)
-            {
-                best = Some((cost, binning, plane));
-            }
-        }
-        let Some((_, binning, plane)) = best else {
-            return self.median.split(set, aabb);
-        };
-        let (left, right): (Vec<u32>, Vec<u32>) =
-            set.iter().partition(|&&j| binning.bin(&boxes[j as usize]) <= plane);
-        let split = self.ctx.split_between(&left, &right, Axis::from_index(binning.axis));
-        (left, right, split)
+        let h = self.halves(set, aabb);
+        let split = h.split(self.ctx);
+        (h.left, h.right, split)
     }
 }
