@@ -45,7 +45,7 @@ pub(crate) fn redb_error(e: impl Into<redb::Error>) -> StorageError {
 fn block_id(offset: u64, len: usize, block_size: u32) -> io::Result<u32> {
     let bs = u64::from(block_size);
     match u32::try_from(offset / bs) {
-        Ok(id) if id != STATE_KEY && offset % bs == 0 && len as u64 == bs => Ok(id),
+        Ok(id) if id != STATE_KEY && offset.is_multiple_of(bs) && len as u64 == bs => Ok(id),
         _ => Err(io::Error::new(
             io::ErrorKind::InvalidInput,
             format!("a table holds whole blocks: {len} bytes at offset {offset}"),
@@ -117,6 +117,9 @@ enum Request {
     },
 }
 
+/// The thread's answer to a request.
+type Answer = Result<Reply, redb::StorageError>;
+
 enum Reply {
     Block(Option<Vec<u8>>),
     Last(Option<u32>),
@@ -145,11 +148,7 @@ pub(crate) fn with_table<R>(
 
 /// Serves `requests` from `table` until the device that sends them is
 /// dropped.
-fn serve(
-    mut table: Table<'_, u32, &'static [u8]>,
-    requests: Receiver<Request>,
-    replies: Sender<Result<Reply, redb::StorageError>>,
-) {
+fn serve(mut table: Table<'_, u32, &'static [u8]>, requests: Receiver<Request>, replies: Sender<Answer>) {
     for request in requests {
         let reply = match request {
             Request::Read(id) => table.get(id).map(|v| Reply::Block(v.map(|v| v.value().to_vec()))),
@@ -176,17 +175,13 @@ fn serve(
 /// The blocks of a write transaction's table, through the thread that holds
 /// it; also the host that commits into it.
 pub(crate) struct TableClient {
-    channel: Mutex<(Sender<Request>, Receiver<Result<Reply, redb::StorageError>>)>,
+    channel: Mutex<(Sender<Request>, Receiver<Answer>)>,
     block_size: u32,
     lod_levels: u8,
 }
 
 impl TableClient {
-    fn new(
-        requests: Sender<Request>,
-        replies: Receiver<Result<Reply, redb::StorageError>>,
-        state: &TableState,
-    ) -> TableClient {
+    fn new(requests: Sender<Request>, replies: Receiver<Answer>, state: &TableState) -> TableClient {
         TableClient {
             channel: Mutex::new((requests, replies)),
             block_size: state.block_size,
