@@ -35,6 +35,8 @@ pub mod fuzzing;
 pub mod geom;
 pub mod lod;
 pub mod query;
+#[cfg(feature = "redb")]
+pub mod redb;
 mod rng;
 pub mod scene;
 pub mod store;

@@ -15,6 +15,8 @@ mod error;
 pub mod peers;
 mod query_sets;
 pub mod record;
+#[cfg(feature = "redb")]
+mod redb_backend;
 mod replace;
 mod rng;
 mod workload;
@@ -26,5 +28,7 @@ pub use error::BenchError;
 pub use query_sets::{
     COLLISION_MARGIN_MM, QueryKind, TreeQueryCount, collision_boxes, count_in_tree, random_cubes,
 };
+#[cfg(feature = "redb")]
+pub use redb_backend::{RedbRow, bench_redb, redb_table};
 pub use replace::{ReplaceOptions, ReplaceReport, ReplaceRow, bench_replace};
 pub use workload::{WorkloadStats, random_boxes, run_boxes};

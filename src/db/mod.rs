@@ -7,6 +7,7 @@ mod changes;
 mod check;
 mod codes;
 mod hierarchy;
+mod hosted;
 mod key_index;
 mod lod;
 mod read;
@@ -22,6 +23,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 pub use check::{CheckReport, check};
 pub use codes::{method_from_code, method_to_code};
 pub use hierarchy::read_hierarchy;
+pub(crate) use hosted::Host;
 pub use key_index::ObjectRecord;
 pub use lod::{Level, LodInfo, Piece};
 pub(crate) use read::view;
@@ -159,6 +161,9 @@ pub(crate) struct Inner {
     writer: Seat,
     /// Locks shared with other processes (files only).
     locks: Option<FileLocks>,
+    /// The database whose transaction commits the tree, when its blocks
+    /// live there (`hosted.rs`); `None` for a file or device of its own.
+    host: Option<Arc<dyn Host>>,
     read_only: bool,
 }
 
@@ -322,6 +327,7 @@ impl Database {
                 state: Mutex::new(state),
                 writer: Seat::default(),
                 locks,
+                host: None,
                 read_only,
             }),
             warnings,

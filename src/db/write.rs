@@ -24,6 +24,8 @@ use crate::store::format::header::{self, Commit, Slot, SlotState};
 use crate::store::format::meta::{LOD_TABLE_LEN, LodCodes, Meta};
 use crate::store::format::{geometry, run};
 
+mod hosted;
+
 /// The one write transaction. Dropping it without `commit` aborts it: the
 /// committed state is untouched.
 pub struct WriteTransaction<'db> {
@@ -53,12 +55,26 @@ pub struct WriteTransaction<'db> {
     done: bool,
 }
 
+/// The state a write transaction begins on, as its commit protocol gives it.
+struct Begun {
+    txn: u64,
+    base: Commit,
+    base_free: Vec<FreeRange>,
+    slot: usize,
+    recovery: Recovery,
+    avail: FreeSpace,
+    oldest_reader: Option<u64>,
+}
+
 impl<'db> WriteTransaction<'db> {
     pub(super) fn begin(
         inner: &'db Arc<Inner>,
         guard: SeatGuard<'db>,
         file_lock: Option<WriterLock<'db>>,
     ) -> Result<WriteTransaction<'db>, StorageError> {
+        if inner.host.is_some() {
+            return Ok(WriteTransaction::new(inner, guard, file_lock, hosted::begin(inner)?));
+        }
         let pager = inner.pager().clone();
         // Another process may have committed since this one last looked.
         let loaded = load(&pager)?;
@@ -91,25 +107,35 @@ impl<'db> WriteTransaction<'db> {
         for copy in order {
             write_slot_copy(&pager, slot, copy, SlotState::Pending, &Commit { txn, ..Commit::default() })?;
         }
-        let end = avail.end();
-        Ok(WriteTransaction {
+        let begun = Begun { txn, base, base_free, slot, recovery, avail, oldest_reader: oldest };
+        Ok(WriteTransaction::new(inner, guard, file_lock, begun))
+    }
+
+    fn new(
+        inner: &'db Arc<Inner>,
+        guard: SeatGuard<'db>,
+        file_lock: Option<WriterLock<'db>>,
+        b: Begun,
+    ) -> WriteTransaction<'db> {
+        let end = b.avail.end();
+        WriteTransaction {
             inner,
             _guard: guard,
             _file_lock: file_lock,
-            txn,
-            base,
-            base_free,
-            slot,
-            recovery,
-            avail,
+            txn: b.txn,
+            base: b.base,
+            base_free: b.base_free,
+            slot: b.slot,
+            recovery: b.recovery,
+            avail: b.avail,
             written: FreeSpace::new(end, []),
             meta: None,
             lod_params: LodParams::default(),
             changes: None,
-            oldest_reader: oldest,
+            oldest_reader: b.oldest_reader,
             append_only: false,
             done: false,
-        })
+        }
     }
 
     /// What this transaction repaired before it began (a crash's leftovers).
@@ -395,6 +421,9 @@ impl<'db> WriteTransaction<'db> {
                 self.write(&scene, &tree, &params, seconds, &|_| {})?;
             }
         }
+        if let Some(host) = self.inner.host.clone() {
+            return self.commit_hosted(host.as_ref(), cleared);
+        }
         let (meta_block, meta_checksum, meta) = match self.meta.take() {
             Some((block, sum, meta)) => (block, sum, Some(meta)),
             None if cleared => (0, 0, None),
@@ -509,6 +538,12 @@ impl<'db> WriteTransaction<'db> {
         for copy in 0..2 {
             write_slot_copy(pager, self.slot, copy, SlotState::Committed, &c)?;
         }
+        self.install(c, loaded);
+        Ok(())
+    }
+
+    /// Makes `c` (with its meta and free ranges, or the base's) the state readers begin on.
+    fn install(&mut self, c: Commit, loaded: Option<(Option<Meta>, Vec<FreeRange>)>) {
         self.done = true;
         let mut s = self.inner.lock_state();
         let (meta, free) = match loaded {
@@ -521,7 +556,6 @@ impl<'db> WriteTransaction<'db> {
         s.committed_slot = self.slot;
         s.free = free;
         s.snapshot = Arc::new(Snapshot::of(&c, meta));
-        Ok(())
     }
 
     /// Abandons the transaction; the file keeps its committed state.
@@ -531,6 +565,9 @@ impl<'db> WriteTransaction<'db> {
 
     fn rollback(&mut self) -> Result<(), StorageError> {
         self.done = true;
+        if let Some(host) = self.inner.host.clone() {
+            return host.discard(&self.written.ranges());
+        }
         let pager = self.inner.pager();
         // Nothing was torn: the pending slot can be cleared, and appended blocks dropped.
         pager.device().set_len(u64::from(self.base.block_count) * u64::from(pager.block_size()))?;

@@ -32,7 +32,6 @@ impl FreeSpace {
     }
 
     /// The free ranges, sorted.
-    #[cfg(test)]
     pub fn ranges(&self) -> Vec<(u32, u32)> {
         self.ranges.iter().map(|(&f, &c)| (f, c)).collect()
     }

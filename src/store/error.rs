@@ -33,6 +33,10 @@ pub enum StorageError {
     FileTooLarge,
     #[error("{0}")]
     Invalid(String),
+    /// The application's redb database failed (the `redb` feature).
+    #[cfg(feature = "redb")]
+    #[error("redb: {0}")]
+    Redb(#[from] redb::Error),
 }
 
 impl StorageError {

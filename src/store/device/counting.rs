@@ -16,10 +16,10 @@ pub struct DeviceCounts {
     pub syncs: u64,
 }
 
-/// Counts every call that reaches `inner`.
+/// The counts as they grow, shared by the counting wrappers (this one, and
+/// redb's storage backend in `src/redb/`).
 #[derive(Debug, Default)]
-pub struct CountingDevice<D> {
-    inner: D,
+pub(crate) struct Counters {
     reads: AtomicU64,
     bytes_read: AtomicU64,
     writes: AtomicU64,
@@ -27,21 +27,22 @@ pub struct CountingDevice<D> {
     syncs: AtomicU64,
 }
 
-impl<D: BlockDevice> CountingDevice<D> {
-    /// Wraps `inner` with all counts at zero.
-    pub fn new(inner: D) -> CountingDevice<D> {
-        CountingDevice {
-            inner,
-            reads: AtomicU64::new(0),
-            bytes_read: AtomicU64::new(0),
-            writes: AtomicU64::new(0),
-            bytes_written: AtomicU64::new(0),
-            syncs: AtomicU64::new(0),
-        }
+impl Counters {
+    pub(crate) fn read(&self, bytes: usize) {
+        self.reads.fetch_add(1, Ordering::Relaxed);
+        self.bytes_read.fetch_add(bytes as u64, Ordering::Relaxed);
     }
 
-    /// The counts so far.
-    pub fn counts(&self) -> DeviceCounts {
+    pub(crate) fn write(&self, bytes: usize) {
+        self.writes.fetch_add(1, Ordering::Relaxed);
+        self.bytes_written.fetch_add(bytes as u64, Ordering::Relaxed);
+    }
+
+    pub(crate) fn sync(&self) {
+        self.syncs.fetch_add(1, Ordering::Relaxed);
+    }
+
+    pub(crate) fn get(&self) -> DeviceCounts {
         DeviceCounts {
             reads: self.reads.load(Ordering::Relaxed),
             bytes_read: self.bytes_read.load(Ordering::Relaxed),
@@ -49,6 +50,25 @@ impl<D: BlockDevice> CountingDevice<D> {
             bytes_written: self.bytes_written.load(Ordering::Relaxed),
             syncs: self.syncs.load(Ordering::Relaxed),
         }
+    }
+}
+
+/// Counts every call that reaches `inner`.
+#[derive(Debug, Default)]
+pub struct CountingDevice<D> {
+    inner: D,
+    counters: Counters,
+}
+
+impl<D: BlockDevice> CountingDevice<D> {
+    /// Wraps `inner` with all counts at zero.
+    pub fn new(inner: D) -> CountingDevice<D> {
+        CountingDevice { inner, counters: Counters::default() }
+    }
+
+    /// The counts so far.
+    pub fn counts(&self) -> DeviceCounts {
+        self.counters.get()
     }
 
     /// The wrapped device.
@@ -59,17 +79,15 @@ impl<D: BlockDevice> CountingDevice<D> {
 
 impl<D: BlockDevice> BlockDevice for CountingDevice<D> {
     fn read_at(&self, offset: u64, buf: &mut [u8]) -> io::Result<()> {
-        self.reads.fetch_add(1, Ordering::Relaxed);
-        self.bytes_read.fetch_add(buf.len() as u64, Ordering::Relaxed);
+        self.counters.read(buf.len());
         self.inner.read_at(offset, buf)
     }
     fn write_at(&self, offset: u64, data: &[u8]) -> io::Result<()> {
-        self.writes.fetch_add(1, Ordering::Relaxed);
-        self.bytes_written.fetch_add(data.len() as u64, Ordering::Relaxed);
+        self.counters.write(data.len());
         self.inner.write_at(offset, data)
     }
     fn sync(&self) -> io::Result<()> {
-        self.syncs.fetch_add(1, Ordering::Relaxed);
+        self.counters.sync();
         self.inner.sync()
     }
     fn len(&self) -> io::Result<u64> {

@@ -12,6 +12,8 @@ mod mem;
 
 use std::io;
 
+#[cfg(feature = "redb")]
+pub(crate) use counting::Counters;
 pub use counting::{CountingDevice, DeviceCounts};
 #[cfg(any(test, feature = "internals"))]
 pub use crash::{CrashDevice, CrashImage};

@@ -11,6 +11,8 @@ pub mod meta;
 pub mod node;
 pub mod quant;
 pub mod run;
+#[cfg(feature = "redb")]
+pub mod table;
 #[cfg(test)]
 mod spec_tests;
 

@@ -137,6 +137,28 @@ fn spec_tables_match_the_records() {
     macro_rules! obj { ($($f:ident),*) => { $( field!(geometry, Some("## Object record"), 0, ObjectHeader, $f); )* } }
     obj!(object_id, vertex_count, triangle_count, anchor);
 
+    #[cfg(feature = "redb")]
+    {
+        use super::table::StateRecord;
+        let redb = include_str!("../../../format-spec/redb.md");
+        let state = Some("## The state record");
+        macro_rules! state { ($($f:ident),*) => { $( field!(redb, state, 0, StateRecord, $f); )* } }
+        state!(
+            magic,
+            format_version,
+            block_size,
+            lod_levels,
+            reserved0,
+            meta_block,
+            txn,
+            meta_checksum,
+            block_count,
+            free_blocks,
+            range_count,
+            reserved1
+        );
+    }
+
     let freelist = include_str!("../../../format-spec/freelist.md");
     macro_rules! fl { ($($f:ident),*) => { $( field!(freelist, None, FRAME_LEN, FreeListHeader, $f); )* } }
     fl!(next_block, next_checksum, range_count);
