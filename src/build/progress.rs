@@ -137,10 +137,9 @@ pub enum Stage {
     Tree,
     /// Placing records in geometry and node blocks (one unit).
     Layout,
-    /// Voxelizing every leaf entry's candidate bounds (units: leaves).
+    /// Voxelizing leaf entries' candidate bounds and judging which pay,
+    /// block by block (units: geometry blocks).
     Levels,
-    /// Judging which bounds pay, block by block (units: geometry blocks).
-    Judge,
     /// Keeping the bounds that pay as a whole, and measuring their error (units: steps).
     Choose,
     /// Writing geometry blocks (units: blocks).
@@ -155,7 +154,6 @@ impl Stage {
             Stage::Tree => "tree",
             Stage::Layout => "layout",
             Stage::Levels => "levels",
-            Stage::Judge => "judge",
             Stage::Choose => "choose",
             Stage::Geometry => "geometry",
             Stage::Nodes => "nodes",

@@ -223,23 +223,7 @@ pub fn plan_bounds(
     let plan = LodPlan::new(scene, m, params)?;
     out.grid_level = plan.grid_level.clone();
     out.lattice = Some(plan.lattice);
-    // Every entry's candidate bounds, level by level.
     let ctx = Ctx { plan: &plan, params, layout };
-    let candidates: Vec<Vec<Vec<Candidate>>> = {
-        let meter = StageMeter::new(progress, Stage::Levels, layout.entries.len() as u64);
-        layout
-            .entries
-            .par_iter()
-            .enumerate()
-            .map(|(i, entries)| {
-                meter.add(1);
-                entries
-                    .iter()
-                    .map(|e| ctx.candidates(m, i, e))
-                    .collect::<Result<Vec<Vec<Candidate>>, LodError>>()
-            })
-            .collect::<Result<_, LodError>>()?
-    };
     // Entries by geometry block: each lies in one (a part never straddles two).
     let mut blocks: HashMap<u64, Vec<(usize, usize)>> = HashMap::new();
     for (i, entries) in layout.entries.iter().enumerate() {
@@ -249,28 +233,37 @@ pub fn plan_bounds(
     }
     let groups: Vec<Vec<(usize, usize)>> = blocks.into_values().collect();
     let node_capacity = capacity(layout.block_size) as f64;
-    let judged: Vec<Vec<Judged>> = {
-        let meter = StageMeter::new(progress, Stage::Judge, groups.len() as u64);
+    // Block by block: its entries' candidates, level by level, judged
+    // together; only the chosen ones outlive their block.
+    let picked: Vec<Vec<(usize, u16, Candidate)>> = {
+        let meter = StageMeter::new(progress, Stage::Levels, groups.len() as u64);
         groups
             .par_iter()
             .map(|group| {
                 meter.add(1);
-                judge(group, &candidates, layout, mix, params, m, node_capacity)
+                let mut cands: Vec<Vec<Candidate>> = group
+                    .iter()
+                    .map(|&(i, j)| ctx.candidates(m, i, &layout.entries[i][j]))
+                    .collect::<Result<_, LodError>>()?;
+                let judged = judge(group, &cands, layout, mix, params, m, node_capacity);
+                Ok(judged
+                    .into_iter()
+                    .filter_map(|(x, k, saving, cost, value)| {
+                        let list = &mut cands[x];
+                        let mut c = list.swap_remove(list.iter().position(|c| c.covers(k))?);
+                        (c.level, c.saving, c.cost, c.value) = (k, saving, cost, value);
+                        Some((group[x].0, group[x].1 as u16, c))
+                    })
+                    .collect())
             })
-            .collect()
+            .collect::<Result<_, LodError>>()?
     };
     let mut chosen: Vec<(usize, Vec<(u16, Candidate)>)> = Vec::new();
-    let mut picked: HashMap<usize, Vec<(u16, Candidate)>> = HashMap::new();
-    let mut candidates = candidates;
-    for (i, j, k, saving, cost, value) in judged.into_iter().flatten() {
-        let list = &mut candidates[i][j];
-        if let Some(at) = list.iter().position(|c| c.covers(k)) {
-            let mut c = list.swap_remove(at);
-            (c.level, c.saving, c.cost, c.value) = (k, saving, cost, value);
-            picked.entry(i).or_default().push((j as u16, c));
-        }
+    let mut by_leaf: HashMap<usize, Vec<(u16, Candidate)>> = HashMap::new();
+    for (i, j, c) in picked.into_iter().flatten() {
+        by_leaf.entry(i).or_default().push((j, c));
     }
-    for (i, mut list) in picked {
+    for (i, mut list) in by_leaf {
         list.sort_by_key(|(j, c)| (*j, c.level));
         chosen.push((i, list));
     }
@@ -337,26 +330,26 @@ impl Ctx<'_> {
     }
 }
 
-/// A bound judged worth storing: (leaf, entry, level, saving, cost, the
-/// group's saving - cost).
-type Judged = (usize, usize, u8, f64, f64, f64);
+/// A bound judged worth storing: (its entry's place in the group, level,
+/// saving, cost, the group's saving - cost).
+type Judged = (usize, u8, f64, f64, f64);
 
 /// The bounds worth storing for the entries `group` of one geometry block,
 /// all at the level that pays best, or every candidate with `store_all`.
 fn judge(
     group: &[(usize, usize)],
-    candidates: &[Vec<Vec<Candidate>>],
+    cands: &[Vec<Candidate>],
     layout: &Layout,
     mix: &QueryMix,
     params: &LodParams,
     m: u8,
     node_capacity: f64,
 ) -> Vec<Judged> {
-    let cands = |&(i, j): &(usize, usize)| candidates.get(i).and_then(|c| c.get(j));
     if params.store_all {
-        return group
+        return cands
             .iter()
-            .flat_map(|e| cands(e).into_iter().flatten().map(move |c| (e.0, e.1, c.level, 0.0, 0.0, 0.0)))
+            .enumerate()
+            .flat_map(|(x, list)| list.iter().map(move |c| (x, c.level, 0.0, 0.0, 0.0)))
             .collect();
     }
     let boxes: Vec<Option<QuantBox>> = group
@@ -380,7 +373,7 @@ fn judge(
     let mut previous: Vec<Option<&Candidate>> = Vec::new();
     for k in 2..m {
         let at_k: Vec<Option<&Candidate>> =
-            group.iter().map(|e| cands(e).and_then(|c| c.iter().find(|c| c.covers(k)))).collect();
+            cands.iter().map(|list| list.iter().find(|c| c.covers(k))).collect();
         // The same bounds as the level before judge the same, and a tie never wins.
         let same = |a: &Option<&Candidate>, b: &Option<&Candidate>| match (a, b) {
             (Some(a), Some(b)) => std::ptr::eq(*a, *b),
@@ -414,23 +407,24 @@ fn judge(
             saving += mix.scale_probability(s, &zone) * f64::from(without - with) / per_scale as f64;
         }
         saving /= scales as f64;
-        let stored: Vec<(usize, usize, f64)> = group
+        let stored: Vec<(usize, f64)> = group
             .iter()
             .zip(&at_k)
             .zip(&deciding)
-            .filter_map(|((&(i, j), c), &d)| {
+            .enumerate()
+            .filter_map(|(x, ((&(i, _), c), &d))| {
                 let c = c.filter(|_| d)?;
                 let cost = layout.read_share[i] * (BOUND_HEAD_LEN + c.blob.len()) as f64 / node_capacity;
-                Some((i, j, cost))
+                Some((x, cost))
             })
             .collect();
-        let cost: f64 = stored.iter().map(|x| x.2).sum();
+        let cost: f64 = stored.iter().map(|x| x.1).sum();
         if stored.is_empty() || saving <= cost || best.as_ref().is_some_and(|b| b.0 >= saving - cost) {
             continue;
         }
         let share = saving / stored.len() as f64;
         let value = saving - cost;
-        best = Some((value, stored.into_iter().map(|(i, j, c)| (i, j, k, share, c, value)).collect()));
+        best = Some((value, stored.into_iter().map(|(x, c)| (x, k, share, c, value)).collect()));
     }
     best.map_or_else(Vec::new, |b| b.1)
 }
