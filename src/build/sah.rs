@@ -113,11 +113,13 @@ struct Plane {
     plane: usize,
     /// The boxes of the left and right sides.
     boxes: [Aabb; 2],
+    /// Objects on the left.
+    left: usize,
 }
 
 /// The least cost of a plane of `bins` (planes with an empty side
 /// skipped), with the plane and its sides' boxes.
-fn best_plane(bins: &Bins, parent: f64, measure: Measure) -> Option<(f64, usize, [Aabb; 2])> {
+fn best_plane(bins: &Bins, parent: f64, measure: Measure) -> Option<(f64, usize, [Aabb; 2], usize)> {
     // n A of the right side of each plane, swept from the right.
     let mut right = [(None, Aabb::EMPTY); BINS - 1];
     let mut acc = (0usize, Aabb::EMPTY);
@@ -126,13 +128,13 @@ fn best_plane(bins: &Bins, parent: f64, measure: Measure) -> Option<(f64, usize,
         right[plane] = ((acc.0 > 0).then(|| acc.0 as f64 * measure.of(&acc.1)), acc.1);
     }
     let mut acc = (0usize, Aabb::EMPTY);
-    let mut best: Option<(f64, usize, [Aabb; 2])> = None;
+    let mut best: Option<(f64, usize, [Aabb; 2], usize)> = None;
     for (plane, (right, right_box)) in right.iter().enumerate() {
         acc = (acc.0 + bins[plane].0, acc.1.union(&bins[plane].1));
         let Some(right) = right.filter(|_| acc.0 > 0) else { continue };
         let cost = TRAVERSAL_COST + (acc.0 as f64 * measure.of(&acc.1) + right) / parent;
         if best.is_none_or(|b| cost < b.0) {
-            best = Some((cost, plane, [acc.1, *right_box]));
+            best = Some((cost, plane, [acc.1, *right_box], acc.0));
         }
     }
     best
@@ -169,10 +171,10 @@ impl Sah<'_> {
         let mut best: Option<(f64, Plane)> = None;
         for (binning, bins) in binnings.into_iter().zip(&bins) {
             let Some(binning) = binning else { continue };
-            if let Some((cost, plane, sides)) = best_plane(bins, parent, measure)
+            if let Some((cost, plane, sides, left)) = best_plane(bins, parent, measure)
                 && best.as_ref().is_none_or(|b| cost < b.0)
             {
-                best = Some((cost, Plane { binning, plane, boxes: sides }));
+                best = Some((cost, Plane { binning, plane, boxes: sides, left }));
             }
         }
         best.map(|b| b.1)
@@ -187,8 +189,10 @@ impl Sah<'_> {
             return Halves { left, right, boxes, plane: None, median: Some(split) };
         };
         let boxes = self.ctx.boxes;
-        let (left, right): (Vec<u32>, Vec<u32>) =
-            set.iter().partition(|&&j| p.binning.bin(&boxes[j as usize]) <= p.plane);
+        let (mut left, mut right) = (Vec::with_capacity(p.left), Vec::with_capacity(set.len() - p.left));
+        for j in set {
+            if p.binning.bin(&boxes[j as usize]) <= p.plane { left.push(j) } else { right.push(j) }
+        }
         Halves { left, right, boxes: p.boxes, plane: Axis::from_index(p.binning.axis), median: None }
     }
 }
