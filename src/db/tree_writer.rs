@@ -5,6 +5,8 @@
 //! among a few piece sizes by the node reads it gives the read model's
 //! sample queries ([`QueryMix`]).
 
+use rayon::prelude::*;
+
 use crate::build::{Hierarchy, LoadProgress, Order, QueryMix, Stage, StageMeter};
 use crate::geom::Aabb;
 use crate::lod::LeafEntry;
@@ -215,7 +217,7 @@ impl Plan {
         let children = |i: usize| tree.nodes[i].children().map(|c| c.map(|x| x.index()));
         let total: usize = sizes.iter().sum();
         let tried: Vec<(Packing, Vec<u32>)> = PIECE_SHARES
-            .iter()
+            .par_iter()
             .map(|share| {
                 let p = layout::pack(sizes, children, capacity, (capacity as f64 * share) as usize);
                 let reads = block_reads(tree, &p, &self.samples);
@@ -267,58 +269,66 @@ impl Plan {
                     .collect()
             })
             .collect();
+        // Per sample: its node block reads plus its distinct geometry blocks
+        // (integer sums, so the same on any number of threads).
+        let per_sample: Vec<usize> = self
+            .samples
+            .par_iter()
+            .map(|q| {
+                let mut blocks = Vec::new();
+                let mut stack = Vec::new();
+                if self.frames[0].intersects(q) && !q.contains(&self.frames[0]) {
+                    stack.push(0usize);
+                }
+                while let Some(i) = stack.pop() {
+                    for c in tree.nodes[i].children().into_iter().flatten() {
+                        let f = &self.frames[c.index()];
+                        // A child the query holds is answered without geometry.
+                        if f.intersects(q) && !q.contains(f) {
+                            stack.push(c.index());
+                        }
+                    }
+                    // An object's entries are consecutive: one confirmed part
+                    // answers it, else every part not ruled out is read.
+                    let mut j = 0;
+                    while j < boxes[i].len() {
+                        let id = self.entries[i][j].id;
+                        let end = j + self.entries[i][j..].iter().take_while(|e| e.id == id).count();
+                        let mut pending = Vec::new();
+                        let mut confirmed = false;
+                        for (e, b) in boxes[i].iter().enumerate().take(end).skip(j) {
+                            let Some(b) = b else { continue };
+                            if !b.outer.intersects(q) {
+                                continue;
+                            }
+                            let bound =
+                                stored.finest[i].iter().find(|(t, _)| usize::from(*t) == e).map(|x| &x.1);
+                            if b.face_slabs().iter().any(|f| q.contains(f))
+                                || bound.is_some_and(|v| v.holds_a_cell_in(q))
+                            {
+                                confirmed = true;
+                                break;
+                            }
+                            if bound.is_none_or(|v| v.may_meet(q)) {
+                                pending.push(e);
+                            }
+                        }
+                        if !confirmed {
+                            for e in pending {
+                                blocks.extend(self.entry_blocks(i, e));
+                            }
+                        }
+                        j = end;
+                    }
+                }
+                blocks.sort_unstable();
+                blocks.dedup();
+                query_node_reads(tree, &packing, q) + blocks.len()
+            })
+            .collect();
         let mut reads = vec![0usize; scales];
-        let mut blocks = std::collections::HashSet::new();
-        let mut stack = Vec::new();
-        for (qi, q) in self.samples.iter().enumerate() {
-            let scale = &mut reads[qi / SAMPLES_PER_SCALE];
-            *scale += query_node_reads(tree, &packing, q);
-            blocks.clear();
-            stack.clear();
-            if self.frames[0].intersects(q) && !q.contains(&self.frames[0]) {
-                stack.push(0usize);
-            }
-            while let Some(i) = stack.pop() {
-                for c in tree.nodes[i].children().into_iter().flatten() {
-                    let f = &self.frames[c.index()];
-                    // A child the query holds is answered without geometry.
-                    if f.intersects(q) && !q.contains(f) {
-                        stack.push(c.index());
-                    }
-                }
-                // An object's entries are consecutive: one confirmed part
-                // answers it, else every part not ruled out is read.
-                let mut j = 0;
-                while j < boxes[i].len() {
-                    let id = self.entries[i][j].id;
-                    let end = j + self.entries[i][j..].iter().take_while(|e| e.id == id).count();
-                    let mut pending = Vec::new();
-                    let mut confirmed = false;
-                    for (e, b) in boxes[i].iter().enumerate().take(end).skip(j) {
-                        let Some(b) = b else { continue };
-                        if !b.outer.intersects(q) {
-                            continue;
-                        }
-                        let bound = stored.finest[i].iter().find(|(t, _)| usize::from(*t) == e).map(|x| &x.1);
-                        if b.face_slabs().iter().any(|f| q.contains(f))
-                            || bound.is_some_and(|v| v.holds_a_cell_in(q))
-                        {
-                            confirmed = true;
-                            break;
-                        }
-                        if bound.is_none_or(|v| v.may_meet(q)) {
-                            pending.push(e);
-                        }
-                    }
-                    if !confirmed {
-                        for e in pending {
-                            blocks.extend(self.entry_blocks(i, e));
-                        }
-                    }
-                    j = end;
-                }
-            }
-            *scale += blocks.len();
+        for (qi, r) in per_sample.into_iter().enumerate() {
+            reads[qi / SAMPLES_PER_SCALE] += r;
         }
         reads.iter().map(|&r| r as f64 / SAMPLES_PER_SCALE as f64).collect()
     }
