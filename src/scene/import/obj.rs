@@ -45,6 +45,7 @@
 //! them into one object.
 
 use std::io::Read;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
@@ -134,41 +135,90 @@ fn parse<R: Read + Send>(
         }
         built.error.map_or(Ok(()), Err)
     };
+    // Three blocks at once: one is read, the one before is cut into pieces
+    // that are parsed, and the one before that is stitched and built.
     let mut block = Vec::new();
     let mut input = read_block(&mut reader, &mut block, chunking.block);
+    let mut parsed: Option<Parsed> = None;
     let mut spare = Vec::new();
     loop {
         let complete = block.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
-        match input {
+        let end = match input {
             Input::More if complete == 0 => {
                 // A line longer than the block: read on into the same block.
                 input = read_block(&mut reader, &mut block, chunking.block);
                 continue;
             }
-            Input::More => {}
-            Input::Ended => {
-                emit(stitcher.block(&block, chunking.piece))?;
-                emit(stitcher.finish())?;
-                return Ok(degenerate_triangles);
-            }
-            Input::Failed(e) => {
-                // The lines before the failure count first, as they would
-                // for a reader that reads line by line.
-                emit(stitcher.block(&block[..complete], chunking.piece))?;
-                return Err(ImportError::Io { file: source.into(), source: e });
-            }
+            // After a failed read, the lines before it count first, as
+            // they would for a reader that reads line by line.
+            Input::More | Input::Failed(_) => complete,
+            Input::Ended => block.len(),
+        };
+        let more = matches!(input, Input::More);
+        if more {
+            // The next block starts with this one's unfinished line.
+            spare.clear();
+            spare.extend_from_slice(&block[complete..]);
         }
-        // The next block starts with this one's unfinished line and is read
-        // while this one is parsed.
-        spare.clear();
-        spare.extend_from_slice(&block[complete..]);
-        let (built, next) = rayon::join(
-            || stitcher.block(&block[..complete], chunking.piece),
-            || read_block(&mut reader, &mut spare, chunking.block),
+        let text = &block[..end];
+        let (built, (pieces, next)) = rayon::join(
+            || parsed.as_mut().map(|parsed| stitcher.block(parsed)),
+            || {
+                rayon::join(
+                    || Parsed::new(text, chunking.piece),
+                    || more.then(|| read_block(&mut reader, &mut spare, chunking.block)),
+                )
+            },
         );
-        emit(built)?;
-        std::mem::swap(&mut block, &mut spare);
+        if let Some(built) = built {
+            emit(built)?;
+        }
+        let (ranges, pieces) = pieces;
+        let text = std::mem::replace(&mut block, std::mem::take(&mut spare));
+        if let Some(stitched) = parsed.replace(Parsed { text, ranges, pieces }) {
+            spare = stitched.text;
+        }
+        let Some(next) = next else { break };
         input = next;
+    }
+    if let Some(mut last) = parsed {
+        emit(stitcher.block(&mut last))?;
+    }
+    match input {
+        Input::Failed(e) => Err(ImportError::Io { file: source.into(), source: e }),
+        _ => {
+            emit(stitcher.finish())?;
+            Ok(degenerate_triangles)
+        }
+    }
+}
+
+/// A block's text and its pieces, parsed on their own, waiting to be
+/// stitched.
+struct Parsed {
+    text: Vec<u8>,
+    /// Where each piece lies in `text`.
+    ranges: Vec<Range<usize>>,
+    pieces: Vec<Piece>,
+}
+
+impl Parsed {
+    /// Cuts `text` after newlines into pieces of about `size` bytes and
+    /// parses them at once.
+    fn new(text: &[u8], size: usize) -> (Vec<Range<usize>>, Vec<Piece>) {
+        let size = size.max(1);
+        let mut ranges = Vec::with_capacity(text.len() / size + 1);
+        let mut start = 0;
+        while start < text.len() {
+            let end = match text.get(start + size - 1..).and_then(find_newline) {
+                Some(newline) => start + size + newline,
+                None => text.len(),
+            };
+            ranges.push(start..end);
+            start = end;
+        }
+        let pieces = ranges.par_iter().map(|range| Piece::parse(&text[range.clone()], None)).collect();
+        (ranges, pieces)
     }
 }
 
@@ -192,22 +242,6 @@ fn read_block<R: Read>(reader: &mut R, buffer: &mut Vec<u8>, want: usize) -> Inp
         Ok(_) => Input::More,
         Err(e) => Input::Failed(e),
     }
-}
-
-/// Cuts `text` after newlines into pieces of about `size` bytes.
-fn pieces(text: &[u8], size: usize) -> Vec<&[u8]> {
-    let mut pieces = Vec::with_capacity(text.len() / size.max(1) + 1);
-    let mut rest = text;
-    while !rest.is_empty() {
-        let end = match rest.get(size.max(1) - 1..).and_then(find_newline) {
-            Some(newline) => size.max(1) + newline,
-            None => rest.len(),
-        };
-        let (piece, after) = rest.split_at(end);
-        pieces.push(piece);
-        rest = after;
-    }
-    pieces
 }
 
 /// A line's error, before it is placed in the file.
@@ -588,24 +622,25 @@ impl Stitcher {
         }
     }
 
-    /// Parses a block of whole lines and builds the objects it completes.
-    fn block(&mut self, text: &[u8], piece_size: usize) -> Built {
-        let texts = pieces(text, piece_size);
-        let mut parsed: Vec<Piece> = texts.par_iter().map(|text| Piece::parse(text, None)).collect();
+    /// Stitches a parsed block and builds the objects it completes; its
+    /// pieces are freed here, off the reading loop.
+    fn block(&mut self, parsed: &mut Parsed) -> Built {
+        let pieces = &mut parsed.pieces;
         let mut error = None;
-        for (index, text) in texts.iter().enumerate() {
-            if let Err(e) = self.add(index, text, &mut parsed[index]) {
+        for (index, range) in parsed.ranges.iter().enumerate() {
+            if let Err(e) = self.add(index, &parsed.text[range.clone()], &mut pieces[index]) {
                 error = Some(e);
                 break;
             }
         }
-        let mut built = self.build(&parsed);
+        let mut built = self.build(pieces);
         // Objects completed before the line at fault were built first.
         built.error = built.error.or(error);
-        self.current.settle(&parsed);
+        self.current.settle(pieces);
         for group in &mut self.groups {
-            group.settle(&parsed);
+            group.settle(pieces);
         }
+        pieces.clear();
         built
     }
 
