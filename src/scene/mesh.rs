@@ -50,9 +50,13 @@ impl Mesh {
         if triangles.is_empty() {
             return Err(MeshError::NoTriangles);
         }
-        for (triangle, t) in triangles.iter().enumerate() {
-            if let Some(&index) = t.iter().find(|&&i| i as usize >= vertices.len()) {
-                return Err(MeshError::IndexOutOfRange { triangle, index, vertices: vertices.len() });
+        // The highest index first, in one pass the compiler vectorises; the
+        // triangle at fault only when there is one.
+        if triangles.as_flattened().iter().max().is_some_and(|&i| i as usize >= vertices.len()) {
+            for (triangle, t) in triangles.iter().enumerate() {
+                if let Some(&index) = t.iter().find(|&&i| i as usize >= vertices.len()) {
+                    return Err(MeshError::IndexOutOfRange { triangle, index, vertices: vertices.len() });
+                }
             }
         }
         let anchor = Aabb::from_points(vertices).min;
@@ -100,13 +104,27 @@ impl Mesh {
     /// A mesh from its stored form, already validated by the caller (the
     /// file decoder checks indices and finiteness before calling this).
     pub(crate) fn from_parts(anchor: Point, offsets: Vec<[f32; 3]>, triangles: Vec<[u32; 3]>) -> Mesh {
-        let mut mesh = Mesh { anchor, offsets, triangles, aabb: Aabb::EMPTY };
         // The box of the surface: each face touches a triangle, so the box can
-        // witness contact (an unused vertex would break that).
-        mesh.aabb = mesh.triangles.iter().flatten().fold(Aabb::EMPTY, |b, &i| {
-            mesh.offsets.get(i as usize).map_or(b, |_| b.including(&mesh.vertex(i as usize)))
-        });
-        mesh
+        // witness contact (an unused vertex would break that). It is found
+        // among the f32 offsets, then moved by the anchor: rounding
+        // `anchor + offset` is monotone in the offset, so this is the box of
+        // the world vertices exactly, without converting every corner.
+        let (mut low, mut high) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for o in triangles.as_flattened().iter().filter_map(|&i| offsets.get(i as usize)) {
+            // Comparisons rather than `f32::min`, which pays for NaN
+            // (offsets are finite) on every corner.
+            for k in 0..3 {
+                low[k] = if o[k] < low[k] { o[k] } else { low[k] };
+                high[k] = if o[k] > high[k] { o[k] } else { high[k] };
+            }
+        }
+        let aabb = if low[0] <= high[0] {
+            let world = |o: [f32; 3]| anchor + Vector::new(o[0].into(), o[1].into(), o[2].into());
+            Aabb::new(world(low), world(high))
+        } else {
+            Aabb::EMPTY
+        };
+        Mesh { anchor, offsets, triangles, aabb }
     }
 
     /// The f64 point that the f32 offsets are relative to.
