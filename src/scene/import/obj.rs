@@ -129,7 +129,8 @@ fn parse<R: Read + Send>(
     let mut stitcher = Stitcher::new(source, grouping);
     let mut degenerate_triangles = 0;
     let mut emit = |built: Built| -> Result<(), ImportError> {
-        for (object, degenerate) in built.objects {
+        for result in built.objects {
+            let (object, degenerate) = result?;
             degenerate_triangles += degenerate;
             on_object(object);
         }
@@ -461,6 +462,10 @@ impl Piece {
     }
 
     fn triangle(&mut self, corners: [Corner; 3]) {
+        if let [Corner::File(a), Corner::File(b), Corner::File(c)] = corners {
+            self.triangles.push([a, b, c]);
+            return;
+        }
         let at = 3 * self.triangles.len();
         self.triangles.push(corners.map(|c| match c {
             Corner::File(index) => index,
@@ -582,8 +587,9 @@ impl Pending {
 /// The objects a block completed, built, and the error that ended the
 /// file there, if any.
 struct Built {
-    /// Each with its count of zero-area triangles.
-    objects: Vec<(Object, usize)>,
+    /// In file order, each with its count of zero-area triangles; the first
+    /// failure ends the file (they are handed on as they are, not copied).
+    objects: Vec<Result<(Object, usize), ImportError>>,
     error: Option<ImportError>,
 }
 
@@ -725,57 +731,57 @@ impl Stitcher {
         self.build(&[])
     }
 
-    /// Builds the complete objects in parallel; the first failure in file
-    /// order ends the list.
+    /// Builds the complete objects in parallel.
     fn build(&mut self, pieces: &[Piece]) -> Built {
         let (file, vertices) = (&self.file, &self.vertices);
-        let results: Vec<Result<(Object, usize), ImportError>> = std::mem::take(&mut self.complete)
+        let objects = std::mem::take(&mut self.complete)
             .into_par_iter()
-            .map_init(Vec::new, |local_index, pending| build(file, vertices, pieces, pending, local_index))
+            .map_init(Scratch::default, |scratch, pending| build(file, vertices, pieces, pending, scratch))
             .collect();
-        let mut built = Built { objects: Vec::with_capacity(results.len()), error: None };
-        for result in results {
-            match result {
-                Ok(object) => built.objects.push(object),
-                Err(e) => {
-                    built.error = Some(e);
-                    break;
-                }
-            }
-        }
-        built
+        Built { objects, error: None }
     }
 }
 
+/// Buffers that building objects reuses, one set per thread.
+#[derive(Default)]
+struct Scratch {
+    /// An object's own number for each file vertex in its span.
+    local_index: Vec<u32>,
+    /// The object's vertices.
+    points: Vec<Point>,
+}
+
 /// Turns a complete object into a mesh over the vertices it uses, with its
-/// count of zero-area triangles; `local_index` is scratch.
+/// count of zero-area triangles.
 fn build(
     file: &Path,
     vertices: &Vertices,
     pieces: &[Piece],
     pending: Pending,
-    local_index: &mut Vec<u32>,
+    scratch: &mut Scratch,
 ) -> Result<(Object, usize), ImportError> {
-    let (points, triangles) = renumber(vertices, pending.parts(pieces), local_index);
-    let object = super::load::object(file, pending.name, pending.line, &points, triangles)?;
+    let triangles = renumber(vertices, pending.parts(pieces), scratch);
+    let object = super::load::object(file, pending.name, pending.line, &scratch.points, triangles)?;
     let degenerate = object.mesh.degenerate_triangles();
     Ok((object, degenerate))
 }
 
-/// An object's vertices and its triangles over them, from its `parts`
-/// over the file's `vertices`: the vertices it uses, in ascending file
-/// order.
+/// An object's triangles over its own vertices, from its `parts` over the
+/// file's `vertices`; its vertices, those it uses in ascending file order,
+/// go to `scratch.points`.
 fn renumber<'a>(
     vertices: &Vertices,
     parts: impl Iterator<Item = &'a [[u32; 3]]> + Clone,
-    local_index: &mut Vec<u32>,
-) -> (Vec<Point>, Vec<[u32; 3]>) {
+    scratch: &mut Scratch,
+) -> Vec<[u32; 3]> {
     let count = parts.clone().map(<[_]>::len).sum();
     let corners = || parts.clone().flat_map(<[_]>::as_flattened).copied();
-    let lowest = corners().min().unwrap_or(0);
-    let highest = corners().max().unwrap_or(0);
+    let (lowest, highest) = corners().fold((u32::MAX, 0), |(lo, hi), c| (lo.min(c), hi.max(c)));
+    let lowest = lowest.min(highest);
     let span = (highest - lowest) as usize + 1;
     let mut triangles = Vec::with_capacity(count);
+    let Scratch { local_index, points } = scratch;
+    points.clear();
     // An object's vertices usually sit together in the file (always, in
     // our own form): a table over their span renumbers in linear time.
     // Objects that pick vertices from all over a shared list sort instead.
@@ -786,7 +792,6 @@ fn renumber<'a>(
         for c in corners() {
             local_index[(c - lowest) as usize] = 0;
         }
-        let mut points = Vec::new();
         let mut slots = local_index.iter_mut();
         for run in vertices.from(lowest) {
             if slots.len() == 0 {
@@ -802,7 +807,6 @@ fn renumber<'a>(
         for part in parts {
             triangles.extend(part.iter().map(|t| t.map(|c| local_index[(c - lowest) as usize])));
         }
-        (points, triangles)
     } else {
         let mut used: Vec<u32> = corners().collect();
         used.sort_unstable();
@@ -812,9 +816,9 @@ fn renumber<'a>(
         for part in parts {
             triangles.extend(part.iter().map(|t| t.map(local)));
         }
-        let points = used.iter().map(|&i| vertices.get(i)).collect();
-        (points, triangles)
+        points.extend(used.iter().map(|&i| vertices.get(i)));
     }
+    triangles
 }
 
 /// The file's vertices, kept in the vectors its pieces parsed them into:
