@@ -223,6 +223,24 @@ mod tests {
             let again = Mesh::from_world(&m.vertices().collect::<Vec<_>>(), vec![[0, 1, 2]]).unwrap();
             prop_assert_eq!(&m, &again);
         }
+
+        /// The box found among the offsets is, bit for bit, the box of the
+        /// world points the triangles use; unused vertices stay out.
+        #[test]
+        fn the_box_is_that_of_the_used_world_points(
+            base in prop::array::uniform3(prop_oneof![-1.0e6f64..1.0e6, Just(0.0), Just(-0.0)]),
+            pts in prop::collection::vec(prop::array::uniform3(prop_oneof![
+                -1.0e4f64..1.0e4, -1.0e-6f64..1.0e-6, Just(0.0), Just(-0.0)]), 4..12),
+            triangles in prop::collection::vec(prop::array::uniform3(0u32..3), 1..6),
+        ) {
+            let world: Vec<Point> = pts.iter()
+                .map(|d| Point::new(base[0] + d[0], base[1] + d[1], base[2] + d[2])).collect();
+            let m = Mesh::from_world(&world, triangles).unwrap();
+            let used = m.triangles().iter().flatten().map(|&i| m.vertex(i as usize));
+            let expected = used.fold(Aabb::EMPTY, |b, p| b.including(&p));
+            let bits = |b: Aabb| [b.min, b.max].map(|p| p.coords.map(f64::to_bits));
+            prop_assert_eq!(bits(m.aabb()), bits(expected));
+        }
     }
 
     fn tri(points: &[[f64; 3]], t: Vec<[u32; 3]>) -> Result<Mesh, MeshError> {
