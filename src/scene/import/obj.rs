@@ -7,7 +7,7 @@
 //! by its own o/g rule, and builds whole models in memory per material. This
 //! parser reads lines where they lie in its block, parses numbers without
 //! allocating (eight digits at a time, rounded exactly; std's parser for
-//! exponents and the like), and hands each object on as soon as it is built.
+//! exponents and the like), and builds objects on every core.
 //!
 //! Rules:
 //! - each `o` line starts an object named by the rest of the line (trimmed);
@@ -27,22 +27,22 @@
 //!   dropped. So `read_obj(write_obj(scene)) == scene` for every scene whose
 //!   meshes use each of their vertices.
 //!
-//! How: the input is read in blocks ([`Chunking`]); the next block is read
-//! while this one is parsed. A block is cut after newlines into pieces that
-//! rayon parses at once, each without knowing how many vertices come before
-//! it ([`Piece`]). The pieces are then stitched in file order ([`Stitcher`]):
-//! vertex numbers and lines are offset by what came before, objects are
-//! continued across pieces, and a piece whose indices cannot be checked
-//! without that offset is parsed again knowing it. The objects the block
-//! completed are built in parallel and handed on in file order. One piece
-//! gives the same objects, errors and lines as any cut: the tests cut
-//! inputs every few bytes.
+//! How: the input is read in blocks ([`Chunking`]), three at a time in a
+//! pipeline: while one block is read, the one before is cut after newlines
+//! into pieces that rayon parses at once, each without knowing how many
+//! vertices come before it ([`Piece`]), and the one before that is stitched
+//! in file order ([`Stitcher`]): vertex numbers and lines are offset by what
+//! came before, objects are continued across pieces, and a piece whose
+//! indices cannot be checked without that offset is parsed again knowing
+//! it. The objects a block completes are built in parallel and handed on in
+//! file order. Any cut gives the objects, errors and lines of the old
+//! sequential parser (`obj_oracle.rs`): the tests cut inputs every few bytes.
 //!
-//! Memory: two blocks, the objects a block completes, and all vertices of
-//! the file (24 bytes each, left in the pieces' vectors), as any later face
-//! may use any earlier vertex. In a file
-//! without `o`, the `g` groups are held to the end: an `o` line would merge
-//! them into one object.
+//! Memory: three blocks, a block's parsed pieces, the objects a block
+//! completes, and all vertices of the file (24 bytes each, left in the
+//! pieces' vectors), as any later face may use any earlier vertex. In a
+//! file without `o`, the `g` groups are held to the end: an `o` line would
+//! merge them into one object.
 
 use std::io::Read;
 use std::ops::Range;
