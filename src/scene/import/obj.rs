@@ -1262,6 +1262,54 @@ mod tests {
         }
     }
 
+    /// A reader that fails after `good` bytes, some reads interrupted.
+    struct Failing<'a> {
+        text: &'a [u8],
+        good: usize,
+        reads: usize,
+    }
+
+    impl std::io::Read for Failing<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            self.reads += 1;
+            if self.reads % 3 == 0 {
+                return Err(std::io::ErrorKind::Interrupted.into());
+            }
+            if self.good == 0 {
+                return Err(std::io::Error::other("disk on fire"));
+            }
+            let n = buf.len().min(self.good).min(self.text.len()).min(5);
+            buf[..n].copy_from_slice(&self.text[..n]);
+            (self.text, self.good) = (&self.text[n..], self.good - n);
+            Ok(n)
+        }
+    }
+
+    #[test]
+    fn a_failed_read_ends_the_file_after_the_lines_before_it() {
+        // The read fails after line 5 or inside line 7: line 5's own error
+        // (a bad index) comes first, as it did line by line.
+        let text = format!("{SQUARE}f 1 2 9\no p\nf 1 2 3\n");
+        for (good, chunking) in
+            [(40, Chunking { block: 3, piece: 2 }), (40, Chunking::DEFAULT), (49, Chunking::DEFAULT)]
+        {
+            let reader = Failing { text: text.as_bytes(), good, reads: 0 };
+            let mut objects = Vec::new();
+            let ours =
+                parse(reader, Path::new("f.obj"), Grouping::ByObjectLines, chunking, |o| objects.push(o));
+            let old = oracle::read_obj(
+                std::io::BufReader::with_capacity(4, Failing { text: text.as_bytes(), good, reads: 0 }),
+                Path::new("f.obj"),
+            );
+            let (ours, old) = (ours.unwrap_err().to_string(), old.unwrap_err().to_string());
+            assert_eq!(ours, old, "{good} bytes");
+            assert!(ours.contains("line 5"), "{ours}");
+        }
+        let reader = Failing { text: SQUARE.as_bytes(), good: 10, reads: 0 };
+        let err = read_obj(reader, Path::new("f.obj")).unwrap_err();
+        assert!(matches!(err, ImportError::Io { .. }), "{err}");
+    }
+
     #[test]
     fn numbers_end_at_whitespace() {
         assert_eq!(scan_f64(b"1.5 2").map(|(v, rest)| (v, rest.len())), Some((1.5, 2)));
