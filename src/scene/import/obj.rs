@@ -405,11 +405,12 @@ impl Piece {
         let mut s = rest;
         loop {
             s = skip_blanks(s);
-            if at_line_end(s) || s[0] == b'#' {
-                break;
-            }
-            let (written, after) = scan_index(s)
-                .ok_or_else(|| malformed("a vertex index (v, v/vt, v//vn or v/vt/vn)", token_at(s)))?;
+            let (written, after) = match short_index(s) {
+                Some(scanned) => scanned,
+                None if at_line_end(s) || s[0] == b'#' => break,
+                None => scan_index(s)
+                    .ok_or_else(|| malformed("a vertex index (v, v/vt, v//vn or v/vt/vn)", token_at(s)))?,
+            };
             s = after;
             let vertex = self.corner(written, base)?;
             match corners {
@@ -894,7 +895,7 @@ fn token_at(s: &[u8]) -> &[u8] {
 /// [`exact_quotient`]). Anything else (an exponent, more digits, `inf`,
 /// `nan`) goes to std's parser, which is exact too.
 fn scan_f64(s: &[u8]) -> Option<(f64, &[u8])> {
-    if let Some(fast) = scan_plain_decimal(s) {
+    if let Some(fast) = short_decimal(s).or_else(|| scan_plain_decimal(s)) {
         return Some(fast);
     }
     let token = token_at(s);
@@ -915,6 +916,36 @@ fn scan_plain_decimal(s: &[u8]) -> Option<(f64, &[u8])> {
         return None;
     }
     let value = exact_quotient(digits, fraction_digits)?;
+    Some((if negative { -value } else { value }, rest))
+}
+
+/// A plain decimal as nearly every coordinate is written: up to seven
+/// digits, a point and up to seven more, then a blank or the line's end.
+/// Read from two chunks; fourteen digits are below 2^53, so one division
+/// rounds exactly (see [`exact_quotient`]). `None` for anything else.
+#[inline(always)]
+fn short_decimal(s: &[u8]) -> Option<(f64, &[u8])> {
+    const POWERS_OF_TEN: [u64; 8] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000];
+    let (negative, body) = split_sign(s);
+    let chunk = u64::from_le_bytes(*body.first_chunk::<8>()?);
+    let whole_digits = digit_run(chunk);
+    if !(1..8).contains(&whole_digits) {
+        return None;
+    }
+    let whole = run_value(chunk, whole_digits);
+    let (digits, fraction_digits, rest) = match &body[whole_digits..] {
+        [b'.', fraction @ ..] => {
+            let chunk = u64::from_le_bytes(*fraction.first_chunk::<8>()?);
+            let n = digit_run(chunk);
+            let value = *POWERS_OF_TEN.get(n)? * whole + if n > 0 { run_value(chunk, n) } else { 0 };
+            (value, n, &fraction[n..])
+        }
+        rest => (whole, 0, rest),
+    };
+    if !matches!(rest.first(), Some(b' ' | b'\t' | b'\n' | b'\r')) {
+        return None;
+    }
+    let value = digits as f64 / F64_POWERS_OF_TEN[fraction_digits];
     Some((if negative { -value } else { value }, rest))
 }
 
@@ -1025,7 +1056,6 @@ fn split_sign(s: &[u8]) -> (bool, &[u8]) {
 #[inline]
 fn leading_digits(mut s: &[u8], mut value: u64) -> (u64, usize, &[u8]) {
     const POWERS_OF_TEN: [u64; 9] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000, 100_000_000];
-    const ZEROS: u64 = 0x3030_3030_3030_3030;
     let mut count = 0;
     loop {
         let chunk = match s.first_chunk::<8>() {
@@ -1039,24 +1069,53 @@ fn leading_digits(mut s: &[u8], mut value: u64) -> (u64, usize, &[u8]) {
                 u64::from_le_bytes(padded)
             }
         };
-        // A byte's high bit is set here iff it is not a digit; bytes after
-        // the first non-digit may be garbled by borrows, but are not used.
-        let non_digits =
-            (chunk.wrapping_sub(ZEROS) | chunk.wrapping_add(0x4646_4646_4646_4646)) & 0x8080_8080_8080_8080;
-        let digits = (non_digits.trailing_zeros() / 8) as usize;
+        let digits = digit_run(chunk);
         if digits == 0 {
             return (value, count, s);
         }
-        // The run's digits into the top bytes, '0's below them.
-        let shift = 8 * (8 - digits) as u32;
-        let aligned = chunk.checked_shl(shift).unwrap_or(0) | ZEROS.checked_shr(64 - shift).unwrap_or(0);
-        value = value.wrapping_mul(POWERS_OF_TEN[digits]).wrapping_add(eight_digits(aligned));
+        value = value.wrapping_mul(POWERS_OF_TEN[digits]).wrapping_add(run_value(chunk, digits));
         count += digits;
         s = &s[digits..];
         if digits < 8 {
             return (value, count, s);
         }
     }
+}
+
+const ZEROS: u64 = 0x3030_3030_3030_3030;
+
+/// How many digits start `chunk` (first byte lowest), 0 to 8.
+#[inline(always)]
+fn digit_run(chunk: u64) -> usize {
+    // A byte's high bit is set here iff it is not a digit; bytes after the
+    // first non-digit may be garbled by borrows, but are not used.
+    let non_digits =
+        (chunk.wrapping_sub(ZEROS) | chunk.wrapping_add(0x4646_4646_4646_4646)) & 0x8080_8080_8080_8080;
+    (non_digits.trailing_zeros() / 8) as usize
+}
+
+/// The number that the first `digits` (1 to 8) bytes of `chunk` spell.
+#[inline(always)]
+fn run_value(chunk: u64, digits: usize) -> u64 {
+    // The run's digits into the top bytes, '0's below them.
+    let shift = 8 * (8 - digits) as u32;
+    eight_digits(chunk.checked_shl(shift).unwrap_or(0) | ZEROS.checked_shr(64 - shift).unwrap_or(0))
+}
+
+/// A corner as nearly every file writes it: a positive index of at most
+/// seven digits, then a blank or the line's end. Read from one chunk, it
+/// skips [`scan_index`]'s sign, slash and length checks; `None` for
+/// anything else, which [`scan_index`] then reads.
+#[inline(always)]
+fn short_index(s: &[u8]) -> Option<(i64, &[u8])> {
+    let chunk = u64::from_le_bytes(*s.first_chunk::<8>()?);
+    let digits = digit_run(chunk);
+    let ends = matches!(s.get(digits), Some(b' ' | b'\t' | b'\n' | b'\r'));
+    if !(1..8).contains(&digits) || !ends {
+        return None;
+    }
+    // Seven digits fit in an i64.
+    Some((run_value(chunk, digits) as i64, &s[digits..]))
 }
 
 /// The number that eight ASCII digits (first digit in the lowest byte)
@@ -1208,13 +1267,22 @@ mod tests {
         assert_eq!(err.to_string(), "d/pump.obj: object \"pump\" has no triangles");
     }
 
-    /// A whole token as a number, as the parser reads it.
+    /// A whole token as a number, as the parser reads it: at the end of
+    /// the text, and before a blank (the short forms' path), which agree.
     fn parse_f64(token: &[u8]) -> Option<f64> {
-        scan_f64(token).filter(|(_, rest)| rest.is_empty()).map(|(value, _)| value)
+        let at_end = scan_f64(token).filter(|(_, rest)| rest.is_empty()).map(|(value, _)| value);
+        let line = [token, b" 1"].concat();
+        let in_line = scan_f64(&line).filter(|(_, rest)| *rest == b" 1").map(|(value, _)| value);
+        assert_eq!(at_end.map(f64::to_bits), in_line.map(f64::to_bits), "{}", String::from_utf8_lossy(token));
+        at_end
     }
 
     fn parse_i64(token: &[u8]) -> Option<i64> {
-        scan_index(token).filter(|(_, rest)| rest.is_empty()).map(|(value, _)| value)
+        let at_end = scan_index(token).filter(|(_, rest)| rest.is_empty()).map(|(value, _)| value);
+        let line = [token, b" 1"].concat();
+        let in_line = short_index(&line).or_else(|| scan_index(&line));
+        assert_eq!(at_end, in_line.filter(|(_, rest)| *rest == b" 1").map(|(value, _)| value));
+        at_end
     }
 
     #[test]
