@@ -166,7 +166,7 @@ fn parse<R: Read + Send>(
             || parsed.as_mut().map(|parsed| stitcher.block(parsed)),
             || {
                 rayon::join(
-                    || Parsed::new(text, chunking.piece),
+                    || Parsed::pieces(text, chunking.piece),
                     || more.then(|| read_block(&mut reader, &mut spare, chunking.block)),
                 )
             },
@@ -206,7 +206,7 @@ struct Parsed {
 impl Parsed {
     /// Cuts `text` after newlines into pieces of about `size` bytes and
     /// parses them at once.
-    fn new(text: &[u8], size: usize) -> (Vec<Range<usize>>, Vec<Piece>) {
+    fn pieces(text: &[u8], size: usize) -> (Vec<Range<usize>>, Vec<Piece>) {
         let size = size.max(1);
         let mut ranges = Vec::with_capacity(text.len() / size + 1);
         let mut start = 0;
@@ -1340,7 +1340,7 @@ mod tests {
     impl std::io::Read for Failing<'_> {
         fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
             self.reads += 1;
-            if self.reads % 3 == 0 {
+            if self.reads.is_multiple_of(3) {
                 return Err(std::io::ErrorKind::Interrupted.into());
             }
             if self.good == 0 {
