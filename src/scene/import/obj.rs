@@ -546,7 +546,7 @@ struct Pending {
     line: Option<u64>,
     earlier: Vec<[u32; 3]>,
     /// Ranges of triangles of the block's pieces, by piece.
-    runs: Vec<(usize, std::ops::Range<usize>)>,
+    runs: Vec<(usize, Range<usize>)>,
 }
 
 impl Pending {
@@ -558,7 +558,7 @@ impl Pending {
         self.earlier.is_empty() && self.runs.is_empty()
     }
 
-    fn run(&mut self, piece: usize, triangles: std::ops::Range<usize>) {
+    fn run(&mut self, piece: usize, triangles: Range<usize>) {
         if !triangles.is_empty() {
             self.runs.push((piece, triangles));
         }
