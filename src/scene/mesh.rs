@@ -182,7 +182,13 @@ impl Mesh {
     /// Triangles of zero area (repeated index or collinear corners); they are
     /// kept, and importers report the count as a warning.
     pub fn degenerate_triangles(&self) -> usize {
-        self.triangle_points().filter(|[a, b, c]| (b - a).cross(&(c - a)).norm_squared() == 0.0).count()
+        // World points once per vertex rather than once per corner.
+        let world: Vec<Point> = self.vertices().collect();
+        let zero_area = |t: &&[u32; 3]| {
+            let [a, b, c] = t.map(|i| world[i as usize]);
+            (b - a).cross(&(c - a)).norm_squared() == 0.0
+        };
+        self.triangles.iter().filter(zero_area).count()
     }
 }
 
