@@ -276,6 +276,17 @@ pub enum Command {
     /// A scene replaced by another object by object (deletes and inserts in
     /// write transactions): box-query reads against a fresh bulk load, and compact.
     BenchReplace(crate::cmd::bench_replace::BenchReplaceArgs),
+    /// Import alone, timed: each scene read --repeat times; triangles and megabytes per second of the fastest run.
+    BenchImport {
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        #[arg(long, default_value_t = 3)]
+        repeat: usize,
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        import: ImportArgs,
+    },
     /// The main job on the built-in scene: tanker2 built with MOA and LAA, stats side by side, box queries.
     Demo {
         /// Where the files and the chart go.

@@ -50,9 +50,13 @@ impl Mesh {
         if triangles.is_empty() {
             return Err(MeshError::NoTriangles);
         }
-        for (triangle, t) in triangles.iter().enumerate() {
-            if let Some(&index) = t.iter().find(|&&i| i as usize >= vertices.len()) {
-                return Err(MeshError::IndexOutOfRange { triangle, index, vertices: vertices.len() });
+        // The highest index first, in one pass the compiler vectorises; the
+        // triangle at fault only when there is one.
+        if triangles.as_flattened().iter().max().is_some_and(|&i| i as usize >= vertices.len()) {
+            for (triangle, t) in triangles.iter().enumerate() {
+                if let Some(&index) = t.iter().find(|&&i| i as usize >= vertices.len()) {
+                    return Err(MeshError::IndexOutOfRange { triangle, index, vertices: vertices.len() });
+                }
             }
         }
         let anchor = Aabb::from_points(vertices).min;
@@ -100,13 +104,27 @@ impl Mesh {
     /// A mesh from its stored form, already validated by the caller (the
     /// file decoder checks indices and finiteness before calling this).
     pub(crate) fn from_parts(anchor: Point, offsets: Vec<[f32; 3]>, triangles: Vec<[u32; 3]>) -> Mesh {
-        let mut mesh = Mesh { anchor, offsets, triangles, aabb: Aabb::EMPTY };
         // The box of the surface: each face touches a triangle, so the box can
-        // witness contact (an unused vertex would break that).
-        mesh.aabb = mesh.triangles.iter().flatten().fold(Aabb::EMPTY, |b, &i| {
-            mesh.offsets.get(i as usize).map_or(b, |_| b.including(&mesh.vertex(i as usize)))
-        });
-        mesh
+        // witness contact (an unused vertex would break that). It is found
+        // among the f32 offsets, then moved by the anchor: rounding
+        // `anchor + offset` is monotone in the offset, so this is the box of
+        // the world vertices exactly, without converting every corner.
+        let (mut low, mut high) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for o in triangles.as_flattened().iter().filter_map(|&i| offsets.get(i as usize)) {
+            // Comparisons rather than `f32::min`, which pays for NaN
+            // (offsets are finite) on every corner.
+            for k in 0..3 {
+                low[k] = if o[k] < low[k] { o[k] } else { low[k] };
+                high[k] = if o[k] > high[k] { o[k] } else { high[k] };
+            }
+        }
+        let aabb = if low[0] <= high[0] {
+            let world = |o: [f32; 3]| anchor + Vector::new(o[0].into(), o[1].into(), o[2].into());
+            Aabb::new(world(low), world(high))
+        } else {
+            Aabb::EMPTY
+        };
+        Mesh { anchor, offsets, triangles, aabb }
     }
 
     /// The f64 point that the f32 offsets are relative to.
@@ -164,7 +182,13 @@ impl Mesh {
     /// Triangles of zero area (repeated index or collinear corners); they are
     /// kept, and importers report the count as a warning.
     pub fn degenerate_triangles(&self) -> usize {
-        self.triangle_points().filter(|[a, b, c]| (b - a).cross(&(c - a)).norm_squared() == 0.0).count()
+        // World points once per vertex rather than once per corner.
+        let world: Vec<Point> = self.vertices().collect();
+        let zero_area = |t: &&[u32; 3]| {
+            let [a, b, c] = t.map(|i| world[i as usize]);
+            (b - a).cross(&(c - a)).norm_squared() == 0.0
+        };
+        self.triangles.iter().filter(zero_area).count()
     }
 }
 
@@ -204,6 +228,24 @@ mod tests {
             let m = Mesh::from_world(&world, vec![[0, 1, 2]]).unwrap();
             let again = Mesh::from_world(&m.vertices().collect::<Vec<_>>(), vec![[0, 1, 2]]).unwrap();
             prop_assert_eq!(&m, &again);
+        }
+
+        /// The box found among the offsets is, bit for bit, the box of the
+        /// world points the triangles use; unused vertices stay out.
+        #[test]
+        fn the_box_is_that_of_the_used_world_points(
+            base in prop::array::uniform3(prop_oneof![-1.0e6f64..1.0e6, Just(0.0), Just(-0.0)]),
+            pts in prop::collection::vec(prop::array::uniform3(prop_oneof![
+                -1.0e4f64..1.0e4, -1.0e-6f64..1.0e-6, Just(0.0), Just(-0.0)]), 4..12),
+            triangles in prop::collection::vec(prop::array::uniform3(0u32..3), 1..6),
+        ) {
+            let world: Vec<Point> = pts.iter()
+                .map(|d| Point::new(base[0] + d[0], base[1] + d[1], base[2] + d[2])).collect();
+            let m = Mesh::from_world(&world, triangles).unwrap();
+            let used = m.triangles().iter().flatten().map(|&i| m.vertex(i as usize));
+            let expected = used.fold(Aabb::EMPTY, |b, p| b.including(&p));
+            let bits = |b: Aabb| [b.min, b.max].map(|p| p.coords.map(f64::to_bits));
+            prop_assert_eq!(bits(m.aabb()), bits(expected));
         }
     }
 

@@ -2,6 +2,7 @@
 
 mod batch;
 pub mod bench_build;
+mod bench_import;
 pub mod bench_peers;
 mod bench_queries;
 pub mod bench_replace;
@@ -81,6 +82,9 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::BenchBuild(args) => bench_build::run(&args),
         Command::BenchPeers(args) => bench_peers::run(&args),
         Command::BenchReplace(args) => bench_replace::run(&args),
+        Command::BenchImport { files, repeat, json, import } => {
+            bench_import::run(&files, repeat, &import, json)
+        }
     }
 }
 

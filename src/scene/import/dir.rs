@@ -6,7 +6,7 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use super::load::{Format, open_buffered};
+use super::load::{Format, open};
 use super::{ImportError, Imported, obj, stl};
 use crate::scene::Scene;
 
@@ -32,7 +32,7 @@ pub(super) fn load(dir: &Path) -> Result<Imported, ImportError> {
     let mut degenerate_triangles = 0;
     for (path, format) in files {
         let (object, degenerate) = match format {
-            Format::Obj => obj::read_obj_as_one_object(open_buffered(&path)?, &path)?,
+            Format::Obj => obj::read_obj_as_one_object(open(&path)?, &path)?,
             _ => stl::load(&path)?,
         };
         scene.push(object);

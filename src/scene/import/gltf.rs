@@ -28,6 +28,7 @@ use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::mesh::Mode;
 use ::gltf::{Accessor, Document, Gltf, Node, Primitive, buffer};
 use nalgebra::Matrix4;
+use rayon::prelude::*;
 
 use super::{ImportError, Imported, Location, UriRefusal};
 use crate::geom::Point;
@@ -46,11 +47,24 @@ pub(super) fn load(path: &Path, scale: f64) -> Result<Imported, ImportError> {
     let document = Document::from_json(document.into_json()).map_err(|e| gltf_error(e.to_string()))?;
     let buffers = load_buffers(&document, path, blob)?;
 
+    // Instances are built at once, then taken in order: the first error in
+    // file order is the one reported, as if built one by one.
+    let built: Vec<Result<Option<(Object, usize)>, ImportError>> = instances(&document, scale)
+        .map_err(gltf_error)?
+        .par_iter()
+        .map(|instance| {
+            let object = instance.object(&buffers, path)?;
+            Ok(object.map(|object| {
+                let degenerate = object.mesh.degenerate_triangles();
+                (object, degenerate)
+            }))
+        })
+        .collect();
     let mut scene = Scene::default();
     let mut degenerate_triangles = 0;
-    for instance in instances(&document, scale).map_err(gltf_error)? {
-        if let Some(object) = instance.object(&buffers, path)? {
-            degenerate_triangles += object.mesh.degenerate_triangles();
+    for result in built {
+        if let Some((object, degenerate)) = result? {
+            degenerate_triangles += degenerate;
             scene.push(object);
         }
     }

@@ -2,7 +2,6 @@
 //! the extension), and the options and result every reader shares.
 
 use std::fs::{self, File};
-use std::io::BufReader;
 use std::path::Path;
 
 use super::{ImportError, dir, gltf, obj, stl};
@@ -94,14 +93,14 @@ impl Format {
     }
 }
 
-/// Opens an OBJ file with a large buffer: the parser reads it line by line.
-pub(super) fn open_buffered(path: &Path) -> Result<BufReader<File>, ImportError> {
-    let file = File::open(path).map_err(|source| ImportError::Io { file: path.into(), source })?;
-    Ok(BufReader::with_capacity(1 << 20, file))
+/// Opens a file to read, naming it in the error. OBJ files are read
+/// unbuffered: the parser reads blocks of megabytes.
+pub(super) fn open(path: &Path) -> Result<File, ImportError> {
+    File::open(path).map_err(|source| ImportError::Io { file: path.into(), source })
 }
 
 fn load_obj(path: &Path) -> Result<Imported, ImportError> {
-    obj::read_obj(open_buffered(path)?, path)
+    obj::read_obj(open(path)?, path)
 }
 
 /// The name of an object that a whole file makes: the file name without

@@ -1,14 +1,13 @@
-//! Wavefront OBJ import: a streaming line parser for mktree's scene form
+//! Wavefront OBJ import: a parallel block parser for mktree's scene form
 //! (`o NAME`, `v x y z` in millimetres, `f a b c`; see `scene::export`)
 //! that also reads common OBJ from other tools.
 //!
 //! Why not `tobj`: it reads coordinates as f32 (our models need f64 before
 //! the anchor/offset split), gives no line numbers in errors, splits objects
 //! by its own o/g rule, and builds whole models in memory per material. This
-//! parser reads lines where they lie in the reader's buffer, parses numbers
-//! without allocating (eight digits at a time, rounded exactly; std's parser
-//! for exponents and the like), and turns each object into a [`Mesh`] as
-//! soon as the next one starts.
+//! parser reads lines where they lie in its block, parses numbers without
+//! allocating (eight digits at a time, rounded exactly; std's parser for
+//! exponents and the like), and builds objects on every core.
 //!
 //! Rules:
 //! - each `o` line starts an object named by the rest of the line (trimmed);
@@ -28,11 +27,28 @@
 //!   dropped. So `read_obj(write_obj(scene)) == scene` for every scene whose
 //!   meshes use each of their vertices.
 //!
-//! Memory: all vertices of the file are kept (24 bytes each), as any later
-//! face may use any earlier vertex.
+//! How: the input is read in blocks ([`Chunking`]), three at a time in a
+//! pipeline: while one block is read, the one before is cut after newlines
+//! into pieces that rayon parses at once, each without knowing how many
+//! vertices come before it ([`Piece`]), and the one before that is stitched
+//! in file order ([`Stitcher`]): vertex numbers and lines are offset by what
+//! came before, objects are continued across pieces, and a piece whose
+//! indices cannot be checked without that offset is parsed again knowing
+//! it. The objects a block completes are built in parallel and handed on in
+//! file order. Any cut gives the objects, errors and lines of the old
+//! sequential parser (`obj_oracle.rs`): the tests cut inputs every few bytes.
+//!
+//! Memory: three blocks, a block's parsed pieces, the objects a block
+//! completes, and all vertices of the file (24 bytes each, left in the
+//! pieces' vectors), as any later face may use any earlier vertex. In a
+//! file without `o`, the `g` groups are held to the end: an `o` line would
+//! merge them into one object.
 
-use std::io::BufRead;
+use std::io::Read;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
 
 use super::load::file_stem;
 use super::{ImportError, Imported, Location};
@@ -51,9 +67,10 @@ use crate::scene::{Object, Scene};
 /// let deck = &imported.scene.objects()[0];
 /// assert_eq!((deck.name.as_str(), deck.mesh.triangle_count()), ("deck", 2));
 /// ```
-pub fn read_obj<R: BufRead>(reader: R, source: &Path) -> Result<Imported, ImportError> {
-    let parser = Parser::new(source, Grouping::ByObjectLines);
-    let (objects, degenerate_triangles) = parser.parse(reader)?;
+pub fn read_obj<R: Read + Send>(reader: R, source: &Path) -> Result<Imported, ImportError> {
+    let mut objects = Vec::new();
+    let degenerate_triangles =
+        parse(reader, source, Grouping::ByObjectLines, Chunking::DEFAULT, |object| objects.push(object))?;
     if objects.is_empty() {
         return Err(ImportError::EmptyScene { file: source.into() });
     }
@@ -63,13 +80,15 @@ pub fn read_obj<R: BufRead>(reader: R, source: &Path) -> Result<Imported, Import
 /// Reads a whole OBJ file as one object named by the file stem, ignoring
 /// its `o` and `g` lines (a directory scene has one object per file).
 /// Returns the object and its count of zero-area triangles.
-pub(super) fn read_obj_as_one_object<R: BufRead>(
+pub(super) fn read_obj_as_one_object<R: Read + Send>(
     reader: R,
     source: &Path,
 ) -> Result<(Object, usize), ImportError> {
-    let (objects, degenerate_triangles) = Parser::new(source, Grouping::WholeFile).parse(reader)?;
+    let mut whole = None;
+    let degenerate_triangles =
+        parse(reader, source, Grouping::WholeFile, Chunking::DEFAULT, |object| whole = Some(object))?;
     // The whole-file grouping builds exactly one object or fails.
-    let object = objects.into_iter().next().ok_or_else(|| ImportError::EmptyScene { file: source.into() })?;
+    let object = whole.ok_or_else(|| ImportError::EmptyScene { file: source.into() })?;
     Ok((object, degenerate_triangles))
 }
 
@@ -82,25 +101,508 @@ enum Grouping {
     WholeFile,
 }
 
-/// An object whose faces are still being read, with global vertex indices.
+/// How the input is cut: blocks read at a time, and pieces parsed at once.
+#[derive(Debug, Clone, Copy)]
+struct Chunking {
+    /// Bytes read per block (more when a line is longer).
+    block: usize,
+    /// Bytes per piece, up to the next newline.
+    piece: usize,
+}
+
+impl Chunking {
+    /// Blocks big enough that a read costs little per byte and a block has
+    /// pieces for every core, small enough to stay mapped between reads and
+    /// to start the cores soon; pieces small enough that the last one of a
+    /// block leaves the other cores idle only briefly.
+    const DEFAULT: Chunking = Chunking { block: 8 << 20, piece: 512 << 10 };
+}
+
+/// The reading loop: blocks in, objects out through `on_object`.
+fn parse<R: Read + Send>(
+    mut reader: R,
+    source: &Path,
+    grouping: Grouping,
+    chunking: Chunking,
+    mut on_object: impl FnMut(Object),
+) -> Result<usize, ImportError> {
+    let mut stitcher = Stitcher::new(source, grouping);
+    let mut degenerate_triangles = 0;
+    let mut emit = |built: Built| -> Result<(), ImportError> {
+        for result in built.objects {
+            let (object, degenerate) = result?;
+            degenerate_triangles += degenerate;
+            on_object(object);
+        }
+        built.error.map_or(Ok(()), Err)
+    };
+    // Three blocks at once: one is read, the one before is cut into pieces
+    // that are parsed, and the one before that is stitched and built.
+    let mut block = Vec::new();
+    let mut input = read_block(&mut reader, &mut block, chunking.block);
+    let mut parsed: Option<Parsed> = None;
+    let mut spare = Vec::new();
+    loop {
+        let complete = block.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+        let end = match input {
+            Input::More if complete == 0 => {
+                // A line longer than the block: read on into the same block.
+                input = read_block(&mut reader, &mut block, chunking.block);
+                continue;
+            }
+            // After a failed read, the lines before it count first, as
+            // they would for a reader that reads line by line.
+            Input::More | Input::Failed(_) => complete,
+            Input::Ended => block.len(),
+        };
+        let more = matches!(input, Input::More);
+        if more {
+            // The next block starts with this one's unfinished line.
+            spare.clear();
+            spare.extend_from_slice(&block[complete..]);
+        }
+        let text = &block[..end];
+        let (built, (pieces, next)) = rayon::join(
+            || parsed.as_mut().map(|parsed| stitcher.block(parsed)),
+            || {
+                rayon::join(
+                    || Parsed::pieces(text, chunking.piece),
+                    || more.then(|| read_block(&mut reader, &mut spare, chunking.block)),
+                )
+            },
+        );
+        if let Some(built) = built {
+            emit(built)?;
+        }
+        let (ranges, pieces) = pieces;
+        let text = std::mem::replace(&mut block, std::mem::take(&mut spare));
+        if let Some(stitched) = parsed.replace(Parsed { text, ranges, pieces }) {
+            spare = stitched.text;
+        }
+        let Some(next) = next else { break };
+        input = next;
+    }
+    if let Some(mut last) = parsed {
+        emit(stitcher.block(&mut last))?;
+    }
+    match input {
+        Input::Failed(e) => Err(ImportError::Io { file: source.into(), source: e }),
+        _ => {
+            emit(stitcher.finish())?;
+            Ok(degenerate_triangles)
+        }
+    }
+}
+
+/// A block's text and its pieces, parsed on their own, waiting to be
+/// stitched.
+struct Parsed {
+    text: Vec<u8>,
+    /// Where each piece lies in `text`.
+    ranges: Vec<Range<usize>>,
+    pieces: Vec<Piece>,
+}
+
+impl Parsed {
+    /// Cuts `text` after newlines into pieces of about `size` bytes and
+    /// parses them at once.
+    fn pieces(text: &[u8], size: usize) -> (Vec<Range<usize>>, Vec<Piece>) {
+        let size = size.max(1);
+        let mut ranges = Vec::with_capacity(text.len() / size + 1);
+        let mut start = 0;
+        while start < text.len() {
+            let end = match text.get(start + size - 1..).and_then(find_newline) {
+                Some(newline) => start + size + newline,
+                None => text.len(),
+            };
+            ranges.push(start..end);
+            start = end;
+        }
+        let pieces = ranges.par_iter().map(|range| Piece::parse(&text[range.clone()], None)).collect();
+        (ranges, pieces)
+    }
+}
+
+/// What reading a block found after it.
+enum Input {
+    /// The block is full: more may follow.
+    More,
+    /// The input ended within the block.
+    Ended,
+    /// Reading failed after the bytes in the block.
+    Failed(std::io::Error),
+}
+
+/// Appends up to `want` bytes of `reader` to `buffer`.
+fn read_block<R: Read>(reader: &mut R, buffer: &mut Vec<u8>, want: usize) -> Input {
+    buffer.reserve(want);
+    // `read_to_end` retries interrupted reads and keeps what it read before
+    // an error.
+    match reader.by_ref().take(want as u64).read_to_end(buffer) {
+        Ok(read) if read < want => Input::Ended,
+        Ok(_) => Input::More,
+        Err(e) => Input::Failed(e),
+    }
+}
+
+/// A line's error, before it is placed in the file.
+#[derive(Debug)]
+enum LineError {
+    Malformed {
+        expected: &'static str,
+        found: String,
+    },
+    NonFinite,
+    /// `defined` counts the vertices of the piece before the line: the
+    /// stitcher adds those before the piece.
+    IndexOutOfRange {
+        index: i64,
+        defined: u64,
+    },
+}
+
+/// A line that starts an object or group.
+struct Header {
+    /// `o` (else `g`).
+    object: bool,
+    name: String,
+    /// 1-based, in the piece.
+    line: u64,
+    /// The piece's triangles before the line.
+    triangles_before: usize,
+}
+
+/// A corner whose file index depends on the vertices before the piece.
+struct Relative {
+    /// Index into the piece's flattened triangles.
+    corner: usize,
+    /// File index less the vertices before the piece.
+    offset: i64,
+}
+
+/// A corner's vertex as the piece knows it.
+#[derive(Clone, Copy)]
+enum Corner {
+    File(u32),
+    Relative(i64),
+}
+
+/// The most vertices a file may have: indices are `u32`.
+const MAX_VERTICES: u64 = 1 << 32;
+
+/// A piece of the file parsed on its own.
+///
+/// Without the number of vertices before it (the base), a piece still
+/// reads every line, and keeps what it cannot check: positive indices are
+/// file indices already, checked later against [`Piece::reach`]; negative
+/// ones are offsets from the base, filled in by [`Piece::resolve`]. Given
+/// the base, every index is checked on its line, so the first error is
+/// found where it is.
+struct Piece {
+    /// Lines read (all of the piece's, unless it stopped at an error).
+    lines: u64,
+    vertices: Vec<Point>,
+    /// All faces of the piece, as file vertex indices once resolved; the
+    /// headers say which object each belongs to.
+    triangles: Vec<[u32; 3]>,
+    headers: Vec<Header>,
+    /// The fewest vertices before the piece for which its indices are in
+    /// range: the most by which an index reaches beyond the piece's
+    /// vertices before its line.
+    reach: i64,
+    relative: Vec<Relative>,
+    /// The first error and its line in the piece: parsing stopped there.
+    error: Option<(u64, LineError)>,
+}
+
+impl Piece {
+    fn parse(text: &[u8], base: Option<u64>) -> Piece {
+        // Our own files have about one vertex per 50 bytes and one face per
+        // 20: reserving that saves most of the growing.
+        let mut piece = Piece {
+            lines: 0,
+            vertices: Vec::with_capacity(text.len() / 48),
+            triangles: Vec::with_capacity(text.len() / 20),
+            headers: Vec::new(),
+            reach: 0,
+            relative: Vec::new(),
+            error: None,
+        };
+        let mut s = text;
+        while !s.is_empty() {
+            piece.lines += 1;
+            // The statements that make up nearly all of a file are read in
+            // place; they stop at the end of their line or before.
+            let statement = match s {
+                [b'v', b' ' | b'\t', rest @ ..] => piece.vertex(rest, base),
+                [b'f', b' ' | b'\t', rest @ ..] => piece.face(rest, base),
+                _ => {
+                    let line = line_at(s);
+                    piece.statement(line, base).map(|()| &s[line.len()..])
+                }
+            };
+            match statement {
+                Ok(rest) => s = after_line(rest),
+                Err(e) => {
+                    piece.error = Some((piece.lines, e));
+                    break;
+                }
+            }
+        }
+        piece
+    }
+
+    /// Any line but a plain `v` or `f` one.
+    fn statement(&mut self, line: &[u8], base: Option<u64>) -> Result<(), LineError> {
+        let line = line.trim_ascii();
+        let (keyword, rest) = match line.iter().position(u8::is_ascii_whitespace) {
+            Some(end) => (&line[..end], line[end..].trim_ascii_start()),
+            None => (line, &line[line.len()..]),
+        };
+        match keyword {
+            b"v" => self.vertex(rest, base).map(drop),
+            b"f" => self.face(rest, base).map(drop),
+            b"o" | b"g" => {
+                let name = String::from_utf8_lossy(rest).into_owned();
+                let object = keyword == b"o";
+                let triangles_before = self.triangles.len();
+                self.headers.push(Header { object, name, line: self.lines, triangles_before });
+                Ok(())
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// Reads the coordinates that start `rest`; returns the bytes after them.
+    fn vertex<'a>(&mut self, rest: &'a [u8], base: Option<u64>) -> Result<&'a [u8], LineError> {
+        let mut s = rest;
+        let mut xyz = [0.0; 3];
+        for c in &mut xyz {
+            s = skip_blanks(s);
+            if at_line_end(s) {
+                return Err(malformed("3 coordinates after `v`", line_at(rest).trim_ascii()));
+            }
+            let (value, after) = scan_f64(s).ok_or_else(|| malformed("a number", token_at(s)))?;
+            *c = value;
+            s = after;
+        }
+        if !xyz.iter().all(|c| c.is_finite()) {
+            return Err(LineError::NonFinite);
+        }
+        if base.is_some_and(|base| base + self.vertices.len() as u64 >= MAX_VERTICES) {
+            return Err(malformed("at most 2^32 vertices in one file", b"v"));
+        }
+        self.vertices.push(Point::from(xyz));
+        Ok(s)
+    }
+
+    /// Reads the corners that start `rest` as a fan of triangles; returns
+    /// the bytes after them (the end of the line, or a comment).
+    fn face<'a>(&mut self, rest: &'a [u8], base: Option<u64>) -> Result<&'a [u8], LineError> {
+        let mut corners = 0usize;
+        let mut first = Corner::File(0);
+        let mut previous = first;
+        let mut s = rest;
+        loop {
+            s = skip_blanks(s);
+            let (written, after) = match short_index(s) {
+                Some(scanned) => scanned,
+                None if at_line_end(s) || s[0] == b'#' => break,
+                None => scan_index(s)
+                    .ok_or_else(|| malformed("a vertex index (v, v/vt, v//vn or v/vt/vn)", token_at(s)))?,
+            };
+            s = after;
+            let vertex = self.corner(written, base)?;
+            match corners {
+                0 => first = vertex,
+                1 => {}
+                _ => self.triangle([first, previous, vertex]),
+            }
+            previous = vertex;
+            corners += 1;
+        }
+        if corners < 3 {
+            return Err(malformed("at least 3 vertex indices after `f`", line_at(rest).trim_ascii()));
+        }
+        Ok(s)
+    }
+
+    /// The vertex that index `written` (1-based, or negative to count back)
+    /// names; with the base, checked here, else as far as the piece can.
+    fn corner(&mut self, written: i64, base: Option<u64>) -> Result<Corner, LineError> {
+        let here = self.vertices.len() as u64;
+        let out_of_range = LineError::IndexOutOfRange { index: written, defined: here };
+        match (written, base) {
+            (1.., Some(base)) => {
+                let index = written.unsigned_abs() - 1;
+                if index >= base + here {
+                    return Err(out_of_range);
+                }
+                // Below the file's vertex count, so below 2^32.
+                u32::try_from(index).map(Corner::File).map_err(|_| out_of_range)
+            }
+            (1.., None) => {
+                // Beyond 2^32 an index is out of range whatever the base.
+                let index = u32::try_from(written - 1).map_err(|_| out_of_range)?;
+                self.reach = self.reach.max(written - here as i64);
+                Ok(Corner::File(index))
+            }
+            (..0, Some(base)) => (base + here)
+                .checked_sub(written.unsigned_abs())
+                .and_then(|index| u32::try_from(index).ok())
+                .map(Corner::File)
+                .ok_or(out_of_range),
+            (..0, None) => {
+                // At most 18 digits: no overflow.
+                let offset = here as i64 + written;
+                self.reach = self.reach.max(-offset);
+                Ok(Corner::Relative(offset))
+            }
+            (0, _) => Err(out_of_range),
+        }
+    }
+
+    fn triangle(&mut self, corners: [Corner; 3]) {
+        if let [Corner::File(a), Corner::File(b), Corner::File(c)] = corners {
+            self.triangles.push([a, b, c]);
+            return;
+        }
+        let at = 3 * self.triangles.len();
+        self.triangles.push(corners.map(|c| match c {
+            Corner::File(index) => index,
+            Corner::Relative(_) => 0,
+        }));
+        for (i, c) in corners.into_iter().enumerate() {
+            if let Corner::Relative(offset) = c {
+                self.relative.push(Relative { corner: at + i, offset });
+            }
+        }
+    }
+
+    /// Fills in the relative corners for `base` vertices before the piece;
+    /// false when an index or the vertex count is out of range with this
+    /// base (the piece must then be parsed again knowing it).
+    fn resolve(&mut self, base: u64) -> bool {
+        if u64::try_from(self.reach).is_ok_and(|reach| reach > base)
+            || base + self.vertices.len() as u64 > MAX_VERTICES
+        {
+            return false;
+        }
+        let corners = self.triangles.as_flattened_mut();
+        for r in &self.relative {
+            let Some(index) = base.checked_add_signed(r.offset).and_then(|i| u32::try_from(i).ok()) else {
+                return false;
+            };
+            corners[r.corner] = index;
+        }
+        true
+    }
+}
+
+/// Skips the blanks within a line (any ASCII whitespace but `\n`).
+fn skip_blanks(mut s: &[u8]) -> &[u8] {
+    while let [b' ' | b'\t' | b'\r' | b'\x0c', rest @ ..] = s {
+        s = rest;
+    }
+    s
+}
+
+fn at_line_end(s: &[u8]) -> bool {
+    matches!(s.first(), None | Some(b'\n'))
+}
+
+/// The line that starts `s`, without its newline.
+fn line_at(s: &[u8]) -> &[u8] {
+    &s[..find_newline(s).unwrap_or(s.len())]
+}
+
+/// The bytes after the line that `s` is within.
+fn after_line(s: &[u8]) -> &[u8] {
+    // Most statements end right at their newline.
+    match s {
+        [b'\n', rest @ ..] => rest,
+        _ => find_newline(s).map_or(&[], |end| &s[end + 1..]),
+    }
+}
+
+fn malformed(expected: &'static str, found: &[u8]) -> LineError {
+    // Keep messages short when a binary file is read as OBJ.
+    const SHOWN: usize = 60;
+    let mut shown = String::from_utf8_lossy(&found[..found.len().min(SHOWN)]).into_owned();
+    if found.len() > SHOWN {
+        shown.push_str("...");
+    }
+    LineError::Malformed { expected, found: shown }
+}
+
+/// An object whose faces are still being read, with file vertex indices.
+///
+/// Its triangles from earlier blocks are copied out; those of the block
+/// being read stay in its pieces until the object is built. All of the
+/// first come before all of the second in the file, merged groups too.
 struct Pending {
     name: String,
     /// The line of its `o` or `g`; `None` for the object named by the file.
     line: Option<u64>,
-    triangles: Vec<[u32; 3]>,
+    earlier: Vec<[u32; 3]>,
+    /// Ranges of triangles of the block's pieces, by piece.
+    runs: Vec<(usize, Range<usize>)>,
 }
 
 impl Pending {
     fn new(name: String, line: Option<u64>) -> Pending {
-        Pending { name, line, triangles: Vec::new() }
+        Pending { name, line, earlier: Vec::new(), runs: Vec::new() }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.earlier.is_empty() && self.runs.is_empty()
+    }
+
+    fn run(&mut self, piece: usize, triangles: Range<usize>) {
+        if !triangles.is_empty() {
+            self.runs.push((piece, triangles));
+        }
+    }
+
+    /// Adds the faces of `other`, which follow.
+    fn append(&mut self, mut other: Pending) {
+        self.earlier.append(&mut other.earlier);
+        self.runs.append(&mut other.runs);
+    }
+
+    /// Its triangles, in file order.
+    fn parts<'a>(&'a self, pieces: &'a [Piece]) -> impl Iterator<Item = &'a [[u32; 3]]> + Clone {
+        let runs = self.runs.iter().map(|(piece, range)| &pieces[*piece].triangles[range.clone()]);
+        std::iter::once(self.earlier.as_slice()).chain(runs)
+    }
+
+    /// Copies the triangles it has in `pieces` out, before they go.
+    fn settle(&mut self, pieces: &[Piece]) {
+        let runs = std::mem::take(&mut self.runs);
+        for (piece, range) in runs {
+            self.earlier.extend_from_slice(&pieces[piece].triangles[range]);
+        }
     }
 }
 
-struct Parser {
+/// The objects a block completed, built, and the error that ended the
+/// file there, if any.
+struct Built {
+    /// In file order, each with its count of zero-area triangles; the first
+    /// failure ends the file (they are handed on as they are, not copied).
+    objects: Vec<Result<(Object, usize), ImportError>>,
+    error: Option<ImportError>,
+}
+
+/// Puts parsed pieces together in file order: the file's vertices, line
+/// numbers and objects.
+struct Stitcher {
     file: PathBuf,
     grouping: Grouping,
     /// Every vertex of the file so far: faces may use any earlier one.
-    vertices: Vec<Point>,
+    vertices: Vertices,
+    /// Lines before the next piece.
+    lines: u64,
     /// True once an `o` line was read: from then on `g` lines are ignored.
     seen_o: bool,
     /// The object receiving faces.
@@ -109,274 +611,258 @@ struct Parser {
     /// they become objects at the end, or merge into the file's object if an
     /// `o` line turns up.
     groups: Vec<Pending>,
-    objects: Vec<Object>,
-    degenerate_triangles: usize,
-    /// Scratch for renumbering an object's vertices, reused across objects.
-    local_index: Vec<u32>,
+    /// Objects complete but not yet built, in file order.
+    complete: Vec<Pending>,
 }
 
-impl Parser {
-    fn new(source: &Path, grouping: Grouping) -> Parser {
-        Parser {
+impl Stitcher {
+    fn new(source: &Path, grouping: Grouping) -> Stitcher {
+        Stitcher {
             file: source.into(),
             grouping,
-            vertices: Vec::new(),
+            vertices: Vertices::default(),
+            lines: 0,
             seen_o: false,
             current: Pending::new(file_stem(source), None),
             groups: Vec::new(),
-            objects: Vec::new(),
-            degenerate_triangles: 0,
-            local_index: Vec::new(),
+            complete: Vec::new(),
         }
     }
 
-    fn parse<R: BufRead>(mut self, mut reader: R) -> Result<(Vec<Object>, usize), ImportError> {
-        // Lines are parsed where they lie in the reader's buffer; only a
-        // line cut by the buffer's end is copied, into `carry`.
-        let mut carry = Vec::new();
-        let mut line_number = 0u64;
-        loop {
-            let buffer = match reader.fill_buf() {
-                Ok(buffer) => buffer,
-                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-                Err(source) => return Err(ImportError::Io { file: self.file.clone(), source }),
-            };
-            if buffer.is_empty() {
+    /// Stitches a parsed block and builds the objects it completes; its
+    /// pieces are freed here, off the reading loop.
+    fn block(&mut self, parsed: &mut Parsed) -> Built {
+        let pieces = &mut parsed.pieces;
+        let mut error = None;
+        for (index, range) in parsed.ranges.iter().enumerate() {
+            if let Err(e) = self.add(index, &parsed.text[range.clone()], &mut pieces[index]) {
+                error = Some(e);
                 break;
             }
-            let mut start = 0;
-            if !carry.is_empty() {
-                match find_newline(buffer) {
-                    Some(end) => {
-                        carry.extend_from_slice(&buffer[..end]);
-                        line_number += 1;
-                        self.statement(&carry, line_number)?;
-                        carry.clear();
-                        start = end + 1;
-                    }
-                    None => {
-                        carry.extend_from_slice(buffer);
-                        start = buffer.len();
-                    }
-                }
-            }
-            while let Some(end) = find_newline(&buffer[start..]) {
-                line_number += 1;
-                self.statement(&buffer[start..start + end], line_number)?;
-                start += end + 1;
-            }
-            carry.extend_from_slice(&buffer[start..]);
-            let read = buffer.len();
-            reader.consume(read);
         }
-        if !carry.is_empty() {
-            self.statement(&carry, line_number + 1)?;
+        let mut built = self.build(pieces);
+        // Objects completed before the line at fault were built first.
+        built.error = built.error.or(error);
+        self.current.settle(pieces);
+        for group in &mut self.groups {
+            group.settle(pieces);
         }
-        self.finish()?;
-        Ok((self.objects, self.degenerate_triangles))
+        pieces.clear();
+        built
     }
 
-    fn statement(&mut self, line: &[u8], line_number: u64) -> Result<(), ImportError> {
-        // The two statements that make up nearly all of a file, first.
-        match line {
-            [b'v', b' ' | b'\t', rest @ ..] => return self.vertex(rest, line_number),
-            [b'f', b' ' | b'\t', rest @ ..] => return self.face(rest, line_number),
-            _ => {}
+    /// Adds piece `index` after those before it; an error ends the file there.
+    fn add(&mut self, index: usize, text: &[u8], piece: &mut Piece) -> Result<(), ImportError> {
+        let base = self.vertices.len();
+        if !piece.resolve(base) {
+            *piece = Piece::parse(text, Some(base));
         }
-        let line = line.trim_ascii();
-        let (keyword, rest) = match line.iter().position(u8::is_ascii_whitespace) {
-            Some(end) => (&line[..end], line[end..].trim_ascii_start()),
-            None => (line, &line[line.len()..]),
+        self.vertices.append(std::mem::take(&mut piece.vertices));
+        let mut start = 0;
+        for header in std::mem::take(&mut piece.headers) {
+            self.current.run(index, start..header.triangles_before);
+            start = header.triangles_before;
+            self.header(header);
+        }
+        self.current.run(index, start..piece.triangles.len());
+        let Some((line, error)) = piece.error.take() else {
+            self.lines += piece.lines;
+            return Ok(());
         };
-        match keyword {
-            b"v" => self.vertex(rest, line_number),
-            b"f" => self.face(rest, line_number),
-            b"o" if self.grouping == Grouping::ByObjectLines => self.start_object(rest, line_number),
-            b"g" if self.grouping == Grouping::ByObjectLines && !self.seen_o => {
-                self.start_group(rest, line_number);
-                Ok(())
+        let (file, object, at) = (self.file.clone(), self.current.name.clone(), self.lines + line);
+        Err(match error {
+            LineError::Malformed { expected, found } => {
+                ImportError::Malformed { file, line: at, expected, found }
             }
-            _ => Ok(()),
-        }
-    }
-
-    fn vertex(&mut self, rest: &[u8], line_number: u64) -> Result<(), ImportError> {
-        let mut s = rest;
-        let mut xyz = [0.0; 3];
-        for c in &mut xyz {
-            s = s.trim_ascii_start();
-            if s.is_empty() {
-                return Err(self.malformed(line_number, "3 coordinates after `v`", rest.trim_ascii()));
-            }
-            let (value, after) =
-                scan_f64(s).ok_or_else(|| self.malformed(line_number, "a number", token_at(s)))?;
-            *c = value;
-            s = after;
-        }
-        if !xyz.iter().all(|c| c.is_finite()) {
-            return Err(ImportError::NonFiniteCoordinate {
-                file: self.file.clone(),
-                object: self.current.name.clone(),
-                at: Location::Line(line_number),
-            });
-        }
-        if self.vertices.len() > u32::MAX as usize {
-            return Err(self.malformed(line_number, "at most 2^32 vertices in one file", b"v"));
-        }
-        self.vertices.push(Point::from(xyz));
-        Ok(())
-    }
-
-    fn face(&mut self, rest: &[u8], line_number: u64) -> Result<(), ImportError> {
-        let mut corners = 0usize;
-        let mut first = 0;
-        let mut previous = 0;
-        let mut s = rest;
-        loop {
-            s = s.trim_ascii_start();
-            if matches!(s.first(), None | Some(b'#')) {
-                break;
-            }
-            let (written, after) = scan_index(s).ok_or_else(|| {
-                self.malformed(line_number, "a vertex index (v, v/vt, v//vn or v/vt/vn)", token_at(s))
-            })?;
-            s = after;
-            let vertex = self.resolve(written, line_number)?;
-            match corners {
-                0 => first = vertex,
-                1 => {}
-                _ => self.current.triangles.push([first, previous, vertex]),
-            }
-            previous = vertex;
-            corners += 1;
-        }
-        if corners < 3 {
-            return Err(self.malformed(
-                line_number,
-                "at least 3 vertex indices after `f`",
-                rest.trim_ascii(),
-            ));
-        }
-        Ok(())
-    }
-
-    /// The 0-based file index of the vertex that index `written` (1-based,
-    /// or negative to count back) names on line `line_number`.
-    fn resolve(&self, written: i64, line_number: u64) -> Result<u32, ImportError> {
-        let defined = self.vertices.len();
-        let index = match written {
-            1.. => usize::try_from(written - 1).ok().filter(|&i| i < defined),
-            ..0 => usize::try_from(written.unsigned_abs()).ok().and_then(|back| defined.checked_sub(back)),
-            0 => None,
-        };
-        // `vertex` refuses files of more than u32::MAX vertices, so this fits.
-        index.and_then(|i| u32::try_from(i).ok()).ok_or_else(|| ImportError::IndexOutOfRange {
-            file: self.file.clone(),
-            object: self.current.name.clone(),
-            at: Location::Line(line_number),
-            index: written,
-            vertices: defined,
+            LineError::NonFinite => ImportError::NonFiniteCoordinate { file, object, at: Location::Line(at) },
+            LineError::IndexOutOfRange { index, defined } => ImportError::IndexOutOfRange {
+                file,
+                object,
+                at: Location::Line(at),
+                index,
+                vertices: (base + defined) as usize,
+            },
         })
     }
 
-    fn start_object(&mut self, rest: &[u8], line_number: u64) -> Result<(), ImportError> {
-        let next = Pending::new(String::from_utf8_lossy(rest).into_owned(), Some(line_number));
+    fn header(&mut self, header: Header) {
+        let line = Some(self.lines + header.line);
+        match self.grouping {
+            Grouping::ByObjectLines if header.object => self.start_object(Pending::new(header.name, line)),
+            Grouping::ByObjectLines if !self.seen_o => self.start_group(Pending::new(header.name, line)),
+            _ => {}
+        }
+    }
+
+    fn start_object(&mut self, next: Pending) {
         let previous = std::mem::replace(&mut self.current, next);
         if self.seen_o {
-            return self.build(previous);
+            self.complete.push(previous);
+            return;
         }
         // The first `o`: `g` lines so far did not start objects after all;
         // every face before this line belongs to the object named by the file.
         self.seen_o = true;
         let mut merged = Pending::new(file_stem(&self.file), None);
         for group in std::mem::take(&mut self.groups).into_iter().chain([previous]) {
-            merged.triangles.extend_from_slice(&group.triangles);
+            merged.append(group);
         }
-        if merged.triangles.is_empty() { Ok(()) } else { self.build(merged) }
+        if !merged.is_empty() {
+            self.complete.push(merged);
+        }
     }
 
-    fn start_group(&mut self, rest: &[u8], line_number: u64) {
-        let next = Pending::new(String::from_utf8_lossy(rest).into_owned(), Some(line_number));
+    fn start_group(&mut self, next: Pending) {
         let previous = std::mem::replace(&mut self.current, next);
-        if !previous.triangles.is_empty() {
+        if !previous.is_empty() {
             self.groups.push(previous);
         }
     }
 
-    fn finish(&mut self) -> Result<(), ImportError> {
+    /// Completes the objects left at the end of the file and builds them.
+    fn finish(&mut self) -> Built {
         let last = std::mem::replace(&mut self.current, Pending::new(String::new(), None));
         match self.grouping {
-            Grouping::ByObjectLines if self.seen_o => self.build(last),
-            Grouping::ByObjectLines => {
-                for group in std::mem::take(&mut self.groups).into_iter().chain([last]) {
-                    if !group.triangles.is_empty() {
-                        self.build(group)?;
-                    }
-                }
-                Ok(())
+            Grouping::ByObjectLines if !self.seen_o => {
+                let groups = std::mem::take(&mut self.groups).into_iter().chain([last]);
+                self.complete.extend(groups.filter(|group| !group.is_empty()));
             }
-            Grouping::WholeFile => self.build(last),
+            _ => self.complete.push(last),
         }
+        self.build(&[])
     }
 
-    /// Turns a finished object into a mesh over the vertices it uses.
-    fn build(&mut self, pending: Pending) -> Result<(), ImportError> {
-        let Pending { name, line, mut triangles } = pending;
-        let points = self.renumber(&mut triangles);
-        let object = super::load::object(&self.file, name, line, &points, triangles)?;
-        self.degenerate_triangles += object.mesh.degenerate_triangles();
-        self.objects.push(object);
-        Ok(())
+    /// Builds the complete objects in parallel.
+    fn build(&mut self, pieces: &[Piece]) -> Built {
+        let (file, vertices) = (&self.file, &self.vertices);
+        let objects = std::mem::take(&mut self.complete)
+            .into_par_iter()
+            .map_init(Scratch::default, |scratch, pending| build(file, vertices, pieces, pending, scratch))
+            .collect();
+        Built { objects, error: None }
     }
+}
 
-    /// Rewrites `triangles` from file indices to the object's own, numbered
-    /// in ascending file order, and returns the object's vertices.
-    fn renumber(&mut self, triangles: &mut [[u32; 3]]) -> Vec<Point> {
-        let corners = triangles.as_flattened_mut();
-        let lowest = corners.iter().copied().min().unwrap_or(0);
-        let highest = corners.iter().copied().max().unwrap_or(0);
-        let span = (highest - lowest) as usize + 1;
-        // An object's vertices usually sit together in the file (always, in
-        // our own form): a table over their span renumbers in linear time.
-        // Objects that pick vertices from all over a shared list sort instead.
-        if span <= 4 * corners.len() + 1024 {
-            const UNUSED: u32 = u32::MAX;
-            self.local_index.clear();
-            self.local_index.resize(span, UNUSED);
-            for &c in corners.iter() {
-                self.local_index[(c - lowest) as usize] = 0;
+/// Buffers that building objects reuses, one set per thread.
+#[derive(Default)]
+struct Scratch {
+    /// An object's own number for each file vertex in its span.
+    local_index: Vec<u32>,
+    /// The object's vertices.
+    points: Vec<Point>,
+}
+
+/// Turns a complete object into a mesh over the vertices it uses, with its
+/// count of zero-area triangles.
+fn build(
+    file: &Path,
+    vertices: &Vertices,
+    pieces: &[Piece],
+    pending: Pending,
+    scratch: &mut Scratch,
+) -> Result<(Object, usize), ImportError> {
+    let triangles = renumber(vertices, pending.parts(pieces), scratch);
+    let object = super::load::object(file, pending.name, pending.line, &scratch.points, triangles)?;
+    let degenerate = object.mesh.degenerate_triangles();
+    Ok((object, degenerate))
+}
+
+/// An object's triangles over its own vertices, from its `parts` over the
+/// file's `vertices`; its vertices, those it uses in ascending file order,
+/// go to `scratch.points`.
+fn renumber<'a>(
+    vertices: &Vertices,
+    parts: impl Iterator<Item = &'a [[u32; 3]]> + Clone,
+    scratch: &mut Scratch,
+) -> Vec<[u32; 3]> {
+    let count = parts.clone().map(<[_]>::len).sum();
+    let corners = || parts.clone().flat_map(<[_]>::as_flattened).copied();
+    let (lowest, highest) = corners().fold((u32::MAX, 0), |(lo, hi), c| (lo.min(c), hi.max(c)));
+    let lowest = lowest.min(highest);
+    let span = (highest - lowest) as usize + 1;
+    let mut triangles = Vec::with_capacity(count);
+    let Scratch { local_index, points } = scratch;
+    points.clear();
+    // An object's vertices usually sit together in the file (always, in
+    // our own form): a table over their span renumbers in linear time.
+    // Objects that pick vertices from all over a shared list sort instead.
+    if span <= 12 * count + 1024 {
+        const UNUSED: u32 = u32::MAX;
+        local_index.clear();
+        local_index.resize(span, UNUSED);
+        for c in corners() {
+            local_index[(c - lowest) as usize] = 0;
+        }
+        let mut slots = local_index.iter_mut();
+        for run in vertices.from(lowest) {
+            if slots.len() == 0 {
+                break;
             }
-            let mut points = Vec::new();
-            for (offset, slot) in self.local_index.iter_mut().enumerate() {
+            for (slot, point) in slots.by_ref().take(run.len()).zip(run) {
                 if *slot != UNUSED {
                     *slot = points.len() as u32;
-                    points.push(self.vertices[lowest as usize + offset]);
+                    points.push(*point);
                 }
             }
-            for c in corners.iter_mut() {
-                *c = self.local_index[(*c - lowest) as usize];
-            }
-            points
-        } else {
-            let mut used = corners.to_vec();
-            used.sort_unstable();
-            used.dedup();
-            for c in corners.iter_mut() {
-                // Every corner is in `used`, which is sorted.
-                *c = used.binary_search(c).unwrap_or_default() as u32;
-            }
-            used.iter().map(|&i| self.vertices[i as usize]).collect()
+        }
+        for part in parts {
+            triangles.extend(part.iter().map(|t| t.map(|c| local_index[(c - lowest) as usize])));
+        }
+    } else {
+        let mut used: Vec<u32> = corners().collect();
+        used.sort_unstable();
+        used.dedup();
+        // Every corner is in `used`, which is sorted.
+        let local = |c: u32| used.binary_search(&c).unwrap_or_default() as u32;
+        for part in parts {
+            triangles.extend(part.iter().map(|t| t.map(local)));
+        }
+        points.extend(used.iter().map(|&i| vertices.get(i)));
+    }
+    triangles
+}
+
+/// The file's vertices, kept in the vectors its pieces parsed them into:
+/// copying them into one would be a step no other core could share.
+#[derive(Default)]
+struct Vertices {
+    runs: Vec<Vec<Point>>,
+    /// The file index of each run's first vertex.
+    starts: Vec<u64>,
+    len: u64,
+}
+
+impl Vertices {
+    fn len(&self) -> u64 {
+        self.len
+    }
+
+    fn append(&mut self, run: Vec<Point>) {
+        if !run.is_empty() {
+            self.starts.push(self.len);
+            self.len += run.len() as u64;
+            self.runs.push(run);
         }
     }
 
-    fn malformed(&self, line_number: u64, expected: &'static str, found: &[u8]) -> ImportError {
-        // Keep messages short when a binary file is read as OBJ.
-        const SHOWN: usize = 60;
-        let mut shown = String::from_utf8_lossy(&found[..found.len().min(SHOWN)]).into_owned();
-        if found.len() > SHOWN {
-            shown.push_str("...");
-        }
-        ImportError::Malformed { file: self.file.clone(), line: line_number, expected, found: shown }
+    /// The run holding vertex `index`, and where in it; past the end, the
+    /// end of the last run.
+    fn locate(&self, index: u32) -> (usize, usize) {
+        let run = self.starts.partition_point(|&start| start <= u64::from(index)).saturating_sub(1);
+        let at = u64::from(index).saturating_sub(self.starts.get(run).copied().unwrap_or(0));
+        (run, (at as usize).min(self.runs.get(run).map_or(0, Vec::len)))
+    }
+
+    /// Vertex `index`, which the faces' checks put below `len`.
+    fn get(&self, index: u32) -> Point {
+        self.from(index).flatten().next().copied().unwrap_or(Point::origin())
+    }
+
+    /// The vertices from `index` on, run by run.
+    fn from(&self, index: u32) -> impl Iterator<Item = &[Point]> {
+        let (run, at) = self.locate(index);
+        let runs = self.runs.get(run..).unwrap_or_default();
+        runs.iter().enumerate().map(move |(i, r)| if i == 0 { &r[at..] } else { r.as_slice() })
     }
 }
 
@@ -409,7 +895,7 @@ fn token_at(s: &[u8]) -> &[u8] {
 /// [`exact_quotient`]). Anything else (an exponent, more digits, `inf`,
 /// `nan`) goes to std's parser, which is exact too.
 fn scan_f64(s: &[u8]) -> Option<(f64, &[u8])> {
-    if let Some(fast) = scan_plain_decimal(s) {
+    if let Some(fast) = short_decimal(s).or_else(|| scan_plain_decimal(s)) {
         return Some(fast);
     }
     let token = token_at(s);
@@ -430,6 +916,36 @@ fn scan_plain_decimal(s: &[u8]) -> Option<(f64, &[u8])> {
         return None;
     }
     let value = exact_quotient(digits, fraction_digits)?;
+    Some((if negative { -value } else { value }, rest))
+}
+
+/// A plain decimal as nearly every coordinate is written: up to seven
+/// digits, a point and up to seven more, then a blank or the line's end.
+/// Read from two chunks; fourteen digits are below 2^53, so one division
+/// rounds exactly (see [`exact_quotient`]). `None` for anything else.
+#[inline(always)]
+fn short_decimal(s: &[u8]) -> Option<(f64, &[u8])> {
+    const POWERS_OF_TEN: [u64; 8] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000];
+    let (negative, body) = split_sign(s);
+    let chunk = u64::from_le_bytes(*body.first_chunk::<8>()?);
+    let whole_digits = digit_run(chunk);
+    if !(1..8).contains(&whole_digits) {
+        return None;
+    }
+    let whole = run_value(chunk, whole_digits);
+    let (digits, fraction_digits, rest) = match &body[whole_digits..] {
+        [b'.', fraction @ ..] => {
+            let chunk = u64::from_le_bytes(*fraction.first_chunk::<8>()?);
+            let n = digit_run(chunk);
+            let value = *POWERS_OF_TEN.get(n)? * whole + if n > 0 { run_value(chunk, n) } else { 0 };
+            (value, n, &fraction[n..])
+        }
+        rest => (whole, 0, rest),
+    };
+    if !matches!(rest.first(), Some(b' ' | b'\t' | b'\n' | b'\r')) {
+        return None;
+    }
+    let value = digits as f64 / F64_POWERS_OF_TEN[fraction_digits];
     Some((if negative { -value } else { value }, rest))
 }
 
@@ -502,21 +1018,10 @@ fn rounding_error(digits: u64, power: u64, candidate: f64) -> Option<std::cmp::O
 
 /// The vertex index that starts `s` (the `v` of `v/vt/vn`), and the bytes
 /// after the whole corner. At most 18 digits, so it cannot overflow (no
-/// file has 10^18 vertices). A digit at a time: indices are short, and
-/// most end their line, where an eight-byte load would need padding.
+/// file has 10^18 vertices).
 fn scan_index(s: &[u8]) -> Option<(i64, &[u8])> {
-    let (negative, mut rest) = split_sign(s);
-    let mut value: i64 = 0;
-    let mut digits = 0;
-    while let Some((&b, after)) = rest.split_first() {
-        let digit = b.wrapping_sub(b'0');
-        if digit > 9 {
-            break;
-        }
-        value = value.wrapping_mul(10).wrapping_add(i64::from(digit));
-        digits += 1;
-        rest = after;
-    }
+    let (negative, body) = split_sign(s);
+    let (value, digits, mut rest) = leading_digits(body, 0);
     if !(1..=18).contains(&digits) {
         return None;
     }
@@ -526,13 +1031,15 @@ fn scan_index(s: &[u8]) -> Option<(i64, &[u8])> {
     if !rest.first().is_none_or(u8::is_ascii_whitespace) {
         return None;
     }
+    // 18 digits fit in an i64.
+    let value = value as i64;
     Some((if negative { -value } else { value }, rest))
 }
 
 fn split_sign(s: &[u8]) -> (bool, &[u8]) {
-    match s.split_first() {
-        Some((b'-', body)) => (true, body),
-        Some((b'+', body)) => (false, body),
+    match s {
+        [b'-', body @ ..] => (true, body),
+        [b'+', body @ ..] => (false, body),
         _ => (false, s),
     }
 }
@@ -549,7 +1056,6 @@ fn split_sign(s: &[u8]) -> (bool, &[u8]) {
 #[inline]
 fn leading_digits(mut s: &[u8], mut value: u64) -> (u64, usize, &[u8]) {
     const POWERS_OF_TEN: [u64; 9] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000, 100_000_000];
-    const ZEROS: u64 = 0x3030_3030_3030_3030;
     let mut count = 0;
     loop {
         let chunk = match s.first_chunk::<8>() {
@@ -563,24 +1069,53 @@ fn leading_digits(mut s: &[u8], mut value: u64) -> (u64, usize, &[u8]) {
                 u64::from_le_bytes(padded)
             }
         };
-        // A byte's high bit is set here iff it is not a digit; bytes after
-        // the first non-digit may be garbled by borrows, but are not used.
-        let non_digits =
-            (chunk.wrapping_sub(ZEROS) | chunk.wrapping_add(0x4646_4646_4646_4646)) & 0x8080_8080_8080_8080;
-        let digits = (non_digits.trailing_zeros() / 8) as usize;
+        let digits = digit_run(chunk);
         if digits == 0 {
             return (value, count, s);
         }
-        // The run's digits into the top bytes, '0's below them.
-        let shift = 8 * (8 - digits) as u32;
-        let aligned = chunk.checked_shl(shift).unwrap_or(0) | ZEROS.checked_shr(64 - shift).unwrap_or(0);
-        value = value.wrapping_mul(POWERS_OF_TEN[digits]).wrapping_add(eight_digits(aligned));
+        value = value.wrapping_mul(POWERS_OF_TEN[digits]).wrapping_add(run_value(chunk, digits));
         count += digits;
         s = &s[digits..];
         if digits < 8 {
             return (value, count, s);
         }
     }
+}
+
+const ZEROS: u64 = 0x3030_3030_3030_3030;
+
+/// How many digits start `chunk` (first byte lowest), 0 to 8.
+#[inline(always)]
+fn digit_run(chunk: u64) -> usize {
+    // A byte's high bit is set here iff it is not a digit; bytes after the
+    // first non-digit may be garbled by borrows, but are not used.
+    let non_digits =
+        (chunk.wrapping_sub(ZEROS) | chunk.wrapping_add(0x4646_4646_4646_4646)) & 0x8080_8080_8080_8080;
+    (non_digits.trailing_zeros() / 8) as usize
+}
+
+/// The number that the first `digits` (1 to 8) bytes of `chunk` spell.
+#[inline(always)]
+fn run_value(chunk: u64, digits: usize) -> u64 {
+    // The run's digits into the top bytes, '0's below them.
+    let shift = 8 * (8 - digits) as u32;
+    eight_digits(chunk.checked_shl(shift).unwrap_or(0) | ZEROS.checked_shr(64 - shift).unwrap_or(0))
+}
+
+/// A corner as nearly every file writes it: a positive index of at most
+/// seven digits, then a blank or the line's end. Read from one chunk, it
+/// skips [`scan_index`]'s sign, slash and length checks; `None` for
+/// anything else, which [`scan_index`] then reads.
+#[inline(always)]
+fn short_index(s: &[u8]) -> Option<(i64, &[u8])> {
+    let chunk = u64::from_le_bytes(*s.first_chunk::<8>()?);
+    let digits = digit_run(chunk);
+    let ends = matches!(s.get(digits), Some(b' ' | b'\t' | b'\n' | b'\r'));
+    if !(1..8).contains(&digits) || !ends {
+        return None;
+    }
+    // Seven digits fit in an i64.
+    Some((run_value(chunk, digits) as i64, &s[digits..]))
 }
 
 /// The number that eight ASCII digits (first digit in the lowest byte)
@@ -593,6 +1128,10 @@ fn eight_digits(chunk: u64) -> u64 {
     let high = ((pairs >> 16) & 0x0000_00FF_0000_00FF).wrapping_mul(0x0000_2710_0000_0001);
     u64::from((low.wrapping_add(high) >> 32) as u32)
 }
+
+#[cfg(test)]
+#[path = "obj_oracle.rs"]
+mod oracle;
 
 #[cfg(test)]
 mod tests {
@@ -728,13 +1267,22 @@ mod tests {
         assert_eq!(err.to_string(), "d/pump.obj: object \"pump\" has no triangles");
     }
 
-    /// A whole token as a number, as the parser reads it.
+    /// A whole token as a number, as the parser reads it: at the end of
+    /// the text, and before a blank (the short forms' path), which agree.
     fn parse_f64(token: &[u8]) -> Option<f64> {
-        scan_f64(token).filter(|(_, rest)| rest.is_empty()).map(|(value, _)| value)
+        let at_end = scan_f64(token).filter(|(_, rest)| rest.is_empty()).map(|(value, _)| value);
+        let line = [token, b" 1"].concat();
+        let in_line = scan_f64(&line).filter(|(_, rest)| *rest == b" 1").map(|(value, _)| value);
+        assert_eq!(at_end.map(f64::to_bits), in_line.map(f64::to_bits), "{}", String::from_utf8_lossy(token));
+        at_end
     }
 
     fn parse_i64(token: &[u8]) -> Option<i64> {
-        scan_index(token).filter(|(_, rest)| rest.is_empty()).map(|(value, _)| value)
+        let at_end = scan_index(token).filter(|(_, rest)| rest.is_empty()).map(|(value, _)| value);
+        let line = [token, b" 1"].concat();
+        let in_line = short_index(&line).or_else(|| scan_index(&line));
+        assert_eq!(at_end, in_line.filter(|(_, rest)| *rest == b" 1").map(|(value, _)| value));
+        at_end
     }
 
     #[test]
@@ -782,6 +1330,54 @@ mod tests {
         }
     }
 
+    /// A reader that fails after `good` bytes, some reads interrupted.
+    struct Failing<'a> {
+        text: &'a [u8],
+        good: usize,
+        reads: usize,
+    }
+
+    impl std::io::Read for Failing<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            self.reads += 1;
+            if self.reads.is_multiple_of(3) {
+                return Err(std::io::ErrorKind::Interrupted.into());
+            }
+            if self.good == 0 {
+                return Err(std::io::Error::other("disk on fire"));
+            }
+            let n = buf.len().min(self.good).min(self.text.len()).min(5);
+            buf[..n].copy_from_slice(&self.text[..n]);
+            (self.text, self.good) = (&self.text[n..], self.good - n);
+            Ok(n)
+        }
+    }
+
+    #[test]
+    fn a_failed_read_ends_the_file_after_the_lines_before_it() {
+        // The read fails after line 5 or inside line 7: line 5's own error
+        // (a bad index) comes first, as it did line by line.
+        let text = format!("{SQUARE}f 1 2 9\no p\nf 1 2 3\n");
+        for (good, chunking) in
+            [(40, Chunking { block: 3, piece: 2 }), (40, Chunking::DEFAULT), (49, Chunking::DEFAULT)]
+        {
+            let reader = Failing { text: text.as_bytes(), good, reads: 0 };
+            let mut objects = Vec::new();
+            let ours =
+                parse(reader, Path::new("f.obj"), Grouping::ByObjectLines, chunking, |o| objects.push(o));
+            let old = oracle::read_obj(
+                std::io::BufReader::with_capacity(4, Failing { text: text.as_bytes(), good, reads: 0 }),
+                Path::new("f.obj"),
+            );
+            let (ours, old) = (ours.unwrap_err().to_string(), old.unwrap_err().to_string());
+            assert_eq!(ours, old, "{good} bytes");
+            assert!(ours.contains("line 5"), "{ours}");
+        }
+        let reader = Failing { text: SQUARE.as_bytes(), good: 10, reads: 0 };
+        let err = read_obj(reader, Path::new("f.obj")).unwrap_err();
+        assert!(matches!(err, ImportError::Io { .. }), "{err}");
+    }
+
     #[test]
     fn numbers_end_at_whitespace() {
         assert_eq!(scan_f64(b"1.5 2").map(|(v, rest)| (v, rest.len())), Some((1.5, 2)));
@@ -812,6 +1408,146 @@ mod tests {
             assert_eq!(parse_f64(bad.as_bytes()), None, "{bad:?}");
         }
         assert_eq!(parse_f64(b"-0").map(f64::is_sign_negative), Some(true));
+    }
+
+    /// Everything a parse gives: the objects and the zero-area count, or
+    /// the error as printed and as built.
+    fn outcome(text: &[u8], grouping: Grouping, chunking: Chunking) -> Result<(Vec<Object>, usize), String> {
+        let mut objects = Vec::new();
+        parse(text, Path::new("cut/test.obj"), grouping, chunking, |object| objects.push(object))
+            .map(|degenerate| (objects, degenerate))
+            .map_err(|e| format!("{e} / {e:?}"))
+    }
+
+    /// A random OBJ line, its indices still as shares of the vertices
+    /// before it: mostly valid, with every statement, index form and fault
+    /// the parser tells apart.
+    #[derive(Debug, Clone)]
+    enum Line {
+        Vertex {
+            xyz: Vec<String>,
+            separator: &'static str,
+        },
+        /// Each corner: `Ok((from the end, share, suffix))` or a raw token.
+        Face {
+            corners: Vec<Result<(bool, f64, &'static str), &'static str>>,
+            separator: &'static str,
+            comment: bool,
+        },
+        Header {
+            keyword: &'static str,
+            separator: &'static str,
+            name: &'static str,
+        },
+        Other(&'static str),
+    }
+
+    fn obj_line() -> impl Strategy<Value = Line> {
+        let number = prop_oneof![
+            200 => (-3i32..40).prop_map(|i| i.to_string()),
+            100 => (-40_000i32..40_000).prop_map(|i| format!("{}", f64::from(i) / 16.0)),
+            2 => prop::sample::select(vec!["1e3", "-0", "+2.5", ".5", "7."]).prop_map(String::from),
+            1 => prop::sample::select(vec!["nan", "1e999", "x", "1..2", "-inf", "1e400"]).prop_map(String::from),
+        ];
+        let corner = prop_oneof![
+            200 => (prop::bool::weighted(0.3), 0.0..1.0f64, prop::sample::select(vec!["", "", "/1", "//2", "/3/1"]))
+                .prop_map(Ok),
+            1 => prop::sample::select(vec!["0", "x", "4294967297", "-99999999999", "1/x", "99", "-99"]).prop_map(Err),
+        ];
+        let separator = prop::sample::select(vec![" ", " ", " ", "  ", "\t", " \t"]);
+        prop_oneof![
+            10 => (prop::collection::vec(number, 3..=4), separator.clone())
+                .prop_map(|(xyz, separator)| Line::Vertex { xyz, separator }),
+            8 => (prop::collection::vec(corner, 3..=6), separator.clone(), prop::bool::weighted(0.1))
+                .prop_map(|(corners, separator, comment)| Line::Face { corners, separator, comment }),
+            2 => (
+                prop::sample::select(vec!["o", "o", "g", "g", " o", "g\t"]),
+                separator,
+                prop::sample::select(vec!["", "a", "b c", "a", "pipe 1", "ü"]),
+            )
+                .prop_map(|(keyword, separator, name)| Line::Header { keyword, separator, name }),
+            1 => prop::sample::select(vec![
+                "", "# note", "vt 0 0", "vn 0 0 1", "s 1", "usemtl m", "  ", "v", "f", "v 1 2", "f 1 2", "l 1 2"
+            ])
+            .prop_map(Line::Other),
+        ]
+    }
+
+    /// OBJ text from random lines: indices become numbers of vertices
+    /// defined before their line (a few reach past them).
+    fn obj_text() -> impl Strategy<Value = String> {
+        (0..8usize, prop::collection::vec(obj_line(), 0..80), prop::bool::ANY, prop::bool::ANY).prop_map(
+            |(first_vertices, lines, crlf, final_newline)| {
+                // Most files define vertices before their first face.
+                let first =
+                    (0..first_vertices).map(|i| Line::Vertex { xyz: vec![i.to_string(); 3], separator: " " });
+                let mut vertices = 0;
+                let rendered: Vec<String> = first
+                    .chain(lines)
+                    .map(|line| match line {
+                        Line::Vertex { xyz, separator } => {
+                            vertices += 1;
+                            format!("v{separator}{}", xyz.join(separator))
+                        }
+                        Line::Face { corners, separator, comment } => {
+                            let corners: Vec<String> = corners
+                                .into_iter()
+                                .map(|c| match c {
+                                    Ok((back, share, suffix)) => {
+                                        // One past the vertices now and then.
+                                        let n = (share * (vertices as f64 + 0.02)) as i64 + 1;
+                                        format!("{}{n}{suffix}", if back { "-" } else { "" })
+                                    }
+                                    Err(raw) => raw.to_string(),
+                                })
+                                .collect();
+                            format!(
+                                "f{separator}{}{}",
+                                corners.join(separator),
+                                if comment { " # c" } else { "" }
+                            )
+                        }
+                        Line::Header { keyword, separator, name } => format!("{keyword}{separator}{name}"),
+                        Line::Other(text) => text.to_string(),
+                    })
+                    .collect();
+                let mut text = rendered.join(if crlf { "\r\n" } else { "\n" });
+                if final_newline && !text.is_empty() {
+                    text.push('\n');
+                }
+                text
+            },
+        )
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(30000))]
+
+        /// The sequential parser's result, whatever the cut: blocks and
+        /// pieces of a few bytes end inside lines, between `\r` and `\n`,
+        /// and around `o`/`g` lines.
+        #[test]
+        fn any_cut_of_the_input_gives_the_sequential_result(
+            text in obj_text(),
+            block in 1usize..48,
+            piece in 1usize..24,
+            whole_file in prop::bool::ANY,
+        ) {
+            let source = Path::new("cut/test.obj");
+            let expected = if whole_file {
+                oracle::read_obj_as_one_object(text.as_bytes(), source).map(|(object, d)| (vec![object], d))
+            } else {
+                match oracle::read_obj(text.as_bytes(), source) {
+                    // `parse` leaves an empty scene to its callers.
+                    Err(ImportError::EmptyScene { .. }) => Ok((Vec::new(), 0)),
+                    old => old.map(|imported| (imported.scene.into_objects(), imported.degenerate_triangles)),
+                }
+            };
+            let expected = expected.map_err(|e| format!("{e} / {e:?}"));
+            let grouping = if whole_file { Grouping::WholeFile } else { Grouping::ByObjectLines };
+            prop_assert_eq!(outcome(text.as_bytes(), grouping, Chunking { block, piece }), expected.clone());
+            prop_assert_eq!(outcome(text.as_bytes(), grouping, Chunking::DEFAULT), expected);
+        }
     }
 
     proptest! {

@@ -11,7 +11,6 @@
 //! Vertices are shared between facets when their coordinates are equal bit
 //! for bit, in order of first use.
 
-use std::collections::HashMap;
 use std::io::Cursor;
 use std::path::Path;
 
@@ -35,7 +34,9 @@ pub(super) fn load(path: &Path) -> Result<(Object, usize), ImportError> {
     let facets = stl_io::create_stl_reader(&mut cursor).map_err(|e| stl_error(e.to_string()))?;
     let mut points: Vec<Point> = Vec::new();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
-    let mut index_of: HashMap<[u32; 3], u32> = HashMap::new();
+    // Fx rather than std's DoS-proof hash: the keys are coordinates, and
+    // hashing them is most of the reading.
+    let mut index_of: rustc_hash::FxHashMap<[u32; 3], u32> = Default::default();
     for (facet, read) in facets.enumerate() {
         let facet = facet as u64;
         let triangle = read.map_err(|e| stl_error(format!("facet {facet}: {e}")))?;
