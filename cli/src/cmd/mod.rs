@@ -94,8 +94,25 @@ pub fn read_scene(path: &Path, options: &ImportOptions) -> Result<Scene> {
     if imported.degenerate_triangles > 0 {
         eprintln!("mktree: warning: {} zero-area triangles kept", imported.degenerate_triangles);
     }
+    release_freed_memory();
     Ok(imported.scene)
 }
+
+/// Hands the import's freed buffers back to the system. The parallel
+/// importers free them in the allocator's per-thread arenas, where glibc
+/// keeps them and the build's later allocations, mostly on other arenas,
+/// do not reuse them: without this, ship 10^6 peaks 0.3 GB higher.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+fn release_freed_memory() {
+    // SAFETY: malloc_trim only returns free pages of the allocator's
+    // arenas to the system; it touches no live allocation.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
+
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+fn release_freed_memory() {}
 
 /// A scene named on the command line: a scene file, or else a preset of
 /// the generator (`tanker1`, ..., `ship`, `ship:N` for N objects, seed 0).
