@@ -18,14 +18,14 @@ pub(crate) trait Host: Send + Sync {
 #[cfg(feature = "redb")]
 mod open {
     use std::collections::BTreeMap;
-    use std::sync::{Arc, Mutex};
+    use std::sync::Arc;
 
-    use super::super::{DEFAULT_CACHE_BLOCKS, Database, Inner, Seat, Snapshot, State, read_meta};
+    use super::super::{Database, Snapshot, State, read_meta};
     use super::{Commit, Host};
     use crate::store::format::freelist::FreeRange;
     use crate::store::format::header::{SlotPair, SlotRead};
     use crate::store::format::table::TableState;
-    use crate::store::{BlockCache, BlockDevice, Pager, StorageError};
+    use crate::store::{BlockDevice, Pager, StorageError};
 
     impl Database {
         /// The tree of `state` on `device`, the blocks of a host's table. With
@@ -61,18 +61,7 @@ mod open {
                 snapshot: Arc::new(Snapshot::of(&committed, meta)),
                 readers: BTreeMap::new(),
             };
-            Ok(Database {
-                inner: Arc::new(Inner {
-                    pager,
-                    cache: BlockCache::new(DEFAULT_CACHE_BLOCKS),
-                    state: Mutex::new(state),
-                    writer: Seat::default(),
-                    locks: None,
-                    host,
-                    read_only,
-                }),
-                warnings: Vec::new(),
-            })
+            Ok(Database::assemble(pager, state, None, host, read_only, Vec::new()))
         }
     }
 }

@@ -320,18 +320,30 @@ impl Database {
             snapshot: Arc::new(Snapshot::of(&loaded.committed, loaded.meta)),
             readers: BTreeMap::new(),
         };
-        Ok(Database {
+        Ok(Database::assemble(pager, state, locks, None, read_only, warnings))
+    }
+
+    /// A database on `pager` in `state`, with no reader and no writer yet.
+    fn assemble(
+        pager: Pager,
+        state: State,
+        locks: Option<FileLocks>,
+        host: Option<Arc<dyn Host>>,
+        read_only: bool,
+        warnings: Vec<Warning>,
+    ) -> Database {
+        Database {
             inner: Arc::new(Inner {
                 pager,
                 cache: BlockCache::new(DEFAULT_CACHE_BLOCKS),
                 state: Mutex::new(state),
                 writer: Seat::default(),
                 locks,
-                host: None,
+                host,
                 read_only,
             }),
             warnings,
-        })
+        }
     }
 
     /// What opening noticed: damaged slot copies, an interrupted transaction.
