@@ -86,6 +86,12 @@ pub enum Command {
         /// object's key is its id, its position in the input.
         #[arg(long)]
         key_names: bool,
+        /// Memory the build may use (e.g. 4G, 512M): an OBJ file larger than
+        /// half of it is staged on disk beside the output, meshes in a spill
+        /// file, instead of read whole; a scene whose tree would still not
+        /// fit is refused before the build.
+        #[arg(long, value_parser = byte_size, default_value = "4G")]
+        memory: u64,
         #[arg(long)]
         json: bool,
     },
@@ -454,6 +460,22 @@ fn numbers<const N: usize>(s: &str) -> Result<[f64; N], String> {
         return Err("numbers must be finite".into());
     }
     Ok(a)
+}
+
+/// A size in bytes: a whole number with an optional K, M, G or T suffix (powers of 1024).
+fn byte_size(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let (digits, shift) = match t.chars().last().map(|c| c.to_ascii_uppercase()) {
+        Some('K') => (&t[..t.len() - 1], 10),
+        Some('M') => (&t[..t.len() - 1], 20),
+        Some('G') => (&t[..t.len() - 1], 30),
+        Some('T') => (&t[..t.len() - 1], 40),
+        _ => (t, 0),
+    };
+    let n: u64 = digits.trim().parse().map_err(|_| format!("{s:?} is not a size such as 4G or 512M"))?;
+    n.checked_mul(1 << shift)
+        .filter(|&b| b > 0)
+        .ok_or_else(|| format!("{s:?} is not a positive size below 2^64 bytes"))
 }
 
 /// Six comma-separated finite numbers (a box x0,y0,z0,x1,y1,z1).

@@ -3,10 +3,11 @@
 
 use std::sync::Arc;
 
+use super::source::ObjectSource;
 use super::tree_writer::Sink;
 use super::{ReadTransaction, Reads};
 use crate::geom::Aabb;
-use crate::scene::{Key, Mesh, ObjectId, Scene};
+use crate::scene::{Key, Mesh, ObjectId};
 use crate::store::format::frame::BlockType;
 use crate::store::format::geometry;
 use crate::store::format::keys::{self, ChildRef, KeyBlock, KeyEntry, LeafLocator};
@@ -22,27 +23,28 @@ pub(crate) struct WrittenKeys {
     pub blocks: u32,
 }
 
-/// Writes the key index of `scene`, whose objects' leaf records and boxes
+/// Writes the key index of `objects`, whose objects' leaf records and boxes
 /// are `leaves` (by id), into `sink`. Keys must be unique
 /// (`Scene::check_keys`).
 pub(crate) fn write(
     Sink { pager, txn, allocate }: Sink,
-    scene: &Scene,
+    objects: &dyn ObjectSource,
     leaves: &[(LeafLocator, Aabb)],
 ) -> Result<WrittenKeys, StorageError> {
     let bs = pager.block_size();
     let capacity = keys::capacity(bs);
-    let mut entries: Vec<KeyEntry> = scene
-        .objects()
+    let mut entries: Vec<KeyEntry> = leaves
         .iter()
-        .zip(leaves)
         .enumerate()
-        .map(|(i, (o, &(leaf, aabb)))| KeyEntry {
-            key: scene.key(ObjectId(i as u32)).unwrap_or(Key::Int(i as u64)),
-            payload: o.payload.clone(),
-            object_id: i as u32,
-            leaf,
-            aabb,
+        .map(|(i, &(leaf, aabb))| {
+            let id = ObjectId(i as u32);
+            KeyEntry {
+                key: objects.key(id),
+                payload: objects.payload(id).to_vec(),
+                object_id: id.0,
+                leaf,
+                aabb,
+            }
         })
         .collect();
     entries.sort_by(|a, b| a.key.cmp(&b.key));

@@ -11,6 +11,8 @@ mod hosted;
 mod key_index;
 mod lod;
 mod read;
+mod source;
+mod staged;
 mod stored;
 mod tree_writer;
 mod write;
@@ -28,6 +30,7 @@ pub use key_index::ObjectRecord;
 pub use lod::{Level, LodInfo, Piece};
 pub(crate) use read::view;
 pub use read::{NodeRef, ReadTransaction, Reads, TreeInfo};
+pub use staged::StagedScene;
 pub use write::WriteTransaction;
 
 use crate::store::device::FileDevice;

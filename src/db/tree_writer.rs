@@ -5,13 +5,17 @@
 //! among a few piece sizes by the node reads it gives the read model's
 //! sample queries ([`QueryMix`]).
 
+use std::borrow::Cow;
+
 use rayon::prelude::*;
+
+use super::source::ObjectSource;
 
 use crate::build::{Hierarchy, LoadProgress, Order, QueryMix, Stage, StageMeter};
 use crate::geom::Aabb;
 use crate::lod::LeafEntry;
 use crate::lod::StoredBounds;
-use crate::scene::{Key, Mesh, ObjectId, Scene};
+use crate::scene::{Key, Mesh, ObjectId};
 use crate::store::format::frame::{BlockType, FRAME_LEN};
 use crate::store::format::geometry::{self, Placement};
 use crate::store::format::keys::LeafLocator;
@@ -72,23 +76,30 @@ pub(crate) struct Plan {
 #[derive(Debug, Clone)]
 struct Entry {
     id: ObjectId,
-    /// The part's mesh; `None` for a whole object (the scene's mesh).
-    part: Option<Mesh>,
+    /// The part's mesh; `None` for a whole object (its source's mesh).
+    part: Option<Box<Mesh>>,
+    /// The entry's box: the object's, or the part's.
+    aabb: Aabb,
     /// Stream position and record length.
     pos: u64,
     len: u64,
 }
 
 impl Entry {
-    fn mesh<'a>(&'a self, scene: &'a Scene) -> Option<&'a Mesh> {
-        self.part.as_ref().or_else(|| scene.object(self.id).map(|o| &o.mesh))
+    fn mesh<'a>(&'a self, objects: &'a dyn ObjectSource) -> Result<Cow<'a, Mesh>, StorageError> {
+        match &self.part {
+            Some(part) => Ok(Cow::Borrowed(part)),
+            None => objects.mesh(self.id),
+        }
     }
 }
 
 impl Plan {
-    /// The plan of `tree` over `scene` in blocks of `block_size` bytes.
+    /// The plan of `tree` over `objects` in blocks of `block_size` bytes.
+    /// Only the meshes of objects too large for one block are read here
+    /// (their parts are kept); the others' records are placed by length.
     pub fn new(
-        scene: &Scene,
+        objects: &dyn ObjectSource,
         tree: &Hierarchy,
         block_size: u32,
         mix: &QueryMix,
@@ -100,21 +111,26 @@ impl Plan {
         let payload = geometry::payload(block_size);
         let mut entries: Vec<Vec<Entry>> = vec![Vec::new(); n];
         for (i, node) in nodes.iter().enumerate() {
-            for id in node.objects().unwrap_or_default() {
-                let o = scene.object(*id).ok_or_else(|| invalid(format!("no object {id}")))?;
-                let len = geometry::record_len(&o.mesh);
-                let parts = if len <= payload {
-                    vec![o.mesh.clone()]
-                } else {
-                    // A room of less than 1/16 of a block is not worth a part's header.
-                    let room = placement.room();
-                    geometry::parts(&o.mesh, if room < payload / 16 { payload } else { room }, payload)
-                };
+            for &id in node.objects().unwrap_or_default() {
+                if id.index() >= objects.len() {
+                    return Err(invalid(format!("no object {id}")));
+                }
+                let len = objects.record_len(id);
+                if len <= payload {
+                    let pos = placement.place(len);
+                    entries[i].push(Entry { id, part: None, aabb: objects.aabb(id), pos, len });
+                    continue;
+                }
+                // A room of less than 1/16 of a block is not worth a part's header.
+                let room = placement.room();
+                let mesh = objects.mesh(id)?;
+                let parts = geometry::parts(&mesh, if room < payload / 16 { payload } else { room }, payload);
                 let whole = parts.len() == 1;
                 for part in parts {
                     let len = geometry::record_len(&part);
                     let pos = placement.place(len);
-                    entries[i].push(Entry { id: *id, part: (!whole).then_some(part), pos, len });
+                    let aabb = if whole { objects.aabb(id) } else { part.aabb() };
+                    entries[i].push(Entry { id, part: (!whole).then(|| Box::new(part)), aabb, pos, len });
                 }
             }
         }
@@ -136,7 +152,7 @@ impl Plan {
         let key_bytes = entries
             .iter()
             .map(|es| {
-                let keys: Vec<Key> = object_ids(es).filter_map(|id| scene.key(id)).collect();
+                let keys: Vec<Key> = object_ids(es).map(|id| objects.key(id)).collect();
                 node::keys_len(&keys)
             })
             .collect();
@@ -172,20 +188,29 @@ impl Plan {
     }
 
     /// Every leaf's entries as the levels of detail judge them: the object
-    /// (or part) with its mesh and its geometry blocks.
-    pub fn leaf_entries<'a>(&'a self, scene: &'a Scene) -> Vec<Vec<LeafEntry<'a>>> {
+    /// (or part) with its box and its geometry blocks.
+    pub fn leaf_entries(&self) -> Vec<Vec<LeafEntry>> {
         self.entries
             .iter()
             .enumerate()
             .map(|(i, es)| {
                 es.iter()
                     .enumerate()
-                    .filter_map(|(j, e)| {
-                        Some(LeafEntry { id: e.id, mesh: e.mesh(scene)?, blocks: self.entry_blocks(i, j) })
-                    })
+                    .map(|(j, e)| LeafEntry { id: e.id, aabb: e.aabb, blocks: self.entry_blocks(i, j) })
                     .collect()
             })
             .collect()
+    }
+
+    /// The mesh of entry `j` of leaf `leaf`.
+    pub fn entry_mesh<'a>(
+        &'a self,
+        objects: &'a dyn ObjectSource,
+        leaf: usize,
+        j: usize,
+    ) -> Result<Cow<'a, Mesh>, StorageError> {
+        let e = self.entries.get(leaf).and_then(|es| es.get(j));
+        e.ok_or_else(|| StorageError::Invalid(format!("no entry {j} in leaf {leaf}")))?.mesh(objects)
     }
 
     /// First and last global geometry block of leaf `i`.
@@ -242,13 +267,7 @@ impl Plan {
     /// the node blocks the chosen packing makes it read, and the geometry
     /// blocks of the objects no box, face or bound decides (as the traversal
     /// decides them).
-    pub fn expected_reads(
-        &self,
-        scene: &Scene,
-        tree: &Hierarchy,
-        stored: &StoredBounds,
-        block_size: u32,
-    ) -> Vec<f64> {
+    pub fn expected_reads(&self, tree: &Hierarchy, stored: &StoredBounds, block_size: u32) -> Vec<f64> {
         let sizes = self.sizes(tree, &stored.bounds);
         let capacity = node::capacity(block_size);
         let scales = self.samples.len().div_ceil(SAMPLES_PER_SCALE);
@@ -262,10 +281,7 @@ impl Plan {
             .map(|i| {
                 self.entries[i]
                     .iter()
-                    .map(|e| {
-                        let b = e.mesh(scene)?.aabb();
-                        QuantBox::decode(&self.frames[i], quantize(&self.frames[i], &b))
-                    })
+                    .map(|e| QuantBox::decode(&self.frames[i], quantize(&self.frames[i], &e.aabb)))
                     .collect()
             })
             .collect();
@@ -375,12 +391,12 @@ pub(crate) struct Sink<'a> {
     pub allocate: &'a mut dyn FnMut(u32) -> Result<u32, StorageError>,
 }
 
-/// Writes `tree` over `scene` as `plan` lays it out, with the inline
+/// Writes `tree` over `objects` as `plan` lays it out, with the inline
 /// `bounds` of each node (internal: its children's group bounds; leaf: its
 /// objects'), into `sink`.
 pub(crate) fn write(
     Sink { pager, txn, allocate }: Sink,
-    scene: &Scene,
+    objects: &dyn ObjectSource,
     tree: &Hierarchy,
     plan: &Plan,
     bounds: &[Vec<BoundEntry>],
@@ -410,13 +426,16 @@ pub(crate) fn write(
     };
     for entries in &plan.entries {
         for e in entries {
-            let mesh = e.mesh(scene).ok_or_else(|| invalid(format!("no object {}", e.id)))?;
-            let (id, pos) = (&e.id, e.pos);
-            let o = mesh;
             record.clear();
-            geometry::encode_object(*id, o, &mut record);
+            vertices += match &e.part {
+                Some(part) => {
+                    geometry::encode_object(e.id, part, &mut record);
+                    part.vertex_count() as u64
+                }
+                None => objects.encode_record(e.id, &mut record)?,
+            };
             geometry_bytes += record.len() as u64;
-            vertices += o.vertex_count() as u64;
+            let pos = e.pos;
             let mut at = pos;
             let mut rest = &record[..];
             while !rest.is_empty() {
@@ -531,24 +550,21 @@ pub(crate) fn write(
                     _ => {
                         let (a, last) = leaf_span(i);
                         let base = a * p;
-                        let objects = plan.entries[i]
+                        let entries = plan.entries[i]
                             .iter()
-                            .map(|e| {
-                                let aabb = e.mesh(scene).map_or(Aabb::EMPTY, |m| m.aabb());
-                                ObjectEntry {
-                                    object_id: e.id.0,
-                                    qbox: quantize(&frame[i], &aabb),
-                                    position: e.pos - base,
-                                }
+                            .map(|e| ObjectEntry {
+                                object_id: e.id.0,
+                                qbox: quantize(&frame[i], &e.aabb),
+                                position: e.pos - base,
                             })
                             .collect();
                         let end = plan.entries[i].last().map_or(0, |e| e.pos + e.len);
-                        let keys = object_ids(&plan.entries[i]).filter_map(|id| scene.key(id)).collect();
+                        let keys = object_ids(&plan.entries[i]).map(|id| objects.key(id)).collect();
                         RecordDraft::Leaf {
                             node_id: i as u32,
                             first_block: first_geometry + a as u32,
                             checksums: sums[a as usize..=last as usize].to_vec(),
-                            objects,
+                            objects: entries,
                             end: end - base,
                             bounds: bounds[i].clone(),
                             keys,
@@ -563,7 +579,7 @@ pub(crate) fn write(
         checksums[b] = pager.write(first_node + b as u32, &mut bytes, BlockType::Node, txn)?;
     }
     let nowhere = LeafLocator { block: 0, checksum: 0, offset: 0, entry: 0 };
-    let mut leaves = vec![(nowhere, Aabb::EMPTY); scene.len()];
+    let mut leaves = vec![(nowhere, Aabb::EMPTY); objects.len()];
     for (i, es) in plan.entries.iter().enumerate() {
         let (b, _) = packing.place[i];
         for (j, e) in es.iter().enumerate() {
@@ -576,7 +592,7 @@ pub(crate) fn write(
                     entry: j as u16,
                 };
             }
-            *aabb = aabb.union(&e.mesh(scene).map_or(Aabb::EMPTY, |m| m.aabb()));
+            *aabb = aabb.union(&e.aabb);
         }
     }
     let (rb, _) = packing.place[0];

@@ -4,7 +4,9 @@
 use std::sync::Arc;
 use std::time::Instant;
 
+use super::StagedScene;
 use super::changes::Changes;
+use super::source::ObjectSource;
 use super::tree_writer::Sink;
 use super::{
     Inner, Recovery, SeatGuard, Snapshot, WriterLock, codes, free_list_chain, interrupted, key_index, load,
@@ -14,8 +16,8 @@ use crate::build::{
     BuildParams, BuildProgress, CostModel, Hierarchy, LoadProgress, QueryMix, Stage, StageMeter, build,
     check_range,
 };
-use crate::lod::{Layout, LodParams, StoredBounds, plan_bounds};
-use crate::scene::{Key, Object, Scene};
+use crate::lod::{EntryMesh, Layout, LodError, LodParams, StoredBounds, plan_bounds};
+use crate::scene::{Key, Object, ObjectId, Scene};
 use crate::store::StorageError;
 use crate::store::alloc::{FreeSpace, label_freed};
 use crate::store::format::frame::BlockType;
@@ -175,14 +177,38 @@ impl<'db> WriteTransaction<'db> {
         self.may_write_tree()?;
         check_range(scene, geometry::MAX_COORDINATE)?;
         scene.check_keys()?;
+        self.load(scene, params, progress)
+    }
+
+    /// [`bulk_load`](Self::bulk_load) of a scene staged on disk: the same
+    /// tree and the same blocks as for a [`Scene`] of the same objects,
+    /// with only one object's mesh (a few per thread) in memory at a time.
+    pub fn bulk_load_staged(
+        &mut self,
+        staged: &mut StagedScene,
+        params: &BuildParams,
+        progress: &(dyn Fn(LoadProgress) + Sync),
+    ) -> Result<Hierarchy, crate::Error> {
+        self.may_write_tree()?;
+        staged.flush()?;
+        staged.check_unique_keys()?;
+        self.load(staged, params, progress)
+    }
+
+    /// Builds the tree of checked `objects` and writes it.
+    fn load(
+        &mut self,
+        objects: &dyn ObjectSource,
+        params: &BuildParams,
+        progress: &(dyn Fn(LoadProgress) + Sync),
+    ) -> Result<Hierarchy, crate::Error> {
         let started = Instant::now();
-        let boxes = scene.object_boxes();
-        let sizes: Vec<u64> = scene.objects().iter().map(|o| geometry::record_len(&o.mesh)).collect();
-        let tree = build(&boxes, Some(&sizes), params, &|p: BuildProgress| {
-            progress(LoadProgress { stage: Stage::Tree, done: p.objects_placed, total: p.objects_total })
-        })?;
+        let tree =
+            build(&objects.object_boxes(), Some(&objects.record_lens()), params, &|p: BuildProgress| {
+                progress(LoadProgress { stage: Stage::Tree, done: p.objects_placed, total: p.objects_total })
+            })?;
         let build_seconds = started.elapsed().as_secs_f64();
-        self.write(scene, &tree, params, build_seconds, progress)?;
+        self.write(objects, &tree, params, build_seconds, progress)?;
         Ok(tree)
     }
 
@@ -278,10 +304,10 @@ impl<'db> WriteTransaction<'db> {
         Ok(self.changes()?.get(key).cloned())
     }
 
-    /// Writes a valid tree of `scene` (built here, or checked by `write_tree`).
+    /// Writes a valid tree of `objects` (built here, or checked by `write_tree`).
     fn write(
         &mut self,
-        scene: &Scene,
+        objects: &dyn ObjectSource,
         tree: &Hierarchy,
         params: &BuildParams,
         build_seconds: f64,
@@ -292,31 +318,41 @@ impl<'db> WriteTransaction<'db> {
         if tree.nodes.is_empty() {
             return Err(StorageError::Invalid("a tree holds at least one object".into()));
         }
-        let q = CostModel::of_boxes(&scene.object_boxes(), params.query_extent).query_extent();
+        let boxes = objects.object_boxes();
+        let q = CostModel::of_boxes(&boxes, params.query_extent).query_extent();
         let mix = QueryMix::new(&tree.nodes[0].aabb, q);
         let plan = {
             let _layout = StageMeter::new(progress, Stage::Layout, 1);
-            tree_writer::Plan::new(scene, tree, bs, &mix)?
+            tree_writer::Plan::new(objects, tree, bs, &mix)?
         };
-        let entries = plan.leaf_entries(scene);
-        let layout =
-            Layout { frames: &plan.frames, read_share: &plan.read_share, entries: &entries, block_size: bs };
+        let entries = plan.leaf_entries();
+        let mesh: &EntryMesh =
+            &|i, j| plan.entry_mesh(objects, i, j).map_err(|e| LodError::Mesh(e.to_string()));
+        let layout = Layout {
+            frames: &plan.frames,
+            read_share: &plan.read_share,
+            entries: &entries,
+            mesh,
+            block_size: bs,
+        };
         let mut stored =
-            plan_bounds(scene, tree, m, &self.lod_params, &mix, &layout, progress).map_err(lod_error)?;
+            plan_bounds(&boxes, tree, m, &self.lod_params, &mix, &layout, progress).map_err(lod_error)?;
+        drop(boxes);
         {
             let choose = StageMeter::new(progress, Stage::Choose, 2);
             if !self.lod_params.store_all && !stored.is_empty() {
-                stored = worth_keeping(&plan, scene, tree, &stored, bs);
+                stored = worth_keeping(&plan, tree, &stored, bs);
             }
             choose.add(1);
-            stored.measure_errors(&entries, self.lod_params.error_samples);
+            stored.measure_errors(mesh, self.lod_params.error_samples).map_err(lod_error)?;
         }
+        drop(entries);
         let txn = self.txn;
         let written = {
             let allocate = &mut |count: u32| self.allocate(count);
             tree_writer::write(
                 Sink { pager: &pager, txn, allocate },
-                scene,
+                objects,
                 tree,
                 &plan,
                 &stored.bounds,
@@ -325,14 +361,14 @@ impl<'db> WriteTransaction<'db> {
         };
         let keys = {
             let allocate = &mut |count: u32| self.allocate(count);
-            key_index::write(Sink { pager: &pager, txn, allocate }, scene, &written.leaves)?
+            key_index::write(Sink { pager: &pager, txn, allocate }, objects, &written.leaves)?
         };
         // Names, apart from geometry so queries never read them.
         let mut stream = Vec::new();
-        for o in scene.objects() {
-            geometry::encode_name(&o.name, &mut stream);
+        for i in 0..objects.len() {
+            geometry::encode_name(objects.name(ObjectId(i as u32)), &mut stream);
         }
-        let mut payloads = run::encode(&stream, scene.len() as u32, bs);
+        let mut payloads = run::encode(&stream, objects.len() as u32, bs);
         let names_block = self.allocate(payloads.len() as u32)?;
         // Last block first: each block holds the checksum of the one after it.
         let mut names_checksum = 0;
@@ -362,13 +398,13 @@ impl<'db> WriteTransaction<'db> {
             root_block,
             root_checksum,
             root_offset,
-            object_count: scene.len() as u32,
+            object_count: objects.len() as u32,
             node_count: tree.nodes.len() as u32,
             leaf_count: tree.leaves().count() as u32,
             depth: tree.depth().saturating_sub(1),
             node_blocks: written.node_blocks,
             geometry_blocks: written.geometry_blocks,
-            triangle_count: scene.triangle_count() as u64,
+            triangle_count: objects.triangle_count(),
             vertex_count: written.vertices,
             scene_box: tree.nodes[0].aabb.to_array(),
             build: codes::encode(params, build_seconds),
@@ -614,13 +650,12 @@ fn lod_error(e: crate::lod::LodError) -> StorageError {
 /// none if no share passes.
 fn worth_keeping(
     plan: &tree_writer::Plan,
-    scene: &Scene,
     tree: &Hierarchy,
     stored: &StoredBounds,
     block_size: u32,
 ) -> StoredBounds {
     let without = stored.none();
-    let base = plan.expected_reads(scene, tree, &without, block_size);
+    let base = plan.expected_reads(tree, &without, block_size);
     let values = stored.values();
     let mut count = values.len();
     for _ in 0..4 {
@@ -628,7 +663,7 @@ fn worth_keeping(
             break;
         }
         let kept = stored.keep(values[count - 1]);
-        let reads = plan.expected_reads(scene, tree, &kept, block_size);
+        let reads = plan.expected_reads(tree, &kept, block_size);
         if reads.iter().zip(&base).all(|(x, y)| x <= y)
             && reads.iter().sum::<f64>() < base.iter().sum::<f64>()
         {

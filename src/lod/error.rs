@@ -41,6 +41,9 @@ pub enum LodError {
     /// Parameters that cannot build levels of detail (the eps list, M).
     #[error("level-of-detail parameters: {0}")]
     Params(String),
+    /// An object's mesh could not be read (a staged scene's spill file).
+    #[error("reading an object's mesh: {0}")]
+    Mesh(String),
     /// A blob that is not a valid encoding: the message names the field.
     #[error("level-of-detail blob is corrupt: {0}")]
     Corrupt(String),

@@ -34,5 +34,5 @@ pub use grid::{Grid, MAX_CELLS, MAX_DIM};
 pub use lattice::Lattice;
 pub use plan::{LodParams, LodPlan};
 pub(crate) use policy::bound_grid;
-pub use policy::{Layout, LeafEntry, StoredBounds, plan_bounds};
+pub use policy::{EntryMesh, Layout, LeafEntry, StoredBounds, plan_bounds};
 pub use voxels::Voxels;

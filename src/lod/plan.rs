@@ -4,7 +4,7 @@
 //! so levels nest (see `lattice.rs`), and the parameters that shape them.
 
 use super::{Lattice, LodError};
-use crate::scene::Scene;
+use crate::geom::Aabb;
 
 /// How a tree's levels of detail are built.
 #[derive(Debug, Clone, PartialEq)]
@@ -51,12 +51,11 @@ pub struct LodPlan {
 
 /// The median of `f` over the objects' box sides (sorted ascending), and
 /// `None` for a scene of points.
-fn median_side(scene: &Scene, f: impl Fn(&[f64; 3]) -> f64) -> Option<f64> {
-    let mut v: Vec<f64> = scene
-        .objects()
+fn median_side(boxes: &[Aabb], f: impl Fn(&[f64; 3]) -> f64) -> Option<f64> {
+    let mut v: Vec<f64> = boxes
         .iter()
-        .map(|o| {
-            let e = o.mesh.aabb().extent();
+        .map(|b| {
+            let e = b.extent();
             let mut s = [e.x, e.y, e.z];
             s.sort_by(f64::total_cmp);
             f(&s)
@@ -68,10 +67,10 @@ fn median_side(scene: &Scene, f: impl Fn(&[f64; 3]) -> f64) -> Option<f64> {
 }
 
 impl LodPlan {
-    /// The plan for `scene` with M = `levels`.
-    pub fn new(scene: &Scene, levels: u8, params: &LodParams) -> Result<LodPlan, LodError> {
+    /// The plan for a scene of objects with boxes `boxes` and M = `levels`.
+    pub fn new(boxes: &[Aabb], levels: u8, params: &LodParams) -> Result<LodPlan, LodError> {
         let polyhedral = usize::from(levels.saturating_sub(3));
-        let scene_box = scene.aabb();
+        let scene_box = boxes.iter().fold(Aabb::EMPTY, |s, b| s.union(b));
         let (cell, steps) = match &params.eps {
             Some(eps) => {
                 if eps.len() != polyhedral {
@@ -97,8 +96,8 @@ impl LodPlan {
                 // out of long thin parts (walls, plates), coarse enough to stay
                 // a few cells across small ones. Measured best within 2x on the
                 // house (eps 300 to 600 mm) and the engine (15 to 37 mm).
-                let short = median_side(scene, |s| s[0]);
-                let long = median_side(scene, |s| s[2]);
+                let short = median_side(boxes, |s| s[0]);
+                let long = median_side(boxes, |s| s[2]);
                 let eps = match (short, long) {
                     (Some(a), Some(b)) => (a * b).sqrt(),
                     (None, Some(b)) => b,

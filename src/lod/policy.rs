@@ -26,6 +26,7 @@
 //! whose bound decides some sample; none otherwise (`LodParams::store_all`
 //! stores every level of every entry, to measure them).
 
+use std::borrow::Cow;
 use std::collections::HashMap;
 use std::ops::RangeInclusive;
 
@@ -35,18 +36,23 @@ use super::compact::{aligned_grid, encode};
 use super::{ErrorProbe, Grid, Lattice, LodError, LodParams, LodPlan, Voxels};
 use crate::build::{Hierarchy, LoadProgress, QueryMix, Stage, StageMeter};
 use crate::geom::Aabb;
-use crate::scene::{Mesh, ObjectId, Scene};
+use crate::scene::{Mesh, ObjectId};
 use crate::store::format::node::{BOUND_HEAD_LEN, BoundEntry, MAX_BOUND_BYTES, capacity};
 use crate::store::format::quant::{QuantBox, quantize};
 
 /// An entry of a leaf: an object, or a part of one (format-spec/
-/// geometry.md, "Parts"), with the geometry blocks its record lies in.
+/// geometry.md, "Parts"), with its box and the geometry blocks its record
+/// lies in.
 #[derive(Debug, Clone)]
-pub struct LeafEntry<'a> {
+pub struct LeafEntry {
     pub id: ObjectId,
-    pub mesh: &'a Mesh,
+    pub aabb: Aabb,
     pub blocks: RangeInclusive<u64>,
 }
+
+/// The mesh of entry j of leaf i, read when its bounds are computed: a
+/// scene too large for memory keeps meshes on disk.
+pub type EntryMesh<'a> = dyn Fn(usize, usize) -> Result<Cow<'a, Mesh>, LodError> + Sync + 'a;
 
 /// What the bounds' cost and saving depend on of the tree's layout.
 pub struct Layout<'a> {
@@ -55,7 +61,9 @@ pub struct Layout<'a> {
     /// Per node: the share of the model's queries that read its node block.
     pub read_share: &'a [f64],
     /// Per node: a leaf's entries, in record order (empty for internal nodes).
-    pub entries: &'a [Vec<LeafEntry<'a>>],
+    pub entries: &'a [Vec<LeafEntry>],
+    /// The entries' meshes.
+    pub mesh: &'a EntryMesh<'a>,
     /// The file's block size in bytes (what a node block holds).
     pub block_size: u32,
 }
@@ -156,13 +164,11 @@ impl StoredBounds {
     /// Measures the error of the bounds stored (`errors[k][1]`): per level,
     /// every ceil(n / [`MEASURED_BOUNDS`])-th of its n bounds in node order,
     /// at `cells` of its cells each (see [`ErrorProbe::measure`]).
-    pub fn measure_errors(&mut self, entries: &[Vec<LeafEntry>], cells: usize) {
-        let mut at_level: Vec<Vec<(&Mesh, &Voxels)>> = vec![Vec::new(); self.errors.len()];
-        for ((bounds, worth), entries) in self.bounds.iter().zip(&self.worth).zip(entries) {
+    pub fn measure_errors(&mut self, mesh: &EntryMesh, cells: usize) -> Result<(), LodError> {
+        let mut at_level: Vec<Vec<(usize, usize, &Voxels)>> = vec![Vec::new(); self.errors.len()];
+        for (i, (bounds, worth)) in self.bounds.iter().zip(&self.worth).enumerate() {
             for (b, w) in bounds.iter().zip(worth) {
-                if let Some(e) = entries.get(usize::from(b.target)) {
-                    at_level[usize::from(b.level) - 1].push((e.mesh, &w.voxels));
-                }
+                at_level[usize::from(b.level) - 1].push((i, usize::from(b.target), &w.voxels));
             }
         }
         for (row, bounds) in self.errors.iter_mut().zip(&at_level) {
@@ -170,9 +176,10 @@ impl StoredBounds {
             row[1] = bounds
                 .par_iter()
                 .step_by(stride)
-                .map(|(mesh, v)| ErrorProbe::new([*mesh]).measure(v, cells))
-                .reduce(|| 0.0, f64::max);
+                .map(|&(i, j, v)| Ok(ErrorProbe::new([&*mesh(i, j)?]).measure(v, cells)))
+                .try_reduce(|| 0.0, |a, b| Ok(a.max(b)))?;
         }
+        Ok(())
     }
 
     /// True when no bound is stored.
@@ -194,10 +201,10 @@ struct Candidate {
     value: f64,
 }
 
-/// Decides and encodes the bounds of `tree` over `scene` for M = `m`
-/// levels, judged on `mix` over `layout`.
+/// Decides and encodes the bounds of `tree` over objects with boxes
+/// `boxes` for M = `m` levels, judged on `mix` over `layout`.
 pub fn plan_bounds(
-    scene: &Scene,
+    boxes: &[Aabb],
     tree: &Hierarchy,
     m: u8,
     params: &LodParams,
@@ -220,7 +227,7 @@ pub fn plan_bounds(
     if m < 3 {
         return Ok(out);
     }
-    let plan = LodPlan::new(scene, m, params)?;
+    let plan = LodPlan::new(boxes, m, params)?;
     out.grid_level = plan.grid_level.clone();
     out.lattice = Some(plan.lattice);
     let ctx = Ctx { plan: &plan, params, layout };
@@ -241,10 +248,8 @@ pub fn plan_bounds(
             .par_iter()
             .map(|group| {
                 meter.add(1);
-                let mut cands: Vec<Vec<Candidate>> = group
-                    .iter()
-                    .map(|&(i, j)| ctx.candidates(m, i, &layout.entries[i][j]))
-                    .collect::<Result<_, LodError>>()?;
+                let mut cands: Vec<Vec<Candidate>> =
+                    group.iter().map(|&(i, j)| ctx.candidates(m, i, j)).collect::<Result<_, LodError>>()?;
                 let judged = judge(group, &cands, layout, mix, params, m, node_capacity);
                 Ok(judged
                     .into_iter()
@@ -289,23 +294,25 @@ impl Candidate {
     }
 }
 
-struct Ctx<'a> {
+struct Ctx<'a, 'm> {
     plan: &'a LodPlan,
     params: &'a LodParams,
-    layout: &'a Layout<'a>,
+    layout: &'a Layout<'m>,
 }
 
-impl Ctx<'_> {
+impl Ctx<'_, '_> {
     /// Entry `e` of leaf `i` bounded at levels 2 .. M-1, each `None` when
     /// its grid is too large or its blob too long for an inline bound. A
     /// level on the same grid as the level before is the same bound: it is
     /// voxelized once and stands for both (`Candidate::top`), except with
     /// `store_all`, which stores every level.
-    fn candidates(&self, m: u8, i: usize, e: &LeafEntry) -> Result<Vec<Candidate>, LodError> {
+    fn candidates(&self, m: u8, i: usize, j: usize) -> Result<Vec<Candidate>, LodError> {
         let frame = &self.layout.frames[i];
-        let Some(qbox) = QuantBox::decode(frame, quantize(frame, &e.mesh.aabb())) else {
+        let Some(e) = self.layout.entries[i].get(j) else { return Ok(Vec::new()) };
+        let Some(qbox) = QuantBox::decode(frame, quantize(frame, &e.aabb)) else {
             return Ok(Vec::new());
         };
+        let mut mesh: Option<Cow<Mesh>> = None;
         let mut out: Vec<Candidate> = Vec::new();
         let mut previous: Option<Grid> = None;
         for k in 2..m {
@@ -320,7 +327,11 @@ impl Ctx<'_> {
             }
             previous.clone_from(&grid);
             let Some(grid) = grid else { continue };
-            let voxels = Voxels::of_surfaces(grid, [e.mesh]);
+            let mesh = match &mut mesh {
+                Some(m) => m,
+                none => none.insert((self.layout.mesh)(i, j)?),
+            };
+            let voxels = Voxels::of_surfaces(grid, [&**mesh]);
             let blob = encode(&voxels);
             if blob.len() <= MAX_BOUND_BYTES {
                 out.push(Candidate { level: k, top: k, blob, voxels, saving: 0.0, cost: 0.0, value: 0.0 });
@@ -356,7 +367,7 @@ fn judge(
         .iter()
         .map(|&(i, j)| {
             let f = &layout.frames[i];
-            QuantBox::decode(f, quantize(f, &layout.entries[i][j].mesh.aabb()))
+            QuantBox::decode(f, quantize(f, &layout.entries[i][j].aabb))
         })
         .collect();
     let zone = boxes.iter().flatten().fold(Aabb::EMPTY, |z, b| z.union(&b.outer));

@@ -12,6 +12,9 @@ pub enum StorageError {
     /// not a source, so that printing the error alone says why).
     #[error("cannot open {}: {error}", path.display())]
     Open { path: std::path::PathBuf, error: io::Error },
+    /// The spill file of a staged scene could not be created, written or read.
+    #[error("spill file {}: {error}", path.display())]
+    Spill { path: std::path::PathBuf, error: io::Error },
     #[error("not an MKtree file (bad magic number)")]
     NotMktree,
     #[error("unsupported format version {found} (this build reads version {supported})")]

@@ -8,7 +8,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use mktree::build::{BuildProgress, Hierarchy, LoadProgress, Report, Stage, build, estimate_work};
-use mktree::db::{CreateOptions, Database, WriterWait};
+use mktree::db::{CreateOptions, Database, StagedScene, WriterWait};
 use mktree::scene::Scene;
 use mktree::store::StorageError;
 use serde_json::json;
@@ -19,8 +19,8 @@ use crate::output;
 /// A progress bar per stage, with the time left (on stderr, hidden when
 /// not a terminal): objects placed while the tree is built, then the units
 /// of each later stage of the bulk load.
-fn progress_bar(scene: &Scene, build: &BuildArgs) -> ProgressBar {
-    let pb = ProgressBar::new(scene.len() as u64);
+fn progress_bar(objects: usize, build: &BuildArgs) -> ProgressBar {
+    let pb = ProgressBar::new(objects as u64);
     pb.set_style(
         ProgressStyle::with_template(
             "{spinner} {prefix:>8} [{bar:40}] {pos}/{len} {msg} ({elapsed}, {eta} left)",
@@ -28,7 +28,7 @@ fn progress_bar(scene: &Scene, build: &BuildArgs) -> ProgressBar {
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     pb.set_prefix(Stage::Tree.name());
-    let work = estimate_work(scene.len(), None, &build.params());
+    let work = estimate_work(objects, None, &build.params());
     pb.set_message(format!("objects placed, ~{work:.2e} object visits estimated"));
     pb
 }
@@ -69,7 +69,7 @@ fn open_output(out: &Path, args: &BuildArgs, lod: &LodArgs) -> Result<(Database,
 /// Builds the tree of `scene` in memory, with a progress bar.
 pub fn build_in_memory(scene: &Scene, args: &BuildArgs) -> Result<Hierarchy> {
     let sizes: Vec<u64> = scene.objects().iter().map(|o| mktree::build::object_bytes(&o.mesh)).collect();
-    let pb = progress_bar(scene, args);
+    let pb = progress_bar(scene.len(), args);
     let tree = build(&scene.object_boxes(), Some(&sizes), &args.params(), &|p: BuildProgress| {
         pb.set_position(p.objects_placed)
     })?;
@@ -77,10 +77,60 @@ pub fn build_in_memory(scene: &Scene, args: &BuildArgs) -> Result<Hierarchy> {
     Ok(tree)
 }
 
-/// How `build` writes: wait for another writer, key objects by their names.
+/// How `build` writes: wait for another writer, key objects by their
+/// names, the memory it may use.
 pub struct Write {
     pub wait: bool,
     pub key_names: bool,
+    pub memory: u64,
+}
+
+/// The scene `build` loads: read whole, or staged on disk.
+enum Input {
+    Whole(Scene),
+    Staged(StagedScene),
+}
+
+impl Input {
+    fn len(&self) -> usize {
+        match self {
+            Input::Whole(scene) => scene.len(),
+            Input::Staged(staged) => staged.len(),
+        }
+    }
+}
+
+/// Reads the scene at `path`: an OBJ file larger than half of `memory` is
+/// staged in a spill file in `spill_dir` (an object's mesh in memory takes
+/// about as many bytes as its OBJ text, and the build needs room beside
+/// the scene); any other scene is read whole.
+fn read_input(path: &Path, args: &BuildArgs, write: &Write, spill_dir: &Path) -> Result<Input> {
+    let reading = ProgressBar::new_spinner().with_prefix("read").with_message(path.display().to_string());
+    reading.set_style(
+        ProgressStyle::with_template("{spinner} {prefix:>8} {msg} ({elapsed})")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    reading.enable_steady_tick(std::time::Duration::from_millis(200));
+    let streams = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+    let large = std::fs::metadata(path).is_ok_and(|m| m.is_file() && m.len() > write.memory / 2);
+    let input = if streams && large {
+        reading.set_message(format!("{} (staged in {})", path.display(), spill_dir.display()));
+        let (mut staged, degenerate) = StagedScene::import(path, &args.import.options(), spill_dir)?;
+        crate::cmd::warn_degenerate(degenerate);
+        if write.key_names {
+            staged.key_by_names()?;
+        }
+        Input::Staged(staged)
+    } else {
+        let mut scene = crate::cmd::read_scene(path, &args.import.options())?;
+        if write.key_names {
+            scene.key_by_names()?;
+        }
+        Input::Whole(scene)
+    };
+    reading.finish_and_clear();
+    crate::cmd::release_freed_memory();
+    Ok(input)
 }
 
 pub fn run(
@@ -88,29 +138,24 @@ pub fn run(
     out: &Path,
     args: &BuildArgs,
     lod: &LodArgs,
-    Write { wait, key_names }: Write,
+    write: Write,
     as_json: bool,
 ) -> Result<()> {
-    let reading =
-        ProgressBar::new_spinner().with_prefix("read").with_message(scene_path.display().to_string());
-    reading.set_style(
-        ProgressStyle::with_template("{spinner} {prefix:>8} {msg} ({elapsed})")
-            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
-    );
-    reading.enable_steady_tick(std::time::Duration::from_millis(200));
-    let read = crate::cmd::read_scene(scene_path, &args.import.options());
-    reading.finish_and_clear();
-    let mut scene = read?;
-    if key_names {
-        scene.key_by_names()?;
-    }
+    let spill_dir = match out.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    };
+    let mut input = read_input(scene_path, args, &write, spill_dir)?;
     let started = Instant::now();
     let (db, created) = open_output(out, args, lod)?;
-    let pb = progress_bar(&scene, args);
+    let pb = progress_bar(input.len(), args);
     let written = (|| -> Result<Hierarchy> {
-        let mut w = db.begin_write_with(if wait { WriterWait::Wait } else { WriterWait::Fail })?;
+        let mut w = db.begin_write_with(if write.wait { WriterWait::Wait } else { WriterWait::Fail })?;
         w.set_lod_params(lod.params());
-        let tree = w.bulk_load(&scene, &args.params(), &|p| show(&pb, p))?;
+        let tree = match &mut input {
+            Input::Whole(scene) => w.bulk_load(scene, &args.params(), &|p| show(&pb, p))?,
+            Input::Staged(staged) => w.bulk_load_staged(staged, &args.params(), &|p| show(&pb, p))?,
+        };
         pb.set_prefix("commit");
         pb.set_length(1);
         pb.reset();

@@ -44,8 +44,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Sweep { scene, pages, rates, look_ahead, json, import } => {
             sweep::run(&scene, &import.options(), pages, &rates, look_ahead, json)
         }
-        Command::Build { scene, output, build, lod, wait, key_names, json } => {
-            build::run(&scene, &output, &build, &lod, build::Write { wait, key_names }, json)
+        Command::Build { scene, output, build, lod, wait, key_names, memory, json } => {
+            build::run(&scene, &output, &build, &lod, build::Write { wait, key_names, memory }, json)
         }
         Command::Lods { file, json } => lods::table(&file, json),
         Command::Node { file, node, lod, objects, export, json } => {
@@ -91,11 +91,16 @@ pub fn run(cli: Cli) -> Result<()> {
 /// Reads a scene, printing the zero-area triangle warning to stderr.
 pub fn read_scene(path: &Path, options: &ImportOptions) -> Result<Scene> {
     let imported = load(path, options)?;
-    if imported.degenerate_triangles > 0 {
-        eprintln!("mktree: warning: {} zero-area triangles kept", imported.degenerate_triangles);
-    }
+    warn_degenerate(imported.degenerate_triangles);
     release_freed_memory();
     Ok(imported.scene)
+}
+
+/// Warns on stderr about zero-area triangles an import kept.
+pub fn warn_degenerate(triangles: usize) {
+    if triangles > 0 {
+        eprintln!("mktree: warning: {triangles} zero-area triangles kept");
+    }
 }
 
 /// Hands the import's freed buffers back to the system. The parallel
@@ -103,7 +108,7 @@ pub fn read_scene(path: &Path, options: &ImportOptions) -> Result<Scene> {
 /// keeps them and the build's later allocations, mostly on other arenas,
 /// do not reuse them: without this, ship 10^6 peaks 0.3 GB higher.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
-fn release_freed_memory() {
+pub fn release_freed_memory() {
     // SAFETY: malloc_trim only returns free pages of the allocator's
     // arenas to the system; it touches no live allocation.
     unsafe {
@@ -112,7 +117,7 @@ fn release_freed_memory() {
 }
 
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
-fn release_freed_memory() {}
+pub fn release_freed_memory() {}
 
 /// A scene named on the command line: a scene file, or else a preset of
 /// the generator (`tanker1`, ..., `ship`, `ship:N` for N objects, seed 0).

@@ -71,6 +71,24 @@ pub fn load(path: &Path, options: &ImportOptions) -> Result<Imported, ImportErro
     }
 }
 
+/// [`load`] handing each object to `on_object` in id order, and returning
+/// the count of zero-area triangles. OBJ files are streamed: no more than
+/// the objects being parsed is in memory. The other formats are read whole
+/// first.
+pub fn load_each(
+    path: &Path,
+    options: &ImportOptions,
+    on_object: &mut dyn FnMut(Object),
+) -> Result<usize, ImportError> {
+    let metadata = fs::metadata(path).map_err(|source| ImportError::Io { file: path.into(), source })?;
+    if !metadata.is_dir() && Format::of(path) == Some(Format::Obj) {
+        return obj::each_obj_object(open(path)?, path, on_object);
+    }
+    let imported = load(path, options)?;
+    imported.scene.into_objects().into_iter().for_each(on_object);
+    Ok(imported.degenerate_triangles)
+}
+
 /// The file formats `load` reads, by extension.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Format {

@@ -11,5 +11,5 @@ mod obj;
 mod stl;
 
 pub use error::{ImportError, Location, UriRefusal};
-pub use load::{ImportOptions, Imported, load};
+pub use load::{ImportOptions, Imported, load, load_each};
 pub use obj::read_obj;

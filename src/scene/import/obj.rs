@@ -69,12 +69,27 @@ use crate::scene::{Object, Scene};
 /// ```
 pub fn read_obj<R: Read + Send>(reader: R, source: &Path) -> Result<Imported, ImportError> {
     let mut objects = Vec::new();
-    let degenerate_triangles =
-        parse(reader, source, Grouping::ByObjectLines, Chunking::DEFAULT, |object| objects.push(object))?;
-    if objects.is_empty() {
+    let degenerate_triangles = each_obj_object(reader, source, &mut |object| objects.push(object))?;
+    Ok(Imported { scene: Scene::new(objects), degenerate_triangles })
+}
+
+/// [`read_obj`] handing each object to `on_object` as it is parsed, in
+/// input order, so the scene need never be in memory whole. Returns the
+/// count of zero-area triangles.
+pub(super) fn each_obj_object<R: Read + Send>(
+    reader: R,
+    source: &Path,
+    on_object: &mut dyn FnMut(Object),
+) -> Result<usize, ImportError> {
+    let mut any = false;
+    let degenerate_triangles = parse(reader, source, Grouping::ByObjectLines, Chunking::DEFAULT, |object| {
+        any = true;
+        on_object(object);
+    })?;
+    if !any {
         return Err(ImportError::EmptyScene { file: source.into() });
     }
-    Ok(Imported { scene: Scene::new(objects), degenerate_triangles })
+    Ok(degenerate_triangles)
 }
 
 /// Reads a whole OBJ file as one object named by the file stem, ignoring

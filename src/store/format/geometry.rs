@@ -48,6 +48,12 @@ pub fn encode_object(id: ObjectId, mesh: &Mesh, stream: &mut Vec<u8>) {
     stream.extend_from_slice(bytemuck::cast_slice(mesh.triangles()));
 }
 
+/// The vertex count in the header of the record at the start of `bytes`.
+pub fn record_vertex_count(bytes: &[u8]) -> Option<u64> {
+    let h = ObjectHeader::read_from_bytes(bytes.get(..HEADER_LEN)?).ok()?;
+    Some(u64::from(h.vertex_count.get()))
+}
+
 /// `mesh`, larger than a geometry block, as parts that fill blocks (format-
 /// spec/geometry.md, "Parts"): its triangles in Morton order of their
 /// centres, cut so that the first part fills `room` bytes (what is left of
