@@ -166,7 +166,7 @@ impl Plan {
             samples: mix.sample_centred(&nodes[0].aabb, SAMPLES_PER_SCALE),
             read_share: Vec::new(),
         };
-        let sizes = plan.sizes(tree, &vec![Vec::new(); n]);
+        let sizes = plan.sizes(tree, |_| 0);
         let capacity = node::capacity(block_size);
         if let Some(i) = (0..n).find(|&i| sizes[i] > capacity) {
             return Err(invalid(format!(
@@ -196,7 +196,7 @@ impl Plan {
             .map(|(i, es)| {
                 es.iter()
                     .enumerate()
-                    .map(|(j, e)| LeafEntry { id: e.id, aabb: e.aabb, blocks: self.entry_blocks(i, j) })
+                    .map(|(j, e)| LeafEntry { id: e.id, aabb: e.aabb, block: *self.entry_blocks(i, j).start() })
                     .collect()
             })
             .collect()
@@ -221,10 +221,11 @@ impl Plan {
     }
 
     /// Record bytes of every node with `bounds`.
-    fn sizes(&self, tree: &Hierarchy, bounds: &[Vec<BoundEntry>]) -> Vec<usize> {
+    /// Record bytes of every node whose bounds take `bound_bytes(node)`.
+    fn sizes(&self, tree: &Hierarchy, bound_bytes: impl Fn(usize) -> usize) -> Vec<usize> {
         (0..tree.nodes.len())
             .map(|i| {
-                let extra = node::bounds_len(&bounds[i]);
+                let extra = bound_bytes(i);
                 match tree.nodes[i].objects() {
                     Some(_) => {
                         let (a, b) = self.leaf_span(i);
@@ -263,12 +264,18 @@ impl Plan {
 
 impl Plan {
     /// The model's expected block reads per query for an exact answer, per
-    /// scale of the mix, when the tree is laid out with `stored`'s bounds:
-    /// the node blocks the chosen packing makes it read, and the geometry
-    /// blocks of the objects no box, face or bound decides (as the traversal
-    /// decides them).
-    pub fn expected_reads(&self, tree: &Hierarchy, stored: &StoredBounds, block_size: u32) -> Vec<f64> {
-        let sizes = self.sizes(tree, &stored.bounds);
+    /// scale of the mix, when the tree is laid out with those of `stored`'s
+    /// bounds worth at least `min_value` (none at infinity): the node blocks
+    /// the chosen packing makes it read, and the geometry blocks of the
+    /// objects no box, face or bound decides (as the traversal decides them).
+    pub fn expected_reads(
+        &self,
+        tree: &Hierarchy,
+        stored: &StoredBounds,
+        min_value: f64,
+        block_size: u32,
+    ) -> Vec<f64> {
+        let sizes = self.sizes(tree, |i| stored.bytes_at(i, min_value));
         let capacity = node::capacity(block_size);
         let scales = self.samples.len().div_ceil(SAMPLES_PER_SCALE);
         if sizes.iter().any(|&s| s > capacity) {
@@ -276,14 +283,10 @@ impl Plan {
             return vec![f64::INFINITY; scales];
         }
         let (packing, _) = self.choose(tree, &sizes, capacity);
-        // Every object's box as its leaf stores it.
-        let boxes: Vec<Vec<Option<QuantBox>>> = (0..tree.nodes.len())
-            .map(|i| {
-                self.entries[i]
-                    .iter()
-                    .map(|e| QuantBox::decode(&self.frames[i], quantize(&self.frames[i], &e.aabb)))
-                    .collect()
-            })
+        // Every object's box as its leaf stores it, quantized (12 bytes an
+        // entry; decoded where a sample meets its leaf).
+        let boxes: Vec<Vec<[u16; 6]>> = (0..tree.nodes.len())
+            .map(|i| self.entries[i].iter().map(|e| quantize(&self.frames[i], &e.aabb)).collect())
             .collect();
         // Per sample: its node block reads plus its distinct geometry blocks
         // (integer sums, so the same on any number of threads).
@@ -313,12 +316,11 @@ impl Plan {
                         let mut pending = Vec::new();
                         let mut confirmed = false;
                         for (e, b) in boxes[i].iter().enumerate().take(end).skip(j) {
-                            let Some(b) = b else { continue };
+                            let Some(b) = QuantBox::decode(&self.frames[i], *b) else { continue };
                             if !b.outer.intersects(q) {
                                 continue;
                             }
-                            let bound =
-                                stored.finest[i].iter().find(|(t, _)| usize::from(*t) == e).map(|x| &x.1);
+                            let bound = stored.finest(i, e, min_value);
                             if b.face_slabs().iter().any(|f| q.contains(f))
                                 || bound.is_some_and(|v| v.holds_a_cell_in(q))
                             {
@@ -459,7 +461,7 @@ pub(crate) fn write(
     let frame = &plan.frames;
     let child_q = &plan.child_q;
     let leaf_span = |i: usize| plan.leaf_span(i);
-    let sizes = plan.sizes(tree, bounds);
+    let sizes = plan.sizes(tree, |i| node::bounds_len(&bounds[i]));
     let capacity = node::capacity(bs);
     if let Some(i) = (0..n).find(|&i| sizes[i] > capacity) {
         return Err(invalid(format!(

@@ -16,7 +16,7 @@ use crate::build::{
     BuildParams, BuildProgress, CostModel, Hierarchy, LoadProgress, QueryMix, Stage, StageMeter, build,
     check_range,
 };
-use crate::lod::{EntryMesh, Layout, LodError, LodParams, StoredBounds, plan_bounds};
+use crate::lod::{EntryMesh, Layout, LodError, LodParams, LodPlan, StoredBounds, plan_bounds};
 use crate::scene::{Key, Object, ObjectId, Scene};
 use crate::store::StorageError;
 use crate::store::alloc::{FreeSpace, label_freed};
@@ -318,35 +318,39 @@ impl<'db> WriteTransaction<'db> {
         if tree.nodes.is_empty() {
             return Err(StorageError::Invalid("a tree holds at least one object".into()));
         }
-        let boxes = objects.object_boxes();
-        let q = CostModel::of_boxes(&boxes, params.query_extent).query_extent();
-        let mix = QueryMix::new(&tree.nodes[0].aabb, q);
+        // What needs every object's box at once, before anything else is held.
+        let (mix, lod_plan) = {
+            let boxes = objects.object_boxes();
+            let q = CostModel::of_boxes(&boxes, params.query_extent).query_extent();
+            let lod_plan =
+                (m >= 3).then(|| LodPlan::new(&boxes, m, &self.lod_params)).transpose().map_err(lod_error)?;
+            (QueryMix::new(&tree.nodes[0].aabb, q), lod_plan)
+        };
         let plan = {
             let _layout = StageMeter::new(progress, Stage::Layout, 1);
             tree_writer::Plan::new(objects, tree, bs, &mix)?
         };
-        let entries = plan.leaf_entries();
-        let mesh: &EntryMesh =
-            &|i, j| plan.entry_mesh(objects, i, j).map_err(|e| LodError::Mesh(e.to_string()));
-        let layout = Layout {
-            frames: &plan.frames,
-            read_share: &plan.read_share,
-            entries: &entries,
-            mesh,
-            block_size: bs,
-        };
-        let mut stored =
-            plan_bounds(&boxes, tree, m, &self.lod_params, &mix, &layout, progress).map_err(lod_error)?;
-        drop(boxes);
-        {
+        let mut stored = {
+            let entries = plan.leaf_entries();
+            let mesh: &EntryMesh =
+                &|i, j| plan.entry_mesh(objects, i, j).map_err(|e| LodError::Mesh(e.to_string()));
+            let layout = Layout {
+                frames: &plan.frames,
+                read_share: &plan.read_share,
+                entries: &entries,
+                mesh,
+                block_size: bs,
+            };
+            let mut stored = plan_bounds(lod_plan.as_ref(), tree, m, &self.lod_params, &mix, &layout, progress)
+                .map_err(lod_error)?;
             let choose = StageMeter::new(progress, Stage::Choose, 2);
             if !self.lod_params.store_all && !stored.is_empty() {
-                stored = worth_keeping(&plan, tree, &stored, bs);
+                stored = worth_keeping(&plan, tree, stored, bs);
             }
             choose.add(1);
             stored.measure_errors(mesh, self.lod_params.error_samples).map_err(lod_error)?;
-        }
-        drop(entries);
+            stored
+        };
         let txn = self.txn;
         let written = {
             let allocate = &mut |count: u32| self.allocate(count);
@@ -359,6 +363,9 @@ impl<'db> WriteTransaction<'db> {
                 progress,
             )?
         };
+        // Written: only the tables of the bounds are left to record.
+        drop(plan);
+        stored.release_bounds();
         let keys = {
             let allocate = &mut |count: u32| self.allocate(count);
             key_index::write(Sink { pager: &pager, txn, allocate }, objects, &written.leaves)?
@@ -651,25 +658,24 @@ fn lod_error(e: crate::lod::LodError) -> StorageError {
 fn worth_keeping(
     plan: &tree_writer::Plan,
     tree: &Hierarchy,
-    stored: &StoredBounds,
+    stored: StoredBounds,
     block_size: u32,
 ) -> StoredBounds {
-    let without = stored.none();
-    let base = plan.expected_reads(tree, &without, block_size);
+    let base = plan.expected_reads(tree, &stored, f64::INFINITY, block_size);
     let values = stored.values();
     let mut count = values.len();
     for _ in 0..4 {
         if count == 0 {
             break;
         }
-        let kept = stored.keep(values[count - 1]);
-        let reads = plan.expected_reads(tree, &kept, block_size);
+        let min_value = values[count - 1];
+        let reads = plan.expected_reads(tree, &stored, min_value, block_size);
         if reads.iter().zip(&base).all(|(x, y)| x <= y)
             && reads.iter().sum::<f64>() < base.iter().sum::<f64>()
         {
-            return kept;
+            return stored.keep(min_value);
         }
         count /= 2;
     }
-    without
+    stored.none()
 }

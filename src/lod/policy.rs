@@ -28,7 +28,6 @@
 
 use std::borrow::Cow;
 use std::collections::HashMap;
-use std::ops::RangeInclusive;
 
 use rayon::prelude::*;
 
@@ -41,13 +40,13 @@ use crate::store::format::node::{BOUND_HEAD_LEN, BoundEntry, MAX_BOUND_BYTES, ca
 use crate::store::format::quant::{QuantBox, quantize};
 
 /// An entry of a leaf: an object, or a part of one (format-spec/
-/// geometry.md, "Parts"), with its box and the geometry blocks its record
-/// lies in.
+/// geometry.md, "Parts"), with its box and the geometry block its record
+/// starts in (entries in leaf order start in blocks that never decrease).
 #[derive(Debug, Clone)]
 pub struct LeafEntry {
     pub id: ObjectId,
     pub aabb: Aabb,
-    pub blocks: RangeInclusive<u64>,
+    pub block: u64,
 }
 
 /// The mesh of entry j of leaf i, read when its bounds are computed: a
@@ -86,8 +85,6 @@ pub struct StoredBounds {
     /// Per level k = 1 .. M: the model's expected saving and cost, in block
     /// reads per query, summed over the bounds stored (what `mktree lods` shows).
     pub predicted: Vec<[f64; 2]>,
-    /// Per node: the finest bound stored for each object (object index, set).
-    pub finest: Vec<Vec<(u16, Voxels)>>,
     /// Per node, beside `bounds`: what each bound was judged worth.
     worth: Vec<Vec<Worth>>,
 }
@@ -117,20 +114,23 @@ impl StoredBounds {
             bounds: vec![Vec::new(); n],
             errors: vec![[0.0; 2]; levels],
             usage: vec![[0; 2]; levels],
+            grid_level: self.grid_level.clone(),
+            lattice: self.lattice,
+            query_extent: self.query_extent,
             predicted: vec![[0.0; 2]; levels],
-            finest: vec![Vec::new(); n],
             worth: vec![Vec::new(); n],
-            ..self.clone()
         }
+    }
+
+    /// Frees the bounds themselves once written, keeping the tables the
+    /// meta block records (errors, usage, predictions, grids).
+    pub fn release_bounds(&mut self) {
+        self.bounds = Vec::new();
+        self.worth = Vec::new();
     }
 
     fn push(&mut self, node: usize, bound: BoundEntry, w: Worth) {
         let k = usize::from(bound.level) - 1;
-        // Bounds come level by level: a later one of the same target is finer.
-        match self.finest[node].last_mut() {
-            Some(last) if last.0 == bound.target => last.1 = w.voxels.clone(),
-            _ => self.finest[node].push((bound.target, w.voxels.clone())),
-        }
         self.usage[k][0] += bound.blob.len() as u64;
         self.usage[k][1] += 1;
         self.predicted[k][0] += w.saving;
@@ -142,16 +142,30 @@ impl StoredBounds {
 
     /// The bounds judged worth at least `min_value` reads per query (with
     /// the group they were chosen in).
-    pub fn keep(&self, min_value: f64) -> StoredBounds {
+    pub fn keep(self, min_value: f64) -> StoredBounds {
         let mut out = self.none();
-        for (i, (bounds, worth)) in self.bounds.iter().zip(&self.worth).enumerate() {
-            for (b, w) in bounds.iter().zip(worth) {
+        for (i, (bounds, worth)) in self.bounds.into_iter().zip(self.worth).enumerate() {
+            for (b, w) in bounds.into_iter().zip(worth) {
                 if w.value >= min_value {
-                    out.push(i, b.clone(), w.clone());
+                    out.push(i, b, w);
                 }
             }
         }
         out
+    }
+
+    /// Record bytes of node `node`'s bounds worth at least `min_value`, as
+    /// [`bounds_len`](crate::store::format::node::bounds_len) counts them.
+    pub fn bytes_at(&self, node: usize, min_value: f64) -> usize {
+        let kept = self.bounds[node].iter().zip(&self.worth[node]).filter(|(_, w)| w.value >= min_value);
+        kept.map(|(b, _)| BOUND_HEAD_LEN + b.blob.len()).sum::<usize>().next_multiple_of(4)
+    }
+
+    /// The finest bound worth at least `min_value` of entry `target` of
+    /// leaf `node` (bounds come level by level: a later one is finer).
+    pub fn finest(&self, node: usize, target: usize, min_value: f64) -> Option<&Voxels> {
+        let kept = self.bounds[node].iter().zip(&self.worth[node]).filter(|(_, w)| w.value >= min_value);
+        kept.filter(|(b, _)| usize::from(b.target) == target).last().map(|(_, w)| &w.voxels)
     }
 
     /// What every stored bound's group was judged worth, high to low.
@@ -201,10 +215,11 @@ struct Candidate {
     value: f64,
 }
 
-/// Decides and encodes the bounds of `tree` over objects with boxes
-/// `boxes` for M = `m` levels, judged on `mix` over `layout`.
+/// Decides and encodes the bounds of `tree` for M = `m` levels on the
+/// grids of `plan` (`None` when M < 3: no level between the box and the
+/// exact geometry), judged on `mix` over `layout`.
 pub fn plan_bounds(
-    boxes: &[Aabb],
+    plan: Option<&LodPlan>,
     tree: &Hierarchy,
     m: u8,
     params: &LodParams,
@@ -221,24 +236,26 @@ pub fn plan_bounds(
         lattice: None,
         query_extent: mix.extents().first().copied().unwrap_or_default(),
         predicted: vec![[0.0; 2]; levels],
-        finest: vec![Vec::new(); tree.nodes.len()],
         worth: vec![Vec::new(); tree.nodes.len()],
     };
-    if m < 3 {
+    let Some(plan) = plan.filter(|_| m >= 3) else {
         return Ok(out);
-    }
-    let plan = LodPlan::new(boxes, m, params)?;
+    };
     out.grid_level = plan.grid_level.clone();
     out.lattice = Some(plan.lattice);
-    let ctx = Ctx { plan: &plan, params, layout };
-    // Entries by geometry block: each lies in one (a part never straddles two).
-    let mut blocks: HashMap<u64, Vec<(usize, usize)>> = HashMap::new();
+    let ctx = Ctx { plan, params, layout };
+    // Entries by the geometry block they start in: runs in leaf order.
+    let mut groups: Vec<Vec<(usize, usize)>> = Vec::new();
+    let mut block = None;
     for (i, entries) in layout.entries.iter().enumerate() {
         for (j, e) in entries.iter().enumerate() {
-            blocks.entry(*e.blocks.start()).or_default().push((i, j));
+            match groups.last_mut() {
+                Some(group) if block == Some(e.block) => group.push((i, j)),
+                _ => groups.push(vec![(i, j)]),
+            }
+            block = Some(e.block);
         }
     }
-    let groups: Vec<Vec<(usize, usize)>> = blocks.into_values().collect();
     let node_capacity = capacity(layout.block_size) as f64;
     // Block by block: its entries' candidates, level by level, judged
     // together; only the chosen ones outlive their block.
