@@ -95,6 +95,20 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Check a file's exact answers against its scene, read in one streaming
+    /// pass: box and collision queries around objects spread over the ids.
+    Verify {
+        file: PathBuf,
+        /// The scene the file was built from.
+        scene: PathBuf,
+        /// Box queries, and as many collision queries.
+        #[arg(long, default_value_t = 50)]
+        queries: u32,
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        import: ImportArgs,
+    },
     /// Per level of detail: faces at the root (b and B), eps, measured error, bytes and blocks.
     Lods {
         file: PathBuf,

@@ -196,7 +196,11 @@ impl Plan {
             .map(|(i, es)| {
                 es.iter()
                     .enumerate()
-                    .map(|(j, e)| LeafEntry { id: e.id, aabb: e.aabb, block: *self.entry_blocks(i, j).start() })
+                    .map(|(j, e)| LeafEntry {
+                        id: e.id,
+                        aabb: e.aabb,
+                        block: *self.entry_blocks(i, j).start(),
+                    })
                     .collect()
             })
             .collect()

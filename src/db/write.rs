@@ -341,8 +341,9 @@ impl<'db> WriteTransaction<'db> {
                 mesh,
                 block_size: bs,
             };
-            let mut stored = plan_bounds(lod_plan.as_ref(), tree, m, &self.lod_params, &mix, &layout, progress)
-                .map_err(lod_error)?;
+            let mut stored =
+                plan_bounds(lod_plan.as_ref(), tree, m, &self.lod_params, &mix, &layout, progress)
+                    .map_err(lod_error)?;
             let choose = StageMeter::new(progress, Stage::Choose, 2);
             if !self.lod_params.store_all && !stored.is_empty() {
                 stored = worth_keeping(&plan, tree, stored, bs);

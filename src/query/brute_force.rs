@@ -9,6 +9,44 @@ use super::select::{Region, Selection, Triangles};
 use crate::geom::{Point, Pose, Ray};
 use crate::scene::{Key, Mesh, ObjectId, Scene};
 
+/// The oracle for scenes too large to hold: objects are offered one at a
+/// time, in id order (as a streaming import hands them over), and each is
+/// tested against every probe, exactly, after its box. One pass over the
+/// scene answers any number of probes.
+pub struct ScanOracle<'p> {
+    probes: &'p [&'p dyn Selection],
+    answers: Vec<Vec<ObjectId>>,
+    next: u32,
+    triangles_tested: u64,
+}
+
+impl<'p> ScanOracle<'p> {
+    pub fn new(probes: &'p [&'p dyn Selection]) -> ScanOracle<'p> {
+        ScanOracle { probes, answers: vec![Vec::new(); probes.len()], next: 0, triangles_tested: 0 }
+    }
+
+    /// Tests the next object, whose id is the count of objects offered before.
+    pub fn offer(&mut self, mesh: &Mesh) {
+        let (id, aabb) = (ObjectId(self.next), mesh.aabb());
+        for (probe, answer) in self.probes.iter().zip(&mut self.answers) {
+            if probe.may_meet_box(&aabb) && probe.meets_mesh(mesh, &mut self.triangles_tested) {
+                answer.push(id);
+            }
+        }
+        self.next += 1;
+    }
+
+    /// Objects offered.
+    pub fn objects(&self) -> u32 {
+        self.next
+    }
+
+    /// Per probe, the ids of the objects that meet it, ascending.
+    pub fn answers(self) -> Vec<Vec<ObjectId>> {
+        self.answers
+    }
+}
+
 fn all<P: Selection + ?Sized>(scene: &Scene, probe: &P) -> Vec<ObjectId> {
     let mut n = 0;
     (0..scene.len() as u32)
@@ -81,4 +119,41 @@ fn ranked(scene: &Scene, rank: &Rank) -> Vec<(ObjectId, f64)> {
         .collect();
     all.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
     all
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::Aabb;
+    use crate::scene::Object;
+
+    #[test]
+    fn a_scan_answers_as_the_whole_scene_does() {
+        let scene = Scene::new(
+            (0..40)
+                .map(|i| {
+                    let lo =
+                        Point::new(f64::from(i % 7) * 30.0, f64::from(i / 7) * 25.0, f64::from(i % 3) * 10.0);
+                    let b = Aabb::new(lo, lo + crate::geom::Vector::new(20.0, 15.0, 12.0));
+                    Object::new(format!("b{i}"), Mesh::of_box(&b).expect("a box"))
+                })
+                .collect(),
+        );
+        let regions = [
+            Region::Box(Aabb::from_array([0.0, 0.0, 0.0, 55.0, 60.0, 30.0])),
+            Region::Box(Aabb::from_array([100.0, 40.0, 5.0, 101.0, 41.0, 6.0])),
+            Region::Box(Aabb::from_array([-50.0, -50.0, -50.0, -40.0, -40.0, -40.0])),
+        ];
+        let probes: Vec<&dyn Selection> = regions.iter().map(|r| r as &dyn Selection).collect();
+        let mut oracle = ScanOracle::new(&probes);
+        for o in scene.objects() {
+            oracle.offer(&o.mesh);
+        }
+        assert_eq!(oracle.objects(), 40);
+        let answers = oracle.answers();
+        for (region, answer) in regions.iter().zip(&answers) {
+            assert_eq!(*answer, brute_force_region(&scene, region));
+        }
+        assert!(!answers[0].is_empty() && answers[2].is_empty());
+    }
 }

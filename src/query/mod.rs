@@ -23,7 +23,8 @@ mod traverse;
 
 pub use batch::{Request, Response, answer_request};
 pub use brute_force::{
-    brute_force_clash, brute_force_collide, brute_force_nearest, brute_force_ray, brute_force_region,
+    ScanOracle, brute_force_clash, brute_force_collide, brute_force_nearest, brute_force_ray,
+    brute_force_region,
 };
 pub use clash::{ClashAnswer, ClashOptions, clash};
 pub use collide::{CollideOptions, collide, object_mesh, object_meshes};

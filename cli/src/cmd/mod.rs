@@ -22,6 +22,7 @@ mod remove;
 mod stats;
 mod sweep;
 mod tradeoff;
+mod verify;
 
 use std::path::Path;
 
@@ -46,6 +47,9 @@ pub fn run(cli: Cli) -> Result<()> {
         }
         Command::Build { scene, output, build, lod, wait, key_names, memory, json } => {
             build::run(&scene, &output, &build, &lod, build::Write { wait, key_names, memory }, json)
+        }
+        Command::Verify { file, scene, queries, json, import } => {
+            verify::run(&file, &scene, queries, &import.options(), json)
         }
         Command::Lods { file, json } => lods::table(&file, json),
         Command::Node { file, node, lod, objects, export, json } => {
