@@ -10,7 +10,8 @@ use common::mktree;
 fn verify_passes_its_own_scene_and_fails_another() {
     let dir = tempfile::tempdir().unwrap();
     let (obj, mkt) = common::tanker1_in(dir.path());
-    let out = mktree().args(["verify", mkt.to_str().unwrap(), obj.to_str().unwrap(), "--json"]).output().unwrap();
+    let out =
+        mktree().args(["verify", mkt.to_str().unwrap(), obj.to_str().unwrap(), "--json"]).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["differing_queries"], serde_json::json!([]));
@@ -18,7 +19,8 @@ fn verify_passes_its_own_scene_and_fails_another() {
 
     // The same preset with another seed: as many objects, placed otherwise.
     let other = dir.path().join("t1-seed7.obj");
-    let made = mktree().args(["gen", "tanker1", "--seed", "7", "-o", other.to_str().unwrap()]).output().unwrap();
+    let made =
+        mktree().args(["gen", "tanker1", "--seed", "7", "-o", other.to_str().unwrap()]).output().unwrap();
     assert!(made.status.success());
     let out = mktree().args(["verify", mkt.to_str().unwrap(), other.to_str().unwrap()]).output().unwrap();
     assert!(!out.status.success());

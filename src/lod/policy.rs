@@ -164,8 +164,8 @@ impl StoredBounds {
     /// The finest bound worth at least `min_value` of entry `target` of
     /// leaf `node` (bounds come level by level: a later one is finer).
     pub fn finest(&self, node: usize, target: usize, min_value: f64) -> Option<&Voxels> {
-        let kept = self.bounds[node].iter().zip(&self.worth[node]).filter(|(_, w)| w.value >= min_value);
-        kept.filter(|(b, _)| usize::from(b.target) == target).last().map(|(_, w)| &w.voxels)
+        let mut kept = self.bounds[node].iter().zip(&self.worth[node]).rev();
+        kept.find(|(b, w)| w.value >= min_value && usize::from(b.target) == target).map(|(_, w)| &w.voxels)
     }
 
     /// What every stored bound's group was judged worth, high to low.
