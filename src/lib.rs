@@ -18,7 +18,7 @@ pub use db::{
 pub use error::Error;
 pub use geom::{Aabb, Point, Ray, Vector};
 pub use lod::LodParams;
-pub use query::{Hit, Near, QueryAnswer, QueryOptions, RayHit, Region, Selection};
+pub use query::{Hit, Near, QueryAnswer, QueryOptions, RayHit, Region, Selection, View, ViewCut, ViewOptions};
 pub use scene::{Key, KeyError, Mesh, Object, ObjectId, Scene};
 pub use store::StorageError;
 

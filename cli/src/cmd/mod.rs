@@ -22,6 +22,7 @@ mod remove;
 mod stats;
 mod sweep;
 mod tradeoff;
+mod view;
 
 use std::path::Path;
 
@@ -60,8 +61,29 @@ pub fn run(cli: Cli) -> Result<()> {
         }
         Command::Clash { file, clearance, lod, json } => clash::run(&file, clearance, lod, json),
         Command::Batch { file, queries } => batch::run(&file, queries.as_deref()),
-        Command::Navigate { file, path, cache_blocks, fov_deg, aspect, near, far, lod, json } => {
-            navigate::run(&file, &path, cache_blocks, [fov_deg, aspect, near, far], lod, json)
+        Command::View { file, view } => view::run(&file, &view),
+        Command::Navigate {
+            file,
+            path,
+            cache_blocks,
+            fov_deg,
+            aspect,
+            near,
+            far,
+            lod,
+            tolerance,
+            height_px,
+            budget,
+            json,
+        } => {
+            let lens = [fov_deg, aspect, near, far];
+            match tolerance {
+                Some(tau) => {
+                    let opts = mktree::ViewOptions { tolerance_px: tau, budget, shapes: false };
+                    navigate::run_view(&file, &path, cache_blocks, lens, height_px, &opts, json)
+                }
+                None => navigate::run(&file, &path, cache_blocks, lens, lod, json),
+            }
         }
         Command::Tradeoff { files, queries, seed, out, json } => {
             tradeoff::run(&files, queries, seed, &out, json)
