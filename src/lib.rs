@@ -37,6 +37,7 @@ pub mod lod;
 pub mod query;
 #[cfg(feature = "redb")]
 pub mod redb;
+pub mod render;
 mod rng;
 pub mod scene;
 pub mod store;
