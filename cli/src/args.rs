@@ -181,6 +181,25 @@ pub enum Command {
         #[command(flatten)]
         view: ViewArgs,
     },
+    /// A picture (PNG) of the view's cut, coloured by level; or with --node, one node's level of detail.
+    Render {
+        file: PathBuf,
+        #[command(flatten)]
+        view: ViewArgs,
+        /// Draw node N's level --lod instead of the cut: b(S_n,k), or with --objects B(S_n,k).
+        #[arg(long, requires = "lod")]
+        node: Option<u32>,
+        /// With --node: the level k, 1 ..= M.
+        #[arg(long, requires = "node")]
+        lod: Option<u8>,
+        /// With --node: each object's bound B(S_n,k) rather than their union b(S_n,k).
+        #[arg(long, requires = "node")]
+        objects: bool,
+        #[arg(short, long)]
+        output: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
     /// Frustum queries along a camera path with an LRU pool kept across steps: reads and hits per step.
     Navigate {
         file: PathBuf,
@@ -313,9 +332,9 @@ pub enum Command {
 /// A camera, its viewport and the view's tolerance.
 #[derive(Args, Debug, Clone)]
 pub struct ViewArgs {
-    /// Eye x,y,z and target x,y,z in mm; up is +z.
+    /// Eye x,y,z and target x,y,z in mm; up is +z (default: the whole scene, or node, from above its front left).
     #[arg(long, value_parser = numbers::<6>, allow_hyphen_values = true)]
-    pub camera: [f64; 6],
+    pub camera: Option<[f64; 6]>,
     /// Vertical field of view, degrees.
     #[arg(long, default_value_t = 60.0)]
     pub fov_deg: f64,

@@ -19,6 +19,7 @@ mod lods;
 mod navigate;
 mod query;
 mod remove;
+mod render;
 mod stats;
 mod sweep;
 mod tradeoff;
@@ -62,6 +63,13 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Clash { file, clearance, lod, json } => clash::run(&file, clearance, lod, json),
         Command::Batch { file, queries } => batch::run(&file, queries.as_deref()),
         Command::View { file, view } => view::run(&file, &view),
+        Command::Render { file, view, node, lod, objects, output, json } => {
+            let what = match (node, lod) {
+                (Some(node), Some(k)) => render::What::Node { node, k, objects },
+                _ => render::What::Cut,
+            };
+            render::run(&file, &view, what, &output, json)
+        }
         Command::Navigate {
             file,
             path,

@@ -11,9 +11,17 @@ use serde_json::{Value, json};
 use crate::args::ViewArgs;
 use crate::output;
 
-/// The camera of `args`, its far distance defaulting to `scene`'s farthest corner.
+/// The camera of `args` (default: framing `scene`), its far distance
+/// defaulting to `scene`'s farthest corner.
 pub fn camera(args: &ViewArgs, scene: &Aabb) -> View {
-    let c = args.camera;
+    let Some(c) = args.camera else {
+        let v = mktree::render::framing(scene, args.width_px, args.height_px, args.fov_deg);
+        let v = View { near_mm: args.near.min(v.near_mm), ..v };
+        return match args.far {
+            Some(far) => View { far_mm: far, ..v },
+            None => v.seeing_all_of(scene),
+        };
+    };
     let view = View {
         eye: Point::new(c[0], c[1], c[2]),
         target: Point::new(c[3], c[4], c[5]),
