@@ -164,13 +164,14 @@ mod tests {
     use super::*;
 
     fn view() -> View {
+        // Along +y: right is +x, up is +z.
         View {
-            eye: Point::origin(),
-            target: Point::new(10.0, 0.0, 0.0),
+            eye: Point::new(0.0, 0.0, 0.0),
+            target: Point::new(0.0, 20.0, 0.0),
             fov_deg: 90.0,
             width_px: 100,
             height_px: 100,
-            near_mm: 1.0,
+            near_mm: 0.5,
             far_mm: 1000.0,
         }
     }
@@ -179,9 +180,9 @@ mod tests {
     fn a_square_facing_the_camera_covers_its_projected_area_and_the_nearer_one_wins() {
         let p = Projector::new(&view()).unwrap();
         let mut img = Image::new(100, 100);
-        // At x = 10 a 90 degree view spans 20 mm over 100 px: a square of
-        // 4 mm side (y, z in [-2, 2]) covers 20 x 20 px.
-        let q = |x: f64, s: f64| [Point::new(x, -s, -s), Point::new(x, s, -s), Point::new(x, s, s), Point::new(x, -s, s)];
+        // At y = 10 a 90 degree view spans 20 mm over 100 px: a square of
+        // 4 mm side (x, z in [-2, 2]) covers 20 x 20 px.
+        let q = |y: f64, s: f64| [Point::new(-s, y, -s), Point::new(s, y, -s), Point::new(s, y, s), Point::new(-s, y, s)];
         let far = q(10.0, 2.0);
         p.triangle(&mut img, &[far[0], far[1], far[2]], [0, 0, 255]);
         p.triangle(&mut img, &[far[0], far[2], far[3]], [0, 0, 255]);
@@ -204,7 +205,8 @@ mod tests {
         let p = Projector::new(&view()).unwrap();
         let mut img = Image::new(100, 100);
         // From behind the eye to far ahead, on the floor z = -1.
-        p.triangle(&mut img, &[Point::new(-5.0, -3.0, -1.0), Point::new(50.0, 0.0, -1.0), Point::new(-5.0, 3.0, -1.0)], [9, 9, 9]);
+        let floor = [Point::new(-3.0, -5.0, -1.0), Point::new(0.0, 50.0, -1.0), Point::new(3.0, -5.0, -1.0)];
+        p.triangle(&mut img, &floor, [9, 9, 9]);
         assert!(img.coverage() > 0);
         assert!(img.drawn(50, 99), "the floor just below the centre, near the eye");
         assert!(!img.drawn(50, 40), "nothing above the horizon");
