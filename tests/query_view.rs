@@ -17,7 +17,9 @@ use mktree::build::Hierarchy;
 use mktree::db::read_hierarchy;
 use mktree::geom::{Aabb, Frustum, Point, Vector, distance_point_triangle};
 use mktree::lod::LodParams;
-use mktree::query::{Bound, CutNode, Region, Shape, View, ViewCut, ViewOptions, brute_force_region, navigate_view};
+use mktree::query::{
+    Bound, CutNode, Region, Shape, View, ViewCut, ViewOptions, brute_force_region, navigate_view,
+};
 use mktree::scene::generate::{GenOptions, Preset, generate_scene};
 use mktree::scene::{ObjectId, Scene};
 use proptest::prelude::*;
@@ -36,7 +38,9 @@ fn subtree(h: &Hierarchy, id: usize, out: &mut BTreeSet<ObjectId>) {
 fn node_of(h: &Hierarchy, p: &CutNode) -> usize {
     match (p.node.id, p.node.parent) {
         (Some(id), _) => id as usize,
-        (None, Some(parent)) => h.nodes[parent as usize].children().expect("a parent")[usize::from(p.node.child)].index(),
+        (None, Some(parent)) => {
+            h.nodes[parent as usize].children().expect("a parent")[usize::from(p.node.child)].index()
+        }
         (None, None) => 0,
     }
 }
@@ -98,10 +102,11 @@ fn box_solid(b: &Aabb) -> Solid {
 fn frustum_solid(f: &Frustum) -> Solid {
     let c = f.corners();
     let centre = Point::from(c.iter().fold(Vector::zeros(), |s, p| s + p.coords) / 8.0);
-    let faces: Vec<Vec<Point>> = [[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]]
-        .iter()
-        .map(|f| f.iter().map(|&i| c[i]).collect())
-        .collect();
+    let faces: Vec<Vec<Point>> =
+        [[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]]
+            .iter()
+            .map(|f| f.iter().map(|&i| c[i]).collect())
+            .collect();
     let halves = faces
         .iter()
         .map(|f| {
@@ -175,12 +180,20 @@ fn check_cut(scene: &Scene, h: &Hierarchy, view: &View, cut: &ViewCut, budget: O
             assert!(d.is_finite(), "a shown box outside the frustum");
             assert!(d >= p.distance_mm * (1.0 - 1e-9), "the piece's distance {} is above {d}", p.distance_mm);
             let px = view.projected_px(s.eps_mm, d);
-            assert!(px <= p.error_px * (1.0 + 1e-9) + 1e-12, "error {px} px above the piece's {}", p.error_px);
+            assert!(
+                px <= p.error_px * (1.0 + 1e-9) + 1e-12,
+                "error {px} px above the piece's {}",
+                p.error_px
+            );
             if budget.is_none() {
                 assert!(px <= tau * (1.0 + 1e-9), "error {px} px above tau {tau} ({:?})", p.bound);
             }
             let e = stand_in_error(&s.shape, scene, &target);
-            assert!(e <= s.eps_mm * (1.0 + 1e-9) + 1e-9, "a stand-in {e} mm from its objects, eps {}", s.eps_mm);
+            assert!(
+                e <= s.eps_mm * (1.0 + 1e-9) + 1e-9,
+                "a stand-in {e} mm from its objects, eps {}",
+                s.eps_mm
+            );
         }
         covered.extend(stands_for);
     }
@@ -262,7 +275,12 @@ fn a_budgeted_cut_fits_covers_everything_and_a_budget_that_suffices_changes_noth
     let zero = r.view(&view, &shapes(1.0, Some(0)), None).unwrap();
     assert_eq!((zero.nodes.len(), zero.nodes[0].node.id), (1, Some(0)), "budget 0: the root's box");
     let enough = r.view(&view, &shapes(1.0, Some(need)), None).unwrap();
-    let key = |c: &ViewCut| c.nodes.iter().map(|n| (n.node.id, n.node.parent, n.node.child, n.level, n.objects.clone())).collect::<BTreeSet<_>>();
+    let key = |c: &ViewCut| {
+        c.nodes
+            .iter()
+            .map(|n| (n.node.id, n.node.parent, n.node.child, n.level, n.objects.clone()))
+            .collect::<BTreeSet<_>>()
+    };
     assert_eq!(key(&enough), key(&free));
     assert_eq!(enough.stats.reads.total(), need);
 }
@@ -274,10 +292,12 @@ fn a_walk_with_a_tolerance_reads_less_than_exact_and_its_pool_saves_reads() {
     let r = db.begin_read().unwrap();
     let mut views = views_of(&scene.aabb());
     views.push(views[3]);
-    let exact = navigate_view(&r, &views, &ViewOptions { tolerance_px: 0.0, budget: None, shapes: false }, 10_000)
-        .unwrap();
-    let loose = navigate_view(&r, &views, &ViewOptions { tolerance_px: 4.0, budget: None, shapes: false }, 10_000)
-        .unwrap();
+    let exact =
+        navigate_view(&r, &views, &ViewOptions { tolerance_px: 0.0, budget: None, shapes: false }, 10_000)
+            .unwrap();
+    let loose =
+        navigate_view(&r, &views, &ViewOptions { tolerance_px: 4.0, budget: None, shapes: false }, 10_000)
+            .unwrap();
     for (e, l) in exact.iter().zip(&loose) {
         assert_eq!(e.max_error_px, 0.0);
         assert!(l.max_error_px <= 4.0);
@@ -288,7 +308,11 @@ fn a_walk_with_a_tolerance_reads_less_than_exact_and_its_pool_saves_reads() {
     assert!(loose[4].stats.reads.cache_hits > 0);
     // From a cold pool each frame, the tolerance saves reads.
     let cold = |tau: f64, v: &View| {
-        r.view(v, &ViewOptions { tolerance_px: tau, budget: None, shapes: false }, None).unwrap().stats.reads.total()
+        r.view(v, &ViewOptions { tolerance_px: tau, budget: None, shapes: false }, None)
+            .unwrap()
+            .stats
+            .reads
+            .total()
     };
     let (e, l): (Vec<u64>, Vec<u64>) = views.iter().map(|v| (cold(0.0, v), cold(4.0, v))).unzip();
     assert!(e.iter().zip(&l).all(|(e, l)| l <= e), "{l:?} against {e:?}");
@@ -298,7 +322,10 @@ fn a_walk_with_a_tolerance_reads_less_than_exact_and_its_pool_saves_reads() {
 #[test]
 fn box_corners_are_numbered_x_then_y_then_z() {
     let c = Aabb::from_array([0.0, 0.0, 0.0, 1.0, 2.0, 3.0]).corners();
-    assert_eq!((c[1], c[2], c[4]), (Point::new(1.0, 0.0, 0.0), Point::new(0.0, 2.0, 0.0), Point::new(0.0, 0.0, 3.0)));
+    assert_eq!(
+        (c[1], c[2], c[4]),
+        (Point::new(1.0, 0.0, 0.0), Point::new(0.0, 2.0, 0.0), Point::new(0.0, 0.0, 3.0))
+    );
 }
 
 #[test]

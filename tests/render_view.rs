@@ -70,7 +70,8 @@ fn the_cuts_picture_covers_the_exact_one_and_strays_at_most_the_tolerance() {
     .seeing_all_of(&b);
     let m = r.lod_info().unwrap().levels;
     let picture = |tau: f64| {
-        let cut = r.view(&view, &ViewOptions { tolerance_px: tau, budget: None, shapes: true }, None).unwrap();
+        let cut =
+            r.view(&view, &ViewOptions { tolerance_px: tau, budget: None, shapes: true }, None).unwrap();
         (draw_cut(&view, &cut, m).unwrap(), cut)
     };
     let (exact, _) = picture(0.0);
@@ -96,9 +97,11 @@ fn the_cuts_picture_covers_the_exact_one_and_strays_at_most_the_tolerance() {
     assert!(coarser.last().unwrap().1 < coarser[0].1, "a large tau shows fewer exact objects: {coarser:?}");
     assert!(coarser.last().unwrap().0 > coarser[0].0, "stand-ins are larger than their objects: {coarser:?}");
     // The colours say the level: the exact picture has no red node box.
-    let red = |img: &Image| (0..img.height).flat_map(|y| (0..img.width).map(move |x| (x, y))).any(|(x, y)| {
-        img.pixel(x, y).is_some_and(|p| i32::from(p[0]) > i32::from(p[2]) + 60 && p[1] < 120)
-    });
+    let red = |img: &Image| {
+        (0..img.height).flat_map(|y| (0..img.width).map(move |x| (x, y))).any(|(x, y)| {
+            img.pixel(x, y).is_some_and(|p| i32::from(p[0]) > i32::from(p[2]) + 60 && p[1] < 120)
+        })
+    };
     assert!(!red(&exact));
 }
 
@@ -118,7 +121,11 @@ fn a_nodes_group_bound_holds_its_objects_picture() {
         let level = r.fetch_level(node, k, false, &mut stats).unwrap();
         for group in [false, true] {
             let img = draw_level(&view, &level, k, 4, group).unwrap();
-            assert_eq!(outside(&objects, &img, 1), 0, "level {k} (group {group}) leaves an object pixel blank");
+            assert_eq!(
+                outside(&objects, &img, 1),
+                0,
+                "level {k} (group {group}) leaves an object pixel blank"
+            );
             assert!(img.coverage() >= objects.coverage());
         }
     }

@@ -41,5 +41,5 @@ pub use tradeoff::{
 pub use traverse::{
     Hit, NodeName, ObjectLevel, Proof, QueryAnswer, QueryOptions, Seen, Select, TraverseStats, traverse,
 };
-pub use view::{Bound, CutNode, Shape, Shown, View, ViewCut, ViewOptions};
 pub(crate) use traverse::{Visitor, walk};
+pub use view::{Bound, CutNode, Shape, Shown, View, ViewCut, ViewOptions};

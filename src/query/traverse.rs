@@ -557,7 +557,12 @@ impl<'a, S: Selection> Select<'a, S> {
                         };
                         let leaf_id = view(&block, offset)?.node_id();
                         let seen = (leaf_id, o.object_id, part);
-                        self.seen(seen, (level, true, Proof::Candidate), v.as_ref().map(|v| (level, v)), None)?;
+                        self.seen(
+                            seen,
+                            (level, true, Proof::Candidate),
+                            v.as_ref().map(|v| (level, v)),
+                            None,
+                        )?;
                     }
                 }
                 Step::Found { .. } => {}
@@ -798,7 +803,13 @@ impl<'a, S: Selection> Select<'a, S> {
                             name,
                         })?;
                     } else {
-                        self.push(Step::Unread { at, frame: qb.outer, inside: child_inside, estimate, name })?;
+                        self.push(Step::Unread {
+                            at,
+                            frame: qb.outer,
+                            inside: child_inside,
+                            estimate,
+                            name,
+                        })?;
                     }
                 }
             }
@@ -871,7 +882,12 @@ impl<'a, S: Selection> Select<'a, S> {
                 level = b.level;
                 eps = v.grid().max_cell_diagonal();
                 if !self.sel.may_meet_voxels(&v) {
-                    self.seen((leaf_id, id, aabb), (level, false, Proof::VoxelsMiss), Some((level, &v)), None)?;
+                    self.seen(
+                        (leaf_id, id, aabb),
+                        (level, false, Proof::VoxelsMiss),
+                        Some((level, &v)),
+                        None,
+                    )?;
                     (rejected_at, reject_proof) = (rejected_at.max(level), Proof::VoxelsMiss);
                     continue;
                 }
@@ -905,7 +921,12 @@ impl<'a, S: Selection> Select<'a, S> {
         } else {
             let level = pending.iter().map(|p| p.1).max().unwrap_or(1);
             for (_, l, _, aabb, v) in &pending {
-                self.seen((leaf_id, id, *aabb), (*l, true, Proof::Candidate), v.as_ref().map(|v| (*l, v)), None)?;
+                self.seen(
+                    (leaf_id, id, *aabb),
+                    (*l, true, Proof::Candidate),
+                    v.as_ref().map(|v| (*l, v)),
+                    None,
+                )?;
             }
             self.decide((id, whole, key.clone()), (level, true, Proof::Candidate), None);
         }

@@ -271,13 +271,7 @@ impl Cut<'_> {
     }
 
     /// Adds a shown piece of `aabb` within `eps` mm of what it shows.
-    fn add(
-        &mut self,
-        key: (u32, u8, Bound, usize),
-        node: NodeName,
-        aabb: &Aabb,
-        eps: f64,
-    ) -> &mut CutNode {
+    fn add(&mut self, key: (u32, u8, Bound, usize), node: NodeName, aabb: &Aabb, eps: f64) -> &mut CutNode {
         let d = self.view.nearest_visible_mm(aabb);
         let error = self.view.projected_px(eps, d);
         let p = self.piece(key, node);
@@ -298,7 +292,9 @@ impl Visitor for Cut<'_> {
         let object = seen.decision.object;
         let (level, bound, eps, shape) = match (seen.mesh, seen.bound) {
             (Some(mesh), _) => (self.m, Bound::Exact, 0.0, Shape::Mesh(mesh.clone())),
-            (None, Some((k, v))) => (k, Bound::ObjectBounds, v.grid().max_cell_diagonal(), Shape::Voxels(v.clone())),
+            (None, Some((k, v))) => {
+                (k, Bound::ObjectBounds, v.grid().max_cell_diagonal(), Shape::Voxels(v.clone()))
+            }
             (None, None) => (1, Bound::ObjectBounds, seen.aabb.extent().norm(), Shape::Box(seen.aabb)),
         };
         let keep = self.shapes;
@@ -351,7 +347,12 @@ impl ReadTransaction {
     /// assert!(cut.max_error_px <= 2.0 && !cut.nodes.is_empty());
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
-    pub fn view(&self, view: &View, opts: &ViewOptions, cache: Option<&BlockCache>) -> Result<ViewCut, QueryError> {
+    pub fn view(
+        &self,
+        view: &View,
+        opts: &ViewOptions,
+        cache: Option<&BlockCache>,
+    ) -> Result<ViewCut, QueryError> {
         view.check()?;
         let tau = opts.tolerance_px;
         if !(tau.is_finite() && tau >= 0.0) {
@@ -364,7 +365,8 @@ impl ReadTransaction {
         let mut cut = Cut { view, m, shapes: opts.shapes, pieces: BTreeMap::new(), boxes: 0 };
         let q = QueryOptions { lod: None, budget: opts.budget, bounds_up_to: None };
         let stats = {
-            let mut select = Select::new(self, self.root(), &sight, &q, Reads::new(cache), None)?.visited_by(&mut cut);
+            let mut select =
+                Select::new(self, self.root(), &sight, &q, Reads::new(cache), None)?.visited_by(&mut cut);
             while let Some(d) = select.next_decision() {
                 d?;
             }

@@ -89,10 +89,11 @@ pub fn group_bound(sets: &[&Voxels]) -> Vec<Voxels> {
     for level in levels {
         let these: Vec<&&Voxels> = sets.iter().filter(|v| v.grid().level() == level).collect();
         let bounds = these.iter().fold(Aabb::EMPTY, |b, v| b.union(v.grid().bounds()));
-        let union = these.first().and_then(|v| Grid::new(v.grid().lattice(), level, &bounds).ok()).and_then(|g| {
-            let mut u = Voxels::empty(g);
-            these.iter().all(|v| v.lift_into(&mut u).is_ok()).then_some(u)
-        });
+        let union =
+            these.first().and_then(|v| Grid::new(v.grid().lattice(), level, &bounds).ok()).and_then(|g| {
+                let mut u = Voxels::empty(g);
+                these.iter().all(|v| v.lift_into(&mut u).is_ok()).then_some(u)
+            });
         match union {
             Some(u) => out.push(u),
             None => out.extend(these.into_iter().map(|v| (*v).clone())),
@@ -110,10 +111,17 @@ pub fn draw_level(view: &View, level: &Level, k: u8, m: u8, group: bool) -> Resu
     let bound = if k == m { Bound::Exact } else { Bound::ObjectBounds };
     for piece in &level.pieces {
         match piece {
-            Piece::Box { aabb, .. } => draw_mesh(&p, &mut img, &Shape::Box(*aabb).mesh(), level_colour(Bound::NodeBox, 1, m)),
+            Piece::Box { aabb, .. } => {
+                draw_mesh(&p, &mut img, &Shape::Box(*aabb).mesh(), level_colour(Bound::NodeBox, 1, m))
+            }
             Piece::ObjectBoxes(b) => {
                 for (_, aabb) in b {
-                    draw_mesh(&p, &mut img, &Shape::Box(*aabb).mesh(), level_colour(Bound::ObjectBounds, 1, m));
+                    draw_mesh(
+                        &p,
+                        &mut img,
+                        &Shape::Box(*aabb).mesh(),
+                        level_colour(Bound::ObjectBounds, 1, m),
+                    );
                 }
             }
             Piece::ObjectVoxels(v) => {

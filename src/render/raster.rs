@@ -142,8 +142,11 @@ impl Projector {
             let py = f64::from(y) + 0.5;
             for x in lo_x as u32..hi_x as u32 {
                 let px = f64::from(x) + 0.5;
-                let edge = |a: (f64, f64, f64), b: (f64, f64, f64)| (b.0 - a.0) * (py - a.1) - (b.1 - a.1) * (px - a.0);
-                let (w0, w1, w2) = (edge(s[1], s[2]) / area, edge(s[2], s[0]) / area, edge(s[0], s[1]) / area);
+                let edge = |a: (f64, f64, f64), b: (f64, f64, f64)| {
+                    (b.0 - a.0) * (py - a.1) - (b.1 - a.1) * (px - a.0)
+                };
+                let (w0, w1, w2) =
+                    (edge(s[1], s[2]) / area, edge(s[2], s[0]) / area, edge(s[0], s[1]) / area);
                 if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
                     continue;
                 }
@@ -182,7 +185,9 @@ mod tests {
         let mut img = Image::new(100, 100);
         // At y = 10 a 90 degree view spans 20 mm over 100 px: a square of
         // 4 mm side (x, z in [-2, 2]) covers 20 x 20 px.
-        let q = |y: f64, s: f64| [Point::new(-s, y, -s), Point::new(s, y, -s), Point::new(s, y, s), Point::new(-s, y, s)];
+        let q = |y: f64, s: f64| {
+            [Point::new(-s, y, -s), Point::new(s, y, -s), Point::new(s, y, s), Point::new(-s, y, s)]
+        };
         let far = q(10.0, 2.0);
         p.triangle(&mut img, &[far[0], far[1], far[2]], [0, 0, 255]);
         p.triangle(&mut img, &[far[0], far[2], far[3]], [0, 0, 255]);

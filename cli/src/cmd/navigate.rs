@@ -4,8 +4,8 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use mktree::geom::Camera;
 use mktree::View;
+use mktree::geom::Camera;
 use mktree::query::{QueryOptions, ViewOptions, navigate, navigate_view, parse_path};
 use serde_json::json;
 

@@ -30,7 +30,8 @@ pub fn run(file: &Path, args: &ViewArgs, what: What, out: &Path, as_json: bool) 
         What::Cut => {
             let scene = r.root().map_or(mktree::Aabb::EMPTY, |n| n.aabb);
             let view = camera(args, &scene);
-            let cut = r.view(&view, &options(args, true), None).with_context(|| format!("{}", file.display()))?;
+            let cut =
+                r.view(&view, &options(args, true), None).with_context(|| format!("{}", file.display()))?;
             let img = draw_cut(&view, &cut, m)?;
             let mut s = cut_json(&cut);
             // The pieces are in `mktree view`; the picture's summary is enough here.

@@ -70,6 +70,8 @@ pub fn run(file: &Path, args: &ViewArgs) -> Result<()> {
     let db = crate::cmd::open_to_read(file)?;
     let r = db.begin_read()?;
     let scene = r.root().map_or(Aabb::EMPTY, |n| n.aabb);
-    let cut = r.view(&camera(args, &scene), &options(args, false), None).with_context(|| format!("{}", file.display()))?;
+    let cut = r
+        .view(&camera(args, &scene), &options(args, false), None)
+        .with_context(|| format!("{}", file.display()))?;
     output::json(&cut_json(&cut))
 }
