@@ -18,7 +18,9 @@ pub use db::{
 pub use error::Error;
 pub use geom::{Aabb, Point, Ray, Vector};
 pub use lod::LodParams;
-pub use query::{Hit, Near, QueryAnswer, QueryOptions, RayHit, Region, Selection, View, ViewCut, ViewOptions};
+pub use query::{
+    Hit, Near, QueryAnswer, QueryOptions, RayHit, Region, Selection, View, ViewCut, ViewOptions,
+};
 pub use scene::{Key, KeyError, Mesh, Object, ObjectId, Scene};
 pub use store::StorageError;
 
@@ -41,3 +43,4 @@ pub mod render;
 mod rng;
 pub mod scene;
 pub mod store;
+pub mod tiles;

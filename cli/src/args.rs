@@ -181,6 +181,15 @@ pub enum Command {
         #[command(flatten)]
         view: ViewArgs,
     },
+    /// The tree as a 3D Tiles 1.1 tileset: tileset.json (one tile per node, REPLACE) and one .glb per tile.
+    #[command(name = "export-3dtiles")]
+    Export3dTiles {
+        file: PathBuf,
+        /// The directory to write (created if missing).
+        out: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
     /// A picture (PNG) of the view's cut, coloured by level; or with --node, one node's level of detail.
     Render {
         file: PathBuf,

@@ -13,6 +13,7 @@ mod collide;
 mod compact;
 mod demo;
 mod dump;
+mod export_tiles;
 mod gen_info;
 mod get;
 mod lods;
@@ -63,6 +64,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Clash { file, clearance, lod, json } => clash::run(&file, clearance, lod, json),
         Command::Batch { file, queries } => batch::run(&file, queries.as_deref()),
         Command::View { file, view } => view::run(&file, &view),
+        Command::Export3dTiles { file, out, json } => export_tiles::run(&file, &out, json),
         Command::Render { file, view, node, lod, objects, output, json } => {
             let what = match (node, lod) {
                 (Some(node), Some(k)) => render::What::Node { node, k, objects },
