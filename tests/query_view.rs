@@ -373,3 +373,69 @@ proptest! {
         check_cut(&scene, &h, &view, &cut, budget, tau);
     }
 }
+
+/// A wavy sheet of `n` x `n` quads in the x-z plane (1000 mm square): more
+/// bytes than a small geometry block, so it is stored as parts.
+fn sheet(n: u32) -> mktree::scene::Mesh {
+    let step = 1000.0 / f64::from(n);
+    let mut verts = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let (x, z) = (f64::from(i) * step, f64::from(j) * step);
+            verts.push(Point::new(x, 20.0 * ((x + z) / 90.0).sin(), z));
+        }
+    }
+    let mut tris = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * (n + 1) + i;
+            tris.extend([[a, a + 1, a + n + 2], [a, a + n + 2, a + n + 1]]);
+        }
+    }
+    mktree::scene::Mesh::from_world(&verts, tris).unwrap()
+}
+
+#[test]
+fn an_object_stored_as_parts_is_shown_whole() {
+    use mktree::scene::Object;
+    let mut objects = vec![Object::new("sheet", sheet(30))];
+    for i in 0..6 {
+        let lo = [200.0 * f64::from(i), 300.0, 100.0];
+        objects.push(Object::new(format!("box{i}"), common::box_mesh(lo, [lo[0] + 80.0, 380.0, 180.0])));
+    }
+    let scene = Scene::new(objects);
+    let db = lod_db(&scene, 4, 4096, 4, LodParams { store_all: true, ..LodParams::default() });
+    let r = db.begin_read().unwrap();
+    let h = read_hierarchy(&r).unwrap();
+    let view = View {
+        eye: Point::new(500.0, -3000.0, 500.0),
+        target: Point::new(500.0, 0.0, 500.0),
+        fov_deg: 60.0,
+        width_px: 400,
+        height_px: 300,
+        near_mm: 10.0,
+        far_mm: 1.0,
+    }
+    .seeing_all_of(&scene.aabb());
+    let sheet_triangles = |cut: &ViewCut| -> (usize, usize) {
+        let shown: Vec<&mktree::query::Shown> =
+            cut.nodes.iter().flat_map(|n| &n.shapes).filter(|s| s.object == Some(ObjectId(0))).collect();
+        let exact =
+            shown.iter().map(|s| if let Shape::Mesh(m) = &s.shape { m.triangle_count() } else { 0 }).sum();
+        (shown.len(), exact)
+    };
+    let exact = r.view(&view, &shapes(0.0, None), None).unwrap();
+    check_cut(&scene, &h, &view, &exact, None, 0.0);
+    let (parts, triangles) = sheet_triangles(&exact);
+    assert!(parts > 1, "the sheet is stored as {parts} part(s)");
+    assert_eq!(triangles, 1800, "every part of the sheet is drawn");
+    // A budget that stops inside the sheet's parts shows the rest at their bounds.
+    let need = exact.stats.reads.total();
+    for budget in 1..need {
+        let cut = r.view(&view, &shapes(0.0, Some(budget)), None).unwrap();
+        check_cut(&scene, &h, &view, &cut, Some(budget), 0.0);
+        // Under a node's box, or every part shown (exact or by its bound).
+        let (shown, _) = sheet_triangles(&cut);
+        assert!(shown == 0 || shown == parts, "budget {budget}: {shown} of the sheet's {parts} parts shown");
+    }
+}
