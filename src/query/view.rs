@@ -172,8 +172,9 @@ pub struct Shown {
 /// One piece of a cut: a node at a level.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CutNode {
-    /// The node (a leaf, unless `bound` is a node box); its id is known
-    /// unless it is a second child in a block the cut did not read.
+    /// The node: a node box's id (known unless it is a second child in a
+    /// block the cut did not read), its parent and which child it is; for
+    /// objects, the id of their leaf only (its parent is not looked up).
     pub node: NodeName,
     /// The level k shown: 1 for a box, M for exact.
     pub level: u8,
