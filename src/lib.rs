@@ -18,7 +18,9 @@ pub use db::{
 pub use error::Error;
 pub use geom::{Aabb, Point, Ray, Vector};
 pub use lod::LodParams;
-pub use query::{Hit, Near, QueryAnswer, QueryOptions, RayHit, Region, Selection};
+pub use query::{
+    Hit, Near, QueryAnswer, QueryOptions, RayHit, Region, Selection, View, ViewCut, ViewOptions,
+};
 pub use scene::{Key, KeyError, Mesh, Object, ObjectId, Scene};
 pub use store::StorageError;
 
@@ -37,6 +39,8 @@ pub mod lod;
 pub mod query;
 #[cfg(feature = "redb")]
 pub mod redb;
+pub mod render;
 mod rng;
 pub mod scene;
 pub mod store;
+pub mod tiles;

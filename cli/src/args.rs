@@ -195,6 +195,40 @@ pub enum Command {
         #[arg(long)]
         queries: Option<PathBuf>,
     },
+    /// The view's cut through the levels of detail: (node, level) pieces front to back, as JSON.
+    View {
+        file: PathBuf,
+        #[command(flatten)]
+        view: ViewArgs,
+    },
+    /// The tree as a 3D Tiles 1.1 tileset: tileset.json (one tile per node, REPLACE) and one .glb per tile.
+    #[command(name = "export-3dtiles")]
+    Export3dTiles {
+        file: PathBuf,
+        /// The directory to write (created if missing).
+        out: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
+    /// A picture (PNG) of the view's cut, coloured by level; or with --node, one node's level of detail.
+    Render {
+        file: PathBuf,
+        #[command(flatten)]
+        view: ViewArgs,
+        /// Draw node N's level --lod instead of the cut: b(S_n,k), or with --objects B(S_n,k).
+        #[arg(long, requires = "lod")]
+        node: Option<u32>,
+        /// With --node: the level k, 1 ..= M.
+        #[arg(long, requires = "node")]
+        lod: Option<u8>,
+        /// With --node: each object's bound B(S_n,k) rather than their union b(S_n,k).
+        #[arg(long, requires = "node")]
+        objects: bool,
+        #[arg(short, long)]
+        output: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
     /// Frustum queries along a camera path with an LRU pool kept across steps: reads and hits per step.
     Navigate {
         file: PathBuf,
@@ -216,8 +250,17 @@ pub enum Command {
         #[arg(long, default_value_t = 10_000.0)]
         far: f64,
         /// Level k, 1 ..= M (default M: exact).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "tolerance")]
         lod: Option<u8>,
+        /// τ in pixels: each step's view cut (stand-ins whose error projects to at most τ) instead of an exact frustum query.
+        #[arg(long)]
+        tolerance: Option<f64>,
+        /// With --tolerance: the viewport's height in pixels (its width is height x aspect).
+        #[arg(long, default_value_t = 720)]
+        height_px: u32,
+        /// With --tolerance: at most this many block reads per step.
+        #[arg(long, requires = "tolerance")]
+        budget: Option<u64>,
         #[arg(long)]
         json: bool,
     },
@@ -313,6 +356,33 @@ pub enum Command {
         #[arg(long, default_value = "mktree-demo")]
         dir: PathBuf,
     },
+}
+
+/// A camera, its viewport and the view's tolerance.
+#[derive(Args, Debug, Clone)]
+pub struct ViewArgs {
+    /// Eye x,y,z and target x,y,z in mm; up is +z (default: the whole scene, or node, from above its front left).
+    #[arg(long, value_parser = numbers::<6>, allow_hyphen_values = true)]
+    pub camera: Option<[f64; 6]>,
+    /// Vertical field of view, degrees.
+    #[arg(long, default_value_t = 60.0)]
+    pub fov_deg: f64,
+    #[arg(long, default_value_t = 1280)]
+    pub width_px: u32,
+    #[arg(long, default_value_t = 720)]
+    pub height_px: u32,
+    /// Near distance, mm.
+    #[arg(long, default_value_t = 100.0)]
+    pub near: f64,
+    /// Far distance, mm (default: the scene's farthest corner).
+    #[arg(long)]
+    pub far: Option<f64>,
+    /// τ, pixels: the largest projected error of a stand-in (0: exact everywhere).
+    #[arg(long, default_value_t = 1.0)]
+    pub tolerance: f64,
+    /// Read at most this many blocks: the best cut that fits, coarser far away.
+    #[arg(long)]
+    pub budget: Option<u64>,
 }
 
 /// The level and block budget of a query.

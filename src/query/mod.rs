@@ -2,7 +2,8 @@
 //! `traverse.rs`, the [`Select`] iterator, with a [`Selection`]
 //! (`select.rs`): region queries, the posed-mesh collide, clash (the tree
 //! against itself, one probe per object), navigation, the speed-accuracy
-//! trade-off, and the walks of `check`; or best first, ordered by a
+//! trade-off, the view's cut through the levels of detail, and the walks
+//! of `check`; or best first, ordered by a
 //! distance (`rank.rs`): the nearest objects to a point, the hits along a
 //! ray. Each returns its answer and the blocks it read, counted by the
 //! pager where the reads happen.
@@ -20,6 +21,7 @@ mod region;
 mod select;
 mod tradeoff;
 mod traverse;
+mod view;
 
 pub use batch::{Request, Response, answer_request};
 pub use brute_force::{
@@ -29,7 +31,7 @@ pub use brute_force::{
 pub use clash::{ClashAnswer, ClashOptions, clash};
 pub use collide::{CollideOptions, collide, object_mesh, object_meshes};
 pub use error::QueryError;
-pub use navigate::{NavigateStep, navigate, parse_path};
+pub use navigate::{NavigateStep, navigate, navigate_view, parse_path};
 pub use nearest::{Near, Nearest};
 pub use ray::{RayHit, RayHits};
 pub use region::query_region;
@@ -38,6 +40,7 @@ pub use tradeoff::{
     LevelBenefit, TRADEOFF_SHIFT_MM, TradeoffRow, collision_workload, level_benefit, tradeoff,
 };
 pub use traverse::{
-    Hit, ObjectLevel, Proof, QueryAnswer, QueryOptions, Seen, Select, TraverseStats, traverse,
+    Hit, NodeName, ObjectLevel, Proof, QueryAnswer, QueryOptions, Seen, Select, TraverseStats, traverse,
 };
 pub(crate) use traverse::{Visitor, walk};
+pub use view::{Bound, CutNode, Shape, Shown, View, ViewCut, ViewOptions};

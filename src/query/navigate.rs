@@ -1,13 +1,15 @@
 //! Navigation (paper §1.5, on-line collision detection during a walk): a
 //! sequence of frustum queries along a camera path, through one LRU buffer
 //! pool of a fixed number of blocks kept from step to step, so a step reads
-//! only what the previous steps' blocks do not hold.
+//! only what the previous steps' blocks do not hold; or (time-critical
+//! rendering) the view's cut per step, through the same kind of pool.
 
 use serde::Serialize;
 
 use super::QueryError;
 use super::select::Region;
 use super::traverse::{QueryOptions, traverse};
+use super::view::{View, ViewCut, ViewOptions};
 use crate::db::ReadTransaction;
 use crate::geom::{Camera, Frustum, Point};
 use crate::scene::ObjectId;
@@ -42,6 +44,18 @@ pub fn navigate(
             Ok(NavigateStep { step, objects: a.objects, reads: a.stats.reads, seconds: a.stats.seconds })
         })
         .collect()
+}
+
+/// The cut of each of `views` in order at `opts`' tolerance and budget (a
+/// budget per step), with one pool of `cache_blocks` blocks across the steps.
+pub fn navigate_view(
+    txn: &ReadTransaction,
+    views: &[View],
+    opts: &ViewOptions,
+    cache_blocks: usize,
+) -> Result<Vec<ViewCut>, QueryError> {
+    let cache = BlockCache::new(cache_blocks);
+    views.iter().map(|v| txn.view(v, opts, Some(&cache))).collect()
 }
 
 /// A camera path: one `ex,ey,ez,tx,ty,tz` line (eye, target, mm) per step.

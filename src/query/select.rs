@@ -41,6 +41,21 @@ pub trait Selection {
     /// The shape meets the exact surface of `mesh` (closed sets: touching
     /// counts); counts triangle tests.
     fn meets_mesh(&self, mesh: &Mesh, triangles_tested: &mut u64) -> bool;
+    /// A query that takes stand-ins (the view, `view.rs`): the largest
+    /// [`stand_in_error`](Self::stand_in_error) it accepts. The traversal
+    /// then settles a node box or an object's bound whose error is at most
+    /// this instead of refining it, and reads every part of an object that
+    /// meets the shape (a picture needs them all). `None` (every other
+    /// query): no stand-ins.
+    fn tolerance(&self) -> Option<f64> {
+        None
+    }
+    /// How much the query minds what `b` holds being shown by a stand-in
+    /// within `eps_mm` of it (both ways), in the query's own unit (the
+    /// view: pixels on screen). With a budget the largest is refined first.
+    fn stand_in_error(&self, _b: &Aabb, _eps_mm: f64) -> f64 {
+        0.0
+    }
 }
 
 /// A selection by reference is the selection (what `ReadTransaction::select` runs).
@@ -59,6 +74,12 @@ impl<T: Selection + ?Sized> Selection for &T {
     }
     fn meets_mesh(&self, mesh: &Mesh, triangles_tested: &mut u64) -> bool {
         (**self).meets_mesh(mesh, triangles_tested)
+    }
+    fn tolerance(&self) -> Option<f64> {
+        (**self).tolerance()
+    }
+    fn stand_in_error(&self, b: &Aabb, eps_mm: f64) -> f64 {
+        (**self).stand_in_error(b, eps_mm)
     }
 }
 

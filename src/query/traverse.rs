@@ -20,6 +20,13 @@
 //! distance waits in the queue until nothing nearer can come: hits come in
 //! order of distance, ties by id.
 //!
+//! A query that takes stand-ins (the view, [`Selection::tolerance`]) stops
+//! where a node's box, or an object's finest stored bound, is close enough:
+//! the visitor is shown the node (`stand_in`) or the object at that level,
+//! and nothing below is read. With a budget its queue refines the largest
+//! stand-in error first, and what the budget sets aside is shown as stand-ins
+//! too, so the stand-ins and objects shown cover all the query meets.
+//!
 //! [`Select`] runs the queue on demand: each `next` runs steps until an
 //! object is decided, so a caller that stops early has read only the blocks
 //! its hits needed. `traverse`, and every query built on it, drain the same
@@ -165,13 +172,22 @@ pub(crate) fn levels(txn: &ReadTransaction, lod: Option<u8>) -> Result<(u8, u8),
 
 enum Step {
     /// A child in another block, not read yet.
-    Unread { at: RecordRef, frame: Aabb, inside: bool, estimate: f64 },
+    Unread { at: RecordRef, frame: Aabb, inside: bool, estimate: f64, name: NodeName },
     /// A record in hand.
-    Node { block: Arc<Block>, offset: u32, frame: Aabb, inside: bool },
+    Node { block: Arc<Block>, offset: u32, frame: Aabb, inside: bool, name: NodeName },
     /// A part whose geometry decides its object: leaf `offset` of `block`,
     /// entry `index` (box `part`, its object's `whole`), which passed bounds
-    /// up to `level`.
-    Exact { block: Arc<Block>, offset: u32, index: usize, level: u8, part: Aabb, whole: Aabb, key: Key },
+    /// up to `level`, the finest of which is within `eps` mm of it.
+    Exact {
+        block: Arc<Block>,
+        offset: u32,
+        index: usize,
+        level: u8,
+        eps: f64,
+        part: Aabb,
+        whole: Aabb,
+        key: Key,
+    },
     /// Best first: an object at its exact distance, yielded when nothing
     /// left in the queue can be nearer.
     Found { object: u32, aabb: Aabb, key: Key, distance: f64 },
@@ -205,10 +221,23 @@ impl Ord for Queued {
 /// decided it (or the finest it passed), its mesh when its geometry was
 /// read, and the decision.
 pub struct Seen<'a> {
+    /// The preorder id of the leaf holding it.
+    pub leaf: u32,
     pub aabb: Aabb,
     pub bound: Option<(u8, &'a Voxels)>,
     pub mesh: Option<&'a Mesh>,
     pub decision: ObjectLevel,
+}
+
+/// A node as a query that takes stand-ins may meet it before reading it:
+/// its preorder id when known without a read (a record read, a first child
+/// (its parent's id + 1), a child in its parent's block), its parent's id
+/// and which child it is (the root has no parent).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct NodeName {
+    pub id: Option<u32>,
+    pub parent: Option<u32>,
+    pub child: u8,
 }
 
 /// Sees what a traversal meets: each record it enters (with the box its
@@ -219,8 +248,14 @@ pub(crate) trait Visitor {
     fn node(&mut self, _block: &Arc<Block>, _offset: u32, _frame: &Aabb) -> Result<(), StorageError> {
         Ok(())
     }
-    /// An object decided.
+    /// An object decided; with stand-ins, also an object settled or set
+    /// aside at its bound's level, and each part of one that meets.
     fn object(&mut self, _seen: &Seen) -> Result<(), StorageError> {
+        Ok(())
+    }
+    /// A query that takes stand-ins: node `name`, whose box is `frame`,
+    /// stands in for its subtree (settled, or set aside by the budget).
+    fn stand_in(&mut self, _name: &NodeName, _frame: &Aabb) -> Result<(), StorageError> {
         Ok(())
     }
 }
@@ -354,7 +389,10 @@ impl<'a, S: Selection> Select<'a, S> {
                 let inside = s.sel.holds_box(&start.aabb);
                 let at = RecordRef { block: start.block, checksum: start.checksum, offset: start.offset };
                 let estimate = f64::from(txn.info().map_or(0, |i| i.objects));
-                s.push(Step::Unread { at, frame: start.aabb, inside, estimate })?;
+                // The tree's root is node 0; a walk from another node learns its id on reading it.
+                let root = txn.root().is_some_and(|r| (r.block, r.offset) == (start.block, start.offset));
+                let name = NodeName { id: root.then_some(0), parent: None, child: 0 };
+                s.push(Step::Unread { at, frame: start.aabb, inside, estimate, name })?;
             }
             Some(_) => s.stats.pruned += 1,
         }
@@ -417,7 +455,10 @@ impl<'a, S: Selection> Select<'a, S> {
             if let Err(e) = self.advance() {
                 self.heap.clear();
                 self.deferred.clear();
-                self.finish();
+                // Nothing set aside is left to show: the error ends the walk.
+                if let Err(f) = self.finish() {
+                    return Some(Err(f.into()));
+                }
                 return Some(Err(e));
             }
         }
@@ -471,10 +512,13 @@ impl<'a, S: Selection> Select<'a, S> {
             }
             self.deferred = still;
             if self.deferred.len() == waiting {
-                self.finish();
+                self.finish()?;
             }
             return Ok(());
         };
+        if self.settled(&q.step)? {
+            return Ok(());
+        }
         if self.budget.is_some() && self.over_budget(self.cost(&q.step)?) {
             self.deferred.push(q);
             return Ok(());
@@ -482,22 +526,43 @@ impl<'a, S: Selection> Select<'a, S> {
         Ok(self.step(q.step)?)
     }
 
-    /// Ends the traversal: what a budget set aside is the rest.
-    fn finish(&mut self) {
+    /// Ends the traversal: what a budget set aside is the rest, and a query
+    /// that takes stand-ins is shown it as stand-ins.
+    fn finish(&mut self) -> Result<(), StorageError> {
         let mut rest = Rest { level_reached: self.k, ..Rest::default() };
         for q in std::mem::take(&mut self.deferred) {
             match q.step {
-                Step::Unread { .. } | Step::Node { .. } => {
+                Step::Unread { frame, name, .. } | Step::Node { frame, name, .. } => {
                     rest.unexplored_nodes += 1;
                     rest.level_reached = 1;
-                }
-                Step::Exact { block, offset, index, level, .. } => {
-                    if let Ok(NodeView::Leaf(leaf)) = view(&block, offset)
-                        && let Some(o) = leaf.object(index)
-                        && !self.done.contains(&o.object_id)
+                    if self.sel.tolerance().is_some()
+                        && let Some(visitor) = self.visitor.as_deref_mut()
                     {
+                        visitor.stand_in(&name, &frame)?;
+                    }
+                }
+                Step::Exact { block, offset, index, level, part, .. } => {
+                    let NodeView::Leaf(leaf) = view(&block, offset)? else { continue };
+                    let Some(o) = leaf.object(index) else { continue };
+                    if !self.done.contains(&o.object_id) {
                         rest.maybe.push(ObjectId(o.object_id));
                         rest.level_reached = rest.level_reached.min(level);
+                    }
+                    // A part left unread is shown at its bound (another
+                    // part of its object may have been read).
+                    if self.sel.tolerance().is_some() {
+                        let v = match finest(leaf.bounds(), index as u16, level) {
+                            Some(b) => Some(self.voxels(block.id(), &b, &part)?),
+                            None => None,
+                        };
+                        let leaf_id = view(&block, offset)?.node_id();
+                        let seen = (leaf_id, o.object_id, part);
+                        self.seen(
+                            seen,
+                            (level, true, Proof::Candidate),
+                            v.as_ref().map(|v| (level, v)),
+                            None,
+                        )?;
                     }
                 }
                 Step::Found { .. } => {}
@@ -507,6 +572,28 @@ impl<'a, S: Selection> Select<'a, S> {
         rest.maybe.dedup();
         self.stats.seconds = self.started.elapsed().as_secs_f64();
         self.rest = Some(rest);
+        Ok(())
+    }
+
+    /// A query that takes stand-ins settles a node whose box is close
+    /// enough: the visitor is shown it, and it is not read.
+    fn settled(&mut self, step: &Step) -> Result<bool, StorageError> {
+        let (Step::Unread { frame, name, .. } | Step::Node { frame, name, .. }) = step else {
+            return Ok(false);
+        };
+        if !self.settles(frame, frame.extent().norm()) {
+            return Ok(false);
+        }
+        if let Some(visitor) = self.visitor.as_deref_mut() {
+            visitor.stand_in(name, frame)?;
+        }
+        Ok(true)
+    }
+
+    /// Whether what `b` holds, shown by a stand-in within `eps` mm of it,
+    /// is close enough for the query (never, for a query without stand-ins).
+    fn settles(&self, b: &Aabb, eps: f64) -> bool {
+        self.sel.tolerance().is_some_and(|t| self.sel.stand_in_error(b, eps) <= t)
     }
 
     fn cost(&self, step: &Step) -> Result<u64, StorageError> {
@@ -516,7 +603,7 @@ impl<'a, S: Selection> Select<'a, S> {
             Step::Exact { block, offset, index, .. } => {
                 let NodeView::Leaf(leaf) = view(block, *offset)? else { return Ok(0) };
                 let Some(o) = leaf.object(*index) else { return Ok(0) };
-                if self.done.contains(&o.object_id) {
+                if self.done.contains(&o.object_id) && self.sel.tolerance().is_none() {
                     return Ok(0);
                 }
                 let (first, _) = leaf.geometry();
@@ -545,6 +632,15 @@ impl<'a, S: Selection> Select<'a, S> {
             }
             // Depth first: the newest step first.
             (None, None) => (self.seq as f64, self.seq),
+            // Stand-ins: the largest error first; records in hand cost nothing.
+            (None, Some(_)) if self.sel.tolerance().is_some() => {
+                let error = match &step {
+                    Step::Unread { frame, .. } => self.sel.stand_in_error(frame, frame.extent().norm()),
+                    Step::Exact { part, eps, .. } => self.sel.stand_in_error(part, *eps),
+                    Step::Node { .. } | Step::Found { .. } => f64::INFINITY,
+                };
+                (error, self.seq)
+            }
             (None, Some(_)) => {
                 let gain = match &step {
                     Step::Unread { estimate, .. } => *estimate,
@@ -562,16 +658,16 @@ impl<'a, S: Selection> Select<'a, S> {
     /// Shows the visitor an entry (an object, or a part of one) as decided.
     fn seen(
         &mut self,
-        entry: (u32, Aabb),
+        entry: (u32, u32, Aabb),
         decision: (u8, bool, Proof),
         bound: Option<(u8, &Voxels)>,
         mesh: Option<&Mesh>,
     ) -> Result<(), StorageError> {
         let Some(visitor) = self.visitor.as_deref_mut() else { return Ok(()) };
-        let (object, aabb) = entry;
+        let (leaf, object, aabb) = entry;
         let (level, accepted, proof) = decision;
         let decision = ObjectLevel { object: ObjectId(object), level, accepted, proof };
-        visitor.object(&Seen { aabb, bound, mesh, decision })
+        visitor.object(&Seen { leaf, aabb, bound, mesh, decision })
     }
 
     /// Records an object's decision (once per object, whatever its parts).
@@ -600,23 +696,27 @@ impl<'a, S: Selection> Select<'a, S> {
 
     fn step(&mut self, step: Step) -> Result<(), StorageError> {
         match step {
-            Step::Unread { at, frame, inside, .. } => {
+            Step::Unread { at, frame, inside, name, .. } => {
                 let block = self.txn.block(
                     at.block,
                     crate::store::format::frame::BlockType::Node,
                     at.checksum,
                     &mut self.reads,
                 )?;
-                self.push(Step::Node { block, offset: at.offset, frame, inside })
+                let name = NodeName { id: Some(view(&block, at.offset)?.node_id()), ..name };
+                self.push(Step::Node { block, offset: at.offset, frame, inside, name })
             }
-            Step::Node { block, offset, frame, inside } => self.node(block, offset, frame, inside),
+            Step::Node { block, offset, frame, inside, .. } => self.node(block, offset, frame, inside),
             Step::Exact { block, offset, index, part, whole, key, .. } => {
                 let NodeView::Leaf(leaf) = view(&block, offset)? else { return Ok(()) };
                 let Some(o) = leaf.object(index) else { return Ok(()) };
-                // Another part of the object already decided it: this one need not be read.
-                if self.done.contains(&o.object_id) {
+                // Another part of the object already decided it: this one need
+                // not be read, unless the query draws every part.
+                let draws = self.sel.tolerance().is_some();
+                if self.done.contains(&o.object_id) && !draws {
                     return Ok(());
                 }
+                let leaf_id = view(&block, offset)?.node_id();
                 let (id, mesh) = self.txn.read_object(block.id(), &leaf, index, &mut self.reads)?;
                 self.stats.geometry_tests += 1;
                 let n = &mut self.stats.triangles_tested;
@@ -625,17 +725,19 @@ impl<'a, S: Selection> Select<'a, S> {
                     None => self.sel.meets_mesh(&mesh, n).then_some(0.0),
                 };
                 let hit = distance.is_some();
-                self.seen((id.0, part), (self.m, hit, Proof::Exact), None, Some(&mesh))?;
+                self.seen((leaf_id, id.0, part), (self.m, hit, Proof::Exact), None, Some(&mesh))?;
                 let left = self.parts.entry(id.0).or_insert(1);
                 *left = left.saturating_sub(1);
                 let last = *left == 0;
+                let done = self.done.contains(&id.0);
                 match distance {
                     Some(distance) if self.rank.is_some() => {
                         self.found.insert(id.0);
                         self.push(Step::Found { object: id.0, aabb: whole, key, distance })?;
                     }
-                    Some(_) => self.decide((id.0, whole, key), (self.m, true, Proof::Exact), None),
-                    None if last && !self.found.contains(&id.0) => {
+                    Some(_) if !done => self.decide((id.0, whole, key), (self.m, true, Proof::Exact), None),
+                    Some(_) => {}
+                    None if last && !done && !self.found.contains(&id.0) => {
                         self.decide((id.0, whole, key), (self.m, false, Proof::Exact), None);
                     }
                     None => {}
@@ -672,7 +774,9 @@ impl<'a, S: Selection> Select<'a, S> {
             visitor.node(&block, offset, &frame)?;
         }
         let bad = |d: &str| StorageError::corrupt(block.id(), "record", d.to_string());
-        match view(&block, offset)? {
+        let record = view(&block, offset)?;
+        let id = record.node_id();
+        match record {
             NodeView::Internal(n) => {
                 let estimate = f64::from(n.child_blocks(0).1.max(1));
                 for i in (0..2).rev() {
@@ -686,15 +790,26 @@ impl<'a, S: Selection> Select<'a, S> {
                         child_inside = self.sel.holds_box(&qb.outer);
                     }
                     let at = n.child_ref(i);
+                    // Preorder: the first child follows its parent.
+                    let first = (i == 0).then(|| id.checked_add(1)).flatten();
+                    let name = NodeName { id: first, parent: Some(id), child: i as u8 };
                     if at.block == 0 {
+                        let name = NodeName { id: Some(view(&block, at.offset)?.node_id()), ..name };
                         self.push(Step::Node {
                             block: block.clone(),
                             offset: at.offset,
                             frame: qb.outer,
                             inside: child_inside,
+                            name,
                         })?;
                     } else {
-                        self.push(Step::Unread { at, frame: qb.outer, inside: child_inside, estimate })?;
+                        self.push(Step::Unread {
+                            at,
+                            frame: qb.outer,
+                            inside: child_inside,
+                            estimate,
+                            name,
+                        })?;
                     }
                 }
             }
@@ -713,7 +828,7 @@ impl<'a, S: Selection> Select<'a, S> {
                         end += 1;
                     }
                     let key = keys.next().ok_or_else(|| bad("an object has no key"))?.1.to_key();
-                    self.object(&block, offset, &leaf, (j, end, key), &frame, inside)?;
+                    self.object((&block, offset, id), &leaf, (j, end, key), &frame, inside)?;
                     j = end;
                 }
             }
@@ -726,8 +841,7 @@ impl<'a, S: Selection> Select<'a, S> {
     /// parts whose geometry must be read.
     fn object(
         &mut self,
-        block: &Arc<Block>,
-        offset: u32,
+        (block, offset, leaf_id): (&Arc<Block>, u32, u32),
         leaf: &LeafView,
         (first, end, key): (usize, usize, Key),
         frame: &Aabb,
@@ -736,7 +850,9 @@ impl<'a, S: Selection> Select<'a, S> {
         let bad = |d: &str| StorageError::corrupt(block.id(), "record", d.to_string());
         let parts = (first, end);
         let whole = object_box(leaf, parts, frame);
-        let mut pending: Vec<(usize, u8, Aabb, Option<Voxels>)> = Vec::new();
+        // Entries left undecided: index, level and error of the finest
+        // bound passed (the box's diagonal without one), box, bound.
+        let mut pending: Vec<(usize, u8, f64, Aabb, Option<Voxels>)> = Vec::new();
         let (mut rejected_at, mut reject_proof) = (1u8, Proof::BoxMisses);
         let mut id = 0;
         for i in parts.0..parts.1 {
@@ -745,48 +861,58 @@ impl<'a, S: Selection> Select<'a, S> {
             let qb = QuantBox::decode(frame, o.qbox).ok_or_else(|| bad("an object box is backwards"))?;
             let aabb = qb.outer;
             if inside {
-                self.seen((id, aabb), (1, true, Proof::InsideNode), None, None)?;
+                self.seen((leaf_id, id, aabb), (1, true, Proof::InsideNode), None, None)?;
                 self.decide((id, whole, key.clone()), (1, true, Proof::InsideNode), None);
                 return Ok(());
             }
             if !self.sel.may_meet_box(&aabb) {
-                self.seen((id, aabb), (1, false, Proof::BoxMisses), None, None)?;
+                self.seen((leaf_id, id, aabb), (1, false, Proof::BoxMisses), None, None)?;
                 continue;
             }
             if qb.face_slabs().iter().any(|f| self.sel.holds_box(f)) {
-                self.seen((id, aabb), (1, true, Proof::Face), None, None)?;
+                self.seen((leaf_id, id, aabb), (1, true, Proof::Face), None, None)?;
                 self.decide((id, whole, key.clone()), (1, true, Proof::Face), None);
                 return Ok(());
             }
             let mut level = 1;
+            let mut eps = aabb.extent().norm();
             let mut voxels = None;
             if let Some(b) = finest(leaf.bounds(), i as u16, self.bound_level) {
                 let v = self.voxels(block.id(), &b, &aabb)?;
                 level = b.level;
+                eps = v.grid().max_cell_diagonal();
                 if !self.sel.may_meet_voxels(&v) {
-                    self.seen((id, aabb), (level, false, Proof::VoxelsMiss), Some((level, &v)), None)?;
+                    self.seen(
+                        (leaf_id, id, aabb),
+                        (level, false, Proof::VoxelsMiss),
+                        Some((level, &v)),
+                        None,
+                    )?;
                     (rejected_at, reject_proof) = (rejected_at.max(level), Proof::VoxelsMiss);
                     continue;
                 }
                 if self.sel.confirms_voxels(&v) {
-                    self.seen((id, aabb), (level, true, Proof::Cell), Some((level, &v)), None)?;
+                    self.seen((leaf_id, id, aabb), (level, true, Proof::Cell), Some((level, &v)), None)?;
                     self.decide((id, whole, key.clone()), (level, true, Proof::Cell), None);
                     return Ok(());
                 }
                 voxels = Some(v);
             }
-            pending.push((i, level, aabb, voxels));
+            pending.push((i, level, eps, aabb, voxels));
         }
+        // With stand-ins, an object whose every part's bound is close enough is not read.
+        let settled = pending.iter().all(|p| self.settles(&p.3, p.2));
         if pending.is_empty() {
             self.decide((id, whole, key.clone()), (rejected_at, false, reject_proof), None);
-        } else if self.k == self.m {
+        } else if self.k == self.m && !settled {
             self.parts.insert(id, pending.len() as u32);
-            for (i, level, part, _) in pending {
+            for (i, level, eps, part, _) in pending {
                 self.push(Step::Exact {
                     block: block.clone(),
                     offset,
                     index: i,
                     level,
+                    eps,
                     part,
                     whole,
                     key: key.clone(),
@@ -794,8 +920,13 @@ impl<'a, S: Selection> Select<'a, S> {
             }
         } else {
             let level = pending.iter().map(|p| p.1).max().unwrap_or(1);
-            for (_, l, aabb, v) in &pending {
-                self.seen((id, *aabb), (*l, true, Proof::Candidate), v.as_ref().map(|v| (*l, v)), None)?;
+            for (_, l, _, aabb, v) in &pending {
+                self.seen(
+                    (leaf_id, id, *aabb),
+                    (*l, true, Proof::Candidate),
+                    v.as_ref().map(|v| (*l, v)),
+                    None,
+                )?;
             }
             self.decide((id, whole, key.clone()), (level, true, Proof::Candidate), None);
         }

@@ -13,16 +13,19 @@ mod collide;
 mod compact;
 mod demo;
 mod dump;
+mod export_tiles;
 mod gen_info;
 mod get;
 mod lods;
 mod navigate;
 mod query;
 mod remove;
+mod render;
 mod stats;
 mod sweep;
 mod tradeoff;
 mod verify;
+mod view;
 
 use std::path::Path;
 
@@ -64,8 +67,37 @@ pub fn run(cli: Cli) -> Result<()> {
         }
         Command::Clash { file, clearance, lod, json } => clash::run(&file, clearance, lod, json),
         Command::Batch { file, queries } => batch::run(&file, queries.as_deref()),
-        Command::Navigate { file, path, cache_blocks, fov_deg, aspect, near, far, lod, json } => {
-            navigate::run(&file, &path, cache_blocks, [fov_deg, aspect, near, far], lod, json)
+        Command::View { file, view } => view::run(&file, &view),
+        Command::Export3dTiles { file, out, json } => export_tiles::run(&file, &out, json),
+        Command::Render { file, view, node, lod, objects, output, json } => {
+            let what = match (node, lod) {
+                (Some(node), Some(k)) => render::What::Node { node, k, objects },
+                _ => render::What::Cut,
+            };
+            render::run(&file, &view, what, &output, json)
+        }
+        Command::Navigate {
+            file,
+            path,
+            cache_blocks,
+            fov_deg,
+            aspect,
+            near,
+            far,
+            lod,
+            tolerance,
+            height_px,
+            budget,
+            json,
+        } => {
+            let lens = [fov_deg, aspect, near, far];
+            match tolerance {
+                Some(tau) => {
+                    let opts = mktree::ViewOptions { tolerance_px: tau, budget, shapes: false };
+                    navigate::run_view(&file, &path, cache_blocks, lens, height_px, &opts, json)
+                }
+                None => navigate::run(&file, &path, cache_blocks, lens, lod, json),
+            }
         }
         Command::Tradeoff { files, queries, seed, out, json } => {
             tradeoff::run(&files, queries, seed, &out, json)

@@ -1,0 +1,11 @@
+//! Pictures without a GPU (issue 16): a z-buffer rasterizer with flat
+//! shading (`raster.rs`) and what it draws, a view's cut or one node's level
+//! of detail, coloured by level (`draw.rs`). Writing an image file is left
+//! to the caller (the CLI writes PNG), so no image crate reaches an
+//! embedder's build.
+
+mod draw;
+mod raster;
+
+pub use draw::{draw_cut, draw_level, framing, group_bound, level_colour};
+pub use raster::{BACKGROUND, Image};
