@@ -42,5 +42,6 @@ pub mod redb;
 pub mod render;
 mod rng;
 pub mod scene;
+mod spill;
 pub mod store;
 pub mod tiles;

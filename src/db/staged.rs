@@ -8,15 +8,13 @@
 //! block, as the [`Scene`](crate::Scene) of the same objects.
 
 use std::borrow::Cow;
-use std::fs::{File, OpenOptions};
-use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::path::Path;
 
 use super::source::{ObjectSource, check_object};
 use crate::geom::Aabb;
 use crate::scene::import::{ImportOptions, load_each};
 use crate::scene::{Key, KeyTooLong, Mesh, Object, ObjectId};
+use crate::spill::SpillFile;
 use crate::store::StorageError;
 use crate::store::format::geometry;
 
@@ -35,10 +33,7 @@ struct Spilled {
 /// the open handle keeps it, so a crash leaves nothing behind).
 #[derive(Debug)]
 pub struct StagedScene {
-    path: PathBuf,
-    writer: BufWriter<File>,
-    reader: File,
-    end: u64,
+    spill: SpillFile,
     objects: Vec<Spilled>,
     names: String,
     name_ends: Vec<u64>,
@@ -48,25 +43,14 @@ pub struct StagedScene {
     triangles: u64,
 }
 
-/// Distinct spill file names within one process.
-static SPILLS: AtomicU64 = AtomicU64::new(0);
-
 impl StagedScene {
     /// An empty staged scene whose spill file goes in folder `dir` (best on
     /// the same disk as the database, with room for the scene's geometry).
     pub fn create_in(dir: &Path) -> Result<StagedScene, StorageError> {
-        let n = SPILLS.fetch_add(1, Ordering::Relaxed);
-        let path = dir.join(format!(".mktree-spill-{}-{n}", std::process::id()));
-        let spill = |error| StorageError::Spill { path: path.clone(), error };
-        let file = OpenOptions::new().read(true).write(true).create_new(true).open(&path).map_err(spill)?;
-        let reader = file.try_clone().map_err(spill)?;
-        #[cfg(unix)]
-        std::fs::remove_file(&path).map_err(spill)?;
+        let spill = SpillFile::create_in(dir, "meshes")
+            .map_err(|error| StorageError::Spill { path: dir.to_path_buf(), error })?;
         Ok(StagedScene {
-            path,
-            writer: BufWriter::with_capacity(1 << 20, file),
-            reader,
-            end: 0,
+            spill,
             objects: Vec::new(),
             names: String::new(),
             name_ends: Vec::new(),
@@ -87,11 +71,8 @@ impl StagedScene {
         check_object(id, &object)?;
         let mut record = Vec::with_capacity(geometry::record_len(&object.mesh) as usize);
         geometry::encode_object(id, &object.mesh, &mut record);
-        self.writer
-            .write_all(&record)
-            .map_err(|error| StorageError::Spill { path: self.path.clone(), error })?;
-        self.objects.push(Spilled { aabb: object.mesh.aabb(), offset: self.end, len: record.len() as u64 });
-        self.end += record.len() as u64;
+        let offset = self.spill.append(&record).map_err(|error| self.spill_error(error))?;
+        self.objects.push(Spilled { aabb: object.mesh.aabb(), offset, len: record.len() as u64 });
         self.triangles += object.mesh.triangle_count() as u64;
         self.names.push_str(&object.name);
         self.name_ends.push(self.names.len() as u64);
@@ -115,7 +96,7 @@ impl StagedScene {
     ) -> Result<(StagedScene, usize), crate::Error> {
         let mut staged = StagedScene::create_in(spill_dir)?;
         let mut refused = None;
-        let degenerate = load_each(path, options, &mut |object| {
+        let degenerate = load_each(path, options, Some(spill_dir), &mut |object| {
             if refused.is_none() {
                 refused = staged.push(object).err();
             }
@@ -148,19 +129,25 @@ impl StagedScene {
 
     /// Bytes of geometry in the spill file.
     pub fn spilled_bytes(&self) -> u64 {
-        self.end
+        self.spill.len()
     }
 
     /// Makes every pushed mesh readable.
     pub(crate) fn flush(&mut self) -> Result<(), StorageError> {
-        self.writer.flush().map_err(|error| StorageError::Spill { path: self.path.clone(), error })
+        self.spill.flush().map_err(|error| self.spill_error(error))
     }
-}
 
-impl Drop for StagedScene {
-    fn drop(&mut self) {
-        #[cfg(not(unix))]
-        let _ = std::fs::remove_file(&self.path);
+    fn spill_error(&self, error: std::io::Error) -> StorageError {
+        StorageError::Spill { path: self.spill.path().to_path_buf(), error }
+    }
+
+    /// Object `id`'s spilled record, appended to `out`.
+    fn read_record(&self, id: ObjectId, out: &mut Vec<u8>) -> Result<(), StorageError> {
+        let s =
+            self.objects.get(id.index()).ok_or_else(|| StorageError::Invalid(format!("no object {id}")))?;
+        let start = out.len();
+        out.resize(start + s.len as usize, 0);
+        self.spill.read_exact_at(&mut out[start..], s.offset).map_err(|error| self.spill_error(error))
     }
 }
 
@@ -199,11 +186,8 @@ impl ObjectSource for StagedScene {
     }
 
     fn mesh(&self, id: ObjectId) -> Result<Cow<'_, Mesh>, StorageError> {
-        let s =
-            self.objects.get(id.index()).ok_or_else(|| StorageError::Invalid(format!("no object {id}")))?;
-        let mut bytes = vec![0u8; s.len as usize];
-        read_exact_at(&self.reader, &mut bytes, s.offset)
-            .map_err(|error| StorageError::Spill { path: self.path.clone(), error })?;
+        let mut bytes = Vec::new();
+        self.read_record(id, &mut bytes)?;
         let (_, mesh) = geometry::decode_object(id.0, &bytes)?;
         Ok(Cow::Owned(mesh))
     }
@@ -214,34 +198,11 @@ impl ObjectSource for StagedScene {
 
     /// The spilled bytes are the record: copied, not decoded and encoded again.
     fn encode_record(&self, id: ObjectId, out: &mut Vec<u8>) -> Result<u64, StorageError> {
-        let s =
-            self.objects.get(id.index()).ok_or_else(|| StorageError::Invalid(format!("no object {id}")))?;
         let start = out.len();
-        out.resize(start + s.len as usize, 0);
-        read_exact_at(&self.reader, &mut out[start..], s.offset)
-            .map_err(|error| StorageError::Spill { path: self.path.clone(), error })?;
+        self.read_record(id, out)?;
         geometry::record_vertex_count(&out[start..])
             .ok_or_else(|| StorageError::Invalid(format!("object {id}'s spilled record is cut short")))
     }
-}
-
-#[cfg(unix)]
-fn read_exact_at(file: &File, buf: &mut [u8], offset: u64) -> std::io::Result<()> {
-    std::os::unix::fs::FileExt::read_exact_at(file, buf, offset)
-}
-
-#[cfg(windows)]
-fn read_exact_at(file: &File, mut buf: &mut [u8], mut offset: u64) -> std::io::Result<()> {
-    while !buf.is_empty() {
-        match std::os::windows::fs::FileExt::seek_read(file, buf, offset)? {
-            0 => return Err(std::io::ErrorKind::UnexpectedEof.into()),
-            n => {
-                buf = &mut buf[n..];
-                offset += n as u64;
-            }
-        }
-    }
-    Ok(())
 }
 
 #[cfg(test)]

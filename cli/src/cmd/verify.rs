@@ -68,7 +68,12 @@ pub fn run(file: &Path, scene: &Path, queries: u32, options: &ImportOptions, as_
         .chain(probes.iter().map(|x| x as &dyn Selection))
         .collect();
     let mut oracle = ScanOracle::new(&all);
-    load_each(scene, options, &mut |object| oracle.offer(&object.mesh))?;
+    // The scene's old vertices wait beside the file, as in a staged build.
+    let spill_dir = match file.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    };
+    load_each(scene, options, Some(spill_dir), &mut |object| oracle.offer(&object.mesh))?;
     if oracle.objects() != info.objects {
         bail!(
             "{} has {} objects and {} has {}: not the scene of this file",

@@ -72,17 +72,20 @@ pub fn load(path: &Path, options: &ImportOptions) -> Result<Imported, ImportErro
 }
 
 /// [`load`] handing each object to `on_object` in id order, and returning
-/// the count of zero-area triangles. OBJ files are streamed: no more than
-/// the objects being parsed is in memory. The other formats are read whole
-/// first.
+/// the count of zero-area triangles. OBJ files are streamed: in memory are
+/// the objects being parsed and, since a face may name any earlier vertex,
+/// the file's vertices, all of them without `spill_dir`, the newest 64 MB
+/// with it (the others in a spill file there, read back when named). The
+/// other formats are read whole first.
 pub fn load_each(
     path: &Path,
     options: &ImportOptions,
+    spill_dir: Option<&Path>,
     on_object: &mut dyn FnMut(Object),
 ) -> Result<usize, ImportError> {
     let metadata = fs::metadata(path).map_err(|source| ImportError::Io { file: path.into(), source })?;
     if !metadata.is_dir() && Format::of(path) == Some(Format::Obj) {
-        return obj::each_obj_object(open(path)?, path, on_object);
+        return obj::each_obj_object(open(path)?, path, spill_dir, on_object);
     }
     let imported = load(path, options)?;
     imported.scene.into_objects().into_iter().for_each(on_object);

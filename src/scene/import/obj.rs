@@ -54,6 +54,7 @@ use super::load::file_stem;
 use super::{ImportError, Imported, Location};
 use crate::geom::Point;
 use crate::scene::{Object, Scene};
+use crate::spill::SpillFile;
 
 /// Reads an OBJ scene from `reader`; `source` names the file in errors and
 /// gives the name of an object made of faces before any `o` or `g`.
@@ -69,23 +70,30 @@ use crate::scene::{Object, Scene};
 /// ```
 pub fn read_obj<R: Read + Send>(reader: R, source: &Path) -> Result<Imported, ImportError> {
     let mut objects = Vec::new();
-    let degenerate_triangles = each_obj_object(reader, source, &mut |object| objects.push(object))?;
+    let degenerate_triangles = each_obj_object(reader, source, None, &mut |object| objects.push(object))?;
     Ok(Imported { scene: Scene::new(objects), degenerate_triangles })
 }
 
 /// [`read_obj`] handing each object to `on_object` as it is parsed, in
-/// input order, so the scene need never be in memory whole. Returns the
-/// count of zero-area triangles.
+/// input order, so the scene need never be in memory whole; with
+/// `spill_dir`, all but the newest vertices wait there for a late face.
+/// Returns the count of zero-area triangles.
 pub(super) fn each_obj_object<R: Read + Send>(
     reader: R,
     source: &Path,
+    spill_dir: Option<&Path>,
     on_object: &mut dyn FnMut(Object),
 ) -> Result<usize, ImportError> {
-    let mut any = false;
-    let degenerate_triangles = parse(reader, source, Grouping::ByObjectLines, Chunking::DEFAULT, |object| {
-        any = true;
-        on_object(object);
+    let spill = spill_dir.map(|dir| SpillFile::create_in(dir, "vertices")).transpose().map_err(|e| {
+        ImportError::Io { file: spill_dir.map(Path::to_path_buf).unwrap_or_default(), source: e }
     })?;
+    let vertices = spill.map_or_else(Vertices::default, |s| Vertices::spilling(s, RESIDENT_VERTEX_BYTES));
+    let mut any = false;
+    let degenerate_triangles =
+        parse(reader, source, Grouping::ByObjectLines, Chunking::DEFAULT, vertices, |object| {
+            any = true;
+            on_object(object);
+        })?;
     if !any {
         return Err(ImportError::EmptyScene { file: source.into() });
     }
@@ -101,7 +109,9 @@ pub(super) fn read_obj_as_one_object<R: Read + Send>(
 ) -> Result<(Object, usize), ImportError> {
     let mut whole = None;
     let degenerate_triangles =
-        parse(reader, source, Grouping::WholeFile, Chunking::DEFAULT, |object| whole = Some(object))?;
+        parse(reader, source, Grouping::WholeFile, Chunking::DEFAULT, Vertices::default(), |object| {
+            whole = Some(object);
+        })?;
     // The whole-file grouping builds exactly one object or fails.
     let object = whole.ok_or_else(|| ImportError::EmptyScene { file: source.into() })?;
     Ok((object, degenerate_triangles))
@@ -139,9 +149,10 @@ fn parse<R: Read + Send>(
     source: &Path,
     grouping: Grouping,
     chunking: Chunking,
+    vertices: Vertices,
     mut on_object: impl FnMut(Object),
 ) -> Result<usize, ImportError> {
-    let mut stitcher = Stitcher::new(source, grouping);
+    let mut stitcher = Stitcher::new(source, grouping, vertices);
     let mut degenerate_triangles = 0;
     let mut emit = |built: Built| -> Result<(), ImportError> {
         for result in built.objects {
@@ -631,11 +642,11 @@ struct Stitcher {
 }
 
 impl Stitcher {
-    fn new(source: &Path, grouping: Grouping) -> Stitcher {
+    fn new(source: &Path, grouping: Grouping, vertices: Vertices) -> Stitcher {
         Stitcher {
             file: source.into(),
             grouping,
-            vertices: Vertices::default(),
+            vertices,
             lines: 0,
             seen_o: false,
             current: Pending::new(file_stem(source), None),
@@ -672,7 +683,9 @@ impl Stitcher {
         if !piece.resolve(base) {
             *piece = Piece::parse(text, Some(base));
         }
-        self.vertices.append(std::mem::take(&mut piece.vertices));
+        if let Err(source) = self.vertices.append(std::mem::take(&mut piece.vertices)) {
+            return Err(ImportError::Io { file: self.vertices.spill_path(), source });
+        }
         let mut start = 0;
         for header in std::mem::take(&mut piece.headers) {
             self.current.run(index, start..header.triangles_before);
@@ -776,7 +789,8 @@ fn build(
     pending: Pending,
     scratch: &mut Scratch,
 ) -> Result<(Object, usize), ImportError> {
-    let triangles = renumber(vertices, pending.parts(pieces), scratch);
+    let triangles = renumber(vertices, pending.parts(pieces), scratch)
+        .map_err(|source| ImportError::Io { file: vertices.spill_path(), source })?;
     let object = super::load::object(file, pending.name, pending.line, &scratch.points, triangles)?;
     let degenerate = object.mesh.degenerate_triangles();
     Ok((object, degenerate))
@@ -789,7 +803,7 @@ fn renumber<'a>(
     vertices: &Vertices,
     parts: impl Iterator<Item = &'a [[u32; 3]]> + Clone,
     scratch: &mut Scratch,
-) -> Vec<[u32; 3]> {
+) -> std::io::Result<Vec<[u32; 3]>> {
     let count = parts.clone().map(<[_]>::len).sum();
     let corners = || parts.clone().flat_map(<[_]>::as_flattened).copied();
     let (lowest, highest) = corners().fold((u32::MAX, 0), |(lo, hi), c| (lo.min(c), hi.max(c)));
@@ -809,17 +823,14 @@ fn renumber<'a>(
             local_index[(c - lowest) as usize] = 0;
         }
         let mut slots = local_index.iter_mut();
-        for run in vertices.from(lowest) {
-            if slots.len() == 0 {
-                break;
-            }
+        vertices.for_range(lowest, span, &mut |run| {
             for (slot, point) in slots.by_ref().take(run.len()).zip(run) {
                 if *slot != UNUSED {
                     *slot = points.len() as u32;
                     points.push(*point);
                 }
             }
-        }
+        })?;
         for part in parts {
             triangles.extend(part.iter().map(|t| t.map(|c| local_index[(c - lowest) as usize])));
         }
@@ -832,32 +843,84 @@ fn renumber<'a>(
         for part in parts {
             triangles.extend(part.iter().map(|t| t.map(local)));
         }
-        points.extend(used.iter().map(|&i| vertices.get(i)));
+        for &i in &used {
+            points.push(vertices.get(i)?);
+        }
     }
-    triangles
+    Ok(triangles)
 }
 
 /// The file's vertices, kept in the vectors its pieces parsed them into:
-/// copying them into one would be a step no other core could share.
+/// copying them into one would be a step no other core could share. A
+/// face may name any earlier vertex, so all are kept; with a spill file
+/// (streamed imports), runs beyond the newest [`RESIDENT_VERTEX_BYTES`]
+/// go to disk and are read back only when a face names them.
 #[derive(Default)]
 struct Vertices {
-    runs: Vec<Vec<Point>>,
+    runs: Vec<Run>,
     /// The file index of each run's first vertex.
     starts: Vec<u64>,
     len: u64,
+    spill: Option<SpillFile>,
+    /// Bytes of runs kept in memory with a spill file.
+    keep: usize,
+    /// Bytes of the runs in memory, and the oldest of them.
+    resident: usize,
+    oldest_resident: usize,
+}
+
+/// Vertex bytes a streamed import keeps in memory: far more than any
+/// object's own vertices, which faces name in practice.
+const RESIDENT_VERTEX_BYTES: usize = 64 << 20;
+
+/// Bytes of a vertex in the spill file: three f64.
+const SPILLED_VERTEX: usize = 24;
+
+enum Run {
+    Resident(Vec<Point>),
+    Spilled { offset: u64, len: usize },
+}
+
+impl Run {
+    fn len(&self) -> usize {
+        match self {
+            Run::Resident(points) => points.len(),
+            Run::Spilled { len, .. } => *len,
+        }
+    }
 }
 
 impl Vertices {
+    fn spilling(spill: SpillFile, keep: usize) -> Vertices {
+        Vertices { spill: Some(spill), keep, ..Vertices::default() }
+    }
+
     fn len(&self) -> u64 {
         self.len
     }
 
-    fn append(&mut self, run: Vec<Point>) {
-        if !run.is_empty() {
-            self.starts.push(self.len);
-            self.len += run.len() as u64;
-            self.runs.push(run);
+    fn append(&mut self, run: Vec<Point>) -> std::io::Result<()> {
+        if run.is_empty() {
+            return Ok(());
         }
+        self.starts.push(self.len);
+        self.len += run.len() as u64;
+        self.resident += run.len() * SPILLED_VERTEX;
+        self.runs.push(Run::Resident(run));
+        let Some(spill) = &mut self.spill else { return Ok(()) };
+        // The newest run always stays: the next faces most likely name it.
+        while self.resident > self.keep && self.oldest_resident + 1 < self.runs.len() {
+            let run = &mut self.runs[self.oldest_resident];
+            if let Run::Resident(points) = run {
+                let bytes: Vec<u8> =
+                    points.iter().flat_map(|p| p.coords.iter()).flat_map(|c| c.to_le_bytes()).collect();
+                let offset = spill.append(&bytes)?;
+                self.resident -= points.len() * SPILLED_VERTEX;
+                *run = Run::Spilled { offset, len: points.len() };
+            }
+            self.oldest_resident += 1;
+        }
+        spill.flush()
     }
 
     /// The run holding vertex `index`, and where in it; past the end, the
@@ -865,19 +928,50 @@ impl Vertices {
     fn locate(&self, index: u32) -> (usize, usize) {
         let run = self.starts.partition_point(|&start| start <= u64::from(index)).saturating_sub(1);
         let at = u64::from(index).saturating_sub(self.starts.get(run).copied().unwrap_or(0));
-        (run, (at as usize).min(self.runs.get(run).map_or(0, Vec::len)))
+        (run, (at as usize).min(self.runs.get(run).map_or(0, Run::len)))
     }
 
     /// Vertex `index`, which the faces' checks put below `len`.
-    fn get(&self, index: u32) -> Point {
-        self.from(index).flatten().next().copied().unwrap_or(Point::origin())
+    fn get(&self, index: u32) -> std::io::Result<Point> {
+        let mut point = Point::origin();
+        self.for_range(index, 1, &mut |run| point = run.first().copied().unwrap_or(point))?;
+        Ok(point)
     }
 
-    /// The vertices from `index` on, run by run.
-    fn from(&self, index: u32) -> impl Iterator<Item = &[Point]> {
-        let (run, at) = self.locate(index);
-        let runs = self.runs.get(run..).unwrap_or_default();
-        runs.iter().enumerate().map(move |(i, r)| if i == 0 { &r[at..] } else { r.as_slice() })
+    /// Hands `f` the vertices from `index` on, run by run, up to `count`
+    /// of them (fewer at the end), reading spilled runs back.
+    fn for_range(&self, index: u32, count: usize, f: &mut dyn FnMut(&[Point])) -> std::io::Result<()> {
+        let (first, mut at) = self.locate(index);
+        let mut left = count;
+        let mut buffer = Vec::new();
+        for run in self.runs.get(first..).unwrap_or_default() {
+            if left == 0 {
+                break;
+            }
+            let take = left.min(run.len().saturating_sub(at));
+            match run {
+                Run::Resident(points) => f(&points[at..at + take]),
+                Run::Spilled { offset, .. } => {
+                    let spill = self.spill.as_ref().ok_or_else(|| std::io::Error::other("no spill file"))?;
+                    let mut bytes = vec![0u8; take * SPILLED_VERTEX];
+                    spill.read_exact_at(&mut bytes, offset + (at * SPILLED_VERTEX) as u64)?;
+                    buffer.clear();
+                    buffer.extend(bytes.chunks_exact(SPILLED_VERTEX).map(|v| {
+                        let c =
+                            |i: usize| f64::from_le_bytes(v[8 * i..8 * i + 8].try_into().unwrap_or([0; 8]));
+                        Point::new(c(0), c(1), c(2))
+                    }));
+                    f(&buffer);
+                }
+            }
+            left -= take;
+            at = 0;
+        }
+        Ok(())
+    }
+
+    fn spill_path(&self) -> PathBuf {
+        self.spill.as_ref().map_or_else(PathBuf::new, |s| s.path().to_path_buf())
     }
 }
 
@@ -1378,8 +1472,14 @@ mod tests {
         {
             let reader = Failing { text: text.as_bytes(), good, reads: 0 };
             let mut objects = Vec::new();
-            let ours =
-                parse(reader, Path::new("f.obj"), Grouping::ByObjectLines, chunking, |o| objects.push(o));
+            let ours = parse(
+                reader,
+                Path::new("f.obj"),
+                Grouping::ByObjectLines,
+                chunking,
+                Vertices::default(),
+                |o| objects.push(o),
+            );
             let old = oracle::read_obj(
                 std::io::BufReader::with_capacity(4, Failing { text: text.as_bytes(), good, reads: 0 }),
                 Path::new("f.obj"),
@@ -1428,8 +1528,28 @@ mod tests {
     /// Everything a parse gives: the objects and the zero-area count, or
     /// the error as printed and as built.
     fn outcome(text: &[u8], grouping: Grouping, chunking: Chunking) -> Result<(Vec<Object>, usize), String> {
+        outcome_over(text, grouping, chunking, Vertices::default())
+    }
+
+    /// [`outcome`] with every vertex run but the newest in a spill file.
+    fn outcome_spilled(
+        text: &[u8],
+        grouping: Grouping,
+        chunking: Chunking,
+    ) -> Result<(Vec<Object>, usize), String> {
+        let spill =
+            SpillFile::create_in(&std::env::temp_dir(), "test-vertices").map_err(|e| e.to_string())?;
+        outcome_over(text, grouping, chunking, Vertices::spilling(spill, 0))
+    }
+
+    fn outcome_over(
+        text: &[u8],
+        grouping: Grouping,
+        chunking: Chunking,
+        vertices: Vertices,
+    ) -> Result<(Vec<Object>, usize), String> {
         let mut objects = Vec::new();
-        parse(text, Path::new("cut/test.obj"), grouping, chunking, |object| objects.push(object))
+        parse(text, Path::new("cut/test.obj"), grouping, chunking, vertices, |object| objects.push(object))
             .map(|degenerate| (objects, degenerate))
             .map_err(|e| format!("{e} / {e:?}"))
     }
@@ -1561,6 +1681,8 @@ mod tests {
             let expected = expected.map_err(|e| format!("{e} / {e:?}"));
             let grouping = if whole_file { Grouping::WholeFile } else { Grouping::ByObjectLines };
             prop_assert_eq!(outcome(text.as_bytes(), grouping, Chunking { block, piece }), expected.clone());
+            // Vertices read back from a spill file, run by run.
+            prop_assert_eq!(outcome_spilled(text.as_bytes(), grouping, Chunking { block, piece }), expected.clone());
             prop_assert_eq!(outcome(text.as_bytes(), grouping, Chunking::DEFAULT), expected);
         }
     }
