@@ -5,7 +5,8 @@
 use std::collections::HashMap;
 
 use super::ReadTransaction;
-use crate::build::{BuildParams, Hierarchy, TreeEdit, check_object_range};
+use super::source::check_object;
+use crate::build::{BuildParams, Hierarchy, TreeEdit};
 use crate::scene::{Key, KeyError, Object, ObjectId, Scene};
 use crate::store::StorageError;
 use crate::store::format::geometry;
@@ -59,10 +60,7 @@ impl Changes {
     /// the largest integer key in the tree; returns the key.
     pub(crate) fn insert(&mut self, mut object: Object) -> Result<Key, crate::Error> {
         let number = ObjectId(self.objects.len() as u32);
-        if object.payload.len() > Object::MAX_PAYLOAD {
-            return Err(KeyError::PayloadTooLong { object: number, len: object.payload.len() }.into());
-        }
-        check_object_range(number, &object.mesh, geometry::MAX_COORDINATE)?;
+        check_object(number, &object)?;
         let key = match object.key.take() {
             Some(key) => key,
             None => Key::Int(self.next_int_key()?),

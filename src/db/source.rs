@@ -6,9 +6,9 @@
 
 use std::borrow::Cow;
 
-use crate::build::BuildError;
 use crate::geom::Aabb;
-use crate::scene::{Key, KeyError, Mesh, Object, ObjectId, Scene};
+
+use crate::scene::{Key, KeyError, Mesh, Object, ObjectId, Scene, unique_keys};
 use crate::store::StorageError;
 use crate::store::format::geometry;
 
@@ -42,13 +42,7 @@ pub(crate) trait ObjectSource: Sync {
 
     /// Refuses duplicate keys (the first pair in key order).
     fn check_unique_keys(&self) -> Result<(), KeyError> {
-        let mut keys: Vec<(Key, ObjectId)> =
-            (0..self.len() as u32).map(|i| (self.key(ObjectId(i)), ObjectId(i))).collect();
-        keys.sort();
-        match keys.windows(2).find(|w| w[0].0 == w[1].0) {
-            Some(w) => Err(KeyError::Duplicate { key: w[0].0.clone(), first: w[0].1, second: w[1].1 }),
-            None => Ok(()),
-        }
+        unique_keys((0..self.len() as u32).map(|i| (self.key(ObjectId(i)), ObjectId(i))).collect())
     }
 }
 
@@ -88,13 +82,10 @@ impl ObjectSource for Scene {
     }
 }
 
-/// Checks one object as a bulk load takes it: coordinates within the
-/// format's range, a payload within its limit.
+/// Checks one object as a write takes it: a payload within its limit,
+/// coordinates within the format's range.
 pub(crate) fn check_object(id: ObjectId, object: &Object) -> Result<(), crate::Error> {
-    crate::build::check_object_range(id, &object.mesh, geometry::MAX_COORDINATE)
-        .map_err(|e: BuildError| crate::Error::from(e))?;
-    if object.payload.len() > Object::MAX_PAYLOAD {
-        return Err(KeyError::PayloadTooLong { object: id, len: object.payload.len() }.into());
-    }
+    object.check_payload(id)?;
+    crate::build::check_object_range(id, &object.mesh, geometry::MAX_COORDINATE)?;
     Ok(())
 }

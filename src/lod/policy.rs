@@ -36,7 +36,7 @@ use super::{ErrorProbe, Grid, Lattice, LodError, LodParams, LodPlan, Voxels};
 use crate::build::{Hierarchy, LoadProgress, QueryMix, Stage, StageMeter};
 use crate::geom::Aabb;
 use crate::scene::{Mesh, ObjectId};
-use crate::store::format::node::{BOUND_HEAD_LEN, BoundEntry, MAX_BOUND_BYTES, capacity};
+use crate::store::format::node::{BOUND_HEAD_LEN, BoundEntry, MAX_BOUND_BYTES, bounds_len, capacity};
 use crate::store::format::quant::{QuantBox, quantize};
 
 /// An entry of a leaf: an object, or a part of one (format-spec/
@@ -154,11 +154,10 @@ impl StoredBounds {
         out
     }
 
-    /// Record bytes of node `node`'s bounds worth at least `min_value`, as
-    /// [`bounds_len`](crate::store::format::node::bounds_len) counts them.
+    /// Record bytes of node `node`'s bounds worth at least `min_value`.
     pub fn bytes_at(&self, node: usize, min_value: f64) -> usize {
         let kept = self.bounds[node].iter().zip(&self.worth[node]).filter(|(_, w)| w.value >= min_value);
-        kept.map(|(b, _)| BOUND_HEAD_LEN + b.blob.len()).sum::<usize>().next_multiple_of(4)
+        bounds_len(kept.map(|(b, _)| b))
     }
 
     /// The finest bound worth at least `min_value` of entry `target` of

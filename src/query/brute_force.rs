@@ -17,19 +17,18 @@ pub struct ScanOracle<'p> {
     probes: &'p [&'p dyn Selection],
     answers: Vec<Vec<ObjectId>>,
     next: u32,
-    triangles_tested: u64,
 }
 
 impl<'p> ScanOracle<'p> {
     pub fn new(probes: &'p [&'p dyn Selection]) -> ScanOracle<'p> {
-        ScanOracle { probes, answers: vec![Vec::new(); probes.len()], next: 0, triangles_tested: 0 }
+        ScanOracle { probes, answers: vec![Vec::new(); probes.len()], next: 0 }
     }
 
     /// Tests the next object, whose id is the count of objects offered before.
     pub fn offer(&mut self, mesh: &Mesh) {
-        let (id, aabb) = (ObjectId(self.next), mesh.aabb());
+        let (id, aabb, mut tested) = (ObjectId(self.next), mesh.aabb(), 0);
         for (probe, answer) in self.probes.iter().zip(&mut self.answers) {
-            if probe.may_meet_box(&aabb) && probe.meets_mesh(mesh, &mut self.triangles_tested) {
+            if probe.may_meet_box(&aabb) && probe.meets_mesh(mesh, &mut tested) {
                 answer.push(id);
             }
         }

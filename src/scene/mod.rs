@@ -9,6 +9,8 @@ mod mesh;
 mod object;
 mod stats;
 
+pub(crate) use object::unique_keys;
+
 pub use export::{ObjWriter, write_obj};
 pub(crate) use key::KeyRef;
 pub use key::{Key, KeyTooLong};

@@ -55,6 +55,14 @@ impl Object {
         self
     }
 
+    /// Refuses a payload over [`Object::MAX_PAYLOAD`], naming the object as `id`.
+    pub(crate) fn check_payload(&self, id: ObjectId) -> Result<(), KeyError> {
+        match self.payload.len() {
+            len if len > Object::MAX_PAYLOAD => Err(KeyError::PayloadTooLong { object: id, len }),
+            _ => Ok(()),
+        }
+    }
+
     /// The object's box.
     pub fn aabb(&self) -> Aabb {
         self.mesh.aabb()
@@ -121,19 +129,14 @@ impl Scene {
 
     /// Checks that every key is unique and every payload short enough.
     pub fn check_keys(&self) -> Result<(), KeyError> {
-        let mut keys: Vec<(Key, ObjectId)> = (0..self.objects.len() as u32)
-            .map(|i| (self.key(ObjectId(i)).unwrap_or(Key::Int(u64::from(i))), ObjectId(i)))
-            .collect();
-        if let Some((i, o)) =
-            self.objects.iter().enumerate().find(|(_, o)| o.payload.len() > Object::MAX_PAYLOAD)
-        {
-            return Err(KeyError::PayloadTooLong { object: ObjectId(i as u32), len: o.payload.len() });
+        for (i, o) in self.objects.iter().enumerate() {
+            o.check_payload(ObjectId(i as u32))?;
         }
-        keys.sort();
-        match keys.windows(2).find(|w| w[0].0 == w[1].0) {
-            Some(w) => Err(KeyError::Duplicate { key: w[0].0.clone(), first: w[0].1, second: w[1].1 }),
-            None => Ok(()),
-        }
+        unique_keys(
+            (0..self.objects.len() as u32)
+                .map(|i| (self.key(ObjectId(i)).unwrap_or(Key::Int(u64::from(i))), ObjectId(i)))
+                .collect(),
+        )
     }
 
     /// The box of every object, indexed by id.
@@ -154,6 +157,15 @@ impl Scene {
     /// Total vertices.
     pub fn vertex_count(&self) -> usize {
         self.objects.iter().map(|o| o.mesh.vertex_count()).sum()
+    }
+}
+
+/// Refuses the first pair of `keys` (key, object) with the same key, in key order.
+pub(crate) fn unique_keys(mut keys: Vec<(Key, ObjectId)>) -> Result<(), KeyError> {
+    keys.sort();
+    match keys.windows(2).find(|w| w[0].0 == w[1].0) {
+        Some(w) => Err(KeyError::Duplicate { key: w[0].0.clone(), first: w[0].1, second: w[1].1 }),
+        None => Ok(()),
     }
 }
 

@@ -145,11 +145,7 @@ pub fn run(
     write: Write,
     as_json: bool,
 ) -> Result<()> {
-    let spill_dir = match out.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => dir,
-        _ => Path::new("."),
-    };
-    let mut input = read_input(scene_path, args, &write, spill_dir)?;
+    let mut input = read_input(scene_path, args, &write, crate::cmd::folder_of(out))?;
     let started = Instant::now();
     let (db, created) = open_output(out, args, lod)?;
     let pb = progress_bar(input.len(), args);

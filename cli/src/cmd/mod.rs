@@ -132,6 +132,14 @@ pub fn read_scene(path: &Path, options: &ImportOptions) -> Result<Scene> {
     Ok(imported.scene)
 }
 
+/// The folder `file` is in, where spill files beside it go.
+pub fn folder_of(file: &Path) -> &Path {
+    match file.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    }
+}
+
 /// Warns on stderr about zero-area triangles an import kept.
 pub fn warn_degenerate(triangles: usize) {
     if triangles > 0 {

@@ -69,11 +69,7 @@ pub fn run(file: &Path, scene: &Path, queries: u32, options: &ImportOptions, as_
         .collect();
     let mut oracle = ScanOracle::new(&all);
     // The scene's old vertices wait beside the file, as in a staged build.
-    let spill_dir = match file.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => dir,
-        _ => Path::new("."),
-    };
-    load_each(scene, options, Some(spill_dir), &mut |object| oracle.offer(&object.mesh))?;
+    load_each(scene, options, Some(crate::cmd::folder_of(file)), &mut |object| oracle.offer(&object.mesh))?;
     if oracle.objects() != info.objects {
         bail!(
             "{} has {} objects and {} has {}: not the scene of this file",

@@ -181,8 +181,8 @@ pub enum RecordDraft {
 }
 
 /// Bytes of a record's bounds area: the entries, then zero padding to a multiple of 4.
-pub fn bounds_len(bounds: &[BoundEntry]) -> usize {
-    bounds.iter().map(|b| BOUND_HEAD_LEN + b.blob.len()).sum::<usize>().next_multiple_of(4)
+pub fn bounds_len<'a>(bounds: impl IntoIterator<Item = &'a BoundEntry>) -> usize {
+    bounds.into_iter().map(|b| BOUND_HEAD_LEN + b.blob.len()).sum::<usize>().next_multiple_of(4)
 }
 
 /// Bytes of a leaf's keys area: the keys, then zero padding to a multiple of 4.
