@@ -11,7 +11,7 @@ use mktree::build::{BuildParams, LeafRule};
 use mktree::db::{CreateOptions, Reads, check};
 use mktree::geom::{Aabb, Point, Ray, Vector};
 use mktree::query::{Near, QueryOptions, Region};
-use mktree::scene::{Key, KeyError, Object, ObjectId, Scene};
+use mktree::scene::{Key, KeyError, Mesh, Object, ObjectId, Scene};
 use mktree::store::format::frame::BlockType;
 use proptest::prelude::*;
 
@@ -62,6 +62,35 @@ fn every_key_finds_its_object_box_payload_and_mesh() {
     assert_eq!(r.get(&Key::bytes("not a key").unwrap()).unwrap(), None);
     assert_eq!(r.get(&Key::Int(3)).unwrap(), None, "integer keys are not byte keys");
     assert_eq!(r.mesh(&Key::bytes("").unwrap()).unwrap(), None);
+}
+
+/// A zigzag strip of `n` triangles along x from `x0`: far more than a
+/// 1 KiB block holds, so it is stored in parts.
+fn strip(x0: f64, n: u32) -> Mesh {
+    let vertices: Vec<Point> = (0..n + 2)
+        .map(|v| Point::new(x0 + f64::from(v) * 3.0, f64::from(v % 2) * 5.0, f64::from(v % 3)))
+        .collect();
+    Mesh::from_world(&vertices, (0..n).map(|t| [t, t + 1, t + 2]).collect()).unwrap()
+}
+
+#[test]
+fn objects_stored_in_parts_are_found_by_key_with_their_whole_box() {
+    let mut objects: Vec<Object> =
+        (0..4).map(|i| Object::new(format!("s{i}"), strip(f64::from(i) * 2000.0, 300))).collect();
+    objects.extend((0..40).map(|i| {
+        let lo = [f64::from(i) * 60.0, 40.0, 0.0];
+        Object::new(format!("b{i}"), box_mesh(lo, [lo[0] + 40.0, 80.0, 30.0]))
+    }));
+    let scene = Scene::new(objects.into_iter().enumerate().map(|(i, o)| o.with_key(guid(i))).collect());
+    let (db, _) = mem_db(&scene, &params(), small_blocks());
+    assert!(check(&db).unwrap().ok(), "{:?}", check(&db).unwrap().faults);
+    let r = db.begin_read().unwrap();
+    for (i, o) in scene.objects().iter().enumerate() {
+        let rec = r.get(&guid(i)).unwrap().expect("a stored key is found");
+        assert_eq!((rec.id, rec.aabb), (ObjectId(i as u32), o.aabb()), "object {i}");
+        let mesh = r.mesh(&guid(i)).unwrap().expect("a stored key has a mesh");
+        assert_eq!((mesh.triangle_count(), mesh.aabb()), (o.mesh.triangle_count(), o.aabb()), "object {i}");
+    }
 }
 
 #[test]

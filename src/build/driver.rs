@@ -63,38 +63,81 @@ pub fn build(
     progress: &(dyn Fn(BuildProgress) + Sync),
 ) -> Result<Hierarchy, BuildError> {
     check_input(boxes, sizes, params)?;
-    // Objects are renumbered along the Hilbert curve of their centres, so
-    // that a node's objects sit close together in memory; `ids` maps back.
     let ids = hilbert::curve_order(boxes);
-    let local_boxes: Vec<Aabb> = ids.iter().map(|&j| boxes[j as usize]).collect();
-    let local_sizes: Option<Vec<u64>> = sizes.map(|s| ids.iter().map(|&j| s[j as usize]).collect());
+    let local = Local::new(boxes, sizes, &ids, params);
+    grow_all(local, ids, params, progress)
+}
+
+/// [`build`] of boxes and sizes the caller gives up: they are freed once
+/// renumbered, before the tree grows (a bulk load of 10^7 objects keeps
+/// 560 MB less).
+pub(crate) fn build_owned(
+    boxes: Vec<Aabb>,
+    sizes: Option<Vec<u64>>,
+    params: &BuildParams,
+    progress: &(dyn Fn(BuildProgress) + Sync),
+) -> Result<Hierarchy, BuildError> {
+    check_input(&boxes, sizes.as_deref(), params)?;
+    let ids = hilbert::curve_order(&boxes);
+    let local = Local::new(&boxes, sizes.as_deref(), &ids, params);
+    drop((boxes, sizes));
+    grow_all(local, ids, params, progress)
+}
+
+/// What a build needs of its input once objects are renumbered along the
+/// Hilbert curve of their centres, so that a node's objects sit close
+/// together in memory: local object j is input object `ids[j]`.
+struct Local {
+    boxes: Vec<Aabb>,
+    sizes: Option<Vec<u64>>,
+    /// Refine's cost model, of the input's boxes.
+    model: Option<CostModel>,
+    /// The estimated object visits.
+    work: f64,
+}
+
+impl Local {
+    fn new(boxes: &[Aabb], sizes: Option<&[u64]>, ids: &[u32], params: &BuildParams) -> Local {
+        Local {
+            boxes: ids.iter().map(|&j| boxes[j as usize]).collect(),
+            sizes: sizes.map(|s| ids.iter().map(|&j| s[j as usize]).collect()),
+            model: (params.method == Method::Refine).then(|| CostModel::of_boxes(boxes, params.query_extent)),
+            work: estimate_work(boxes.len(), sizes, params),
+        }
+    }
+}
+
+/// Grows the tree of checked, renumbered objects with the method of `params`.
+fn grow_all(
+    local: Local,
+    ids: Vec<u32>,
+    params: &BuildParams,
+    progress: &(dyn Fn(BuildProgress) + Sync),
+) -> Result<Hierarchy, BuildError> {
+    let n = local.boxes.len();
     let ctx = Ctx {
-        boxes: &local_boxes,
+        boxes: &local.boxes,
         ids: &ids,
-        leaf: Leaf::new(params.leaf, local_sizes.as_deref())?,
+        leaf: Leaf::new(params.leaf, local.sizes.as_deref())?,
         rate: params.rate,
         tie: params.tie_break,
-        meter: Meter::new(progress, boxes.len(), estimate_work(boxes.len(), sizes, params)),
+        meter: Meter::new(progress, n, local.work),
     };
-    let all = (0..boxes.len() as u32).collect::<Vec<u32>>();
     let nodes = match params.method {
         Method::Moa | Method::Laa | Method::Refine => {
-            let keys = Keys::new(&local_boxes, &ids);
+            let keys = Keys::new(&local.boxes, &ids);
             let lists = keys.sorted_lists();
-            match params.method {
-                Method::Laa => grow(&ctx, &Laa::new(&ctx, &keys, params.look_ahead), lists),
-                Method::Refine => {
-                    let model = CostModel::of_boxes(boxes, params.query_extent);
-                    grow(&ctx, &Refine::new(&ctx, &keys, model), lists)
-                }
+            match (params.method, local.model) {
+                (Method::Laa, _) => grow(&ctx, &Laa::new(&ctx, &keys, params.look_ahead), lists),
+                (Method::Refine, Some(model)) => grow(&ctx, &Refine::new(&ctx, &keys, model), lists),
                 _ => grow(&ctx, &Moa::new(&ctx, &keys), lists),
             }
         }
-        Method::Median => grow(&ctx, &Median::new(&ctx), all),
+        Method::Median => grow(&ctx, &Median::new(&ctx), (0..n as u32).collect()),
         // Local numbering is already the curve's order.
-        Method::Hilbert => grow(&ctx, &Hilbert::new(&ctx), all),
-        Method::Sah => grow(&ctx, &Sah::new(&ctx, Heuristic::Area), all),
-        Method::Vsah => grow(&ctx, &Sah::new(&ctx, Heuristic::Volume), all),
+        Method::Hilbert => grow(&ctx, &Hilbert::new(&ctx), (0..n as u32).collect()),
+        Method::Sah => grow(&ctx, &Sah::new(&ctx, Heuristic::Area), (0..n as u32).collect()),
+        Method::Vsah => grow(&ctx, &Sah::new(&ctx, Heuristic::Volume), (0..n as u32).collect()),
     };
     ctx.meter.finish();
     Ok(Hierarchy { nodes })

@@ -47,7 +47,7 @@ pub(crate) struct Laa<'a> {
 }
 
 impl<'a> Laa<'a> {
-    pub(crate) fn new(ctx: &'a Ctx<'a>, keys: &'a Keys, look_ahead: LookAhead) -> Laa<'a> {
+    pub(crate) fn new(ctx: &'a Ctx<'a>, keys: &'a Keys<'a>, look_ahead: LookAhead) -> Laa<'a> {
         Laa { trial: Trial { ctx, keys, look_ahead_level: look_ahead.levels() } }
     }
 
@@ -97,7 +97,7 @@ impl Splitter for Laa<'_> {
 /// LAA3, `wDivideListTrial`: a greedy subtree that only adds up overlaps.
 struct Trial<'a> {
     ctx: &'a Ctx<'a>,
-    keys: &'a Keys,
+    keys: &'a Keys<'a>,
     /// The deepest trial level split (children of the candidate = 1).
     look_ahead_level: u32,
 }

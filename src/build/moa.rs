@@ -11,11 +11,11 @@ use crate::geom::Aabb;
 /// MOA's splitter: the greedy minimum-overlap cut.
 pub(crate) struct Moa<'a> {
     ctx: &'a Ctx<'a>,
-    keys: &'a Keys,
+    keys: &'a Keys<'a>,
 }
 
 impl<'a> Moa<'a> {
-    pub(crate) fn new(ctx: &'a Ctx<'a>, keys: &'a Keys) -> Moa<'a> {
+    pub(crate) fn new(ctx: &'a Ctx<'a>, keys: &'a Keys<'a>) -> Moa<'a> {
         Moa { ctx, keys }
     }
 }

@@ -31,6 +31,7 @@ mod walk;
 
 pub use cost::{CostModel, MIX_SHARES, QueryMix};
 pub use driver::build;
+pub(crate) use driver::build_owned;
 pub(crate) use edit::TreeEdit;
 pub use error::BuildError;
 pub use hierarchy::{Hierarchy, Node, NodeId, NodeKind, Order, Split};

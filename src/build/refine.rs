@@ -46,13 +46,13 @@ const PAR_OPTIONS_MIN: usize = 512;
 /// The refining splitter.
 pub(crate) struct Refine<'a> {
     ctx: &'a Ctx<'a>,
-    keys: &'a Keys,
+    keys: &'a Keys<'a>,
     vsah: Sah<'a>,
     model: CostModel,
 }
 
 impl<'a> Refine<'a> {
-    pub(crate) fn new(ctx: &'a Ctx<'a>, keys: &'a Keys, model: CostModel) -> Refine<'a> {
+    pub(crate) fn new(ctx: &'a Ctx<'a>, keys: &'a Keys<'a>, model: CostModel) -> Refine<'a> {
         Refine { ctx, keys, vsah: Sah::new(ctx, Heuristic::Volume), model }
     }
 

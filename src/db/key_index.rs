@@ -4,13 +4,13 @@
 use std::sync::Arc;
 
 use super::source::ObjectSource;
-use super::tree_writer::Sink;
+use super::tree_writer::{Sink, Written};
 use super::{ReadTransaction, Reads};
 use crate::geom::Aabb;
 use crate::scene::{Key, Mesh, ObjectId};
 use crate::store::format::frame::BlockType;
 use crate::store::format::geometry;
-use crate::store::format::keys::{self, ChildRef, KeyBlock, KeyEntry, LeafLocator};
+use crate::store::format::keys::{self, ChildRef, KeyBlock, KeyEntry};
 use crate::store::format::node::NodeView;
 use crate::store::{Block, StorageError};
 
@@ -23,39 +23,35 @@ pub(crate) struct WrittenKeys {
     pub blocks: u32,
 }
 
-/// Writes the key index of `objects`, whose objects' leaf records and boxes
-/// are `leaves` (by id), into `sink`. Keys must be unique
-/// (`Scene::check_keys`).
+/// Writes the key index of `objects`, whose leaf records and boxes
+/// `written` tells, into `sink`. Keys must be unique
+/// (`Scene::check_keys`). Only the keys in order are held for every
+/// object; entries are made a block at a time.
 pub(crate) fn write(
     Sink { pager, txn, allocate }: Sink,
     objects: &dyn ObjectSource,
-    leaves: &[(LeafLocator, Aabb)],
+    written: &Written,
 ) -> Result<WrittenKeys, StorageError> {
     let bs = pager.block_size();
     let capacity = keys::capacity(bs);
-    let mut entries: Vec<KeyEntry> = leaves
-        .iter()
-        .enumerate()
-        .map(|(i, &(leaf, aabb))| {
-            let id = ObjectId(i as u32);
-            KeyEntry {
-                key: objects.key(id),
-                payload: objects.payload(id).to_vec(),
-                object_id: id.0,
-                leaf,
-                aabb,
-            }
-        })
-        .collect();
-    entries.sort_by(|a, b| a.key.cmp(&b.key));
-    if let Some(w) = entries.windows(2).find(|w| w[0].key == w[1].key) {
-        return Err(StorageError::Invalid(format!("the key {} is not unique", w[0].key)));
+    let mut order: Vec<(Key, ObjectId)> =
+        (0..objects.len()).map(|i| (objects.key(ObjectId(i as u32)), ObjectId(i as u32))).collect();
+    order.sort_unstable();
+    if let Some(w) = order.windows(2).find(|w| w[0].0 == w[1].0) {
+        return Err(StorageError::Invalid(format!("the key {} is not unique", w[0].0)));
     }
-    if let Some(e) = entries.iter().find(|e| e.encoded_len() > capacity) {
+    let entry = |&(ref key, id): &(Key, ObjectId)| KeyEntry {
+        key: key.clone(),
+        payload: objects.payload(id).to_vec(),
+        object_id: id.0,
+        leaf: written.leaves[id.index()],
+        aabb: written.aabb(objects, id),
+    };
+    let sizes: Vec<usize> = order.iter().map(|o| entry(o).encoded_len()).collect();
+    if let Some(at) = sizes.iter().position(|&len| len > capacity) {
         return Err(StorageError::Invalid(format!(
             "the key {} with its payload takes {} bytes and a key block holds {capacity}: use larger blocks",
-            e.key,
-            e.encoded_len()
+            order[at].0, sizes[at]
         )));
     }
     let mut block = vec![0u8; bs as usize];
@@ -68,10 +64,11 @@ pub(crate) fn write(
         Ok(ChildRef { first_key, block: id, checksum })
     };
     let mut level: Vec<ChildRef> = Vec::new();
-    for group in pack(&entries.iter().map(KeyEntry::encoded_len).collect::<Vec<_>>(), capacity) {
-        let part = &entries[group];
-        keys::encode_leaf(part, &mut block).map_err(StorageError::Invalid)?;
-        level.push(put(&mut block, BlockType::KeyLeaf, part[0].key.clone())?);
+    for group in pack(&sizes, capacity) {
+        let first_key = order[group.start].0.clone();
+        let part: Vec<KeyEntry> = order[group].iter().map(entry).collect();
+        keys::encode_leaf(&part, &mut block).map_err(StorageError::Invalid)?;
+        level.push(put(&mut block, BlockType::KeyLeaf, first_key)?);
     }
     let mut height = 1;
     while level.len() > 1 {

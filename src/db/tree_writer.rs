@@ -45,9 +45,21 @@ pub(crate) struct Written {
     pub geometry_bytes: u64,
     /// Vertices as stored (a vertex two parts of an object share counts twice).
     pub vertices: u64,
-    /// Per object (by id): the leaf record holding it and its first entry
-    /// there, and its box as the tree holds it (the union of its parts').
-    pub leaves: Vec<(LeafLocator, Aabb)>,
+    /// Per object (by id): the leaf record holding it and its first entry there.
+    pub leaves: Vec<LeafLocator>,
+    /// The objects stored in parts, by id, with the union of their parts'
+    /// boxes (any other object's box as the tree holds it is its source's).
+    pub split_boxes: Vec<(ObjectId, Aabb)>,
+}
+
+impl Written {
+    /// Object `id`'s box as the tree holds it.
+    pub fn aabb(&self, objects: &dyn ObjectSource, id: ObjectId) -> Aabb {
+        match self.split_boxes.binary_search_by_key(&id, |&(o, _)| o) {
+            Ok(at) => self.split_boxes[at].1,
+            Err(_) => objects.aabb(id),
+        }
+    }
 }
 
 /// Everything about a tree's layout that does not depend on its bounds:
@@ -73,13 +85,15 @@ pub(crate) struct Plan {
 
 /// A leaf's entry: an object, or a part of one too large for a geometry
 /// block (format-spec/geometry.md, "Parts"), and where its record goes.
+/// A whole object's box is its source's: only the quantized box is kept
+/// per entry (40 bytes, not 80: the plan lives through every stage).
 #[derive(Debug, Clone)]
 struct Entry {
     id: ObjectId,
-    /// The part's mesh; `None` for a whole object (its source's mesh).
-    part: Option<Box<Mesh>>,
-    /// The entry's box: the object's, or the part's.
-    aabb: Aabb,
+    /// The entry's box quantized in its leaf's frame, as the leaf stores it.
+    qbox: [u16; 6],
+    /// The part's mesh and box; `None` for a whole object (its source's).
+    part: Option<Box<(Mesh, Aabb)>>,
     /// Stream position and record length.
     pos: u64,
     len: u64,
@@ -88,7 +102,7 @@ struct Entry {
 impl Entry {
     fn mesh<'a>(&'a self, objects: &'a dyn ObjectSource) -> Result<Cow<'a, Mesh>, StorageError> {
         match &self.part {
-            Some(part) => Ok(Cow::Borrowed(part)),
+            Some(part) => Ok(Cow::Borrowed(&part.0)),
             None => objects.mesh(self.id),
         }
     }
@@ -109,31 +123,6 @@ impl Plan {
         let invalid = StorageError::Invalid;
         let mut placement = Placement::new(block_size);
         let payload = geometry::payload(block_size);
-        let mut entries: Vec<Vec<Entry>> = vec![Vec::new(); n];
-        for (i, node) in nodes.iter().enumerate() {
-            for &id in node.objects().unwrap_or_default() {
-                if id.index() >= objects.len() {
-                    return Err(invalid(format!("no object {id}")));
-                }
-                let len = objects.record_len(id);
-                if len <= payload {
-                    let pos = placement.place(len);
-                    entries[i].push(Entry { id, part: None, aabb: objects.aabb(id), pos, len });
-                    continue;
-                }
-                // A room of less than 1/16 of a block is not worth a part's header.
-                let room = placement.room();
-                let mesh = objects.mesh(id)?;
-                let parts = geometry::parts(&mesh, if room < payload / 16 { payload } else { room }, payload);
-                let whole = parts.len() == 1;
-                for part in parts {
-                    let len = geometry::record_len(&part);
-                    let pos = placement.place(len);
-                    let aabb = if whole { objects.aabb(id) } else { part.aabb() };
-                    entries[i].push(Entry { id, part: (!whole).then(|| Box::new(part)), aabb, pos, len });
-                }
-            }
-        }
         let mut frames = vec![Aabb::EMPTY; n];
         frames[0] = nodes[0].aabb;
         let mut child_q = vec![[0u16; 6]; n];
@@ -147,6 +136,40 @@ impl Plan {
                 }
                 child_q[c.index()] = q;
                 frames[c.index()] = qb.outer;
+            }
+        }
+        let mut entries: Vec<Vec<Entry>> = vec![Vec::new(); n];
+        for (i, node) in nodes.iter().enumerate() {
+            let frame = &frames[i];
+            for &id in node.objects().unwrap_or_default() {
+                if id.index() >= objects.len() {
+                    return Err(invalid(format!("no object {id}")));
+                }
+                let len = objects.record_len(id);
+                if len <= payload {
+                    let pos = placement.place(len);
+                    let qbox = quantize(frame, &objects.aabb(id));
+                    entries[i].push(Entry { id, qbox, part: None, pos, len });
+                    continue;
+                }
+                // A room of less than 1/16 of a block is not worth a part's header.
+                let room = placement.room();
+                let mesh = objects.mesh(id)?;
+                let parts = geometry::parts(&mesh, if room < payload / 16 { payload } else { room }, payload);
+                let whole = parts.len() == 1;
+                for part in parts {
+                    let len = geometry::record_len(&part);
+                    let pos = placement.place(len);
+                    let aabb = if whole { objects.aabb(id) } else { part.aabb() };
+                    let qbox = quantize(frame, &aabb);
+                    entries[i].push(Entry {
+                        id,
+                        qbox,
+                        part: (!whole).then(|| Box::new((part, aabb))),
+                        pos,
+                        len,
+                    });
+                }
             }
         }
         let key_bytes = entries
@@ -198,7 +221,7 @@ impl Plan {
                     .enumerate()
                     .map(|(j, e)| LeafEntry {
                         id: e.id,
-                        aabb: e.aabb,
+                        qbox: e.qbox,
                         block: *self.entry_blocks(i, j).start(),
                     })
                     .collect()
@@ -287,11 +310,6 @@ impl Plan {
             return vec![f64::INFINITY; scales];
         }
         let (packing, _) = self.choose(tree, &sizes, capacity);
-        // Every object's box as its leaf stores it, quantized (12 bytes an
-        // entry; decoded where a sample meets its leaf).
-        let boxes: Vec<Vec<[u16; 6]>> = (0..tree.nodes.len())
-            .map(|i| self.entries[i].iter().map(|e| quantize(&self.frames[i], &e.aabb)).collect())
-            .collect();
         // Per sample: its node block reads plus its distinct geometry blocks
         // (integer sums, so the same on any number of threads).
         let per_sample: Vec<usize> = self
@@ -314,20 +332,24 @@ impl Plan {
                     // An object's entries are consecutive: one confirmed part
                     // answers it, else every part not ruled out is read.
                     let mut j = 0;
-                    while j < boxes[i].len() {
-                        let id = self.entries[i][j].id;
-                        let end = j + self.entries[i][j..].iter().take_while(|e| e.id == id).count();
+                    let es = &self.entries[i];
+                    while j < es.len() {
+                        let id = es[j].id;
+                        let end = j + es[j..].iter().take_while(|e| e.id == id).count();
                         let mut pending = Vec::new();
                         let mut confirmed = false;
-                        for (e, b) in boxes[i].iter().enumerate().take(end).skip(j) {
-                            let Some(b) = QuantBox::decode(&self.frames[i], *b) else { continue };
+                        for (e, entry) in es.iter().enumerate().take(end).skip(j) {
+                            let Some(b) = QuantBox::decode(&self.frames[i], entry.qbox) else { continue };
                             if !b.outer.intersects(q) {
                                 continue;
                             }
-                            let bound = stored.finest(i, e, min_value);
-                            if b.face_slabs().iter().any(|f| q.contains(f))
-                                || bound.is_some_and(|v| v.holds_a_cell_in(q))
-                            {
+                            if b.face_slabs().iter().any(|f| q.contains(f)) {
+                                confirmed = true;
+                                break;
+                            }
+                            // Decoded here, for the few entries a sample leaves open.
+                            let bound = stored.finest(i, e, min_value, &b.outer);
+                            if bound.as_ref().is_some_and(|v| v.holds_a_cell_in(q)) {
                                 confirmed = true;
                                 break;
                             }
@@ -435,8 +457,8 @@ pub(crate) fn write(
             record.clear();
             vertices += match &e.part {
                 Some(part) => {
-                    geometry::encode_object(e.id, part, &mut record);
-                    part.vertex_count() as u64
+                    geometry::encode_object(e.id, &part.0, &mut record);
+                    part.0.vertex_count() as u64
                 }
                 None => objects.encode_record(e.id, &mut record)?,
             };
@@ -462,7 +484,6 @@ pub(crate) fn write(
         filled += p;
     }
     drop(meter);
-    let frame = &plan.frames;
     let child_q = &plan.child_q;
     let leaf_span = |i: usize| plan.leaf_span(i);
     let sizes = plan.sizes(tree, |i| node::bounds_len(&bounds[i]));
@@ -558,11 +579,7 @@ pub(crate) fn write(
                         let base = a * p;
                         let entries = plan.entries[i]
                             .iter()
-                            .map(|e| ObjectEntry {
-                                object_id: e.id.0,
-                                qbox: quantize(&frame[i], &e.aabb),
-                                position: e.pos - base,
-                            })
+                            .map(|e| ObjectEntry { object_id: e.id.0, qbox: e.qbox, position: e.pos - base })
                             .collect();
                         let end = plan.entries[i].last().map_or(0, |e| e.pos + e.len);
                         let keys = object_ids(&plan.entries[i]).map(|id| objects.key(id)).collect();
@@ -585,22 +602,29 @@ pub(crate) fn write(
         checksums[b] = pager.write(first_node + b as u32, &mut bytes, BlockType::Node, txn)?;
     }
     let nowhere = LeafLocator { block: 0, checksum: 0, offset: 0, entry: 0 };
-    let mut leaves = vec![(nowhere, Aabb::EMPTY); objects.len()];
+    let mut leaves = vec![nowhere; objects.len()];
+    let mut split_boxes: Vec<(ObjectId, Aabb)> = Vec::new();
     for (i, es) in plan.entries.iter().enumerate() {
         let (b, _) = packing.place[i];
         for (j, e) in es.iter().enumerate() {
-            let (at, aabb) = &mut leaves[e.id.index()];
-            if j == 0 || es[j - 1].id != e.id {
-                *at = LeafLocator {
+            let first = j == 0 || es[j - 1].id != e.id;
+            if first {
+                leaves[e.id.index()] = LeafLocator {
                     block: first_node + b,
                     checksum: checksums[b as usize],
                     offset: offset[i],
                     entry: j as u16,
                 };
             }
-            *aabb = aabb.union(&e.aabb);
+            if let Some((_, part_box)) = e.part.as_deref() {
+                match split_boxes.last_mut() {
+                    Some((id, aabb)) if !first && *id == e.id => *aabb = aabb.union(part_box),
+                    _ => split_boxes.push((e.id, *part_box)),
+                }
+            }
         }
     }
+    split_boxes.sort_unstable_by_key(|&(id, _)| id);
     let (rb, _) = packing.place[0];
     Ok(Written {
         root: (first_node + rb, checksums[rb as usize], offset[0]),
@@ -610,6 +634,7 @@ pub(crate) fn write(
         geometry_bytes,
         vertices,
         leaves,
+        split_boxes,
     })
 }
 

@@ -13,7 +13,7 @@ use super::{
     recover, tree_writer,
 };
 use crate::build::{
-    BuildParams, BuildProgress, CostModel, Hierarchy, LoadProgress, QueryMix, Stage, StageMeter, build,
+    BuildParams, BuildProgress, CostModel, Hierarchy, LoadProgress, QueryMix, Stage, StageMeter, build_owned,
     check_range,
 };
 use crate::lod::{EntryMesh, Layout, LodError, LodParams, LodPlan, StoredBounds, plan_bounds};
@@ -204,7 +204,7 @@ impl<'db> WriteTransaction<'db> {
     ) -> Result<Hierarchy, crate::Error> {
         let started = Instant::now();
         let tree =
-            build(&objects.object_boxes(), Some(&objects.record_lens()), params, &|p: BuildProgress| {
+            build_owned(objects.object_boxes(), Some(objects.record_lens()), params, &|p: BuildProgress| {
                 progress(LoadProgress { stage: Stage::Tree, done: p.objects_placed, total: p.objects_total })
             })?;
         let build_seconds = started.elapsed().as_secs_f64();
@@ -349,7 +349,7 @@ impl<'db> WriteTransaction<'db> {
                 stored = worth_keeping(&plan, tree, stored, bs);
             }
             choose.add(1);
-            stored.measure_errors(mesh, self.lod_params.error_samples).map_err(lod_error)?;
+            stored.measure_errors(&layout, self.lod_params.error_samples).map_err(lod_error)?;
             stored
         };
         let txn = self.txn;
@@ -369,7 +369,7 @@ impl<'db> WriteTransaction<'db> {
         stored.release_bounds();
         let keys = {
             let allocate = &mut |count: u32| self.allocate(count);
-            key_index::write(Sink { pager: &pager, txn, allocate }, objects, &written.leaves)?
+            key_index::write(Sink { pager: &pager, txn, allocate }, objects, &written)?
         };
         // Names, apart from geometry so queries never read them.
         let mut stream = Vec::new();

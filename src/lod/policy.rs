@@ -31,21 +31,23 @@ use std::collections::HashMap;
 
 use rayon::prelude::*;
 
-use super::compact::{aligned_grid, encode};
+use super::compact::{aligned_grid, decode, encode};
 use super::{ErrorProbe, Grid, Lattice, LodError, LodParams, LodPlan, Voxels};
 use crate::build::{Hierarchy, LoadProgress, QueryMix, Stage, StageMeter};
 use crate::geom::Aabb;
 use crate::scene::{Mesh, ObjectId};
 use crate::store::format::node::{BOUND_HEAD_LEN, BoundEntry, MAX_BOUND_BYTES, bounds_len, capacity};
-use crate::store::format::quant::{QuantBox, quantize};
+use crate::store::format::quant::QuantBox;
 
 /// An entry of a leaf: an object, or a part of one (format-spec/
-/// geometry.md, "Parts"), with its box and the geometry block its record
-/// starts in (entries in leaf order start in blocks that never decrease).
+/// geometry.md, "Parts"), with its box as the leaf stores it (quantized
+/// in the leaf's frame, [`Layout::frames`]) and the geometry block its
+/// record starts in (entries in leaf order start in blocks that never
+/// decrease).
 #[derive(Debug, Clone)]
 pub struct LeafEntry {
     pub id: ObjectId,
-    pub aabb: Aabb,
+    pub qbox: [u16; 6],
     pub block: u64,
 }
 
@@ -65,6 +67,14 @@ pub struct Layout<'a> {
     pub mesh: &'a EntryMesh<'a>,
     /// The file's block size in bytes (what a node block holds).
     pub block_size: u32,
+}
+
+impl Layout<'_> {
+    /// Entry `j` of leaf `i`'s box as the leaf stores it: what its bounds' grids cover.
+    pub fn stored_box(&self, i: usize, j: usize) -> Option<Aabb> {
+        let e = self.entries.get(i)?.get(j)?;
+        Some(QuantBox::decode(self.frames.get(i)?, e.qbox)?.outer)
+    }
 }
 
 /// The bounds a tree stores, and what the meta block records of them.
@@ -89,7 +99,9 @@ pub struct StoredBounds {
     worth: Vec<Vec<Worth>>,
 }
 
-/// What a stored bound was judged worth.
+/// What a stored bound was judged worth. Its cells are not kept decoded
+/// (a grid and a bit set, about 200 bytes): the blob is decoded where they
+/// are read, which is rare.
 #[derive(Debug, Clone)]
 struct Worth {
     /// saving - cost of the group of bounds it was chosen with (block reads per query).
@@ -97,7 +109,6 @@ struct Worth {
     saving: f64,
     cost: f64,
     eps: f64,
-    voxels: Voxels,
 }
 
 /// The most bounds per level whose error is measured: a sample spread
@@ -161,10 +172,12 @@ impl StoredBounds {
     }
 
     /// The finest bound worth at least `min_value` of entry `target` of
-    /// leaf `node` (bounds come level by level: a later one is finer).
-    pub fn finest(&self, node: usize, target: usize, min_value: f64) -> Option<&Voxels> {
+    /// leaf `node` (bounds come level by level: a later one is finer),
+    /// decoded over the entry's box as the leaf stores it, `outer`.
+    pub fn finest(&self, node: usize, target: usize, min_value: f64, outer: &Aabb) -> Option<Voxels> {
         let mut kept = self.bounds[node].iter().zip(&self.worth[node]).rev();
-        kept.find(|(b, w)| w.value >= min_value && usize::from(b.target) == target).map(|(_, w)| &w.voxels)
+        let (b, _) = kept.find(|(b, w)| w.value >= min_value && usize::from(b.target) == target)?;
+        decode(&b.blob, self.lattice.as_ref()?, outer).ok()
     }
 
     /// What every stored bound's group was judged worth, high to low.
@@ -177,11 +190,12 @@ impl StoredBounds {
     /// Measures the error of the bounds stored (`errors[k][1]`): per level,
     /// every ceil(n / [`MEASURED_BOUNDS`])-th of its n bounds in node order,
     /// at `cells` of its cells each (see [`ErrorProbe::measure`]).
-    pub fn measure_errors(&mut self, mesh: &EntryMesh, cells: usize) -> Result<(), LodError> {
-        let mut at_level: Vec<Vec<(usize, usize, &Voxels)>> = vec![Vec::new(); self.errors.len()];
-        for (i, (bounds, worth)) in self.bounds.iter().zip(&self.worth).enumerate() {
-            for (b, w) in bounds.iter().zip(worth) {
-                at_level[usize::from(b.level) - 1].push((i, usize::from(b.target), &w.voxels));
+    pub fn measure_errors(&mut self, layout: &Layout, cells: usize) -> Result<(), LodError> {
+        let Some(lattice) = self.lattice else { return Ok(()) };
+        let mut at_level: Vec<Vec<(usize, usize, &[u8])>> = vec![Vec::new(); self.errors.len()];
+        for (i, bounds) in self.bounds.iter().enumerate() {
+            for b in bounds {
+                at_level[usize::from(b.level) - 1].push((i, usize::from(b.target), &b.blob));
             }
         }
         for (row, bounds) in self.errors.iter_mut().zip(&at_level) {
@@ -189,7 +203,13 @@ impl StoredBounds {
             row[1] = bounds
                 .par_iter()
                 .step_by(stride)
-                .map(|&(i, j, v)| Ok(ErrorProbe::new([&*mesh(i, j)?]).measure(v, cells)))
+                .map(|&(i, j, blob)| {
+                    let outer = layout.stored_box(i, j).ok_or_else(|| {
+                        LodError::Corrupt(format!("a bound of entry {j} of leaf {i}, which has no box"))
+                    })?;
+                    let v = decode(blob, &lattice, &outer)?;
+                    Ok(ErrorProbe::new([&*(layout.mesh)(i, j)?]).measure(&v, cells))
+                })
                 .try_reduce(|| 0.0, |a, b| Ok(a.max(b)))?;
         }
         Ok(())
@@ -202,16 +222,19 @@ impl StoredBounds {
 }
 
 /// One candidate: an entry's bound at levels `level ..= top` (on one
-/// grid), with its model value once judged.
+/// grid), while its block's entries are judged.
 struct Candidate {
     level: u8,
     top: u8,
     blob: Vec<u8>,
     voxels: Voxels,
-    saving: f64,
-    cost: f64,
-    /// saving - cost of the group it was judged in.
-    value: f64,
+}
+
+/// A candidate chosen for its block: its bound and what it was judged worth.
+struct Picked {
+    level: u8,
+    blob: Vec<u8>,
+    worth: Worth,
 }
 
 /// Decides and encodes the bounds of `tree` for M = `m` levels on the
@@ -258,7 +281,7 @@ pub fn plan_bounds(
     let node_capacity = capacity(layout.block_size) as f64;
     // Block by block: its entries' candidates, level by level, judged
     // together; only the chosen ones outlive their block.
-    let picked: Vec<Vec<(usize, u16, Candidate)>> = {
+    let picked: Vec<Vec<(usize, u16, Picked)>> = {
         let meter = StageMeter::new(progress, Stage::Levels, groups.len() as u64);
         groups
             .par_iter()
@@ -271,16 +294,17 @@ pub fn plan_bounds(
                     .into_iter()
                     .filter_map(|(x, k, saving, cost, value)| {
                         let list = &mut cands[x];
-                        let mut c = list.swap_remove(list.iter().position(|c| c.covers(k))?);
-                        (c.level, c.saving, c.cost, c.value) = (k, saving, cost, value);
-                        Some((group[x].0, group[x].1 as u16, c))
+                        let c = list.swap_remove(list.iter().position(|c| c.covers(k))?);
+                        let eps = c.voxels.grid().max_cell_diagonal();
+                        let worth = Worth { value, saving, cost, eps };
+                        Some((group[x].0, group[x].1 as u16, Picked { level: k, blob: c.blob, worth }))
                     })
                     .collect())
             })
             .collect::<Result<_, LodError>>()?
     };
-    let mut chosen: Vec<(usize, Vec<(u16, Candidate)>)> = Vec::new();
-    let mut by_leaf: HashMap<usize, Vec<(u16, Candidate)>> = HashMap::new();
+    let mut chosen: Vec<(usize, Vec<(u16, Picked)>)> = Vec::new();
+    let mut by_leaf: HashMap<usize, Vec<(u16, Picked)>> = HashMap::new();
     for (i, j, c) in picked.into_iter().flatten() {
         by_leaf.entry(i).or_default().push((j, c));
     }
@@ -291,14 +315,7 @@ pub fn plan_bounds(
     chosen.sort_by_key(|(i, _)| *i);
     for (i, picked) in chosen {
         for (j, c) in picked {
-            let w = Worth {
-                value: c.value,
-                saving: c.saving,
-                cost: c.cost,
-                eps: c.voxels.grid().max_cell_diagonal(),
-                voxels: c.voxels,
-            };
-            out.push(i, BoundEntry { target: j, level: c.level, blob: c.blob }, w);
+            out.push(i, BoundEntry { target: j, level: c.level, blob: c.blob }, c.worth);
         }
     }
     Ok(out)
@@ -325,7 +342,7 @@ impl Ctx<'_, '_> {
     fn candidates(&self, m: u8, i: usize, j: usize) -> Result<Vec<Candidate>, LodError> {
         let frame = &self.layout.frames[i];
         let Some(e) = self.layout.entries[i].get(j) else { return Ok(Vec::new()) };
-        let Some(qbox) = QuantBox::decode(frame, quantize(frame, &e.aabb)) else {
+        let Some(qbox) = QuantBox::decode(frame, e.qbox) else {
             return Ok(Vec::new());
         };
         let mut mesh: Option<Cow<Mesh>> = None;
@@ -350,7 +367,7 @@ impl Ctx<'_, '_> {
             let voxels = Voxels::of_surfaces(grid, [&**mesh]);
             let blob = encode(&voxels);
             if blob.len() <= MAX_BOUND_BYTES {
-                out.push(Candidate { level: k, top: k, blob, voxels, saving: 0.0, cost: 0.0, value: 0.0 });
+                out.push(Candidate { level: k, top: k, blob, voxels });
             }
         }
         Ok(out)
@@ -383,7 +400,7 @@ fn judge(
         .iter()
         .map(|&(i, j)| {
             let f = &layout.frames[i];
-            QuantBox::decode(f, quantize(f, &layout.entries[i][j].aabb))
+            QuantBox::decode(f, layout.entries[i][j].qbox)
         })
         .collect();
     let zone = boxes.iter().flatten().fold(Aabb::EMPTY, |z, b| z.union(&b.outer));

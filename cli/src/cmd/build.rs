@@ -3,6 +3,7 @@
 //! empty or torn file that a crash left while creating one).
 
 use std::path::Path;
+use std::sync::Mutex;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -33,12 +34,47 @@ fn progress_bar(objects: usize, build: &BuildArgs) -> ProgressBar {
     pb
 }
 
+/// Each stage of a build as it ended: its wall seconds, and the process's
+/// peak resident memory by then (Linux; `null` elsewhere). `build --json`
+/// reports them, so that a long build shows which stage takes the time and
+/// which one sets the peak.
+#[derive(Debug, Clone, serde::Serialize)]
+struct StageRow {
+    stage: &'static str,
+    seconds: f64,
+    peak_rss_bytes: Option<u64>,
+}
+
+/// The stages ended so far, and when the current one began.
+struct Stages(Mutex<(Vec<StageRow>, Instant)>);
+
+impl Stages {
+    fn new() -> Stages {
+        Stages(Mutex::new((Vec::new(), Instant::now())))
+    }
+
+    /// Ends stage `stage`, which began when the one before ended.
+    fn end(&self, stage: &'static str) {
+        let mut guard = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let (rows, began) = &mut *guard;
+        let seconds = began.elapsed().as_secs_f64();
+        rows.push(StageRow { stage, seconds, peak_rss_bytes: crate::cmd::peak_rss_bytes() });
+        *began = Instant::now();
+    }
+
+    fn rows(self) -> Vec<StageRow> {
+        self.0.into_inner().unwrap_or_else(|e| e.into_inner()).0
+    }
+}
+
 /// Shows `p` on `pb`, restarting the bar (and its time left) at each new
-/// stage. Each stage frees most of what the one before allocated: handing
-/// it back to the system keeps the peak at the largest stage, not the sum
-/// of what the allocator kept (ship 10^6 staged: 673 MB to 612 MB).
-fn show(pb: &ProgressBar, p: LoadProgress) {
+/// stage, which ends the one before in `stages`. Each stage frees most of
+/// what the one before allocated: handing it back to the system keeps the
+/// peak at the largest stage, not the sum of what the allocator kept (ship
+/// 10^6 staged: 673 MB to 612 MB).
+fn show(pb: &ProgressBar, stages: &Stages, p: LoadProgress) {
     if pb.prefix() != p.stage.name() {
+        stages.end(stage_name(&pb.prefix()));
         crate::cmd::release_freed_memory();
         pb.set_prefix(p.stage.name());
         pb.set_message("");
@@ -46,6 +82,17 @@ fn show(pb: &ProgressBar, p: LoadProgress) {
     }
     pb.set_length(p.total);
     pb.set_position(p.done);
+}
+
+/// The static name of a stage the progress bar shows.
+fn stage_name(prefix: &str) -> &'static str {
+    use Stage::*;
+    [Tree, Layout, Levels, Choose, Geometry, Nodes]
+        .into_iter()
+        .map(Stage::name)
+        .chain(["read", "commit"])
+        .find(|name| *name == prefix)
+        .unwrap_or("build")
 }
 
 /// The database `build` writes into, and whether this run created its
@@ -145,7 +192,9 @@ pub fn run(
     write: Write,
     as_json: bool,
 ) -> Result<()> {
+    let stages = Stages::new();
     let mut input = read_input(scene_path, args, &write, crate::cmd::folder_of(out))?;
+    stages.end("read");
     let started = Instant::now();
     let (db, created) = open_output(out, args, lod)?;
     let pb = progress_bar(input.len(), args);
@@ -153,13 +202,17 @@ pub fn run(
         let mut w = db.begin_write_with(if write.wait { WriterWait::Wait } else { WriterWait::Fail })?;
         w.set_lod_params(lod.params());
         let tree = match &mut input {
-            Input::Whole(scene) => w.bulk_load(scene, &args.params(), &|p| show(&pb, p))?,
-            Input::Staged(staged) => w.bulk_load_staged(staged, &args.params(), &|p| show(&pb, p))?,
+            Input::Whole(scene) => w.bulk_load(scene, &args.params(), &|p| show(&pb, &stages, p))?,
+            Input::Staged(staged) => {
+                w.bulk_load_staged(staged, &args.params(), &|p| show(&pb, &stages, p))?
+            }
         };
+        stages.end(stage_name(&pb.prefix()));
         pb.set_prefix("commit");
         pb.set_length(1);
         pb.reset();
         w.commit()?;
+        stages.end("commit");
         Ok(tree)
     })();
     pb.finish_and_clear();
@@ -180,9 +233,13 @@ pub fn run(
     let bytes = u64::from(info.file_blocks) * u64::from(info.block_size);
     let report = Report::of(&tree);
     if as_json {
-        return output::json(
-            &json!({ "file": info, "file_bytes": bytes, "seconds": seconds, "report": report }),
-        );
+        return output::json(&json!({
+            "file": info,
+            "file_bytes": bytes,
+            "seconds": seconds,
+            "report": report,
+            "stages": stages.rows(),
+        }));
     }
     println!(
         "{}: {} objects, {} nodes ({} leaves, {} levels) in {} blocks of {} bytes ({} node, {} geometry), {} bytes; {:.3} s ({:.1} MB/s written)",

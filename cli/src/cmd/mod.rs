@@ -163,6 +163,15 @@ pub fn release_freed_memory() {
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
 pub fn release_freed_memory() {}
 
+/// The process's peak resident memory so far (the kernel's VmHWM), where
+/// the system tells it.
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find_map(|l| l.strip_prefix("VmHWM:"))?;
+    let kb: u64 = line.trim().strip_suffix("kB")?.trim().parse().ok()?;
+    Some(kb * 1024)
+}
+
 /// A scene named on the command line: a scene file, or else a preset of
 /// the generator (`tanker1`, ..., `ship`, `ship:N` for N objects, seed 0).
 pub fn scene_or_preset(arg: &str, options: &ImportOptions) -> Result<Scene> {
