@@ -5,7 +5,7 @@
 //! (random boxes, cubes and collision boxes from a seed, and the leaves a
 //! box query reaches in a tree held in memory), and the peer benchmark of
 //! `mktree bench-peers`, and the piecewise replacement of `mktree
-//! bench-replace`.
+//! bench-replace`, and the view query's sweep of `mktree bench-view`.
 
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
@@ -19,6 +19,7 @@ pub mod record;
 mod redb_backend;
 mod replace;
 mod rng;
+mod view;
 mod workload;
 
 pub use bench_peers::{
@@ -31,4 +32,5 @@ pub use query_sets::{
 #[cfg(feature = "redb")]
 pub use redb_backend::{RedbRow, bench_redb, redb_table};
 pub use replace::{ReplaceOptions, ReplaceReport, ReplaceRow, bench_replace};
+pub use view::{BudgetRow, TauRow, ViewBench, ViewBenchOptions, bench_view, flight, triangles, views};
 pub use workload::{WorkloadStats, random_boxes, run_boxes};

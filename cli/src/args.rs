@@ -210,6 +210,17 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Serves an exported tileset and a page that shows it (three.js, 3DTilesRendererJS) on 127.0.0.1.
+    Serve {
+        /// The directory `export-3dtiles` wrote.
+        tiles: PathBuf,
+        /// The port (0: any free one; the address is printed).
+        #[arg(long, default_value_t = 8080)]
+        port: u16,
+        /// The page's npm packages (default: the checkout's viewer/node_modules, from viewer/install.sh).
+        #[arg(long)]
+        vendor: Option<PathBuf>,
+    },
     /// A picture (PNG) of the view's cut, coloured by level; or with --node, one node's level of detail.
     Render {
         file: PathBuf,
@@ -339,6 +350,8 @@ pub enum Command {
     /// A scene replaced by another object by object (deletes and inserts in
     /// write transactions): box-query reads against a fresh bulk load, and compact.
     BenchReplace(crate::cmd::bench_replace::BenchReplaceArgs),
+    /// The view query along a walk through each file: reads and triangles per frame against tau, error under a block budget, exact frustum reads; a chart and frame strips.
+    BenchView(crate::cmd::bench_view::BenchViewArgs),
     /// Import alone, timed: each scene read --repeat times; triangles and megabytes per second of the fastest run.
     BenchImport {
         #[arg(required = true)]

@@ -221,3 +221,110 @@ pub fn ratio_panel<DB: DrawingBackend>(
     }
     Ok(())
 }
+
+/// `bench-view`'s chart, three panels side by side: block reads per frame
+/// against τ (each file's exact frustum query as a dashed line), triangles
+/// drawn per frame against τ, and the error kept against the block budget.
+/// Axes are log-scaled (τ = 0 is drawn at 0.5 px).
+pub fn bench_view(results: &[(String, mktree_bench::ViewBench)], svg: &Path, png: &Path) -> Result<()> {
+    svg_and_png!((1500, 460), svg, png, draw_bench_view(results))
+}
+
+fn draw_bench_view<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    results: &[(String, mktree_bench::ViewBench)],
+    text: bool,
+) -> Result<()> {
+    root.fill(&WHITE).map_err(failed)?;
+    let panels = root.split_evenly((1, 3));
+    let tau_x = |t: f64| t.max(0.5);
+    let tau_max =
+        results.iter().flat_map(|(_, b)| b.taus.iter().map(|t| tau_x(t.tau_px))).fold(1.0, f64::max);
+    let budget_max =
+        results.iter().flat_map(|(_, b)| b.budgets.iter().map(|r| r.budget as f64)).fold(2.0, f64::max);
+    type Series = Vec<(f64, f64)>;
+    let per_file: Vec<(Series, Series, Series, f64)> = results
+        .iter()
+        .map(|(_, b)| {
+            (
+                b.taus.iter().map(|t| (tau_x(t.tau_px), t.reads.max(0.1))).collect(),
+                b.taus.iter().map(|t| (tau_x(t.tau_px), t.triangles.max(1.0))).collect(),
+                b.budgets.iter().map(|r| (r.budget as f64, r.median_error_px.max(0.1))).collect(),
+                b.exact_frustum_reads.max(0.1),
+            )
+        })
+        .collect();
+    let top =
+        |pick: fn(&(Series, Series, Series, f64)) -> f64| per_file.iter().map(pick).fold(1.0, f64::max) * 2.0;
+    let reads_max = top(|f| f.0.iter().map(|p| p.1).fold(f.3, f64::max));
+    let triangles_max = top(|f| f.1.iter().map(|p| p.1).fold(1.0, f64::max));
+    let error_max = top(|f| f.2.iter().map(|p| p.1).fold(1.0, f64::max));
+    let specs: [(&str, &str, &str, f64, f64); 3] = [
+        ("block reads per frame", "tolerance tau, px", "reads", tau_max, reads_max),
+        ("triangles drawn per frame", "tolerance tau, px", "triangles", tau_max, triangles_max),
+        (
+            "error kept under a budget (tau = 1 px)",
+            "block budget per frame",
+            "median largest error, px",
+            budget_max,
+            error_max,
+        ),
+    ];
+    for (p, (panel, (caption, x_desc, y_desc, x_max, y_max))) in panels.iter().zip(specs).enumerate() {
+        let mut builder = ChartBuilder::on(panel);
+        builder.margin(14);
+        if text {
+            builder.caption(caption, ("sans-serif", 16)).x_label_area_size(34).y_label_area_size(56);
+        }
+        let x_min = if p == 2 { 1.0 } else { 0.5 };
+        let mut chart = builder
+            .build_cartesian_2d((x_min..x_max * 1.5).log_scale(), (0.1..y_max).log_scale())
+            .map_err(failed)?;
+        let mut mesh = chart.configure_mesh();
+        if text {
+            mesh.x_desc(x_desc).y_desc(y_desc).draw().map_err(failed)?;
+        } else {
+            mesh.x_labels(0).y_labels(0).draw().map_err(failed)?;
+        }
+        for (i, ((name, _), file)) in results.iter().zip(&per_file).enumerate() {
+            let colour = Palette99::pick(i).to_rgba();
+            let points = match p {
+                0 => &file.0,
+                1 => &file.1,
+                _ => &file.2,
+            };
+            let drawn = chart
+                .draw_series(LineSeries::new(points.iter().copied(), colour.stroke_width(2)))
+                .map_err(failed)?;
+            if text {
+                drawn.label(name.clone()).legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2))
+                });
+            }
+            chart
+                .draw_series(points.iter().map(|&(x, y)| Circle::new((x, y), 3, colour.filled())))
+                .map_err(failed)?;
+            if p == 0 {
+                // The exact frustum query: dashes across the panel.
+                let dashes = (0..12).map(|d| {
+                    let at = |s: f64| x_min * (x_max * 1.5 / x_min).powf(s);
+                    PathElement::new(
+                        vec![(at(d as f64 / 12.0), file.3), (at((d as f64 + 0.5) / 12.0), file.3)],
+                        colour,
+                    )
+                });
+                chart.draw_series(dashes).map_err(failed)?;
+            }
+        }
+        if text {
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .draw()
+                .map_err(failed)?;
+        }
+    }
+    Ok(())
+}

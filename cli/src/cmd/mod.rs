@@ -6,6 +6,7 @@ mod bench_import;
 pub mod bench_peers;
 mod bench_queries;
 pub mod bench_replace;
+pub mod bench_view;
 mod build;
 mod check;
 mod clash;
@@ -20,7 +21,8 @@ mod lods;
 mod navigate;
 mod query;
 mod remove;
-mod render;
+pub(crate) mod render;
+mod serve;
 mod stats;
 mod sweep;
 mod tradeoff;
@@ -69,6 +71,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Batch { file, queries } => batch::run(&file, queries.as_deref()),
         Command::View { file, view } => view::run(&file, &view),
         Command::Export3dTiles { file, out, json } => export_tiles::run(&file, &out, json),
+        Command::Serve { tiles, port, vendor } => serve::run(&tiles, port, vendor.as_deref()),
         Command::Render { file, view, node, lod, objects, output, json } => {
             let what = match (node, lod) {
                 (Some(node), Some(k)) => render::What::Node { node, k, objects },
@@ -118,6 +121,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::BenchBuild(args) => bench_build::run(&args),
         Command::BenchPeers(args) => bench_peers::run(&args),
         Command::BenchReplace(args) => bench_replace::run(&args),
+        Command::BenchView(args) => bench_view::run(&args),
         Command::BenchImport { files, repeat, json, import } => {
             bench_import::run(&files, repeat, &import, json)
         }

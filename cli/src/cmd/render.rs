@@ -71,7 +71,7 @@ pub fn run(file: &Path, args: &ViewArgs, what: What, out: &Path, as_json: bool) 
 }
 
 /// Writes `img` as an 8-bit RGB PNG.
-fn write_png(img: &Image, out: &Path) -> Result<()> {
+pub(crate) fn write_png(img: &Image, out: &Path) -> Result<()> {
     let f = File::create(out).with_context(|| format!("creating {}", out.display()))?;
     let mut enc = png::Encoder::new(BufWriter::new(f), img.width, img.height);
     enc.set_color(png::ColorType::Rgb);
