@@ -48,13 +48,18 @@ try {
   const logs = [];
   page.on('console', (m) => logs.push(`${m.type()}: ${m.text()}`));
   page.on('pageerror', (e) => logs.push(`pageerror: ${e.message}`));
+  page.on('response', (r) => {
+    if (r.status() >= 400) logs.push(`${r.status()} ${r.url()}`);
+  });
+  page.on('requestfailed', (r) => logs.push(`failed ${r.url()}: ${r.failure()?.errorText}`));
   await page.goto(url);
   try {
     await page.waitForFunction(() => window.mktree && (window.mktree.ready || window.mktree.error), null, {
       timeout: 120_000,
     });
   } catch (e) {
-    fail(`the page did not finish loading tiles: ${e.message}\n${logs.join('\n')}`);
+    const state = await page.evaluate(() => JSON.stringify(window.mktree)).catch(() => 'unreadable');
+    fail(`the page did not finish loading tiles: ${e.message}\nstate: ${state}\n${logs.join('\n')}`);
   }
   const state = await page.evaluate(() => ({
     error: window.mktree.error,

@@ -1,6 +1,8 @@
 //! `mktree serve OUT/`: the tileset `export-3dtiles` wrote to OUT/, and a
 //! page that shows it (viewer/index.html: three.js and 3DTilesRendererJS,
-//! installed by viewer/install.sh), over HTTP on 127.0.0.1 only.
+//! installed by viewer/install.sh), over HTTP on 127.0.0.1 only. A plain
+//! HTTP/1.1 server of one request per connection (tiny_http's keep-alive
+//! left about one page load in eight with tiles that never arrived).
 //!
 //! Routes: `/` is the page, `/tiles/...` the tileset's files, `/vendor/...`
 //! the page's JavaScript packages. Only plain relative paths are served:
@@ -8,11 +10,12 @@
 //! letters, digits, `-`, `_` and `.` is not found, so no request leaves the
 //! two folders.
 
-use std::io::Write as _;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
-use tiny_http::{Header, Response, Server};
 
 /// The page, built into the binary.
 const PAGE: &str = include_str!("../../../viewer/index.html");
@@ -20,8 +23,8 @@ const PAGE: &str = include_str!("../../../viewer/index.html");
 /// Where viewer/install.sh puts the page's packages in a checkout.
 const VENDOR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../viewer/node_modules");
 
-/// Threads answering requests (a tileset is many small files).
-const WORKERS: usize = 4;
+/// The most bytes of a request's head read (request line and headers).
+const MAX_HEAD: u64 = 64 * 1024;
 
 pub fn run(tiles: &Path, port: u16, vendor: Option<&Path>) -> Result<()> {
     if !tiles.join("tileset.json").is_file() {
@@ -38,27 +41,58 @@ pub fn run(tiles: &Path, port: u16, vendor: Option<&Path>) -> Result<()> {
             vendor.display()
         );
     }
-    let server = Server::http(("127.0.0.1", port)).map_err(|e| anyhow::anyhow!("127.0.0.1:{port}: {e}"))?;
-    let port = server.server_addr().to_ip().map_or(port, |a| a.port());
+    let listener = TcpListener::bind(("127.0.0.1", port)).with_context(|| format!("127.0.0.1:{port}"))?;
+    let port = listener.local_addr().context("the bound address")?.port();
     // A script waiting for the server reads this line.
     println!("serving {} at http://127.0.0.1:{port}/", tiles.display());
     std::io::stdout().flush().context("stdout")?;
-    std::thread::scope(|s| {
-        for _ in 0..WORKERS {
-            s.spawn(|| {
-                for request in server.incoming_requests() {
-                    let response = answer(request.url(), tiles, &vendor);
-                    // A client that went away is no error of the server's.
-                    let _ = request.respond(response);
-                }
-            });
-        }
-    });
+    // One request per connection, each on its own thread: the browser opens
+    // as many as it has requests in flight, and no connection waits on another.
+    for stream in listener.incoming().flatten() {
+        let (tiles, vendor) = (tiles.to_path_buf(), vendor.clone());
+        std::thread::spawn(move || {
+            // A client that went away is no error of the server's.
+            let _ = handle(stream, &tiles, &vendor);
+        });
+    }
     Ok(())
 }
 
-/// The response to a GET of `url`.
-fn answer(url: &str, tiles: &Path, vendor: &Path) -> Response<std::io::Cursor<Vec<u8>>> {
+/// Reads one request from `stream` and answers it, then closes.
+fn handle(mut stream: TcpStream, tiles: &Path, vendor: &Path) -> std::io::Result<()> {
+    stream.set_read_timeout(Some(Duration::from_secs(30)))?;
+    let mut head = BufReader::new((&stream).take(MAX_HEAD));
+    let mut request_line = String::new();
+    head.read_line(&mut request_line)?;
+    // The headers are not needed; read up to the blank line ending them.
+    let mut header = String::new();
+    while head.read_line(&mut header)? > 0 && !header.trim().is_empty() {
+        header.clear();
+    }
+    let mut words = request_line.split_whitespace();
+    let (method, url) = (words.next().unwrap_or_default(), words.next().unwrap_or_default());
+    let (status, kind, body) = match method {
+        "GET" | "HEAD" => answer(url, tiles, vendor),
+        _ => (405, "text/plain", b"only GET and HEAD".to_vec()),
+    };
+    let reason = match status {
+        200 => "OK",
+        404 => "Not Found",
+        _ => "Method Not Allowed",
+    };
+    write!(
+        stream,
+        "HTTP/1.1 {status} {reason}\r\nContent-Type: {kind}\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+        body.len()
+    )?;
+    if method != "HEAD" {
+        stream.write_all(&body)?;
+    }
+    stream.flush()
+}
+
+/// The status, content type and body answering a GET of `url`.
+fn answer(url: &str, tiles: &Path, vendor: &Path) -> (u16, &'static str, Vec<u8>) {
     let path = url.split(['?', '#']).next().unwrap_or_default();
     let found = match path {
         "/" | "/index.html" => Some((PAGE.as_bytes().to_vec(), "text/html; charset=utf-8")),
@@ -70,8 +104,8 @@ fn answer(url: &str, tiles: &Path, vendor: &Path) -> Response<std::io::Cursor<Ve
             .and_then(|file| Some((std::fs::read(&file).ok()?, content_type(&file)))),
     };
     match found {
-        Some((bytes, kind)) => Response::from_data(bytes).with_header(header("Content-Type", kind)),
-        None => Response::from_data(b"not found".to_vec()).with_status_code(404),
+        Some((bytes, kind)) => (200, kind, bytes),
+        None => (404, "text/plain", b"not found".to_vec()),
     }
 }
 
@@ -103,10 +137,6 @@ fn content_type(file: &Path) -> &'static str {
     }
 }
 
-fn header(name: &str, value: &str) -> Header {
-    Header::from_bytes(name.as_bytes(), value.as_bytes()).expect("ASCII header")
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -132,10 +162,10 @@ mod tests {
     #[test]
     fn the_page_and_missing_files_answer() {
         let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-        assert_eq!(answer("/", root, root).status_code().0, 200);
-        assert_eq!(answer("/?error=4", root, root).status_code().0, 200);
-        assert_eq!(answer("/tiles/Cargo.toml", root, root).status_code().0, 200);
-        assert_eq!(answer("/tiles/../Cargo.toml", root, root).status_code().0, 404);
-        assert_eq!(answer("/elsewhere", root, root).status_code().0, 404);
+        assert_eq!(answer("/", root, root).0, 200);
+        assert_eq!(answer("/?error=4", root, root).0, 200);
+        assert_eq!(answer("/tiles/Cargo.toml", root, root).0, 200);
+        assert_eq!(answer("/tiles/../Cargo.toml", root, root).0, 404);
+        assert_eq!(answer("/elsewhere", root, root).0, 404);
     }
 }
