@@ -47,7 +47,8 @@ pub(crate) fn write(
         leaf: written.leaves[id.index()],
         aabb: written.aabb(objects, id),
     };
-    let sizes: Vec<usize> = order.iter().map(|o| entry(o).encoded_len()).collect();
+    let sizes: Vec<usize> =
+        order.iter().map(|(key, id)| keys::entry_len(key, objects.payload(*id).len())).collect();
     if let Some(at) = sizes.iter().position(|&len| len > capacity) {
         return Err(StorageError::Invalid(format!(
             "the key {} with its payload takes {} bytes and a key block holds {capacity}: use larger blocks",

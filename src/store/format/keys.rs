@@ -46,7 +46,7 @@ pub struct KeyEntry {
 impl KeyEntry {
     /// Encoded bytes.
     pub fn encoded_len(&self) -> usize {
-        self.key.encoded_len() + 2 + self.payload.len() + FIXED_LEN
+        entry_len(&self.key, self.payload.len())
     }
 
     fn encode(&self, out: &mut Vec<u8>) {
@@ -246,6 +246,12 @@ pub fn decode(id: u32, block: &[u8], leaf: bool) -> Result<KeyBlock, StorageErro
 pub fn child_for<'a>(children: &'a [ChildRef], key: &Key) -> Option<&'a ChildRef> {
     let i = children[1..].partition_point(|c| c.first_key <= *key);
     children.get(i)
+}
+
+/// Bytes of an entry of key `key` and a payload of `payload_len` bytes,
+/// known before the entry is made.
+pub fn entry_len(key: &Key, payload_len: usize) -> usize {
+    key.encoded_len() + 2 + payload_len + FIXED_LEN
 }
 
 #[cfg(test)]
