@@ -247,6 +247,21 @@ pub(crate) fn partition_by(keys: &Keys<'_>, lists: &SixLists, first: &[u32]) -> 
     divide_marked(keys, lists, None)
 }
 
+/// True when `a` and `b`, parts of the node of objects `node`, hold the
+/// same objects.
+pub(crate) fn same_objects(keys: &Keys<'_>, node: &[u32], a: &[u32], b: &[u32]) -> bool {
+    if a.len() != b.len() {
+        return false;
+    }
+    for &j in node {
+        keys.side[j as usize].store(false, Relaxed);
+    }
+    for &j in a {
+        keys.side[j as usize].store(true, Relaxed);
+    }
+    b.iter().all(|&j| keys.side[j as usize].load(Relaxed))
+}
+
 /// The lists divided by the marks in `keys.side`; `cut` (order, Icut), when
 /// the marks come from one, divides its own list by position.
 fn divide_marked(keys: &Keys<'_>, lists: &SixLists, cut: Option<(usize, usize)>) -> (SixLists, SixLists) {

@@ -24,7 +24,10 @@
 //!
 //! The seven options are scored in parallel, and every score is a sum in an
 //! order fixed by the subtrees' sizes, so the tree is the same on any
-//! number of threads. A build costs 15 to 65 times `vsah`'s.
+//! number of threads. Options that divide the node alike (the two orders
+//! of an axis often pick the same cut, and a cut can match the `vsah`
+//! one) are scored once: a score depends only on the two sides' objects.
+//! A build costs 15 to 65 times `vsah`'s.
 //!
 //! Measured and not kept (README, "Build methods and bench-build"): a cost
 //! mixing several query sizes, page-aligned cuts as extra options for
@@ -34,7 +37,7 @@ use rayon::prelude::*;
 
 use super::Split;
 use super::cost::CostModel;
-use super::cut::{Keys, SixLists, candidates, partition, partition_by};
+use super::cut::{Keys, SixLists, candidates, partition, partition_by, same_objects};
 use super::driver::{Ctx, Splitter};
 use super::sah::{Heuristic, Sah};
 use super::walk::{Walk, walk};
@@ -57,9 +60,38 @@ impl<'a> Refine<'a> {
     }
 
     /// The expected cost of the `vsah` subtree of `set`, whose box is `aabb`.
-    fn score(&self, set: Vec<u32>, aabb: Aabb) -> f64 {
-        walk(&Trial { ctx: self.ctx, vsah: &self.vsah, model: &self.model }, (set, aabb), 0)
+    fn score(&self, set: &[u32], aabb: Aabb) -> f64 {
+        walk(&Trial { ctx: self.ctx, vsah: &self.vsah, model: &self.model }, (set.to_vec(), aabb), 0)
     }
+}
+
+/// For each of `options` (two parts of the node of objects `node`), the
+/// first earlier option with the same parts, in either order: its score is
+/// the same (a sum of two scores is the same either way round).
+fn repeats(keys: &Keys<'_>, node: &[u32], options: &[(&[u32], &[u32])]) -> Vec<Option<usize>> {
+    let digests: Vec<_> = options.iter().map(|(a, b)| (digest(a), digest(b))).collect();
+    (0..options.len())
+        .map(|o| {
+            let (a, _) = options[o];
+            (0..o).find(|&e| {
+                let (c, d) = options[e];
+                (digests[e].0 == digests[o].0 && same_objects(keys, node, c, a))
+                    || (digests[e].1 == digests[o].0 && same_objects(keys, node, d, a))
+            })
+        })
+        .collect()
+}
+
+/// A cheap digest of a set of objects, equal for equal sets in any order.
+fn digest(objects: &[u32]) -> (usize, u64) {
+    let mix = |j: u32| {
+        // The finaliser of SplitMix64.
+        let mut z = u64::from(j).wrapping_add(0x9e37_79b9_7f4a_7c15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    };
+    (objects.len(), objects.iter().fold(0u64, |h, &j| h.wrapping_add(mix(j))))
 }
 
 impl Splitter for Refine<'_> {
@@ -79,21 +111,27 @@ impl Splitter for Refine<'_> {
         let cands = candidates(self.keys, &set, ctx.rate, ctx.tie);
         let vsah = self.vsah.halves(set[0].clone(), aabb);
         // Option 0 is the vsah cut, options 1..=6 the candidates.
-        let mut options = vec![(vsah.left.clone(), vsah.right.clone())];
-        options.extend(cands.iter().map(|c| {
-            let list = &set[c.order];
-            (list[..=c.cut_index].to_vec(), list[c.cut_index + 1..].to_vec())
-        }));
+        let mut options: Vec<(&[u32], &[u32])> = vec![(&vsah.left, &vsah.right)];
+        options.extend(cands.iter().map(|c| set[c.order].split_at(c.cut_index + 1)));
+        let repeats = repeats(self.keys, &set[0], &options);
         let score = |o: usize| {
-            let (a, b) = &options[o];
+            if repeats[o].is_some() {
+                return f64::NAN;
+            }
+            let (a, b) = options[o];
             let [l, r] = if o == 0 { vsah.boxes } else { [ctx.aabb_of(a), ctx.aabb_of(b)] };
-            self.score(a.clone(), l) + self.score(b.clone(), r)
+            self.score(a, l) + self.score(b, r)
         };
-        let scores: Vec<f64> = if n >= PAR_OPTIONS_MIN {
+        let mut scores: Vec<f64> = if n >= PAR_OPTIONS_MIN {
             (0..options.len()).into_par_iter().map(score).collect()
         } else {
             (0..options.len()).map(score).collect()
         };
+        for o in 0..scores.len() {
+            if let Some(e) = repeats[o] {
+                scores[o] = scores[e];
+            }
+        }
         let best = (1..scores.len()).fold(0, |best, i| if scores[i] < scores[best] { i } else { best });
         match best.checked_sub(1) {
             None => {
@@ -147,5 +185,26 @@ impl Walk for Trial<'_> {
 
     fn splice(&self, out: &mut f64, _mark: (), left: f64, right: f64) {
         *out += left + right;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_option_repeats_the_first_with_the_same_parts_in_either_order() {
+        let boxes = vec![Aabb::from_array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0]); 6];
+        let ids: Vec<u32> = (0..6).collect();
+        let keys = Keys::new(&boxes, &ids);
+        let node = [0, 1, 2, 3, 4, 5];
+        let options: [(&[u32], &[u32]); 5] = [
+            (&[0, 1, 2], &[3, 4, 5]),
+            (&[2, 0, 1], &[5, 3, 4]), // the same parts, reordered
+            (&[0, 1, 3], &[2, 4, 5]), // as many objects, others
+            (&[4, 5, 3], &[1, 2, 0]), // option 0 mirrored
+            (&[0, 1], &[2, 3, 4, 5]),
+        ];
+        assert_eq!(repeats(&keys, &node, &options), [None, Some(0), None, Some(0), None]);
     }
 }

@@ -118,20 +118,31 @@ struct Plane {
 }
 
 /// The least cost of a plane of `bins` (planes with an empty side
-/// skipped), with the plane and its sides' boxes.
+/// skipped), with the plane and its sides' boxes. A plane after an empty
+/// bin divides as the plane before it does, at the same cost, and loses
+/// the tie: only planes after a filled bin are measured (a small node
+/// fills few of the bins).
 fn best_plane(bins: &Bins, parent: f64, measure: Measure) -> Option<(f64, usize, [Aabb; 2], usize)> {
     // n A of the right side of each plane, swept from the right.
     let mut right = [(None, Aabb::EMPTY); BINS - 1];
     let mut acc = (0usize, Aabb::EMPTY);
+    let mut area = None;
     for plane in (0..BINS - 1).rev() {
-        acc = (acc.0 + bins[plane + 1].0, acc.1.union(&bins[plane + 1].1));
-        right[plane] = ((acc.0 > 0).then(|| acc.0 as f64 * measure.of(&acc.1)), acc.1);
+        let bin = &bins[plane + 1];
+        if bin.0 > 0 {
+            acc = (acc.0 + bin.0, acc.1.union(&bin.1));
+            area = Some(acc.0 as f64 * measure.of(&acc.1));
+        }
+        right[plane] = (area, acc.1);
     }
     let mut acc = (0usize, Aabb::EMPTY);
     let mut best: Option<(f64, usize, [Aabb; 2], usize)> = None;
     for (plane, (right, right_box)) in right.iter().enumerate() {
+        if bins[plane].0 == 0 {
+            continue;
+        }
         acc = (acc.0 + bins[plane].0, acc.1.union(&bins[plane].1));
-        let Some(right) = right.filter(|_| acc.0 > 0) else { continue };
+        let Some(right) = *right else { continue };
         let cost = TRAVERSAL_COST + (acc.0 as f64 * measure.of(&acc.1) + right) / parent;
         if best.is_none_or(|b| cost < b.0) {
             best = Some((cost, plane, [acc.1, *right_box], acc.0));
@@ -234,5 +245,49 @@ impl Splitter for Sah<'_> {
         let h = self.halves(set, aabb);
         let split = h.split(self.ctx);
         (h.left, h.right, split)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Every plane measured, the first of least cost kept: what
+    /// [`best_plane`] must choose.
+    fn every_plane(bins: &Bins, parent: f64, measure: Measure) -> Option<(f64, usize, [Aabb; 2], usize)> {
+        let mut best: Option<(f64, usize, [Aabb; 2], usize)> = None;
+        for plane in 0..BINS - 1 {
+            let side = |range: std::ops::Range<usize>| {
+                bins[range].iter().fold((0, Aabb::EMPTY), |(n, b), (m, c)| (n + m, b.union(c)))
+            };
+            let ((nl, l), (nr, r)) = (side(0..plane + 1), side(plane + 1..BINS));
+            if nl == 0 || nr == 0 {
+                continue;
+            }
+            let cost = TRAVERSAL_COST + (nl as f64 * measure.of(&l) + nr as f64 * measure.of(&r)) / parent;
+            if best.is_none_or(|b| cost < b.0) {
+                best = Some((cost, plane, [l, r], nl));
+            }
+        }
+        best
+    }
+
+    proptest! {
+        #[test]
+        fn only_planes_after_filled_bins_are_measured_and_the_choice_is_the_same(
+            filled in prop::collection::vec((0usize..BINS, 1usize..5, prop::array::uniform6(0.0f64..100.0)), 0..12),
+            volume in any::<bool>(),
+        ) {
+            let mut bins: Bins = [(0, Aabb::EMPTY); BINS];
+            for (i, n, c) in filled {
+                let b = Aabb::from_array([c[0].min(c[3]), c[1].min(c[4]), c[2].min(c[5]), c[0].max(c[3]), c[1].max(c[4]), c[2].max(c[5])]);
+                bins[i] = (bins[i].0 + n, bins[i].1.union(&b));
+            }
+            let measure = if volume { Measure::Volume([true; 3]) } else { Measure::Area };
+            let fast = best_plane(&bins, 1e6, measure);
+            let slow = every_plane(&bins, 1e6, measure);
+            prop_assert_eq!(fast.map(|b| (b.0.to_bits(), b.1, b.2, b.3)), slow.map(|b| (b.0.to_bits(), b.1, b.2, b.3)));
+        }
     }
 }

@@ -44,11 +44,6 @@ pub struct KeyEntry {
 }
 
 impl KeyEntry {
-    /// Encoded bytes.
-    pub fn encoded_len(&self) -> usize {
-        entry_len(&self.key, self.payload.len())
-    }
-
     fn encode(&self, out: &mut Vec<u8>) {
         self.key.encode(out);
         out.extend_from_slice(&(self.payload.len() as u16).to_le_bytes());
@@ -304,7 +299,7 @@ mod tests {
         assert!(broken(&|b| b[1000] = 1), "a byte past the entries");
         assert!(broken(&|b| b[ENTRIES_START] = 7), "an unknown key tag");
         // The second key made equal to the first.
-        let second = ENTRIES_START + entries[0].encoded_len();
+        let second = ENTRIES_START + entry_len(&entries[0].key, entries[0].payload.len());
         assert!(broken(&|b| b[second + 8] = 0), "keys that do not increase");
         assert!(broken(&|b| b[ENTRIES_START + 10] = 0xff), "a payload longer than allowed");
         assert!(!broken(&|_| {}));
