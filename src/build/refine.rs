@@ -39,7 +39,7 @@ use super::Split;
 use super::cost::CostModel;
 use super::cut::{Keys, SixLists, candidates, partition, partition_by, same_objects};
 use super::driver::{Ctx, Splitter};
-use super::sah::{Heuristic, Sah};
+use super::sah::{Heuristic, Sah, Spread};
 use super::walk::{Walk, walk};
 use crate::geom::Aabb;
 
@@ -59,9 +59,10 @@ impl<'a> Refine<'a> {
         Refine { ctx, keys, vsah: Sah::new(ctx, Heuristic::Volume), model }
     }
 
-    /// The expected cost of the `vsah` subtree of `set`, whose box is `aabb`.
-    fn score(&self, set: &[u32], aabb: Aabb) -> f64 {
-        walk(&Trial { ctx: self.ctx, vsah: &self.vsah, model: &self.model }, (set.to_vec(), aabb), 0)
+    /// The expected cost of the `vsah` subtree of `set`, whose box is
+    /// `aabb` and centroid spread `spread`.
+    fn score(&self, set: &[u32], aabb: Aabb, spread: Spread) -> f64 {
+        walk(&Trial { ctx: self.ctx, vsah: &self.vsah, model: &self.model }, (set.to_vec(), aabb, spread), 0)
     }
 }
 
@@ -119,8 +120,12 @@ impl Splitter for Refine<'_> {
                 return f64::NAN;
             }
             let (a, b) = options[o];
-            let [l, r] = if o == 0 { vsah.boxes } else { [ctx.aabb_of(a), ctx.aabb_of(b)] };
-            self.score(a, l) + self.score(b, r)
+            let ([l, r], [sl, sr]) = if o == 0 {
+                (vsah.boxes, vsah.spreads)
+            } else {
+                ([ctx.aabb_of(a), ctx.aabb_of(b)], [Spread::of(ctx.boxes, a), Spread::of(ctx.boxes, b)])
+            };
+            self.score(a, l, sl) + self.score(b, r, sr)
         };
         let mut scores: Vec<f64> = if n >= PAR_OPTIONS_MIN {
             (0..options.len()).into_par_iter().map(score).collect()
@@ -153,8 +158,8 @@ struct Trial<'a> {
     model: &'a CostModel,
 }
 
-/// A trial node: its objects and their box.
-type TrialSet = (Vec<u32>, Aabb);
+/// A trial node: its objects, their box and their centroids' spread.
+type TrialSet = (Vec<u32>, Aabb, Spread);
 
 impl Walk for Trial<'_> {
     type Set = TrialSet;
@@ -169,16 +174,21 @@ impl Walk for Trial<'_> {
         0.0
     }
 
-    fn visit(&self, (set, aabb): TrialSet, _depth: u32, out: &mut f64) -> Option<(TrialSet, TrialSet, ())> {
+    fn visit(
+        &self,
+        (set, aabb, spread): TrialSet,
+        _depth: u32,
+        out: &mut f64,
+    ) -> Option<(TrialSet, TrialSet, ())> {
         let leaf = self.ctx.leaf.fits(&set);
         *out += self.model.node_cost(&aabb, leaf);
         if leaf {
             return None;
         }
         self.ctx.meter.worked(set.len());
-        let h = self.vsah.halves(set, &aabb);
-        let [l, r] = h.boxes;
-        Some(((h.left, l), (h.right, r), ()))
+        let h = self.vsah.halves_within(set, &aabb, &spread);
+        let ([l, r], [sl, sr]) = (h.boxes, h.spreads);
+        Some(((h.left, l, sl), (h.right, r, sr), ()))
     }
 
     fn right_begins(&self, _out: &mut f64, _mark: ()) {}

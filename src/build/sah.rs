@@ -99,8 +99,41 @@ impl Binning {
 
     /// The bin of box `b`'s centroid (the last bin takes the upper end).
     fn bin(&self, b: &Aabb) -> usize {
-        // `as` saturates, and the ratio is in [0, BINS].
-        (((centroid(b, self.axis) - self.low) * self.scale) as usize).min(BINS - 1)
+        self.bin_at(centroid(b, self.axis))
+    }
+
+    /// The bin of centroid coordinate `c`.
+    fn bin_at(&self, c: f64) -> usize {
+        // `as` saturates, and the ratio is in [0, BINS]; to i32, it takes
+        // fewer instructions than to usize.
+        (((c - self.low) * self.scale) as i32).clamp(0, BINS as i32 - 1) as usize
+    }
+}
+
+/// The least and greatest centroid coordinates of a set of boxes, per axis:
+/// where [`Sah::plane`] places its bins.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Spread {
+    low: [f64; 3],
+    high: [f64; 3],
+}
+
+impl Spread {
+    const EMPTY: Spread = Spread { low: [f64::INFINITY; 3], high: [f64::NEG_INFINITY; 3] };
+
+    /// The spread of the boxes of objects `set`.
+    pub(crate) fn of(boxes: &[Aabb], set: &[u32]) -> Spread {
+        let mut s = Spread::EMPTY;
+        for &j in set {
+            s.add(&centroids(&boxes[j as usize]));
+        }
+        s
+    }
+
+    fn add(&mut self, c: &[f64; 3]) {
+        for axis in 0..3 {
+            (self.low[axis], self.high[axis]) = (self.low[axis].min(c[axis]), self.high[axis].max(c[axis]));
+        }
     }
 }
 
@@ -153,22 +186,15 @@ fn best_plane(bins: &Bins, parent: f64, measure: Measure) -> Option<(f64, usize,
 
 impl Sah<'_> {
     /// The plane of least cost over all three axes (the first axis and
-    /// plane on ties); none when all centroids coincide. Two passes over
-    /// the objects: the centroids' range, then every axis's bins.
-    fn plane(&self, set: &[u32], aabb: &Aabb) -> Option<Plane> {
+    /// plane on ties); none when all centroids coincide. One pass over the
+    /// objects, binning on every axis within `spread`, the set's.
+    fn plane(&self, set: &[u32], aabb: &Aabb, spread: &Spread) -> Option<Plane> {
         let boxes = self.ctx.boxes;
         let measure = Measure::of_node(self.heuristic, aabb);
         // Not zero: some centroids differ whenever a plane is tried below.
         let parent = measure.of(aabb);
-        let (mut low, mut high) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-        for &j in set {
-            let b = &boxes[j as usize];
-            for axis in 0..3 {
-                let c = centroid(b, axis);
-                (low[axis], high[axis]) = (low[axis].min(c), high[axis].max(c));
-            }
-        }
-        let binnings: [Option<Binning>; 3] = std::array::from_fn(|a| Binning::new(a, low[a], high[a]));
+        let binnings: [Option<Binning>; 3] =
+            std::array::from_fn(|a| Binning::new(a, spread.low[a], spread.high[a]));
         let mut bins = [[(0usize, Aabb::EMPTY); BINS]; 3];
         for &j in set {
             let b = &boxes[j as usize];
@@ -194,17 +220,29 @@ impl Sah<'_> {
     /// `set` divided by the heuristic, with both sides' boxes and, for a
     /// plane, its axis (a node whose centroids coincide gets a median cut).
     pub(crate) fn halves(&self, set: Vec<u32>, aabb: &Aabb) -> Halves {
-        let Some(p) = self.plane(&set, aabb) else {
+        let spread = Spread::of(self.ctx.boxes, &set);
+        self.halves_within(set, aabb, &spread)
+    }
+
+    /// [`Sah::halves`] of a set whose [`Spread`] is known; the halves come
+    /// with theirs, found as they are divided.
+    pub(crate) fn halves_within(&self, set: Vec<u32>, aabb: &Aabb, spread: &Spread) -> Halves {
+        let boxes = self.ctx.boxes;
+        let Some(p) = self.plane(&set, aabb, spread) else {
             let (left, right, split) = self.median.split(set, aabb);
             let boxes = [self.ctx.aabb_of(&left), self.ctx.aabb_of(&right)];
-            return Halves { left, right, boxes, plane: None, median: Some(split) };
+            let spreads = [Spread::of(self.ctx.boxes, &left), Spread::of(self.ctx.boxes, &right)];
+            return Halves { left, right, boxes, spreads, plane: None, median: Some(split) };
         };
-        let boxes = self.ctx.boxes;
         let (mut left, mut right) = (Vec::with_capacity(p.left), Vec::with_capacity(set.len() - p.left));
+        let mut spreads = [Spread::EMPTY; 2];
         for j in set {
-            if p.binning.bin(&boxes[j as usize]) <= p.plane { left.push(j) } else { right.push(j) }
+            let c = centroids(&boxes[j as usize]);
+            let side = usize::from(p.binning.bin_at(c[p.binning.axis]) > p.plane);
+            spreads[side].add(&c);
+            if side == 0 { left.push(j) } else { right.push(j) }
         }
-        Halves { left, right, boxes: p.boxes, plane: Axis::from_index(p.binning.axis), median: None }
+        Halves { left, right, boxes: p.boxes, spreads, plane: Axis::from_index(p.binning.axis), median: None }
     }
 }
 
@@ -213,6 +251,8 @@ pub(crate) struct Halves {
     pub(crate) left: Vec<u32>,
     pub(crate) right: Vec<u32>,
     pub(crate) boxes: [Aabb; 2],
+    /// The sides' centroid spreads.
+    pub(crate) spreads: [Spread; 2],
     /// The axis of the plane that divided it.
     plane: Option<Axis>,
     /// The median cut's record, when the centroids coincided.
@@ -232,6 +272,11 @@ impl Halves {
 /// The centre of `b` on `axis`.
 fn centroid(b: &Aabb, axis: usize) -> f64 {
     0.5 * (b.min[axis] + b.max[axis])
+}
+
+/// The centre of `b`.
+fn centroids(b: &Aabb) -> [f64; 3] {
+    std::array::from_fn(|axis| centroid(b, axis))
 }
 
 impl Splitter for Sah<'_> {
