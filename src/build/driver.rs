@@ -129,7 +129,7 @@ fn grow_all(
             let lists = keys.sorted_lists();
             match (params.method, local.model) {
                 (Method::Laa, _) => grow(&ctx, &Laa::new(&ctx, &keys, params.look_ahead), lists),
-                (Method::Refine, Some(model)) => grow(&ctx, &Refine::new(&ctx, &keys, model), lists),
+                (Method::Refine, Some(model)) => grow(&ctx, &Refine::new(&ctx, &keys, model), (lists, None)),
                 _ => grow(&ctx, &Moa::new(&ctx, &keys), lists),
             }
         }

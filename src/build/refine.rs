@@ -61,10 +61,24 @@ impl<'a> Refine<'a> {
 
     /// The expected cost of the `vsah` subtree of `set`, whose box is
     /// `aabb` and centroid spread `spread`.
-    fn score(&self, set: &[u32], aabb: Aabb, spread: Spread) -> f64 {
+    fn score(&self, set: &[u32], aabb: Aabb, spread: Spread) -> TrialOut {
         walk(&Trial { ctx: self.ctx, vsah: &self.vsah, model: &self.model }, (set.to_vec(), aabb, spread), 0)
     }
 }
+
+/// What a trial learnt of a node it grew, for the node's own refinement:
+/// the score of its `vsah` option (the sum of its `vsah` halves' trials,
+/// as [`Refine::split`] would add them, bit for bit), and the same of those
+/// halves. Known only where the trial walked the halves apart, as `walk`
+/// does for halves of at least `PAR_MIN` objects each, so that each half's
+/// trial is a sum of its own.
+pub(crate) struct Known {
+    vsah_score: f64,
+    halves: [Option<Box<Known>>; 2],
+}
+
+/// A node being refined: its lists, and what its parent's trial learnt of it.
+pub(crate) type Pending = (SixLists, Option<Box<Known>>);
 
 /// For each of `options` (two parts of the node of objects `node`), the
 /// first earlier option with the same parts, in either order: its score is
@@ -96,17 +110,17 @@ fn digest(objects: &[u32]) -> (usize, u64) {
 }
 
 impl Splitter for Refine<'_> {
-    type Set = SixLists;
+    type Set = Pending;
 
-    fn objects<'s>(&self, set: &'s SixLists) -> &'s [u32] {
-        &set[0]
+    fn objects<'s>(&self, set: &'s Pending) -> &'s [u32] {
+        &set.0[0]
     }
 
-    fn aabb(&self, _ctx: &Ctx<'_>, set: &SixLists) -> Aabb {
-        self.keys.aabb(set)
+    fn aabb(&self, _ctx: &Ctx<'_>, set: &Pending) -> Aabb {
+        self.keys.aabb(&set.0)
     }
 
-    fn split(&self, set: SixLists, aabb: &Aabb) -> (SixLists, SixLists, Split) {
+    fn split(&self, (set, known): Pending, aabb: &Aabb) -> (Pending, Pending, Split) {
         let ctx = self.ctx;
         let n = set[0].len();
         let cands = candidates(self.keys, &set, ctx.rate, ctx.tie);
@@ -115,9 +129,14 @@ impl Splitter for Refine<'_> {
         let mut options: Vec<(&[u32], &[u32])> = vec![(&vsah.left, &vsah.right)];
         options.extend(cands.iter().map(|c| set[c.order].split_at(c.cut_index + 1)));
         let repeats = repeats(self.keys, &set[0], &options);
-        let score = |o: usize| {
+        // Each option's score and its sides' trials; none for a repeat, or
+        // for the vsah option when the parent's trial already scored it.
+        let score = |o: usize| -> (f64, Option<[TrialOut; 2]>) {
             if repeats[o].is_some() {
-                return f64::NAN;
+                return (f64::NAN, None);
+            }
+            if let (0, Some(k)) = (o, &known) {
+                return (k.vsah_score, None);
             }
             let (a, b) = options[o];
             let ([l, r], [sl, sr]) = if o == 0 {
@@ -125,27 +144,34 @@ impl Splitter for Refine<'_> {
             } else {
                 ([ctx.aabb_of(a), ctx.aabb_of(b)], [Spread::of(ctx.boxes, a), Spread::of(ctx.boxes, b)])
             };
-            self.score(a, l, sl) + self.score(b, r, sr)
+            let (a, b) = (self.score(a, l, sl), self.score(b, r, sr));
+            (a.total + b.total, Some([a, b]))
         };
-        let mut scores: Vec<f64> = if n >= PAR_OPTIONS_MIN {
+        let mut scored: Vec<(f64, Option<[TrialOut; 2]>)> = if n >= PAR_OPTIONS_MIN {
             (0..options.len()).into_par_iter().map(score).collect()
         } else {
             (0..options.len()).map(score).collect()
         };
+        let mut scores: Vec<f64> = scored.iter().map(|s| s.0).collect();
         for o in 0..scores.len() {
             if let Some(e) = repeats[o] {
                 scores[o] = scores[e];
             }
         }
+        // A repeat ties the option it repeats, and so never wins.
         let best = (1..scores.len()).fold(0, |best, i| if scores[i] < scores[best] { i } else { best });
+        let [kl, kr] = match (best, known) {
+            (0, Some(k)) => k.halves,
+            _ => scored.swap_remove(best).1.map_or([None, None], |sides| sides.map(|s| s.known)),
+        };
         match best.checked_sub(1) {
             None => {
                 let (left, right) = partition_by(self.keys, &set, &vsah.left);
-                (left, right, vsah.split(ctx))
+                ((left, kl), (right, kr), vsah.split(ctx))
             }
             Some(c) => {
                 let (left, right) = partition(self.keys, &set, &cands[c]);
-                (left, right, cands[c].split())
+                ((left, kl), (right, kr), cands[c].split())
             }
         }
     }
@@ -161,46 +187,114 @@ struct Trial<'a> {
 /// A trial node: its objects, their box and their centroids' spread.
 type TrialSet = (Vec<u32>, Aabb, Spread);
 
+/// What one call of `walk` on a trial gives.
+struct TrialOut {
+    /// The expected cost of the subtree.
+    total: f64,
+    /// The walk has visited its first node, the subtree's root.
+    begun: bool,
+    /// What the walk learnt of the root ([`Known`]).
+    known: Option<Box<Known>>,
+}
+
 impl Walk for Trial<'_> {
     type Set = TrialSet;
-    type Out = f64;
-    type Mark = ();
+    type Out = TrialOut;
+    /// The node is the root of the walk's subtree.
+    type Mark = bool;
 
     fn len(&self, set: &TrialSet) -> usize {
         set.0.len()
     }
 
-    fn start(&self) -> f64 {
-        0.0
+    fn start(&self) -> TrialOut {
+        TrialOut { total: 0.0, begun: false, known: None }
     }
 
     fn visit(
         &self,
         (set, aabb, spread): TrialSet,
         _depth: u32,
-        out: &mut f64,
-    ) -> Option<(TrialSet, TrialSet, ())> {
+        out: &mut TrialOut,
+    ) -> Option<(TrialSet, TrialSet, bool)> {
+        let root = !out.begun;
+        out.begun = true;
         let leaf = self.ctx.leaf.fits(&set);
-        *out += self.model.node_cost(&aabb, leaf);
+        out.total += self.model.node_cost(&aabb, leaf);
         if leaf {
             return None;
         }
         self.ctx.meter.worked(set.len());
         let h = self.vsah.halves_within(set, &aabb, &spread);
         let ([l, r], [sl, sr]) = (h.boxes, h.spreads);
-        Some(((h.left, l, sl), (h.right, r, sr), ()))
+        Some(((h.left, l, sl), (h.right, r, sr), root))
     }
 
-    fn right_begins(&self, _out: &mut f64, _mark: ()) {}
+    fn right_begins(&self, _out: &mut TrialOut, _root: bool) {}
 
-    fn splice(&self, out: &mut f64, _mark: (), left: f64, right: f64) {
-        *out += left + right;
+    fn splice(&self, out: &mut TrialOut, root: bool, left: TrialOut, right: TrialOut) {
+        let halves = left.total + right.total;
+        out.total += halves;
+        if root {
+            out.known = Some(Box::new(Known { vsah_score: halves, halves: [left.known, right.known] }));
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::build::TieBreak;
+    use crate::build::leaf::Leaf;
+    use crate::build::progress::Meter;
+    use crate::build::walk::PAR_MIN;
+
+    #[test]
+    fn what_a_trial_learns_of_a_node_is_its_vsah_score_bit_for_bit() {
+        // A grid of small boxes jittered by a fixed hash: big enough that the
+        // trial walks the root's halves, and their halves, apart.
+        let n = 6 * PAR_MIN;
+        let boxes: Vec<Aabb> = (0..n)
+            .map(|i| {
+                let h = digest(&[i as u32]).1;
+                let (x, y, z) = ((i % 40) as f64, (i / 40 % 40) as f64, (i / 1600) as f64);
+                let d = (h % 1000) as f64 / 2000.0;
+                Aabb::from_array([x + d, y, z + d, x + d + 0.7, y + 0.3 + d, z + 0.9])
+            })
+            .collect();
+        let ids: Vec<u32> = (0..n as u32).collect();
+        let ctx = Ctx {
+            boxes: &boxes,
+            ids: &ids,
+            leaf: Leaf::Objects(4),
+            rate: 0.2,
+            tie: TieBreak::FirstFound,
+            meter: Meter::new(&|_| {}, n, 0.0),
+        };
+        let keys = Keys::new(&boxes, &ids);
+        let refine = Refine::new(&ctx, &keys, CostModel::of_boxes(&boxes, crate::build::QueryExtent::Auto));
+        let fresh = |set: &[u32], aabb: &Aabb| {
+            let h = refine.vsah.halves(set.to_vec(), aabb);
+            let [l, r] = h.boxes;
+            let [sl, sr] = h.spreads;
+            (refine.score(&h.left, l, sl).total + refine.score(&h.right, r, sr).total, h)
+        };
+        let all: Vec<u32> = ids.clone();
+        let aabb = ctx.aabb_of(&all);
+        let trial = refine.score(&all, aabb, Spread::of(&boxes, &all));
+        let known = trial.known.expect("the root's halves are walked apart");
+        let (score, h) = fresh(&all, &aabb);
+        assert_eq!(known.vsah_score.to_bits(), score.to_bits());
+        let mut checked = 0;
+        for (side, k) in [(&h.left, &known.halves[0]), (&h.right, &known.halves[1])] {
+            if let Some(k) = k {
+                let (score, _) = fresh(side, &ctx.aabb_of(side));
+                assert_eq!(k.vsah_score.to_bits(), score.to_bits());
+                checked += 1;
+            }
+        }
+        assert!(checked > 0, "no half was walked apart");
+    }
 
     #[test]
     fn an_option_repeats_the_first_with_the_same_parts_in_either_order() {

@@ -131,8 +131,8 @@ impl Spread {
     }
 
     fn add(&mut self, c: &[f64; 3]) {
-        for axis in 0..3 {
-            (self.low[axis], self.high[axis]) = (self.low[axis].min(c[axis]), self.high[axis].max(c[axis]));
+        for ((low, high), &c) in self.low.iter_mut().zip(&mut self.high).zip(c) {
+            (*low, *high) = (low.min(c), high.max(c));
         }
     }
 }

@@ -22,6 +22,10 @@ pub fn dequantize(lo: f64, hi: f64, q: u16) -> f64 {
 
 /// The largest q with `dequantize(q) <= v` (0 when v is below the axis).
 fn floor_q(lo: f64, hi: f64, v: f64) -> u16 {
+    // A flat axis: every step is `lo` (the search below would walk them all).
+    if hi == lo {
+        return if v >= lo { STEPS } else { 0 };
+    }
     let guess = if hi > lo { ((v - lo) / (hi - lo) * f64::from(STEPS)).floor() } else { 0.0 };
     let mut q = guess.clamp(0.0, f64::from(STEPS)) as u16;
     while q > 0 && dequantize(lo, hi, q) > v {
@@ -141,6 +145,14 @@ mod tests {
         #[test]
         fn dequantize_is_monotone(lo in -1.0e9f64..1.0e9, w in 0.0f64..1.0e9, q in 0u16..STEPS) {
             prop_assert!(dequantize(lo, lo + w, q) <= dequantize(lo, lo + w, q + 1));
+        }
+    }
+
+    #[test]
+    fn floor_q_on_a_flat_axis_is_the_largest_step_at_or_below() {
+        let largest = |lo: f64, v: f64| (0..=STEPS).rev().find(|&q| dequantize(lo, lo, q) <= v).unwrap_or(0);
+        for (lo, v) in [(5.0, 5.0), (5.0, 4.0), (5.0, 6.0), (-0.0, 0.0), (0.0, -1e-300)] {
+            assert_eq!(floor_q(lo, lo, v), largest(lo, v), "lo {lo}, v {v}");
         }
     }
 
