@@ -28,6 +28,15 @@ use crate::store::format::node::{self, Limits};
 use crate::store::format::quant::QuantBox;
 use crate::store::format::{frame, geometry, keys, run};
 
+/// Makes the calling thread rayon's one worker, for a fuzz target's
+/// process (its `init`): the bodies' parallel work (a write's layout and
+/// levels of detail) then runs where it is called, with no hand-off to a
+/// pool and no idle workers spinning beside the fuzzer. Answers do not
+/// depend on the number of threads. A pool already built stays as it is.
+pub fn one_thread() {
+    let _ = rayon::ThreadPoolBuilder::new().num_threads(1).use_current_thread().build_global();
+}
+
 /// Decodes one block of arbitrary bytes as every block type, and the bytes
 /// after the first as every blob kind. The first byte chooses M (1..=16);
 /// the rest, padded or cut to 1,024 bytes, is the block.
