@@ -27,7 +27,6 @@
 //! number of threads. Options that divide the node alike (the two orders
 //! of an axis often pick the same cut, and a cut can match the `vsah`
 //! one) are scored once: a score depends only on the two sides' objects.
-//! A build costs 15 to 65 times `vsah`'s.
 //!
 //! Measured and not kept (README, "Build methods and bench-build"): a cost
 //! mixing several query sizes, page-aligned cuts as extra options for
@@ -42,6 +41,7 @@ use super::driver::{Ctx, Splitter};
 use super::sah::{Heuristic, Sah, Spread};
 use super::walk::{Walk, walk};
 use crate::geom::Aabb;
+use crate::rng::Rng;
 
 /// Below this many objects a node's options are scored on one thread.
 const PAR_OPTIONS_MIN: usize = 512;
@@ -99,13 +99,8 @@ fn repeats(keys: &Keys<'_>, node: &[u32], options: &[(&[u32], &[u32])]) -> Vec<O
 
 /// A cheap digest of a set of objects, equal for equal sets in any order.
 fn digest(objects: &[u32]) -> (usize, u64) {
-    let mix = |j: u32| {
-        // The finaliser of SplitMix64.
-        let mut z = u64::from(j).wrapping_add(0x9e37_79b9_7f4a_7c15);
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    };
+    // Each object's first SplitMix64 output, summed: order does not count.
+    let mix = |j: u32| Rng::new(u64::from(j)).next_u64();
     (objects.len(), objects.iter().fold(0u64, |h, &j| h.wrapping_add(mix(j))))
 }
 
