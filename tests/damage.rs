@@ -248,3 +248,53 @@ fn every_lost_write_of_the_last_commit_is_caught_or_harmless() {
     }
     assert!(lost > 0);
 }
+
+/// A damaged slot copy on a device another process may write is read again
+/// (it may be a write in progress); on one whose writes are atomic it is
+/// read once, so opening a damaged in-memory image does not pause.
+#[test]
+fn a_damaged_slot_copy_is_read_again_only_where_a_write_may_be_in_progress() {
+    struct Header {
+        bytes: MemDevice,
+        atomic: bool,
+        header_reads: std::sync::atomic::AtomicUsize,
+    }
+    impl BlockDevice for Header {
+        fn read_at(&self, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {
+            if offset == 0 {
+                self.header_reads.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            }
+            self.bytes.read_at(offset, buf)
+        }
+        fn write_at(&self, offset: u64, data: &[u8]) -> std::io::Result<()> {
+            self.bytes.write_at(offset, data)
+        }
+        fn sync(&self) -> std::io::Result<()> {
+            Ok(())
+        }
+        fn len(&self) -> std::io::Result<u64> {
+            self.bytes.len()
+        }
+        fn set_len(&self, len: u64) -> std::io::Result<()> {
+            self.bytes.set_len(len)
+        }
+        fn writes_are_atomic(&self) -> bool {
+            self.atomic
+        }
+    }
+    let [.., image] = images(1.0, 0);
+    let mut damaged = image;
+    damaged[slot_offset(0, 1)] ^= 1;
+    let mut reads = Vec::new();
+    for atomic in [true, false] {
+        let dev = Arc::new(Header {
+            bytes: MemDevice::from_bytes(damaged.clone()),
+            atomic,
+            header_reads: Default::default(),
+        });
+        let db = Database::open_on(dev.clone() as Arc<dyn BlockDevice>).unwrap();
+        assert_eq!(db.warnings(), &[Warning::DamagedSlotCopy { slot: 0, copy: 1 }]);
+        reads.push(dev.header_reads.load(std::sync::atomic::Ordering::Relaxed));
+    }
+    assert!(reads[0] >= 1 && reads[1] == reads[0] + 2, "header reads: {reads:?}");
+}

@@ -587,15 +587,16 @@ fn initialize(device: &dyn BlockDevice, options: CreateOptions) -> Result<(), St
 
 /// Reads both copies of both slots. A copy failing its checksum may be one a
 /// writer in another process is writing right now: it is read again before
-/// it counts as damaged.
+/// it counts as damaged, unless the device's writes are atomic.
 fn read_slots(pager: &Pager) -> Result<[SlotPair; 2], StorageError> {
     let mut prefix = vec![0u8; PREFIX_LEN];
-    let mut tries = 0;
+    let tries = if pager.device().writes_are_atomic() { 1 } else { 3 };
+    let mut tried = 0;
     loop {
         pager.device().read_at(0, &mut prefix)?;
         let slots = header::decode_slots(&prefix);
-        tries += 1;
-        if tries == 3 || slots.iter().all(|p| p.invalid_copies().next().is_none()) {
+        tried += 1;
+        if tried == tries || slots.iter().all(|p| p.invalid_copies().next().is_none()) {
             return Ok(slots);
         }
         std::thread::sleep(std::time::Duration::from_millis(2));

@@ -103,6 +103,10 @@ impl BlockDevice for SnapshotDevice {
     fn set_len(&self, _: u64) -> io::Result<()> {
         Err(read_only())
     }
+    /// A read transaction's snapshot never changes.
+    fn writes_are_atomic(&self) -> bool {
+        true
+    }
 }
 
 /// What the device asks of the thread holding a write transaction's table.

@@ -96,4 +96,7 @@ impl<D: BlockDevice> BlockDevice for CountingDevice<D> {
     fn set_len(&self, len: u64) -> io::Result<()> {
         self.inner.set_len(len)
     }
+    fn writes_are_atomic(&self) -> bool {
+        self.inner.writes_are_atomic()
+    }
 }

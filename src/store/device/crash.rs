@@ -143,4 +143,7 @@ impl BlockDevice for CrashDevice {
         s.durable.resize(len as usize, 0);
         Ok(())
     }
+    fn writes_are_atomic(&self) -> bool {
+        true
+    }
 }

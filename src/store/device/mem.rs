@@ -62,4 +62,7 @@ impl BlockDevice for MemDevice {
         self.data.write().unwrap_or_else(|e| e.into_inner()).resize(len, 0);
         Ok(())
     }
+    fn writes_are_atomic(&self) -> bool {
+        true
+    }
 }

@@ -40,6 +40,13 @@ pub trait BlockDevice: Send + Sync {
     fn is_empty(&self) -> io::Result<bool> {
         Ok(self.len()? == 0)
     }
+    /// True when no reader can see part of a write: the device lives in one
+    /// process and writes under a lock. A header slot failing its checksum is
+    /// then damage, never a write in progress, and is not read again after a
+    /// pause. A file another process may write to says false.
+    fn writes_are_atomic(&self) -> bool {
+        false
+    }
 }
 
 impl<D: BlockDevice + ?Sized> BlockDevice for std::sync::Arc<D> {
@@ -57,5 +64,8 @@ impl<D: BlockDevice + ?Sized> BlockDevice for std::sync::Arc<D> {
     }
     fn set_len(&self, len: u64) -> io::Result<()> {
         (**self).set_len(len)
+    }
+    fn writes_are_atomic(&self) -> bool {
+        (**self).writes_are_atomic()
     }
 }
