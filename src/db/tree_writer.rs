@@ -269,14 +269,23 @@ impl Plan {
     fn choose(&self, tree: &Hierarchy, sizes: &[usize], capacity: usize) -> (Packing, Vec<u32>) {
         let children = |i: usize| tree.nodes[i].children().map(|c| c.map(|x| x.index()));
         let total: usize = sizes.iter().sum();
-        let tried: Vec<(Packing, Vec<u32>)> = PIECE_SHARES
+        let packings: Vec<Packing> = PIECE_SHARES
             .par_iter()
-            .map(|share| {
-                let p = layout::pack(sizes, children, capacity, (capacity as f64 * share) as usize);
-                let reads = block_reads(tree, &p, &self.samples);
-                (p, reads)
+            .map(|share| layout::pack(sizes, children, capacity, (capacity as f64 * share) as usize))
+            .collect();
+        // Piece sizes often pack a small tree alike: each distinct packing is measured once.
+        let first: Vec<usize> = (0..packings.len())
+            .map(|k| packings.iter().position(|p| *p == packings[k]).unwrap_or(k))
+            .collect();
+        let measured: Vec<Vec<u32>> = (0..packings.len())
+            .into_par_iter()
+            .map(|k| match first[k] == k {
+                true => BlockWalk::new(tree, &packings[k]).reads_per_block(&self.samples),
+                false => Vec::new(),
             })
             .collect();
+        let tried: Vec<(Packing, Vec<u32>)> =
+            packings.into_iter().zip(&first).map(|(p, &f)| (p, measured[f].clone())).collect();
         // Blocks at least MIN_FILL full on average when some packing makes
         // them so (fewer blocks, a smaller file), then the fewest reads.
         let full = |p: &Packing| total as f64 >= MIN_FILL * (p.blocks.len() * capacity) as f64;
@@ -310,6 +319,7 @@ impl Plan {
             return vec![f64::INFINITY; scales];
         }
         let (packing, _) = self.choose(tree, &sizes, capacity);
+        let walk = BlockWalk::new(tree, &packing);
         // Per sample: its node block reads plus its distinct geometry blocks
         // (integer sums, so the same on any number of threads).
         let per_sample: Vec<usize> = self
@@ -367,7 +377,7 @@ impl Plan {
                 }
                 blocks.sort_unstable();
                 blocks.dedup();
-                query_node_reads(tree, &packing, q) + blocks.len()
+                walk.blocks_read(q) + blocks.len()
             })
             .collect();
         let mut reads = vec![0usize; scales];
@@ -378,37 +388,74 @@ impl Plan {
     }
 }
 
-/// The distinct blocks of `p` one query `q` reads (the nodes whose boxes it meets).
-fn query_node_reads(tree: &Hierarchy, p: &Packing, q: &Aabb) -> usize {
-    block_reads(tree, p, std::slice::from_ref(q)).iter().filter(|&&r| r > 0).count()
+/// The node blocks of a packing that queries read: a query reads the block
+/// of every node whose box it meets (as the traversal does, which tests a
+/// child's box before reading its block).
+struct BlockWalk<'a> {
+    tree: &'a Hierarchy,
+    p: &'a Packing,
+    /// Per node: true when its whole subtree lies in its block, so a query
+    /// that reads the node reads no other block below it.
+    closed: Vec<bool>,
 }
 
-/// Per block of `p`, how many of `queries` read it: a query reads the
-/// block of every node whose box it meets (as the traversal does, which
-/// tests a child's box before reading its block).
-fn block_reads(tree: &Hierarchy, p: &Packing, queries: &[Aabb]) -> Vec<u32> {
-    let mut reads = vec![0u32; p.blocks.len()];
-    let mut seen = vec![u32::MAX; p.blocks.len()];
-    let mut stack = Vec::new();
-    for (qi, q) in queries.iter().enumerate() {
+impl<'a> BlockWalk<'a> {
+    fn new(tree: &'a Hierarchy, p: &'a Packing) -> BlockWalk<'a> {
+        let mut closed = vec![false; tree.nodes.len()];
+        // Preorder: children come after their parent.
+        for i in (0..tree.nodes.len()).rev() {
+            let b = p.place[i].0;
+            closed[i] = tree.nodes[i]
+                .children()
+                .is_none_or(|cs| cs.iter().all(|c| closed[c.index()] && p.place[c.index()].0 == b));
+        }
+        BlockWalk { tree, p, closed }
+    }
+
+    /// Calls `read` with the block of every node `q` reads, except below a
+    /// closed node (its block already named).
+    fn walk(&self, q: &Aabb, stack: &mut Vec<usize>, mut read: impl FnMut(usize)) {
         stack.clear();
-        if tree.nodes.first().is_some_and(|r| r.aabb.intersects(q)) {
-            stack.push(0usize);
+        if self.tree.nodes.first().is_some_and(|r| r.aabb.intersects(q)) {
+            stack.push(0);
         }
         while let Some(i) = stack.pop() {
-            let b = p.place[i].0 as usize;
-            if seen[b] != qi as u32 {
-                seen[b] = qi as u32;
-                reads[b] += 1;
+            read(self.p.place[i].0 as usize);
+            if self.closed[i] {
+                continue;
             }
-            for c in tree.nodes[i].children().into_iter().flatten() {
-                if tree.nodes[c.index()].aabb.intersects(q) {
+            for c in self.tree.nodes[i].children().into_iter().flatten() {
+                if self.tree.nodes[c.index()].aabb.intersects(q) {
                     stack.push(c.index());
                 }
             }
         }
     }
-    reads
+
+    /// Per block, how many of `queries` read it.
+    fn reads_per_block(&self, queries: &[Aabb]) -> Vec<u32> {
+        let mut reads = vec![0u32; self.p.blocks.len()];
+        let mut seen = vec![u32::MAX; self.p.blocks.len()];
+        let mut stack = Vec::new();
+        for (qi, q) in queries.iter().enumerate() {
+            self.walk(q, &mut stack, |b| {
+                if seen[b] != qi as u32 {
+                    seen[b] = qi as u32;
+                    reads[b] += 1;
+                }
+            });
+        }
+        reads
+    }
+
+    /// The distinct blocks one query `q` reads.
+    fn blocks_read(&self, q: &Aabb) -> usize {
+        let mut blocks = Vec::new();
+        self.walk(q, &mut Vec::new(), |b| blocks.push(b));
+        blocks.sort_unstable();
+        blocks.dedup();
+        blocks.len()
+    }
 }
 
 /// Where a write transaction's new blocks go: its pager and id, and its
@@ -721,6 +768,60 @@ fn node_blocks_below(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::build::{BuildParams, LeafRule, Method, build};
+    use proptest::prelude::*;
+
+    /// Per block, the queries that read it, walking every node a query meets.
+    fn every_node_walk(tree: &Hierarchy, p: &Packing, queries: &[Aabb]) -> Vec<u32> {
+        (0..p.blocks.len())
+            .map(|b| {
+                let met = |q: &Aabb| {
+                    let mut stack = vec![0usize];
+                    let mut hit = false;
+                    while let Some(i) = stack.pop() {
+                        if !tree.nodes[i].aabb.intersects(q) {
+                            continue;
+                        }
+                        hit |= p.place[i].0 as usize == b;
+                        stack.extend(tree.nodes[i].children().into_iter().flatten().map(|c| c.index()));
+                    }
+                    hit
+                };
+                queries.iter().filter(|q| met(q)).count() as u32
+            })
+            .collect()
+    }
+
+    fn arb_box(span: f64) -> impl Strategy<Value = Aabb> {
+        (prop::array::uniform3(0.0..span), prop::array::uniform3(0.0..span / 4.0)).prop_map(|(lo, d)| {
+            Aabb::new([lo[0], lo[1], lo[2]].into(), [lo[0] + d[0], lo[1] + d[1], lo[2] + d[2]].into())
+        })
+    }
+
+    proptest! {
+        /// A closed subtree (all in its node's block) is not walked below,
+        /// and every packing's reads equal those of walking every node met.
+        #[test]
+        fn block_reads_skip_closed_subtrees_and_count_the_same(
+            boxes in prop::collection::vec(arb_box(100.0), 1..120),
+            queries in prop::collection::vec(arb_box(140.0), 1..40),
+            sizes in prop::collection::vec(40usize..400, 240),
+            piece in 100usize..1000,
+        ) {
+            let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(3), ..BuildParams::paper() };
+            let tree = build(&boxes, None, &params, &|_| {}).unwrap();
+            let sizes = &sizes[..tree.nodes.len()];
+            let children = |i: usize| tree.nodes[i].children().map(|c| c.map(|x| x.index()));
+            let p = layout::pack(sizes, children, 1000, piece);
+            let walk = BlockWalk::new(&tree, &p);
+            let reads = walk.reads_per_block(&queries);
+            prop_assert_eq!(&reads, &every_node_walk(&tree, &p, &queries));
+            for q in &queries {
+                let one = every_node_walk(&tree, &p, std::slice::from_ref(q));
+                prop_assert_eq!(walk.blocks_read(q), one.iter().filter(|&&r| r > 0).count());
+            }
+        }
+    }
 
     #[test]
     fn distinct_blocks_of_subtrees() {
