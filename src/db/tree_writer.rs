@@ -6,6 +6,7 @@
 //! sample queries ([`QueryMix`]).
 
 use std::borrow::Cow;
+use std::collections::HashMap;
 
 use rayon::prelude::*;
 
@@ -14,7 +15,7 @@ use super::source::ObjectSource;
 use crate::build::{Hierarchy, LoadProgress, Order, QueryMix, Stage, StageMeter};
 use crate::geom::Aabb;
 use crate::lod::LeafEntry;
-use crate::lod::StoredBounds;
+use crate::lod::{StoredBounds, Voxels};
 use crate::scene::{Key, Mesh, ObjectId};
 use crate::store::format::frame::{BlockType, FRAME_LEN};
 use crate::store::format::geometry::{self, Placement};
@@ -198,6 +199,7 @@ impl Plan {
             )));
         }
         let (packing, reads) = plan.choose(tree, &sizes, capacity);
+        let reads = reads.unwrap_or_else(|| BlockWalk::new(tree, &packing).reads_per_block(&plan.samples));
         let q = plan.samples.len().max(1) as f64;
         plan.read_share = packing.place.iter().map(|p| f64::from(reads[p.0 as usize]) / q).collect();
         Ok(plan)
@@ -265,36 +267,45 @@ impl Plan {
     }
 
     /// The packing, among the piece sizes tried, whose blocks the model's
-    /// sample queries read least (then the fullest); with each block's reads.
-    fn choose(&self, tree: &Hierarchy, sizes: &[usize], capacity: usize) -> (Packing, Vec<u32>) {
+    /// sample queries read least (then the fullest); with each block's reads,
+    /// unless every piece size packs alike (nothing to choose: not measured).
+    fn choose(&self, tree: &Hierarchy, sizes: &[usize], capacity: usize) -> (Packing, Option<Vec<u32>>) {
         let children = |i: usize| tree.nodes[i].children().map(|c| c.map(|x| x.index()));
         let total: usize = sizes.iter().sum();
-        let packings: Vec<Packing> = PIECE_SHARES
+        let mut packings: Vec<Packing> = PIECE_SHARES
             .par_iter()
             .map(|share| layout::pack(sizes, children, capacity, (capacity as f64 * share) as usize))
             .collect();
         // Piece sizes often pack a small tree alike: each distinct packing is measured once.
-        let first: Vec<usize> = (0..packings.len())
-            .map(|k| packings.iter().position(|p| *p == packings[k]).unwrap_or(k))
-            .collect();
-        let measured: Vec<Vec<u32>> = (0..packings.len())
+        packings.dedup();
+        let mut distinct: Vec<Packing> = Vec::with_capacity(packings.len());
+        for p in packings {
+            if !distinct.contains(&p) {
+                distinct.push(p);
+            }
+        }
+        if distinct.len() == 1 {
+            return (distinct.remove(0), None);
+        }
+        let tried: Vec<(Packing, Vec<u32>)> = distinct
             .into_par_iter()
-            .map(|k| match first[k] == k {
-                true => BlockWalk::new(tree, &packings[k]).reads_per_block(&self.samples),
-                false => Vec::new(),
+            .map(|p| {
+                let reads = BlockWalk::new(tree, &p).reads_per_block(&self.samples);
+                (p, reads)
             })
             .collect();
-        let tried: Vec<(Packing, Vec<u32>)> =
-            packings.into_iter().zip(&first).map(|(p, &f)| (p, measured[f].clone())).collect();
         // Blocks at least MIN_FILL full on average when some packing makes
         // them so (fewer blocks, a smaller file), then the fewest reads.
         let full = |p: &Packing| total as f64 >= MIN_FILL * (p.blocks.len() * capacity) as f64;
         let any_full = tried.iter().any(|(p, _)| full(p));
-        tried
+        let chosen = tried
             .into_iter()
             .filter(|(p, _)| full(p) || !any_full)
-            .min_by_key(|(p, reads)| (reads.iter().map(|&r| u64::from(r)).sum::<u64>(), p.blocks.len()))
-            .unwrap_or_else(|| (layout::pack(sizes, children, capacity, capacity), Vec::new()))
+            .min_by_key(|(p, reads)| (reads.iter().map(|&r| u64::from(r)).sum::<u64>(), p.blocks.len()));
+        match chosen {
+            Some((p, reads)) => (p, Some(reads)),
+            None => (layout::pack(sizes, children, capacity, capacity), None),
+        }
     }
 }
 
@@ -322,10 +333,11 @@ impl Plan {
         let walk = BlockWalk::new(tree, &packing);
         // Per sample: its node block reads plus its distinct geometry blocks
         // (integer sums, so the same on any number of threads).
+        // Each entry's bound is decoded once per job, not once per sample it leaves open.
         let per_sample: Vec<usize> = self
             .samples
             .par_iter()
-            .map(|q| {
+            .map_init(HashMap::new, |decoded: &mut HashMap<(usize, usize), Option<Voxels>>, q| {
                 let mut blocks = Vec::new();
                 let mut stack = Vec::new();
                 if self.frames[0].intersects(q) && !q.contains(&self.frames[0]) {
@@ -358,12 +370,14 @@ impl Plan {
                                 break;
                             }
                             // Decoded here, for the few entries a sample leaves open.
-                            let bound = stored.finest(i, e, min_value, &b.outer);
+                            let bound = decoded
+                                .entry((i, e))
+                                .or_insert_with(|| stored.finest(i, e, min_value, &b.outer));
                             if bound.as_ref().is_some_and(|v| v.holds_a_cell_in(q)) {
                                 confirmed = true;
                                 break;
                             }
-                            if bound.is_none_or(|v| v.may_meet(q)) {
+                            if bound.as_ref().is_none_or(|v| v.may_meet(q)) {
                                 pending.push(e);
                             }
                         }
