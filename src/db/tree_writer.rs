@@ -33,6 +33,10 @@ const SAMPLES_PER_SCALE: usize = 256;
 /// The least average fill of node blocks a packing must reach, when one can.
 const MIN_FILL: f64 = 0.8;
 
+/// Decoded bounds the read model keeps per job: the samples of a large
+/// tree may leave open more entries than memory should hold at once.
+const DECODED_MAX: usize = 4096;
+
 /// Piece sizes tried, as shares of a block (`store/layout.rs`).
 const PIECE_SHARES: [f64; 5] = [0.25, 0.35, 0.5, 0.7, 1.0];
 
@@ -333,7 +337,8 @@ impl Plan {
         let walk = BlockWalk::new(tree, &packing);
         // Per sample: its node block reads plus its distinct geometry blocks
         // (integer sums, so the same on any number of threads).
-        // Each entry's bound is decoded once per job, not once per sample it leaves open.
+        // Each entry's bound is decoded once per job, not once per sample it
+        // leaves open (up to DECODED_MAX kept at a time).
         let per_sample: Vec<usize> = self
             .samples
             .par_iter()
@@ -370,6 +375,9 @@ impl Plan {
                                 break;
                             }
                             // Decoded here, for the few entries a sample leaves open.
+                            if decoded.len() >= DECODED_MAX && !decoded.contains_key(&(i, e)) {
+                                decoded.clear();
+                            }
                             let bound = decoded
                                 .entry((i, e))
                                 .or_insert_with(|| stored.finest(i, e, min_value, &b.outer));
