@@ -276,12 +276,11 @@ impl Plan {
     fn choose(&self, tree: &Hierarchy, sizes: &[usize], capacity: usize) -> (Packing, Option<Vec<u32>>) {
         let children = |i: usize| tree.nodes[i].children().map(|c| c.map(|x| x.index()));
         let total: usize = sizes.iter().sum();
-        let mut packings: Vec<Packing> = PIECE_SHARES
+        let packings: Vec<Packing> = PIECE_SHARES
             .par_iter()
             .map(|share| layout::pack(sizes, children, capacity, (capacity as f64 * share) as usize))
             .collect();
         // Piece sizes often pack a small tree alike: each distinct packing is measured once.
-        packings.dedup();
         let mut distinct: Vec<Packing> = Vec::with_capacity(packings.len());
         for p in packings {
             if !distinct.contains(&p) {
