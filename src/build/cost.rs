@@ -19,7 +19,7 @@
 //! reading 13% more node blocks; with it, 17% fewer blocks.
 
 use super::{Hierarchy, QueryExtent};
-use crate::geom::{Aabb, Vector};
+use crate::geom::{Aabb, Point, Vector};
 
 /// Added to the mean object extent by [`QueryExtent::Auto`], in mm.
 const AUTO_MARGIN_MM: f64 = 100.0;
@@ -148,30 +148,27 @@ impl QueryMix {
     /// `per_scale` queries of each scale, evenly spread (a Halton sequence)
     /// over the positions where they meet `zone` (the scene, or a box in it).
     pub fn sample(&self, zone: &Aabb, per_scale: usize) -> Vec<Aabb> {
-        let mut out = Vec::with_capacity(per_scale * self.extents.len());
-        for q in &self.extents {
-            let half = Vector::new(q[0], q[1], q[2]) / 2.0;
-            let lo = zone.min - half;
-            let e = zone.extent() + 2.0 * half;
-            for s in 1..=per_scale {
-                let u = [halton(s, 2), halton(s, 3), halton(s, 5)];
-                let c = lo + Vector::new(u[0] * e.x, u[1] * e.y, u[2] * e.z);
-                out.push(Aabb::new(c - half, c + half));
-            }
-        }
-        out
+        self.spread(per_scale, |half| (zone.min - half, zone.extent() + 2.0 * half))
     }
 
     /// `per_scale` queries of each scale centred evenly (a Halton sequence)
     /// in `zone`: how a workload over the scene places them.
     pub fn sample_centred(&self, zone: &Aabb, per_scale: usize) -> Vec<Aabb> {
+        self.spread(per_scale, |_| (zone.min, zone.extent()))
+    }
+
+    /// `per_scale` queries of each scale, centred at Halton points of the box
+    /// (corner, extent) that `centres` gives for the query's half extent.
+    fn spread(&self, per_scale: usize, centres: impl Fn(Vector) -> (Point, Vector)) -> Vec<Aabb> {
+        // The same unit points serve every scale.
+        let units: Vec<[f64; 3]> =
+            (1..=per_scale).map(|s| [halton(s, 2), halton(s, 3), halton(s, 5)]).collect();
         let mut out = Vec::with_capacity(per_scale * self.extents.len());
         for q in &self.extents {
             let half = Vector::new(q[0], q[1], q[2]) / 2.0;
-            let e = zone.extent();
-            for s in 1..=per_scale {
-                let u = [halton(s, 2), halton(s, 3), halton(s, 5)];
-                let c = zone.min + Vector::new(u[0] * e.x, u[1] * e.y, u[2] * e.z);
+            let (lo, e) = centres(half);
+            for u in &units {
+                let c = lo + Vector::new(u[0] * e.x, u[1] * e.y, u[2] * e.z);
                 out.push(Aabb::new(c - half, c + half));
             }
         }

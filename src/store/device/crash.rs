@@ -69,11 +69,7 @@ impl CrashDevice {
                 CrashImage::Mask(m) if m >> (i % 64) & 1 == 1 => data,
                 CrashImage::Mask(_) => continue,
             };
-            let start = *off as usize;
-            if img.len() < start + keep.len() {
-                img.resize(start + keep.len(), 0);
-            }
-            img[start..start + keep.len()].copy_from_slice(keep);
+            put(&mut img, *off, keep);
         }
         img
     }
@@ -97,6 +93,18 @@ impl CrashDevice {
     }
 }
 
+/// Writes `data` at `offset` of `image`, growing it with zeros as needed.
+fn put(image: &mut Vec<u8>, offset: u64, data: &[u8]) {
+    if data.is_empty() {
+        return; // a write the length cut off entirely
+    }
+    let start = offset as usize;
+    if image.len() < start + data.len() {
+        image.resize(start + data.len(), 0);
+    }
+    image[start..start + data.len()].copy_from_slice(data);
+}
+
 impl BlockDevice for CrashDevice {
     fn read_at(&self, offset: u64, buf: &mut [u8]) -> io::Result<()> {
         let s = self.lock();
@@ -114,19 +122,19 @@ impl BlockDevice for CrashDevice {
     fn write_at(&self, offset: u64, data: &[u8]) -> io::Result<()> {
         let mut s = self.lock();
         self.event(&mut s)?;
-        let start = offset as usize;
-        if s.current.len() < start + data.len() {
-            s.current.resize(start + data.len(), 0);
-        }
-        s.current[start..start + data.len()].copy_from_slice(data);
+        put(&mut s.current, offset, data);
         s.unsynced.push((offset, data.to_vec()));
         Ok(())
     }
     fn sync(&self) -> io::Result<()> {
         let mut s = self.lock();
         self.event(&mut s)?;
-        s.durable = s.current.clone();
-        s.unsynced.clear();
+        // The durable image plus the unsynced writes is the current one:
+        // applying them costs the bytes written, not the file's size.
+        let State { durable, unsynced, .. } = &mut *s;
+        for (off, data) in unsynced.drain(..) {
+            put(durable, off, &data);
+        }
         Ok(())
     }
     fn len(&self) -> io::Result<u64> {
@@ -141,9 +149,73 @@ impl BlockDevice for CrashDevice {
         // truncates during recovery, after a sync.
         s.current.resize(len as usize, 0);
         s.durable.resize(len as usize, 0);
+        // A write cut off by the new length lands no further than it.
+        for (off, data) in &mut s.unsynced {
+            data.truncate(len.saturating_sub(*off) as usize);
+        }
         Ok(())
     }
     fn writes_are_atomic(&self) -> bool {
         true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::*;
+
+    #[derive(Debug, Clone)]
+    enum Op {
+        Write(u64, Vec<u8>),
+        Sync,
+        SetLen(u64),
+    }
+
+    fn op() -> impl Strategy<Value = Op> {
+        prop_oneof![
+            4 => (0u64..3000, proptest::collection::vec(any::<u8>(), 0..300)).prop_map(|(o, d)| Op::Write(o, d)),
+            1 => Just(Op::Sync),
+            1 => (0u64..3500).prop_map(Op::SetLen),
+        ]
+    }
+
+    fn read_all(d: &CrashDevice) -> Vec<u8> {
+        let mut buf = vec![0; d.len().unwrap() as usize];
+        d.read_at(0, &mut buf).unwrap();
+        buf
+    }
+
+    proptest! {
+        /// The image with every unsynced write kept is what reads see, and
+        /// after a sync no write is pending: dropping them changes nothing.
+        #[test]
+        fn syncs_make_the_current_image_durable(start in proptest::collection::vec(any::<u8>(), 0..500),
+                                                ops in proptest::collection::vec(op(), 0..40)) {
+            let d = CrashDevice::new(start, u64::MAX);
+            for op in ops {
+                match op {
+                    Op::Write(o, data) => d.write_at(o, &data).unwrap(),
+                    Op::Sync => {
+                        d.sync().unwrap();
+                        prop_assert_eq!(d.image(CrashImage::DropAll), read_all(&d));
+                    }
+                    Op::SetLen(n) => d.set_len(n).unwrap(),
+                }
+                prop_assert_eq!(d.image(CrashImage::KeepAll), read_all(&d));
+            }
+        }
+    }
+
+    #[test]
+    fn a_crash_drops_what_was_not_synced() {
+        let d = CrashDevice::new(vec![1; 8], 2);
+        d.write_at(0, &[2, 2]).unwrap();
+        d.sync().unwrap();
+        d.write_at(4, &[3, 3]).unwrap_err();
+        assert!(d.crashed());
+        assert_eq!(d.image(CrashImage::DropAll), [2, 2, 1, 1, 1, 1, 1, 1]);
+        assert!(d.read_at(0, &mut [0; 2]).is_err());
     }
 }
