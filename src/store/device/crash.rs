@@ -7,6 +7,7 @@ use std::io;
 use std::sync::Mutex;
 
 use super::BlockDevice;
+use super::mem::write_into;
 
 /// What happens to an unsynced write in the image after a crash.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -69,7 +70,8 @@ impl CrashDevice {
                 CrashImage::Mask(m) if m >> (i % 64) & 1 == 1 => data,
                 CrashImage::Mask(_) => continue,
             };
-            put(&mut img, *off, keep);
+            // Each write's range was checked when it was made: this cannot fail.
+            let _ = write_into(&mut img, *off, keep);
         }
         img
     }
@@ -93,18 +95,6 @@ impl CrashDevice {
     }
 }
 
-/// Writes `data` at `offset` of `image`, growing it with zeros as needed.
-fn put(image: &mut Vec<u8>, offset: u64, data: &[u8]) {
-    if data.is_empty() {
-        return; // a write the length cut off entirely
-    }
-    let start = offset as usize;
-    if image.len() < start + data.len() {
-        image.resize(start + data.len(), 0);
-    }
-    image[start..start + data.len()].copy_from_slice(data);
-}
-
 impl BlockDevice for CrashDevice {
     fn read_at(&self, offset: u64, buf: &mut [u8]) -> io::Result<()> {
         let s = self.lock();
@@ -122,7 +112,7 @@ impl BlockDevice for CrashDevice {
     fn write_at(&self, offset: u64, data: &[u8]) -> io::Result<()> {
         let mut s = self.lock();
         self.event(&mut s)?;
-        put(&mut s.current, offset, data);
+        write_into(&mut s.current, offset, data)?;
         s.unsynced.push((offset, data.to_vec()));
         Ok(())
     }
@@ -133,7 +123,7 @@ impl BlockDevice for CrashDevice {
         // applying them costs the bytes written, not the file's size.
         let State { durable, unsynced, .. } = &mut *s;
         for (off, data) in unsynced.drain(..) {
-            put(durable, off, &data);
+            write_into(durable, off, &data)?;
         }
         Ok(())
     }
@@ -206,6 +196,15 @@ mod tests {
                 prop_assert_eq!(d.image(CrashImage::KeepAll), read_all(&d));
             }
         }
+    }
+
+    #[test]
+    fn a_write_past_the_address_space_is_an_error_and_lands_nowhere() {
+        let d = CrashDevice::new(vec![1; 8], u64::MAX);
+        assert!(d.write_at(u64::MAX - 1, &[2, 2, 2]).is_err());
+        d.sync().unwrap();
+        assert_eq!(d.image(CrashImage::KeepAll), [1; 8]);
+        assert_eq!(read_all(&d), [1; 8]);
     }
 
     #[test]

@@ -34,6 +34,20 @@ fn range(offset: u64, len: usize) -> io::Result<std::ops::Range<usize>> {
     Ok(start..end)
 }
 
+/// Writes `bytes` at `offset` of `image`, growing it with zeros as needed;
+/// an empty write grows nothing, as on a file.
+pub(super) fn write_into(image: &mut Vec<u8>, offset: u64, bytes: &[u8]) -> io::Result<()> {
+    if bytes.is_empty() {
+        return Ok(());
+    }
+    let r = range(offset, bytes.len())?;
+    if image.len() < r.end {
+        image.resize(r.end, 0);
+    }
+    image[r].copy_from_slice(bytes);
+    Ok(())
+}
+
 impl BlockDevice for MemDevice {
     fn read_at(&self, offset: u64, buf: &mut [u8]) -> io::Result<()> {
         let data = self.data.read().unwrap_or_else(|e| e.into_inner());
@@ -43,13 +57,7 @@ impl BlockDevice for MemDevice {
         Ok(())
     }
     fn write_at(&self, offset: u64, bytes: &[u8]) -> io::Result<()> {
-        let mut data = self.data.write().unwrap_or_else(|e| e.into_inner());
-        let r = range(offset, bytes.len())?;
-        if data.len() < r.end {
-            data.resize(r.end, 0);
-        }
-        data[r].copy_from_slice(bytes);
-        Ok(())
+        write_into(&mut self.data.write().unwrap_or_else(|e| e.into_inner()), offset, bytes)
     }
     fn sync(&self) -> io::Result<()> {
         Ok(())
