@@ -17,6 +17,8 @@ pub const MAX_DIM: u32 = 65535;
 pub struct Grid {
     lattice: Lattice,
     level: u8,
+    /// `lattice.cell_at(level)`, kept: planes are read per triangle.
+    side: f64,
     bounds: Aabb,
     /// Lattice index of the first plane strictly inside the bounds, per axis.
     first: [i64; 3],
@@ -87,7 +89,7 @@ impl Grid {
         if estimate.iter().any(|&d| d > MAX_DIM) {
             return Err(too_large(estimate));
         }
-        let grid = Grid { lattice: *lattice, level, bounds: *bounds, first, dims };
+        let grid = Grid { lattice: *lattice, level, side: s, bounds: *bounds, first, dims };
         if grid.cells() > MAX_CELLS {
             return Err(too_large(dims));
         }
@@ -144,7 +146,7 @@ impl Grid {
         } else if k >= self.dims[axis] {
             self.bounds.max[axis]
         } else {
-            self.lattice.plane(self.level, axis, self.first[axis] + i64::from(k) - 1)
+            self.lattice.plane_at_side(self.side, axis, self.first[axis] + i64::from(k) - 1)
         }
     }
 
@@ -180,7 +182,7 @@ impl Grid {
     /// The cell k along `axis` with plane(k) <= x < plane(k + 1), clamped to the grid.
     pub(crate) fn cell_of(&self, axis: usize, x: f64) -> u32 {
         let d = self.dims[axis];
-        let s = self.lattice.cell_at(self.level);
+        let s = self.side;
         // Far coordinates saturate (as i64 does from f64), and the offset is
         // taken in i128, so no coordinate overflows: clamping puts it at an end.
         let est = ((x - self.lattice.origin[axis]) / s).floor();

@@ -22,8 +22,14 @@ impl Lattice {
 
     /// The coordinate of plane `n` of `level` along `axis`.
     pub(crate) fn plane(&self, level: u8, axis: usize, n: i64) -> f64 {
+        self.plane_at_side(self.cell_at(level), axis, n)
+    }
+
+    /// [`Lattice::plane`] of the level whose cell side is `side`, for
+    /// callers that keep the side (a grid reads planes per triangle).
+    pub(crate) fn plane_at_side(&self, side: f64, axis: usize, n: i64) -> f64 {
         // n stays below 2^53 (grids are at most 65535 cells wide), so n as f64 is exact.
-        self.origin[axis] + n as f64 * self.cell_at(level)
+        self.origin[axis] + n as f64 * side
     }
 
     pub(crate) fn is_valid(&self) -> bool {
