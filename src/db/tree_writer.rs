@@ -341,9 +341,10 @@ impl Plan {
         let per_sample: Vec<usize> = self
             .samples
             .par_iter()
-            .map_init(HashMap::new, |decoded: &mut HashMap<(usize, usize), Option<Voxels>>, q| {
-                let mut blocks = Vec::new();
-                let mut stack = Vec::new();
+            .map_init(Scratch::default, |s: &mut Scratch, q| {
+                let Scratch { decoded, blocks, stack, pending, walk_stack, walk_blocks } = s;
+                blocks.clear();
+                stack.clear();
                 if self.frames[0].intersects(q) && !q.contains(&self.frames[0]) {
                     stack.push(0usize);
                 }
@@ -362,7 +363,7 @@ impl Plan {
                     while j < es.len() {
                         let id = es[j].id;
                         let end = j + es[j..].iter().take_while(|e| e.id == id).count();
-                        let mut pending = Vec::new();
+                        pending.clear();
                         let mut confirmed = false;
                         for (e, entry) in es.iter().enumerate().take(end).skip(j) {
                             let Some(b) = QuantBox::decode(&self.frames[i], entry.qbox) else { continue };
@@ -389,7 +390,7 @@ impl Plan {
                             }
                         }
                         if !confirmed {
-                            for e in pending {
+                            for &e in pending.iter() {
                                 blocks.extend(self.entry_blocks(i, e));
                             }
                         }
@@ -398,7 +399,7 @@ impl Plan {
                 }
                 blocks.sort_unstable();
                 blocks.dedup();
-                walk.blocks_read(q) + blocks.len()
+                walk.blocks_read(q, walk_stack, walk_blocks) + blocks.len()
             })
             .collect();
         let mut reads = vec![0usize; scales];
@@ -407,6 +408,19 @@ impl Plan {
         }
         reads.iter().map(|&r| r as f64 / SAMPLES_PER_SCALE as f64).collect()
     }
+}
+
+/// What one rayon job of [`Plan::expected_reads`] reuses from sample to
+/// sample: the bounds it decoded, and buffers (allocations were a tenth
+/// of a small tree's commit).
+#[derive(Default)]
+struct Scratch {
+    decoded: HashMap<(usize, usize), Option<Voxels>>,
+    blocks: Vec<u64>,
+    stack: Vec<usize>,
+    pending: Vec<usize>,
+    walk_stack: Vec<usize>,
+    walk_blocks: Vec<usize>,
 }
 
 /// The node blocks of a packing that queries read: a query reads the block
@@ -469,10 +483,10 @@ impl<'a> BlockWalk<'a> {
         reads
     }
 
-    /// The distinct blocks one query `q` reads.
-    fn blocks_read(&self, q: &Aabb) -> usize {
-        let mut blocks = Vec::new();
-        self.walk(q, &mut Vec::new(), |b| blocks.push(b));
+    /// The distinct blocks one query `q` reads (`stack` and `blocks`: scratch).
+    fn blocks_read(&self, q: &Aabb, stack: &mut Vec<usize>, blocks: &mut Vec<usize>) -> usize {
+        blocks.clear();
+        self.walk(q, stack, |b| blocks.push(b));
         blocks.sort_unstable();
         blocks.dedup();
         blocks.len()
@@ -837,9 +851,11 @@ mod tests {
             let walk = BlockWalk::new(&tree, &p);
             let reads = walk.reads_per_block(&queries);
             prop_assert_eq!(&reads, &every_node_walk(&tree, &p, &queries));
+            // The scratch buffers carry over from query to query, as in the read model.
+            let (mut stack, mut blocks) = (Vec::new(), Vec::new());
             for q in &queries {
                 let one = every_node_walk(&tree, &p, std::slice::from_ref(q));
-                prop_assert_eq!(walk.blocks_read(q), one.iter().filter(|&&r| r > 0).count());
+                prop_assert_eq!(walk.blocks_read(q, &mut stack, &mut blocks), one.iter().filter(|&&r| r > 0).count());
             }
         }
     }
