@@ -11,6 +11,7 @@ use common::{arb_scene, box_mesh, mem_db};
 use mktree::build::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database, check};
 use mktree::geom::Aabb;
+use mktree::lod::LodParams;
 use mktree::query::{Region, brute_force_region};
 use mktree::scene::{Key, KeyError, Object, Scene};
 use mktree::store::device::MemDevice;
@@ -218,6 +219,44 @@ fn compact_gives_back_the_blocks_repeated_loads_left_free() {
     // At most an empty free-list block more than a fresh load.
     assert!(after.file_blocks <= once + 1, "{} blocks, a fresh load takes {once}", after.file_blocks);
     assert_eq!(after.free_blocks, 0);
+    agrees(&db, &model_of(&scene), &queries()).unwrap();
+}
+
+#[test]
+fn compact_moves_the_tree_as_it_is() {
+    // Every bound stored: a choice a layout with the default parameters
+    // does not repeat. A compaction that laid the tree out again (as it did
+    // before it moved blocks) dropped most of them.
+    let scene = common::grid_scene(6);
+    let dev = Arc::new(MemDevice::new());
+    let db = Database::create_on(dev.clone(), CreateOptions::default()).unwrap();
+    for _ in 0..2 {
+        let mut w = db.begin_write().unwrap();
+        w.set_lod_params(LodParams { store_all: true, ..LodParams::default() });
+        w.bulk_load(&scene, &BuildParams::paper(), &|_| {}).unwrap();
+        w.commit().unwrap();
+    }
+    let (info, lods) = {
+        let r = db.begin_read().unwrap();
+        (r.info().unwrap(), r.lod_info().unwrap())
+    };
+    let objects = u64::from(info.objects);
+    assert!(
+        lods.stored[1..3].iter().all(|&n| n >= objects),
+        "every bound at levels 2 and 3: {:?}",
+        lods.stored
+    );
+    let c = db.compact().unwrap();
+    assert!(c.blocks_after < c.blocks_before && c.free_after == 0, "{c:?}");
+    let r = db.begin_read().unwrap();
+    assert_eq!(r.lod_info().unwrap(), lods, "the levels of detail stored");
+    let after = r.info().unwrap();
+    let shape = |i: &mktree::TreeInfo| {
+        (i.nodes, i.leaves, i.depth, i.node_blocks, i.geometry_blocks, i.node_fill, i.geometry_fill)
+    };
+    assert_eq!(shape(&after), shape(&info), "the layout");
+    assert_eq!(after.file_blocks, c.blocks_after);
+    drop(r);
     agrees(&db, &model_of(&scene), &queries()).unwrap();
 }
 

@@ -120,11 +120,6 @@ impl Changes {
         }
     }
 
-    /// Counts as changed, so the tree is written again whole.
-    pub(crate) fn touch(&mut self) {
-        self.changed = true;
-    }
-
     /// Whether anything changed.
     pub(crate) fn changed(&self) -> bool {
         self.changed

@@ -131,7 +131,7 @@ pub struct Compaction {
     /// Blocks still free after (held for readers of older snapshots, or
     /// holes the tree did not fill).
     pub free_after: u32,
-    /// Times the tree was written again.
+    /// Times the tree was moved (copied into new blocks as it is).
     pub rewrites: u32,
 }
 
@@ -385,9 +385,11 @@ impl Database {
     }
 
     /// Gives the file's free blocks back to the file system. The tree is
-    /// written once past the file's end, so that every block below it is
+    /// moved once past the file's end, so that every block below it is
     /// free, then again into the lowest blocks, and the free end is cut off
-    /// (VACUUM-like: the file briefly holds the tree three times). Blocks a
+    /// (VACUUM-like: the file briefly holds the tree three times). A move
+    /// copies the tree's blocks as they are, pointing only their references
+    /// at the new places: nothing is laid out or computed again. Blocks a
     /// reader of an older snapshot may still read are kept.
     pub fn compact(&self) -> Result<Compaction, crate::Error> {
         let space = |db: &Database| -> Result<(u32, u32), StorageError> {
@@ -402,7 +404,7 @@ impl Database {
         if space(self)?.1 > 0 {
             for at_end in [true, false] {
                 let mut w = self.begin_write()?;
-                w.rewrite(at_end)?;
+                w.relocate(at_end)?;
                 w.commit()?;
                 rewrites += 1;
                 self.trim_end()?;

@@ -27,6 +27,7 @@ use crate::store::format::meta::{LOD_TABLE_LEN, LodCodes, Meta};
 use crate::store::format::{geometry, run};
 
 mod hosted;
+mod relocate;
 
 /// The one write transaction. Dropping it without `commit` aborts it: the
 /// committed state is untouched.
@@ -283,15 +284,6 @@ impl<'db> WriteTransaction<'db> {
     /// is [`KeyError::NotFound`](crate::scene::KeyError::NotFound).
     pub fn update(&mut self, object: Object) -> Result<Object, crate::Error> {
         self.changes()?.update(object)
-    }
-
-    /// Marks the committed tree to be written again whole, into the lowest
-    /// free blocks, or past the file's end when `at_end`
-    /// ([`Database::compact`](super::Database::compact)).
-    pub(crate) fn rewrite(&mut self, at_end: bool) -> Result<(), crate::Error> {
-        self.changes()?.touch();
-        self.append_only = at_end;
-        Ok(())
     }
 
     /// The committed state's (file blocks, free blocks) this transaction began on.

@@ -586,6 +586,9 @@ fn base() -> &'static Base {
 /// for the tree's structures, `names` for the names run, a write for the
 /// slots and the free list; then `check`, and the oracles when it passes.
 fn exercise(s: Structure, bytes: Vec<u8>, probes: &[Aabb]) {
+    // Compaction reads and moves every structure of the tree (slots and
+    // the free list are its commits' own, exercised by write_after).
+    let moved = (!matches!(s, Structure::Header | Structure::FreeList)).then(|| bytes.clone());
     let dev = Arc::new(MemDevice::from_bytes(bytes));
     let Ok(db) = Database::open_on(dev.clone()) else { return };
     if let Ok(r) = db.begin_read() {
@@ -642,6 +645,30 @@ fn exercise(s: Structure, bytes: Vec<u8>, probes: &[Aabb]) {
     }
     if matches!(s, Structure::Header | Structure::FreeList) {
         write_after(&dev, db, sound, s);
+    }
+    if let Some(bytes) = moved {
+        compact_after(bytes, sound, probes);
+    }
+}
+
+/// A compaction of the forged file moves its tree as it is: over a file
+/// `check` passed it succeeds, and the file reopens, passes `check` and
+/// answers as brute force; over any file it fails with a typed error or
+/// leaves a file that reopens.
+fn compact_after(bytes: Vec<u8>, sound: bool, probes: &[Aabb]) {
+    let dev = Arc::new(MemDevice::from_bytes(bytes));
+    let Ok(db) = Database::open_on(dev.clone()) else { return };
+    let compacted = db.compact();
+    if sound && let Err(e) = &compacted {
+        panic!("compact fails on a file check passed: {e}");
+    }
+    drop(db);
+    let db = Database::open_on(dev as Arc<dyn BlockDevice>)
+        .unwrap_or_else(|e| panic!("a forged file does not reopen after compact: {e}"));
+    if sound {
+        let report = check(&db).unwrap_or_else(|e| panic!("check after compact: {e}"));
+        assert!(report.ok(), "compact over a file check passed leaves faults: {:?}", report.faults);
+        answers_match_brute_force(&db, probes);
     }
 }
 

@@ -14,7 +14,7 @@ pub fn run(file: &Path, as_json: bool) -> Result<()> {
         return output::json(&c);
     }
     println!(
-        "{}: {} -> {} blocks ({} free), tree written {} time(s)",
+        "{}: {} -> {} blocks ({} free), tree moved {} time(s)",
         file.display(),
         c.blocks_before,
         c.blocks_after,

@@ -737,6 +737,53 @@ impl<'a> LeafView<'a> {
     }
 }
 
+/// Where a child's block went: (block, checksum) -> the new ones.
+pub type MoveChild<'a> = dyn FnMut(u32, u32) -> Result<(u32, u32), StorageError> + 'a;
+
+/// Where a leaf's span went: (first block, its blocks' checksums) -> the new ones.
+pub type MoveSpan<'a> = dyn FnMut(u32, &[u32]) -> Result<(u32, Vec<u32>), StorageError> + 'a;
+
+/// Points the references of node block `id`, which [`validate_block`]
+/// accepted with record offsets `records`, at blocks moved elsewhere:
+/// each child in another block through `child` (its block and checksum ->
+/// the new ones), and each leaf's span through `span` (its first geometry
+/// block and its blocks' checksums -> the new first block and checksums).
+/// Everything else stays byte for byte (a compaction moves a tree as it is).
+pub fn relocate_block(
+    id: u32,
+    block: &mut [u8],
+    records: &[u32],
+    child: &mut MoveChild<'_>,
+    span: &mut MoveSpan<'_>,
+) -> Result<(), StorageError> {
+    let short = |r: u32| StorageError::corrupt_record(id, r, "record", "short record");
+    for &r in records {
+        let bytes = block.get_mut(r as usize..).ok_or_else(|| short(r))?;
+        match bytes.first() {
+            Some(&KIND_INTERNAL) => {
+                let (raw, _) = InternalRaw::mut_from_prefix(bytes).map_err(|_| short(r))?;
+                for c in raw.children.iter_mut().filter(|c| c.block.get() != 0) {
+                    let (b, sum) = child(c.block.get(), c.checksum.get())?;
+                    (c.block, c.checksum) = (b.into(), sum.into());
+                }
+            }
+            Some(&KIND_LEAF) => {
+                let (raw, rest) = LeafRaw::mut_from_prefix(bytes).map_err(|_| short(r))?;
+                let (sums, _) = <[U32]>::mut_from_prefix_with_elems(rest, usize::from(raw.span.get()))
+                    .map_err(|_| short(r))?;
+                let old: Vec<u32> = sums.iter().map(|c| c.get()).collect();
+                let (first, new) = span(raw.first_block.get(), &old)?;
+                raw.first_block = first.into();
+                for (c, n) in sums.iter_mut().zip(new) {
+                    *c = n.into();
+                }
+            }
+            _ => return Err(StorageError::corrupt_record(id, r, "kind", "not a record")),
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,0 +1,278 @@
+//! A compaction's move: the committed tree copied into new blocks as it is.
+//! Every block it holds is read and verified against the checksum its
+//! parent holds, then written under a new id. Only references change; a
+//! block's checksum covers its id, so each parent's copy of a child's
+//! checksum changes too, and children are written before their parents.
+//! Nothing is laid out or computed again (the levels of detail, the
+//! packing, the stored bounds stay as committed): a move costs the tree's
+//! reads and writes, not a bulk load's work.
+
+use std::collections::{BTreeMap, HashMap};
+
+use super::WriteTransaction;
+use crate::store::format::frame::BlockType;
+use crate::store::format::keys::{self, KeyBlock};
+use crate::store::format::node::{self, Limits};
+use crate::store::format::run;
+use crate::store::{Pager, ReadStats, StorageError};
+
+/// Where the blocks of one kind go: old id -> new id, and the checksum
+/// each carries once written.
+#[derive(Default)]
+struct Moves {
+    to: HashMap<u32, u32>,
+    sums: HashMap<u32, u32>,
+}
+
+impl Moves {
+    /// The new id and checksum of old block `old`, already written.
+    fn written(&self, old: u32, what: &str) -> Result<(u32, u32), StorageError> {
+        match (self.to.get(&old), self.sums.get(&old)) {
+            (Some(&to), Some(&sum)) => Ok((to, sum)),
+            _ => Err(StorageError::corrupt(
+                old,
+                "reference",
+                format!("a {what} reference to a block not yet moved"),
+            )),
+        }
+    }
+}
+
+/// A block of a walk met a second time through another checksum, or on a
+/// path through itself.
+fn met_twice(block: u32, what: &str) -> StorageError {
+    StorageError::corrupt(block, "reference", format!("{what} block reached twice, or by a cycle"))
+}
+
+impl WriteTransaction<'_> {
+    /// Moves the committed tree into the lowest free blocks, or past the
+    /// file's end when `at_end` ([`Database::compact`](crate::Database::compact)):
+    /// the same tree, byte for byte but for block ids, checksums and the
+    /// transaction id of each block. A file without a tree has nothing to move.
+    pub(crate) fn relocate(&mut self, at_end: bool) -> Result<(), crate::Error> {
+        self.may_write_tree()?;
+        let Some(meta) = self.inner.lock_state().snapshot.meta.clone() else { return Ok(()) };
+        self.append_only = at_end;
+        let pager = self.inner.pager().clone();
+        let limits = Limits {
+            block_size: pager.block_size(),
+            lod_levels: pager.lod_levels(),
+            object_count: meta.object_count,
+        };
+
+        // The node blocks, children before parents, with the checksum each
+        // must carry; the geometry blocks, in order, with theirs.
+        let NodeWalk { order, sums: node_sums, geometry } =
+            node_walk(&pager, &limits, meta.root_block, meta.root_checksum)?;
+        // The key index, level by level from the root: (block, checksum).
+        let mut levels: Vec<Vec<(u32, u32)>> = vec![vec![(meta.keys_block, meta.keys_checksum)]];
+        let mut seen = HashMap::new();
+        for height in (1..=meta.keys_height).rev() {
+            let mut below = Vec::new();
+            for &(block, sum) in levels.last().into_iter().flatten() {
+                if seen.insert(block, ()).is_some() {
+                    return Err(met_twice(block, "key").into());
+                }
+                if height > 1 {
+                    let (bytes, _) =
+                        pager.read(block, BlockType::KeyBranch, Some(sum), &mut ReadStats::default())?;
+                    if let KeyBlock::Branch(children) = keys::decode(block, &bytes, false)? {
+                        below.extend(children.iter().map(|c| (c.block, c.checksum)));
+                    }
+                }
+            }
+            if height > 1 {
+                levels.push(below);
+            }
+        }
+        // The names run: each block's checksum, as the block before it holds it.
+        let mut names: Vec<u32> = Vec::new();
+        if meta.names_block != 0 {
+            let (first, _) = pager.read(
+                meta.names_block,
+                BlockType::Names,
+                Some(meta.names_checksum),
+                &mut ReadStats::default(),
+            )?;
+            let (blocks, _, _) = run::header(meta.names_block, &first)?;
+            names.push(meta.names_checksum);
+            let mut next = run::next_checksum(0, &first);
+            for j in 1..blocks {
+                let id =
+                    meta.names_block.checked_add(j).ok_or_else(|| met_twice(meta.names_block, "names"))?;
+                let (b, _) =
+                    pager.read(id, BlockType::Continuation, Some(next), &mut ReadStats::default())?;
+                names.push(next);
+                next = run::next_checksum(j as usize, &b);
+            }
+        }
+
+        // New places, allocated in the order a bulk load allocates them, so
+        // that a move into an empty file lays the tree out as a load would.
+        let mut geometry_moves = Moves::default();
+        if !geometry.is_empty() {
+            let first = self.allocate(geometry.len() as u32)?;
+            geometry_moves.to = geometry.keys().zip(first..).map(|(&old, new)| (old, new)).collect();
+        }
+        let mut node_moves = Moves::default();
+        let mut sorted: Vec<u32> = order.clone();
+        sorted.sort_unstable();
+        let first = self.allocate(sorted.len() as u32)?;
+        node_moves.to = sorted.iter().zip(first..).map(|(&old, new)| (old, new)).collect();
+        let mut key_moves = Moves::default();
+        for level in levels.iter().rev() {
+            for &(block, _) in level {
+                let new = self.allocate(1)?;
+                key_moves.to.insert(block, new);
+            }
+        }
+        let names_first = if names.is_empty() { 0 } else { self.allocate(names.len() as u32)? };
+        let meta_block = self.allocate(1)?;
+
+        let txn = self.txn;
+        for (&old, &sum) in &geometry {
+            let (mut bytes, _) =
+                pager.read(old, BlockType::Geometry, Some(sum), &mut ReadStats::default())?;
+            let to = geometry_moves.to[&old];
+            geometry_moves.sums.insert(old, pager.write(to, &mut bytes, BlockType::Geometry, txn)?);
+        }
+        for &old in &order {
+            let (mut bytes, _) =
+                pager.read(old, BlockType::Node, Some(node_sums[&old]), &mut ReadStats::default())?;
+            let records = node::validate_block(old, &bytes, &limits)?;
+            let span = &mut |first: u32, sums: &[u32]| -> Result<(u32, Vec<u32>), StorageError> {
+                let (to, _) = geometry_moves.written(first, "geometry")?;
+                let mut new = Vec::with_capacity(sums.len());
+                for i in 0..sums.len() as u32 {
+                    let (at, sum) = geometry_moves.written(first.saturating_add(i), "geometry")?;
+                    if at != to + i {
+                        return Err(StorageError::corrupt(
+                            old,
+                            "span",
+                            "a span's blocks are not consecutive",
+                        ));
+                    }
+                    new.push(sum);
+                }
+                Ok((to, new))
+            };
+            let child = &mut |block: u32, _: u32| node_moves.written(block, "node");
+            node::relocate_block(old, &mut bytes, &records, child, span)?;
+            let to = node_moves.to[&old];
+            node_moves.sums.insert(old, pager.write(to, &mut bytes, BlockType::Node, txn)?);
+        }
+        for (depth, level) in levels.iter().enumerate().rev() {
+            let leaf = depth + 1 == levels.len();
+            let t = if leaf { BlockType::KeyLeaf } else { BlockType::KeyBranch };
+            for &(old, sum) in level {
+                let (mut bytes, _) = pager.read(old, t, Some(sum), &mut ReadStats::default())?;
+                match keys::decode(old, &bytes, leaf)? {
+                    KeyBlock::Leaf(mut entries) => {
+                        for e in &mut entries {
+                            (e.leaf.block, e.leaf.checksum) = node_moves.written(e.leaf.block, "node")?;
+                        }
+                        keys::encode_leaf(&entries, &mut bytes).map_err(StorageError::Invalid)?;
+                    }
+                    KeyBlock::Branch(mut children) => {
+                        for c in &mut children {
+                            (c.block, c.checksum) = key_moves.written(c.block, "key")?;
+                        }
+                        keys::encode_branch(&children, &mut bytes).map_err(StorageError::Invalid)?;
+                    }
+                }
+                let to = key_moves.to[&old];
+                key_moves.sums.insert(old, pager.write(to, &mut bytes, t, txn)?);
+            }
+        }
+        // Last block first: each holds the new checksum of the one after it.
+        let mut next = 0;
+        for (j, &sum) in names.iter().enumerate().rev() {
+            let (old, t) = (
+                meta.names_block + j as u32,
+                if j == 0 { BlockType::Names } else { BlockType::Continuation },
+            );
+            let (mut bytes, _) = pager.read(old, t, Some(sum), &mut ReadStats::default())?;
+            run::set_next_checksum(j, &mut bytes, next);
+            next = pager.write(names_first + j as u32, &mut bytes, t, txn)?;
+        }
+
+        let mut moved = meta;
+        (moved.root_block, moved.root_checksum) = node_moves.written(moved.root_block, "node")?;
+        (moved.keys_block, moved.keys_checksum) = key_moves.written(moved.keys_block, "key")?;
+        if !names.is_empty() {
+            (moved.names_block, moved.names_checksum) = (names_first, next);
+        }
+        let mut block = vec![0u8; pager.block_size() as usize];
+        moved.encode(&mut block);
+        let sum = pager.write(meta_block, &mut block, BlockType::Meta, txn)?;
+        self.meta = Some((meta_block, sum, moved));
+        Ok(())
+    }
+}
+
+/// The blocks a tree's node records reach.
+struct NodeWalk {
+    /// The node blocks, children before parents.
+    order: Vec<u32>,
+    /// Each node block's checksum, as its parents hold it.
+    sums: HashMap<u32, u32>,
+    /// The geometry blocks the leaves' spans name, in order, with their checksums.
+    geometry: BTreeMap<u32, u32>,
+}
+
+/// The [`NodeWalk`] of the tree rooted in block `root` (checksum `sum`).
+fn node_walk(pager: &Pager, limits: &Limits, root: u32, sum: u32) -> Result<NodeWalk, StorageError> {
+    let mut sums = HashMap::from([(root, sum)]);
+    let mut geometry = BTreeMap::new();
+    // Per block: whether its children are done (false while they are walked).
+    let mut done: HashMap<u32, bool> = HashMap::new();
+    let mut order = Vec::new();
+    let mut stack = vec![(root, false)];
+    while let Some((block, expanded)) = stack.pop() {
+        if expanded {
+            done.insert(block, true);
+            order.push(block);
+            continue;
+        }
+        match done.get(&block) {
+            Some(true) => continue,
+            Some(false) => return Err(met_twice(block, "node")),
+            None => {}
+        }
+        done.insert(block, false);
+        stack.push((block, true));
+        let (bytes, _) = pager.read(block, BlockType::Node, Some(sums[&block]), &mut ReadStats::default())?;
+        for r in node::validate_block(block, &bytes, limits)? {
+            let view = node::NodeView::at(&bytes, r)
+                .map_err(|e| StorageError::corrupt_record(block, r, "record", e))?;
+            match view {
+                node::NodeView::Internal(n) => {
+                    for i in 0..2 {
+                        let c = n.child_ref(i);
+                        if c.block == 0 {
+                            continue;
+                        }
+                        if *sums.entry(c.block).or_insert(c.checksum) != c.checksum {
+                            return Err(met_twice(c.block, "node"));
+                        }
+                        match done.get(&c.block) {
+                            Some(false) => return Err(met_twice(c.block, "node")),
+                            Some(true) => {}
+                            None => stack.push((c.block, false)),
+                        }
+                    }
+                }
+                node::NodeView::Leaf(l) => {
+                    let (first, span) = l.geometry();
+                    for (i, s) in span.enumerate() {
+                        let g = first.checked_add(i as u32).ok_or_else(|| met_twice(first, "geometry"))?;
+                        if *geometry.entry(g).or_insert(s) != s {
+                            return Err(met_twice(g, "geometry"));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(NodeWalk { order, sums, geometry })
+}
