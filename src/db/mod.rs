@@ -399,6 +399,13 @@ impl Database {
             Ok(space)
         };
         let blocks_before = space(self)?.0;
+        // A tree whose blocks the commit records as free would be cut short
+        // by the commits below: refused before any of them.
+        {
+            let w = self.begin_write()?;
+            w.check_tree_space()?;
+            w.abort()?;
+        }
         let mut rewrites = 0;
         self.trim_end()?;
         if space(self)?.1 > 0 {

@@ -37,7 +37,6 @@ impl FreeSpace {
     }
 
     /// True when `block` is free.
-    #[cfg(test)]
     pub fn contains(&self, block: u32) -> bool {
         self.ranges.range(..=block).next_back().is_some_and(|(&f, &c)| block < f + c)
     }

@@ -10,8 +10,11 @@
 use std::collections::{BTreeMap, HashMap};
 
 use super::WriteTransaction;
+use crate::db::free_list_chain;
+use crate::store::alloc::FreeSpace;
 use crate::store::format::frame::BlockType;
 use crate::store::format::keys::{self, KeyBlock};
+use crate::store::format::meta::Meta;
 use crate::store::format::node::{self, Limits};
 use crate::store::format::run;
 use crate::store::{Pager, ReadStats, StorageError};
@@ -45,6 +48,33 @@ fn met_twice(block: u32, what: &str) -> StorageError {
 }
 
 impl WriteTransaction<'_> {
+    /// Refuses a tree that shares a block with the free space its commit
+    /// records (the free list's blocks or its ranges): a commit trusts that
+    /// record, and a compaction's commits cut the file's free end off, so
+    /// they would cut such a tree short. Reads and verifies every block of
+    /// the tree, as a move does.
+    pub(crate) fn check_tree_space(&self) -> Result<(), crate::Error> {
+        let Some(meta) = self.inner.lock_state().snapshot.meta.clone() else { return Ok(()) };
+        let pager = self.inner.pager().clone();
+        let tree = TreeBlocks::walk(&pager, &meta)?;
+        let (_, chain) = free_list_chain(&pager, &self.base)?;
+        let free = FreeSpace::new(self.base.block_count, self.base_free.iter().map(|r| (r.first, r.count)));
+        let names = (0..tree.names.len() as u32).map(|j| meta.names_block + j);
+        let keys = tree.keys.iter().flatten().map(|&(b, _)| b);
+        let blocks = tree.nodes.order.iter().copied().chain(tree.nodes.geometry.keys().copied());
+        for b in blocks.chain(keys).chain(names).chain([self.base.meta_block]) {
+            if chain.contains(&b) || free.contains(b) || b >= self.base.block_count {
+                return Err(StorageError::corrupt(
+                    b,
+                    "free space",
+                    "the tree holds a block the commit records as free or past the file's end (run check)",
+                )
+                .into());
+            }
+        }
+        Ok(())
+    }
+
     /// Moves the committed tree into the lowest free blocks, or past the
     /// file's end when `at_end` ([`Database::compact`](crate::Database::compact)):
     /// the same tree, byte for byte but for block ids, checksums and the
@@ -54,58 +84,9 @@ impl WriteTransaction<'_> {
         let Some(meta) = self.inner.lock_state().snapshot.meta.clone() else { return Ok(()) };
         self.append_only = at_end;
         let pager = self.inner.pager().clone();
-        let limits = Limits {
-            block_size: pager.block_size(),
-            lod_levels: pager.lod_levels(),
-            object_count: meta.object_count,
-        };
-
-        // The node blocks, children before parents, with the checksum each
-        // must carry; the geometry blocks, in order, with theirs.
-        let NodeWalk { order, sums: node_sums, geometry } =
-            node_walk(&pager, &limits, meta.root_block, meta.root_checksum)?;
-        // The key index, level by level from the root: (block, checksum).
-        let mut levels: Vec<Vec<(u32, u32)>> = vec![vec![(meta.keys_block, meta.keys_checksum)]];
-        let mut seen = HashMap::new();
-        for height in (1..=meta.keys_height).rev() {
-            let mut below = Vec::new();
-            for &(block, sum) in levels.last().into_iter().flatten() {
-                if seen.insert(block, ()).is_some() {
-                    return Err(met_twice(block, "key").into());
-                }
-                if height > 1 {
-                    let (bytes, _) =
-                        pager.read(block, BlockType::KeyBranch, Some(sum), &mut ReadStats::default())?;
-                    if let KeyBlock::Branch(children) = keys::decode(block, &bytes, false)? {
-                        below.extend(children.iter().map(|c| (c.block, c.checksum)));
-                    }
-                }
-            }
-            if height > 1 {
-                levels.push(below);
-            }
-        }
-        // The names run: each block's checksum, as the block before it holds it.
-        let mut names: Vec<u32> = Vec::new();
-        if meta.names_block != 0 {
-            let (first, _) = pager.read(
-                meta.names_block,
-                BlockType::Names,
-                Some(meta.names_checksum),
-                &mut ReadStats::default(),
-            )?;
-            let (blocks, _, _) = run::header(meta.names_block, &first)?;
-            names.push(meta.names_checksum);
-            let mut next = run::next_checksum(0, &first);
-            for j in 1..blocks {
-                let id =
-                    meta.names_block.checked_add(j).ok_or_else(|| met_twice(meta.names_block, "names"))?;
-                let (b, _) =
-                    pager.read(id, BlockType::Continuation, Some(next), &mut ReadStats::default())?;
-                names.push(next);
-                next = run::next_checksum(j as usize, &b);
-            }
-        }
+        let limits = limits(&pager, &meta);
+        let TreeBlocks { nodes: NodeWalk { order, sums: node_sums, geometry }, keys: levels, names } =
+            TreeBlocks::walk(&pager, &meta)?;
 
         // New places, allocated in the order a bulk load allocates them, so
         // that a move into an empty file lays the tree out as a load would.
@@ -207,6 +188,67 @@ impl WriteTransaction<'_> {
         let sum = pager.write(meta_block, &mut block, BlockType::Meta, txn)?;
         self.meta = Some((meta_block, sum, moved));
         Ok(())
+    }
+}
+
+/// What node validation needs of the file.
+fn limits(pager: &Pager, meta: &Meta) -> Limits {
+    Limits { block_size: pager.block_size(), lod_levels: pager.lod_levels(), object_count: meta.object_count }
+}
+
+/// Every block a committed tree holds but its meta block, each verified
+/// against the checksum its parent holds.
+struct TreeBlocks {
+    nodes: NodeWalk,
+    /// The key index, level by level from the root: (block, checksum).
+    keys: Vec<Vec<(u32, u32)>>,
+    /// The names run: each block's checksum, as the block before it (or
+    /// the meta block) holds it.
+    names: Vec<u32>,
+}
+
+impl TreeBlocks {
+    fn walk(pager: &Pager, meta: &Meta) -> Result<TreeBlocks, StorageError> {
+        let nodes = node_walk(pager, &limits(pager, meta), meta.root_block, meta.root_checksum)?;
+        let mut levels: Vec<Vec<(u32, u32)>> = vec![vec![(meta.keys_block, meta.keys_checksum)]];
+        let mut seen = HashMap::new();
+        for height in (1..=meta.keys_height).rev() {
+            let mut below = Vec::new();
+            for &(block, sum) in levels.last().into_iter().flatten() {
+                if seen.insert(block, ()).is_some() {
+                    return Err(met_twice(block, "key"));
+                }
+                let t = if height > 1 { BlockType::KeyBranch } else { BlockType::KeyLeaf };
+                let (bytes, _) = pager.read(block, t, Some(sum), &mut ReadStats::default())?;
+                if let KeyBlock::Branch(children) = keys::decode(block, &bytes, height == 1)? {
+                    below.extend(children.iter().map(|c| (c.block, c.checksum)));
+                }
+            }
+            if height > 1 {
+                levels.push(below);
+            }
+        }
+        let mut names: Vec<u32> = Vec::new();
+        if meta.names_block != 0 {
+            let (first, _) = pager.read(
+                meta.names_block,
+                BlockType::Names,
+                Some(meta.names_checksum),
+                &mut ReadStats::default(),
+            )?;
+            let (blocks, _, _) = run::header(meta.names_block, &first)?;
+            names.push(meta.names_checksum);
+            let mut next = run::next_checksum(0, &first);
+            for j in 1..blocks {
+                let id =
+                    meta.names_block.checked_add(j).ok_or_else(|| met_twice(meta.names_block, "names"))?;
+                let (b, _) =
+                    pager.read(id, BlockType::Continuation, Some(next), &mut ReadStats::default())?;
+                names.push(next);
+                next = run::next_checksum(j as usize, &b);
+            }
+        }
+        Ok(TreeBlocks { nodes, keys: levels, names })
     }
 }
 
