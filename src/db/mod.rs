@@ -399,11 +399,10 @@ impl Database {
             Ok(space)
         };
         let blocks_before = space(self)?.0;
-        // A tree whose blocks the commit records as free would be cut short
-        // by the commits below: refused before any of them.
+        // A tree the commits below would cut short is refused before any of them.
         {
             let w = self.begin_write()?;
-            w.check_tree_space()?;
+            w.check_movable()?;
             w.abort()?;
         }
         let mut rewrites = 0;

@@ -48,12 +48,14 @@ fn met_twice(block: u32, what: &str) -> StorageError {
 }
 
 impl WriteTransaction<'_> {
-    /// Refuses a tree that shares a block with the free space its commit
-    /// records (the free list's blocks or its ranges): a commit trusts that
-    /// record, and a compaction's commits cut the file's free end off, so
-    /// they would cut such a tree short. Reads and verifies every block of
-    /// the tree, as a move does.
-    pub(crate) fn check_tree_space(&self) -> Result<(), crate::Error> {
+    /// Refuses a tree a move could not carry whole: one that shares a block
+    /// with the free space its commit records (the free list's blocks or
+    /// its ranges), or whose meta block counts other blocks than it holds.
+    /// A commit trusts that record, and a compaction's commits cut the
+    /// file's free end off, so they would cut such a tree short; an opening
+    /// bounds the counts by the file's size, which a compaction shrinks.
+    /// Reads and verifies every block of the tree, as a move does.
+    pub(crate) fn check_movable(&self) -> Result<(), crate::Error> {
         let Some(meta) = self.inner.lock_state().snapshot.meta.clone() else { return Ok(()) };
         let pager = self.inner.pager().clone();
         let tree = TreeBlocks::walk(&pager, &meta)?;
@@ -62,6 +64,17 @@ impl WriteTransaction<'_> {
         let names = (0..tree.names.len() as u32).map(|j| meta.names_block + j);
         let keys = tree.keys.iter().flatten().map(|&(b, _)| b);
         let blocks = tree.nodes.order.iter().copied().chain(tree.nodes.geometry.keys().copied());
+        let counts = [
+            ("node_blocks", u64::from(meta.node_blocks), tree.nodes.order.len()),
+            ("geometry_blocks", meta.geometry_blocks, tree.nodes.geometry.len()),
+            ("keys_blocks", u64::from(meta.keys_blocks), tree.keys.iter().map(Vec::len).sum()),
+        ];
+        for (field, says, holds) in counts {
+            if says != holds as u64 {
+                let detail = format!("the meta block says {says}, the tree holds {holds} (run check)");
+                return Err(StorageError::corrupt(self.base.meta_block, field, detail).into());
+            }
+        }
         for b in blocks.chain(keys).chain(names).chain([self.base.meta_block]) {
             if chain.contains(&b) || free.contains(b) || b >= self.base.block_count {
                 return Err(StorageError::corrupt(
