@@ -41,6 +41,11 @@ impl Moves {
     }
 }
 
+/// A reference past the file's last block.
+fn past_end(block: u32) -> StorageError {
+    StorageError::corrupt(block, "reference", "a block past the file's end")
+}
+
 /// A block of a walk met a second time through another checksum, or on a
 /// path through itself.
 fn met_twice(block: u32, what: &str) -> StorageError {
@@ -277,6 +282,8 @@ struct NodeWalk {
 
 /// The [`NodeWalk`] of the tree rooted in block `root` (checksum `sum`).
 fn node_walk(pager: &Pager, limits: &Limits, root: u32, sum: u32) -> Result<NodeWalk, StorageError> {
+    // Every map below holds blocks of the file, each once: bounded by its size.
+    let end = u32::try_from(pager.block_count()?).unwrap_or(u32::MAX);
     let mut sums = HashMap::from([(root, sum)]);
     let mut geometry = BTreeMap::new();
     // Per block: whether its children are done (false while they are walked).
@@ -307,6 +314,9 @@ fn node_walk(pager: &Pager, limits: &Limits, root: u32, sum: u32) -> Result<Node
                         if c.block == 0 {
                             continue;
                         }
+                        if c.block >= end {
+                            return Err(past_end(c.block));
+                        }
                         if *sums.entry(c.block).or_insert(c.checksum) != c.checksum {
                             return Err(met_twice(c.block, "node"));
                         }
@@ -320,7 +330,10 @@ fn node_walk(pager: &Pager, limits: &Limits, root: u32, sum: u32) -> Result<Node
                 node::NodeView::Leaf(l) => {
                     let (first, span) = l.geometry();
                     for (i, s) in span.enumerate() {
-                        let g = first.checked_add(i as u32).ok_or_else(|| met_twice(first, "geometry"))?;
+                        let g = first
+                            .checked_add(i as u32)
+                            .filter(|&g| g < end)
+                            .ok_or_else(|| past_end(first))?;
                         if *geometry.entry(g).or_insert(s) != s {
                             return Err(met_twice(g, "geometry"));
                         }
