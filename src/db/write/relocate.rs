@@ -144,7 +144,7 @@ impl WriteTransaction<'_> {
                 let mut new = Vec::with_capacity(sums.len());
                 for i in 0..sums.len() as u32 {
                     let (at, sum) = geometry_moves.written(first.saturating_add(i), "geometry")?;
-                    if at != to + i {
+                    if to.checked_add(i) != Some(at) {
                         return Err(StorageError::corrupt(
                             old,
                             "span",

@@ -849,6 +849,37 @@ mod tests {
     }
 
     #[test]
+    fn a_relocated_block_changes_only_its_references() {
+        let mut block = vec![0u8; 1024];
+        let offsets = encode_block(&drafts(), &mut block).unwrap();
+        let before = block.clone();
+        let mut children = Vec::new();
+        let child = &mut |b: u32, sum: u32| {
+            children.push((b, sum));
+            Ok((b + 100, sum ^ 0xffff))
+        };
+        let span = &mut |first: u32, sums: &[u32]| Ok((first + 1000, sums.iter().map(|s| s + 1).collect()));
+        relocate_block(3, &mut block, &offsets, child, span).unwrap();
+        assert_eq!(children, [(5, 1234)], "the child in this block is not a reference");
+        assert_eq!(validate_block(3, &block, &limits()).unwrap(), offsets);
+        let NodeView::Internal(n) = NodeView::at(&block, offsets[0]).unwrap() else { panic!() };
+        assert_eq!(n.child_ref(0), RecordRef { block: 0, checksum: 0, offset: 24 + 84 });
+        assert_eq!(n.child_ref(1), RecordRef { block: 105, checksum: 1234 ^ 0xffff, offset: 24 });
+        let NodeView::Leaf(l) = NodeView::at(&block, offsets[1]).unwrap() else { panic!() };
+        let (first, sums) = l.geometry();
+        assert_eq!((first, sums.collect::<Vec<_>>()), (1009, vec![78]));
+        // Every other byte as it was: the child's block and checksum (20 +
+        // 32 + 12 .. + 20 of the internal record) and the leaf's first block
+        // and checksum (8 .. 12 and 20 .. 24 of its record).
+        let internal = offsets[0] as usize + 20 + 32 + 12;
+        let leaf = offsets[1] as usize;
+        let moved: Vec<usize> = (internal..internal + 8).chain(leaf + 8..leaf + 12).chain(leaf + 20..leaf + 24).collect();
+        for (i, (a, b)) in before.iter().zip(&block).enumerate() {
+            assert!(a == b || moved.contains(&i), "byte {i} changed");
+        }
+    }
+
+    #[test]
     fn broken_rules_are_corruption() {
         let mut block = vec![0u8; 1024];
         let offsets = encode_block(&drafts(), &mut block).unwrap();
