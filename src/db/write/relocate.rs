@@ -258,8 +258,7 @@ impl TreeBlocks {
             names.push(meta.names_checksum);
             let mut next = run::next_checksum(0, &first);
             for j in 1..blocks {
-                let id =
-                    meta.names_block.checked_add(j).ok_or_else(|| met_twice(meta.names_block, "names"))?;
+                let id = meta.names_block.checked_add(j).ok_or_else(|| past_end(meta.names_block))?;
                 let (b, _) =
                     pager.read(id, BlockType::Continuation, Some(next), &mut ReadStats::default())?;
                 names.push(next);
