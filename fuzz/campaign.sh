@@ -1,12 +1,20 @@
 #!/usr/bin/env bash
 # A fuzzing campaign as README.md ("Fuzzing") reports them: WORKERS processes
 # of one target's `--sanitizer none -O` build share one corpus, started from
-# fuzz/corpus/TARGET, each stopping after RUNS executions; the total is the
+# fuzz/corpus/TARGET, each stopping after RUNS executions; the count is the
 # sum of their stat::number_of_executed_units. Workers run at nice 10, so a
 # build or CI on the same cores goes first.
 #
 #   fuzz/campaign.sh TARGET WORKERS RUNS DIR [libFuzzer flags...]
 #   fuzz/campaign.sh api_sequence 2 5000000 /work/fuzzrun/run -max_len=256 -entropic=0
+#
+# A campaign is DIR: its binary (TARGET.COMMIT, built once, from a tree
+# whose code is committed), its corpus and one log per worker and run.
+# Running the script again on DIR continues the campaign with the same
+# binary, so a campaign may span sessions; the campaign's count is the sum
+# over all its logs. Stopping early: SIGINT to the workers (Ctrl-C, or
+# `pkill -INT -f DIR/TARGET.`). Each logs its count, and the script still
+# reports the totals.
 #
 # Comparison tracing helps only where raw input bytes meet magic values
 # (decode_block, open_and_query). The other targets' input only chooses
@@ -20,17 +28,34 @@ set -euo pipefail
 target=$1 workers=$2 runs=$3 dir=$4
 shift 4
 cd "$(dirname "$0")"
-trace=()
-case $target in decode_block | open_and_query) ;; *) trace=(--no-trace-compares) ;; esac
-cargo fuzz build --sanitizer none -O "${trace[@]}" "$target"
 mkdir -p "$dir/corpus" "$dir/artifacts"
+shopt -s nullglob
+kept=("$dir/$target".*)
+case ${#kept[@]} in
+  0)
+    # The binary is named by its commit: the code it is built from must be that commit's.
+    git diff --quiet HEAD -- :/src :/Cargo.toml :/Cargo.lock :/README.md fuzz_targets alloc_limit.rs Cargo.toml Cargo.lock ||
+      { echo "$0: commit the code first: the binary is named by its commit" >&2; exit 2; }
+    trace=()
+    case $target in decode_block | open_and_query) ;; *) trace=(--no-trace-compares) ;; esac
+    cargo fuzz build --sanitizer none -O "${trace[@]}" "$target"
+    binary="$dir/$target.$(git rev-parse --short HEAD)"
+    cp "target/x86_64-unknown-linux-gnu/release/$target" "$binary"
+    ;;
+  1) binary=${kept[0]} ;;
+  *) echo "$0: $dir holds more than one $target binary" >&2; exit 2 ;;
+esac
 cp -rn "corpus/$target/." "$dir/corpus/"
-binary="$dir/$target.$(git rev-parse --short HEAD)"
-cp "target/x86_64-unknown-linux-gnu/release/$target" "$binary"
+run=1
+while [ -e "$dir/run$run.w1.log" ]; do run=$((run + 1)); done
+# The script outlives a SIGINT meant for the workers, to count what they ran.
+trap '' INT
 for w in $(seq 1 "$workers"); do
   nice -n 10 "$binary" "$dir/corpus" -runs="$runs" -timeout=60 -print_final_stats=1 \
-    -artifact_prefix="$dir/artifacts/" "$@" > "$dir/w$w.log" 2>&1 &
+    -artifact_prefix="$dir/artifacts/" "$@" > "$dir/run$run.w$w.log" 2>&1 &
 done
 wait
-total=$(grep -h '^stat::number_of_executed_units' "$dir"/w*.log | awk '{s += $2} END {print s}')
-echo "$target: $total executions over $workers workers ($binary); artifacts: $(ls "$dir/artifacts" | wc -l)"
+executed() { grep -h '^stat::number_of_executed_units' "$@" | awk '{s += $2} END {print s + 0}'; }
+logs=("$dir"/*.log)
+echo "$target: $(executed "$dir"/run$run.w*.log) executions in run $run over $workers workers;" \
+  "$(executed "${logs[@]}") in the campaign's ${#logs[@]} logs ($binary); artifacts: $(ls "$dir/artifacts" | wc -l)"
