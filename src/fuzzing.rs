@@ -26,7 +26,7 @@ use crate::store::format::freelist::FreeListBlock;
 use crate::store::format::meta::Meta;
 use crate::store::format::node::{self, Limits};
 use crate::store::format::quant::QuantBox;
-use crate::store::format::{frame, geometry, keys, run};
+use crate::store::format::{frame, geometry, keys};
 
 /// Makes the calling thread rayon's one worker, for a fuzz target's
 /// process (its `init`): the bodies' parallel work (a write's layout and
@@ -55,7 +55,9 @@ pub fn decode_block(data: &[u8]) {
         // boxes decode in a frame, inline bounds decode as voxel blobs.
         let frame = Aabb::from_array([0.0, 0.0, 0.0, 40.0, 30.0, 20.0]);
         for o in offsets {
-            match node::NodeView::at(&block, o) {
+            let view = node::NodeView::at(&block, o);
+            let _ = view.as_ref().map(|v| v.frame(frame));
+            match view {
                 Err(_) => panic!("record {o} validated but cannot be viewed"),
                 Ok(node::NodeView::Internal(n)) => {
                     for i in 0..2 {
@@ -108,10 +110,6 @@ pub fn decode_block(data: &[u8]) {
     let _ = FreeListBlock::decode(7, &block);
     let _ = crate::lod::decode(rest, &lattice, &Aabb::from_array([0.0, 0.0, 0.0, 40.0, 30.0, 20.0]));
     let _ = geometry::decode_object(7, rest);
-    if let Ok((_, words, len)) = run::assemble(7, &[&block]) {
-        let (records, _, _) = run::header(7, &block).unwrap_or_default();
-        let _ = geometry::decode_names(7, &words, len, records);
-    }
 }
 
 /// Opens arbitrary bytes as a file and, if that works, queries, walks and checks it.
@@ -169,11 +167,6 @@ pub fn forge_geometry(data: &[u8]) {
 /// Inline bounds (voxel blobs) and the lattice forged with every checksum re-sealed.
 pub fn forge_lod(data: &[u8]) {
     structure::forge(structure::Structure::Lod, data)
-}
-
-/// The names run forged with every checksum re-sealed.
-pub fn forge_names(data: &[u8]) {
-    structure::forge(structure::Structure::Names, data)
 }
 
 /// The free list forged with every checksum re-sealed.

@@ -13,7 +13,8 @@
 
 pub use build::{BuildParams, LeafRule, Method};
 pub use db::{
-    CheckReport, Compaction, CreateOptions, Database, ReadTransaction, TreeInfo, WriteTransaction, check,
+    ChangeStats, CheckReport, Compaction, CreateOptions, Database, ReadTransaction, TreeInfo,
+    WriteTransaction, check,
 };
 pub use error::Error;
 pub use geom::{Aabb, Point, Ray, Vector};

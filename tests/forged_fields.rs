@@ -382,7 +382,7 @@ fn a_bound_forged_to_no_cell_is_corruption_not_a_lost_object() {
 }
 
 /// A count field: (what, its block, the block's type, its absolute offset,
-/// its width in bytes), after format-spec/meta.md, runs.md, node.md and
+/// its width in bytes), after format-spec/meta.md, node.md and
 /// geometry.md.
 type CountField = (&'static str, usize, BlockType, usize, usize);
 
@@ -392,7 +392,6 @@ fn count_fields() -> Vec<CountField> {
     let m = meta * BS;
     let (leaf_block, leaf) = img.leaves()[0];
     let (g, record) = img.record_of(leaf, img.leaf_entries(leaf)[0]);
-    let names = img.blocks_of(BlockType::Names)[0];
     let (_, _, blob, _) = img.leaf_bounds(leaf)[0];
     let node = img.blocks_of(BlockType::Node)[0];
     vec![
@@ -400,9 +399,6 @@ fn count_fields() -> Vec<CountField> {
         ("meta node_count", meta, BlockType::Meta, m + 32, 4),
         ("meta leaf_count", meta, BlockType::Meta, m + 36, 4),
         ("meta node_blocks", meta, BlockType::Meta, m + 44, 4),
-        ("names run_blocks", names, BlockType::Names, names * BS + 16, 4),
-        ("names record_count", names, BlockType::Names, names * BS + 20, 4),
-        ("names data_bytes", names, BlockType::Names, names * BS + 24, 4),
         ("node used_bytes", node, BlockType::Node, node * BS + 16, 4),
         ("node record_count", node, BlockType::Node, node * BS + 20, 2),
         ("leaf object_count", leaf_block, BlockType::Node, leaf + 2, 2),
@@ -435,20 +431,21 @@ fn forged_counts_are_bounded_by_the_bytes_that_hold_them() {
             [max, huge.min(max)].map(|v| (format!("{what} = {v}"), forge_counts(b, t, &[(at, v, width)])))
         })
         .collect();
-    // A count the names run cannot contradict (no names run), and counts
-    // that would let a traversal run long: object, node, leaf counts.
+    // Counts with the id bound raised to match (so that only the tree can
+    // contradict them), which would let a traversal run long: object,
+    // node, leaf counts.
     let m = image().meta();
     let at = m * BS;
     cases.push((
-        "meta object_count, no names run".into(),
-        forge_counts(m, BlockType::Meta, &[(at + 28, huge, 4), (at + 144, 0, 4)]),
+        "meta object_count and object_ids".into(),
+        forge_counts(m, BlockType::Meta, &[(at + 28, huge, 4), (at + 144, huge, 4)]),
     ));
     cases.push((
-        "meta object, node and leaf counts, no names run".into(),
+        "meta object, node and leaf counts and object_ids".into(),
         forge_counts(
             m,
             BlockType::Meta,
-            &[(at + 28, 1 << 30, 4), (at + 32, huge, 4), (at + 36, 1 << 30, 4), (at + 144, 0, 4)],
+            &[(at + 28, 1 << 30, 4), (at + 32, huge, 4), (at + 36, 1 << 30, 4), (at + 144, 1 << 30, 4)],
         ),
     ));
     for (what, f) in cases {

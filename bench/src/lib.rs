@@ -4,13 +4,15 @@
 //! the query workloads of `mktree bench-build` and `mktree bench-queries`
 //! (random boxes, cubes and collision boxes from a seed, and the leaves a
 //! box query reaches in a tree held in memory), and the peer benchmark of
-//! `mktree bench-peers`, and the piecewise replacement of `mktree
-//! bench-replace`, and the view query's sweep of `mktree bench-view`.
+//! `mktree bench-peers`, the piecewise replacement of `mktree
+//! bench-replace`, the change commits against SQLite of `mktree
+//! bench-changes`, and the view query's sweep of `mktree bench-view`.
 
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
 
 mod bench_peers;
+mod changes;
 mod error;
 pub mod peers;
 mod query_sets;
@@ -25,6 +27,7 @@ mod workload;
 pub use bench_peers::{
     DEFAULT_QUERIES, PeerOptions, PeerRow, QuerySet, bench_scene, parse_query_file, standard_sets,
 };
+pub use changes::{ChangeOptions, ChangeRow, ChangesReport, bench_changes};
 pub use error::BenchError;
 pub use query_sets::{
     COLLISION_MARGIN_MM, QueryKind, TreeQueryCount, collision_boxes, count_in_tree, random_cubes,

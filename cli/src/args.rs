@@ -316,6 +316,32 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Adds a scene's objects (OBJ, STL, glTF) to a file in one transaction,
+    /// written copy on write: the changed leaves and their paths only.
+    Insert {
+        file: PathBuf,
+        scene: PathBuf,
+        /// Key each object by its name (else by the next integer keys).
+        #[arg(long)]
+        key_names: bool,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Moves one object by an offset, written copy on write.
+    Move {
+        file: PathBuf,
+        /// The key: an integer, or text (with --text, or when it is not a number).
+        #[arg(long)]
+        key: String,
+        /// Take the key as text even when it reads as a number.
+        #[arg(long)]
+        text: bool,
+        /// The offset in mm: dx,dy,dz.
+        #[arg(long, value_delimiter = ',', num_args = 3, allow_hyphen_values = true, required = true)]
+        by: Vec<f64>,
+        #[arg(long)]
+        json: bool,
+    },
     /// Give the file's free blocks back: rewrite the tree low and cut the free end.
     Compact {
         file: PathBuf,
@@ -350,6 +376,9 @@ pub enum Command {
     /// A scene replaced by another object by object (deletes and inserts in
     /// write transactions): box-query reads against a fresh bulk load, and compact.
     BenchReplace(crate::cmd::bench_replace::BenchReplaceArgs),
+    /// Change commits (inserts, moves, removals, one at a time and many in
+    /// one) on mktree and on SQLite's R*Tree plus blobs, in the same run.
+    BenchChanges(crate::cmd::bench_changes::BenchChangesArgs),
     /// The view query along a walk through each file: reads and triangles per frame against tau, error under a block budget, exact frustum reads; a chart and frame strips.
     BenchView(crate::cmd::bench_view::BenchViewArgs),
     /// Import alone, timed: each scene read --repeat times; triangles and megabytes per second of the fastest run.

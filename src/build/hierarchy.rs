@@ -81,13 +81,6 @@ impl Split {
             Order::Center => crate::build::driver::signed_intersection(left, right, self.axis),
         }
     }
-
-    /// The split with `gap` and `overlap` recomputed for children that
-    /// changed (an insert or a delete below it); axis and order are kept.
-    pub(crate) fn refit(self, left: &Aabb, right: &Aabb) -> Split {
-        let gap = self.gap_between(left, right);
-        Split { gap, overlap: if gap > 0.0 { gap } else { 0.0 }, ..self }
-    }
 }
 
 /// A leaf or an internal node.

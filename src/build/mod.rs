@@ -13,7 +13,6 @@
 mod cost;
 mod cut;
 mod driver;
-mod edit;
 mod error;
 mod hierarchy;
 mod hilbert;
@@ -32,7 +31,6 @@ mod walk;
 pub use cost::{CostModel, MIX_SHARES, QueryMix};
 pub use driver::build;
 pub(crate) use driver::build_owned;
-pub(crate) use edit::TreeEdit;
 pub use error::BuildError;
 pub use hierarchy::{Hierarchy, Node, NodeId, NodeKind, Order, Split};
 pub use hilbert::curve_order;

@@ -7,7 +7,7 @@ use super::source::ObjectSource;
 use super::tree_writer::{Sink, Written};
 use super::{ReadTransaction, Reads};
 use crate::geom::Aabb;
-use crate::scene::{Key, Mesh, ObjectId};
+use crate::scene::{Key, Mesh, Object, ObjectId};
 use crate::store::format::frame::BlockType;
 use crate::store::format::geometry;
 use crate::store::format::keys::{self, ChildRef, KeyBlock, KeyEntry};
@@ -43,15 +43,18 @@ pub(crate) fn write(
     let entry = |&(ref key, id): &(Key, ObjectId)| KeyEntry {
         key: key.clone(),
         payload: objects.payload(id).to_vec(),
+        name: objects.name(id).to_string(),
         object_id: id.0,
-        leaf: written.leaves[id.index()],
+        path: written.paths[id.index()],
         aabb: written.aabb(objects, id),
     };
-    let sizes: Vec<usize> =
-        order.iter().map(|(key, id)| keys::entry_len(key, objects.payload(*id).len())).collect();
+    let sizes: Vec<usize> = order
+        .iter()
+        .map(|(key, id)| keys::entry_len(key, objects.payload(*id).len(), objects.name(*id).len()))
+        .collect();
     if let Some(at) = sizes.iter().position(|&len| len > capacity) {
         return Err(StorageError::Invalid(format!(
-            "the key {} with its payload takes {} bytes and a key block holds {capacity}: use larger blocks",
+            "the key {} with its payload and name takes {} bytes and a key block holds {capacity}: use larger blocks",
             order[at].0, sizes[at]
         )));
     }
@@ -93,7 +96,7 @@ pub(crate) fn write(
 /// items when there are two: a branch has at least two children. (Every
 /// item fits a third of a block in a branch, so the block before a lone
 /// last item holds at least three and can give one.)
-fn pack(sizes: &[usize], capacity: usize) -> Vec<std::ops::Range<usize>> {
+pub(crate) fn pack(sizes: &[usize], capacity: usize) -> Vec<std::ops::Range<usize>> {
     let mut groups: Vec<std::ops::Range<usize>> = Vec::new();
     let (mut start, mut used) = (0, 0);
     for (i, &s) in sizes.iter().enumerate() {
@@ -137,7 +140,7 @@ impl ReadTransaction {
     }
 
     /// The entry of `key`, descending the key index (its height in reads at most).
-    fn key_entry(&self, key: &Key, reads: &mut Reads) -> Result<Option<KeyEntry>, StorageError> {
+    pub(crate) fn key_entry(&self, key: &Key, reads: &mut Reads) -> Result<Option<KeyEntry>, StorageError> {
         let Some(m) = self.snapshot.meta.as_ref() else { return Ok(None) };
         let (mut block, mut checksum) = (m.keys_block, m.keys_checksum);
         for level in (1..=m.keys_height).rev() {
@@ -157,6 +160,30 @@ impl ReadTransaction {
             "keys_height",
             "the index is deeper than the meta block says",
         ))
+    }
+
+    /// Every entry of the key index, in key order: each block read once.
+    pub(crate) fn key_entries(&self, reads: &mut Reads) -> Result<Vec<KeyEntry>, StorageError> {
+        let Some(m) = self.snapshot.meta.as_ref() else { return Ok(Vec::new()) };
+        let mut level = vec![(m.keys_block, m.keys_checksum)];
+        let mut entries = Vec::new();
+        for height in (1..=m.keys_height).rev() {
+            // Blocks are bounded by the meta block's count, which opening bounds by the file.
+            if level.len() > m.keys_blocks as usize {
+                return Err(StorageError::corrupt(m.keys_block, "keys_blocks", "the index has more blocks"));
+            }
+            let mut below = Vec::new();
+            for (block, checksum) in level {
+                match self.key_block(block, checksum, height == 1, reads)? {
+                    KeyBlock::Leaf(es) => entries.extend(es),
+                    KeyBlock::Branch(children) => {
+                        below.extend(children.iter().map(|c| (c.block, c.checksum)))
+                    }
+                }
+            }
+            level = below;
+        }
+        Ok(entries)
     }
 
     /// The object with key `key`: its id, exact box and payload, in the
@@ -181,15 +208,21 @@ impl ReadTransaction {
     }
 
     /// The exact mesh of the object with key `key`: the index's path, the
-    /// leaf record's node block and the object's geometry blocks (counted
-    /// in `reads`).
+    /// node blocks from the root to the object's leaf record and the
+    /// object's geometry blocks (counted in `reads`).
     pub fn mesh_with(&self, key: &Key, reads: &mut Reads) -> Result<Option<Mesh>, StorageError> {
         let Some(e) = self.key_entry(key, reads)? else { return Ok(None) };
-        let b: Arc<Block> = self.block(e.leaf.block, BlockType::Node, e.leaf.checksum, reads)?;
-        let NodeView::Leaf(leaf) = super::view(&b, e.leaf.offset)? else {
-            return Err(StorageError::corrupt(e.leaf.block, "key_leaf", "the key's record is not a leaf"));
+        let steps = self.path_to(e.object_id, e.path, &e.aabb, reads)?;
+        let leaf_step = steps.last().ok_or_else(|| StorageError::Invalid("an empty path".into()))?;
+        let b: &Arc<Block> = &leaf_step.block;
+        let NodeView::Leaf(leaf) = super::view(b, leaf_step.offset)? else {
+            return Err(StorageError::corrupt(b.id(), "path", "the key's path ends at no leaf"));
         };
-        let first = usize::from(e.leaf.entry);
+        let first = (0..leaf.len())
+            .find(|&i| leaf.object(i).is_some_and(|o| o.object_id == e.object_id))
+            .ok_or_else(|| {
+                StorageError::corrupt(b.id(), "path", "the key's leaf does not hold its object")
+            })?;
         let mut parts = Vec::new();
         for i in first..leaf.len() {
             match leaf.object(i) {
@@ -199,16 +232,67 @@ impl ReadTransaction {
                 _ => break,
             }
         }
-        if parts.is_empty() || leaf.key(first).as_ref() != Some(&e.key) {
+        if leaf.key(first).as_ref() != Some(&e.key) {
             return Err(StorageError::corrupt(
-                e.leaf.block,
-                "key_leaf",
+                b.id(),
+                "keys",
                 format!("entry {first} of the leaf is not the object of key {}", e.key),
             ));
         }
         geometry::join(&parts)
             .map(Some)
-            .ok_or_else(|| StorageError::corrupt(e.leaf.block, "parts", "an object's parts do not join"))
+            .ok_or_else(|| StorageError::corrupt(b.id(), "parts", "an object's parts do not join"))
+    }
+
+    /// The object with key `key` whole: its name, exact mesh, key and
+    /// payload (the key index's path, the tree's path to its leaf, its
+    /// geometry blocks).
+    pub fn object(&self, key: &Key) -> Result<Option<Object>, StorageError> {
+        let mut reads = Reads::new(Some(self.cache()));
+        let Some(e) = self.key_entry(key, &mut reads)? else { return Ok(None) };
+        let mesh = self
+            .mesh_with(key, &mut reads)?
+            .ok_or_else(|| StorageError::corrupt(e.object_id, "key", "a key found once and not twice"))?;
+        Ok(Some(Object { name: e.name, mesh, key: Some(e.key), payload: e.payload }))
+    }
+
+    /// Levels of the key index (1: its root is a leaf); 0 without a tree.
+    pub fn key_index_height(&self) -> u32 {
+        self.snapshot.meta.as_ref().map_or(0, |m| m.keys_height)
+    }
+
+    /// The largest integer key of the tree: the last integer in key order
+    /// (integers order before byte strings), one path of the index.
+    pub(crate) fn largest_int_key(&self) -> Result<Option<u64>, StorageError> {
+        let Some(m) = self.snapshot.meta.as_ref() else { return Ok(None) };
+        let mut reads = Reads::new(Some(self.cache()));
+        let (mut block, mut checksum) = (m.keys_block, m.keys_checksum);
+        for level in (1..=m.keys_height).rev() {
+            match self.key_block(block, checksum, level == 1, &mut reads)? {
+                KeyBlock::Leaf(entries) => {
+                    return Ok(entries
+                        .iter()
+                        .rev()
+                        .find_map(|e| if let Key::Int(i) = e.key { Some(i) } else { None }));
+                }
+                KeyBlock::Branch(children) => {
+                    // The last child whose least key is an integer (the first child's is below all).
+                    let c = children
+                        .iter()
+                        .enumerate()
+                        .rev()
+                        .find(|(i, c)| *i == 0 || matches!(c.first_key, Key::Int(_)))
+                        .map(|(_, c)| c)
+                        .ok_or_else(|| StorageError::corrupt(block, "children", "a branch of no children"))?;
+                    (block, checksum) = (c.block, c.checksum);
+                }
+            }
+        }
+        Err(StorageError::corrupt(
+            m.keys_block,
+            "keys_height",
+            "the index is deeper than the meta block says",
+        ))
     }
 
     /// The exact mesh of the object with key `key` (see [`ReadTransaction::mesh_with`]).

@@ -136,8 +136,9 @@ impl ReadTransaction {
         // One level per step: a path longer than the tree is deep means the links loop.
         for _ in 0..=meta.depth {
             let block = self.block(at.block, BlockType::Node, at.checksum, &mut reads)?;
-            let NodeView::Internal(n) = view(&block, at.offset)? else { break };
-            let id = view(&block, at.offset)?.node_id();
+            let record = view(&block, at.offset)?;
+            let NodeView::Internal(n) = record else { break };
+            let id = record.node_id();
             if id == node {
                 break;
             }
@@ -148,7 +149,7 @@ impl ReadTransaction {
             let r = n.child_ref(i);
             let (nb, gb) = n.child_blocks(i);
             let frame = n
-                .child_box(i, &at.aabb)
+                .child_box(i, &record.frame(at.aabb))
                 .ok_or_else(|| StorageError::corrupt(at.block, "child_box", "backwards"))?
                 .outer;
             // The child's count excludes this block; with the child's own record in hand, its block too.

@@ -3,13 +3,13 @@
 //! all processes sharing the file, and it alone repairs what a crash left.
 //! The protocol is format-spec/commit.md.
 
-mod changes;
 mod check;
 mod codes;
 mod hierarchy;
 mod hosted;
 mod key_index;
 mod lod;
+mod path;
 mod read;
 mod source;
 mod staged;
@@ -31,7 +31,7 @@ pub use lod::{Level, LodInfo, Piece};
 pub(crate) use read::view;
 pub use read::{NodeRef, ReadTransaction, Reads, TreeInfo};
 pub use staged::StagedScene;
-pub use write::WriteTransaction;
+pub use write::{ChangeStats, WriteTransaction};
 
 use crate::store::device::FileDevice;
 use crate::store::format::frame::{self, BlockType};

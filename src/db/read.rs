@@ -10,8 +10,8 @@ use crate::build::BuildParams;
 use crate::geom::Aabb;
 use crate::scene::{Mesh, ObjectId};
 use crate::store::format::frame::BlockType;
+use crate::store::format::geometry;
 use crate::store::format::node::{self, LeafView, Limits, NodeView, RecordRef};
-use crate::store::format::{geometry, run};
 use crate::store::{Block, BlockCache, Pager, ReadStats, StorageError};
 
 /// What a file holds, from its meta block.
@@ -284,7 +284,7 @@ impl ReadTransaction {
         Limits {
             block_size: self.pager().block_size(),
             lod_levels: self.pager().lod_levels(),
-            object_count: self.snapshot.meta.as_ref().map_or(0, |m| m.object_count),
+            object_count: self.snapshot.meta.as_ref().map_or(0, |m| m.object_ids),
         }
     }
 
@@ -348,43 +348,36 @@ impl ReadTransaction {
         crate::query::query_region(self, &crate::query::Region::Box(*query), &Default::default(), None)
     }
 
-    /// Every object's name, by id (reads the names run).
+    /// Every object's name, by id (reads the key index, which holds them);
+    /// an id no object has gets an empty name. Ids sparser than 16 per
+    /// object (past the first 65,536) are refused, not listed.
     pub fn names(&self) -> Result<Vec<String>, StorageError> {
         let Some(m) = self.snapshot.meta.as_ref() else { return Ok(Vec::new()) };
-        if m.names_block == 0 {
-            return Ok(Vec::new());
-        }
-        let first = m.names_block;
-        let mut stats = ReadStats::default();
-        self.check_in_snapshot(first)?;
-        let (head, _) = self.pager().read(first, BlockType::Names, Some(m.names_checksum), &mut stats)?;
-        let (blocks, records, bytes) = run::header(first, &head)?;
-        if records != m.object_count {
+        let entries = self.key_entries(&mut Reads::new(None))?;
+        let len = entries.iter().map(|e| e.object_id as usize + 1).max().unwrap_or(0);
+        if len > m.object_ids as usize {
             return Err(StorageError::corrupt(
-                first,
-                "record_count",
-                format!("{records} names for {} objects", m.object_count),
+                m.keys_block,
+                "object_id",
+                format!("an id past the tree's {}", m.object_ids),
             ));
         }
-        // A name takes at least 4 bytes: the stream's length bounds the reads and the allocation.
-        if bytes < 4 * u64::from(records) {
-            return Err(StorageError::corrupt(
-                first,
-                "data_bytes",
-                format!("{bytes} bytes for {records} names"),
-            ));
+        // The list is sized by the ids the entries hold: a file whose ids
+        // are far sparser than its objects (forged, or after a great many
+        // removals) is refused rather than listed.
+        if len > 16 * entries.len() + (1 << 16) {
+            return Err(StorageError::Invalid(format!(
+                "ids up to {len} for {} objects are too sparse to list by id",
+                entries.len()
+            )));
         }
-        let last =
-            first.checked_add(blocks - 1).ok_or_else(|| StorageError::corrupt(first, "run", "overflows"))?;
-        self.check_in_snapshot(last)?;
-        let mut all = vec![head];
-        for (j, id) in (first + 1..=last).enumerate() {
-            let expected = run::next_checksum(j, &all[j]);
-            all.push(self.pager().read(id, BlockType::Continuation, Some(expected), &mut stats)?.0);
+        let mut names = vec![String::new(); len];
+        for e in entries {
+            if let Some(slot) = names.get_mut(e.object_id as usize) {
+                *slot = e.name;
+            }
         }
-        let refs: Vec<&[u8]> = all.iter().map(|b| &b[..]).collect();
-        let (records, words, len) = run::assemble(first, &refs)?;
-        geometry::decode_names(first, &words, len, records)
+        Ok(names)
     }
 }
 

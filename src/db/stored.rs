@@ -1,12 +1,11 @@
 //! The stored tree read back whole: every object with its mesh, key,
-//! payload and name, and the tree's shape over them. A write transaction
-//! that changes objects one by one starts from it.
+//! payload and name. A change commit that must write the tree whole (see
+//! `write/cow.rs`) starts from it.
 
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use super::{ReadTransaction, Reads, read_hierarchy, view};
-use crate::build::Hierarchy;
+use super::{ReadTransaction, Reads, view};
 use crate::geom::Aabb;
 use crate::query::{Everything, QueryError, QueryOptions, Visitor, walk};
 use crate::scene::{Key, Mesh, Object, ObjectId, Scene};
@@ -37,41 +36,31 @@ impl Visitor for Gather<'_> {
 }
 
 impl ReadTransaction {
-    /// Every object of the snapshot, by id, with its exact mesh, key,
-    /// payload and name: the scene the tree holds (empty without a tree).
-    /// Reads the whole file.
+    /// Every object of the snapshot in the order of their ids, with its
+    /// exact mesh, key, payload and name: the scene the tree holds (empty
+    /// without a tree). Reads the whole file; ids a change commit left
+    /// unused are skipped, so the scene numbers the objects densely.
     pub fn scene(&self) -> Result<Scene, StorageError> {
-        Ok(self.scene_and_tree()?.0)
-    }
-
-    /// [`ReadTransaction::scene`] and the tree's shape over it, with the
-    /// stored (quantized) boxes.
-    pub(crate) fn scene_and_tree(&self) -> Result<(Scene, Hierarchy), StorageError> {
-        let Some(root) = self.root() else { return Ok((Scene::default(), Hierarchy::default())) };
-        let tree = read_hierarchy(self)?;
+        let Some(root) = self.root() else { return Ok(Scene::default()) };
         let mut gather = Gather { txn: self, reads: Reads::new(Some(self.cache())), found: HashMap::new() };
         let all = QueryOptions { lod: Some(1), budget: None, ..Default::default() };
         walk(self, root, &Everything, &all, &mut Reads::new(None), &mut gather).map_err(|e| match e {
             QueryError::Storage(s) => s,
             other => StorageError::Invalid(other.to_string()),
         })?;
-        let names = self.names()?;
-        let mut found = gather.found;
-        let count = self.info().map_or(0, |i| i.objects);
-        let mut objects = Vec::new();
-        for id in 0..count {
-            let missing = || StorageError::Invalid(format!("object {id} is in no leaf"));
-            let (key, parts) = found.remove(&id).ok_or_else(missing)?;
+        let mut found: Vec<(u32, (Option<Key>, Vec<Mesh>))> = gather.found.into_iter().collect();
+        found.sort_unstable_by_key(|(id, _)| *id);
+        let mut objects = Vec::with_capacity(found.len());
+        for (id, (key, parts)) in found {
+            let id = ObjectId(id);
             let key = key.ok_or_else(|| StorageError::Invalid(format!("object {id} has no key")))?;
             let mesh = geometry::join(&parts)
                 .ok_or_else(|| StorageError::Invalid(format!("object {id}: its parts do not join")))?;
-            let payload = self.get(&key)?.map(|r| r.payload).unwrap_or_default();
-            let name = names.get(id as usize).cloned().unwrap_or_default();
-            objects.push(Object { name, mesh, key: Some(key), payload });
+            let entry = self.key_entry(&key, &mut Reads::new(Some(self.cache())))?.ok_or_else(|| {
+                StorageError::Invalid(format!("object {id}'s key {key} is not in the key index"))
+            })?;
+            objects.push(Object { name: entry.name, mesh, key: Some(key), payload: entry.payload });
         }
-        if let Some(&id) = found.keys().next() {
-            return Err(StorageError::Invalid(format!("object {} is past the tree's {count}", ObjectId(id))));
-        }
-        Ok((Scene::new(objects), tree))
+        Ok(Scene::new(objects))
     }
 }

@@ -19,7 +19,7 @@ use crate::lod::{StoredBounds, Voxels};
 use crate::scene::{Key, Mesh, ObjectId};
 use crate::store::format::frame::{BlockType, FRAME_LEN};
 use crate::store::format::geometry::{self, Placement};
-use crate::store::format::keys::LeafLocator;
+use crate::store::format::keys::TreePath;
 use crate::store::format::node::{
     self, BoundEntry, ChildEntry, ObjectEntry, RecordDraft, RecordRef, SplitInfo, leaf_len,
 };
@@ -50,8 +50,8 @@ pub(crate) struct Written {
     pub geometry_bytes: u64,
     /// Vertices as stored (a vertex two parts of an object share counts twice).
     pub vertices: u64,
-    /// Per object (by id): the leaf record holding it and its first entry there.
-    pub leaves: Vec<LeafLocator>,
+    /// Per object (by id): the path from the root to its leaf.
+    pub paths: Vec<TreePath>,
     /// The objects stored in parts, by id, with the union of their parts'
     /// boxes (any other object's box as the tree holds it is its source's).
     pub split_boxes: Vec<(ObjectId, Aabb)>,
@@ -146,6 +146,9 @@ impl Plan {
         let mut entries: Vec<Vec<Entry>> = vec![Vec::new(); n];
         for (i, node) in nodes.iter().enumerate() {
             let frame = &frames[i];
+            if node.objects().is_some() {
+                placement.start_block();
+            }
             for &id in node.objects().unwrap_or_default() {
                 if id.index() >= objects.len() {
                     return Err(invalid(format!("no object {id}")));
@@ -654,6 +657,7 @@ pub(crate) fn write(
                                 gap: s.gap as f32,
                             },
                             children: [child(kids[0].index()), child(kids[1].index())],
+                            frame: None,
                         }
                     }
                     _ => {
@@ -667,6 +671,7 @@ pub(crate) fn write(
                         let keys = object_ids(&plan.entries[i]).map(|id| objects.key(id)).collect();
                         RecordDraft::Leaf {
                             node_id: i as u32,
+                            frame: None,
                             first_block: first_geometry + a as u32,
                             checksums: sums[a as usize..=last as usize].to_vec(),
                             objects: entries,
@@ -683,20 +688,20 @@ pub(crate) fn write(
         node_bytes += records.iter().map(|r| r.encoded_len() as u64).sum::<u64>();
         checksums[b] = pager.write(first_node + b as u32, &mut bytes, BlockType::Node, txn)?;
     }
-    let nowhere = LeafLocator { block: 0, checksum: 0, offset: 0, entry: 0 };
-    let mut leaves = vec![nowhere; objects.len()];
+    // Nodes are in preorder: a parent's path is known before its children's.
+    let mut node_paths = vec![TreePath::default(); n];
+    for i in 0..n {
+        for (c, kid) in nodes[i].children().into_iter().flatten().enumerate() {
+            node_paths[kid.index()] = node_paths[i].child(c);
+        }
+    }
+    let mut paths = vec![TreePath::default(); objects.len()];
     let mut split_boxes: Vec<(ObjectId, Aabb)> = Vec::new();
     for (i, es) in plan.entries.iter().enumerate() {
-        let (b, _) = packing.place[i];
         for (j, e) in es.iter().enumerate() {
             let first = j == 0 || es[j - 1].id != e.id;
             if first {
-                leaves[e.id.index()] = LeafLocator {
-                    block: first_node + b,
-                    checksum: checksums[b as usize],
-                    offset: offset[i],
-                    entry: j as u16,
-                };
+                paths[e.id.index()] = node_paths[i];
             }
             if let Some((_, part_box)) = e.part.as_deref() {
                 match split_boxes.last_mut() {
@@ -715,7 +720,7 @@ pub(crate) fn write(
         geometry_blocks,
         geometry_bytes,
         vertices,
-        leaves,
+        paths,
         split_boxes,
     })
 }

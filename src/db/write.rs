@@ -1,12 +1,12 @@
 //! The write transaction: bulk-loads a scene into new blocks (copy on write)
 //! and commits it with the protocol of format-spec/commit.md.
 
+use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Instant;
 
 use super::StagedScene;
-use super::changes::Changes;
-use super::source::ObjectSource;
+use super::source::{self, ObjectSource};
 use super::tree_writer::Sink;
 use super::{
     Inner, Recovery, SeatGuard, Snapshot, WriterLock, codes, free_list_chain, interrupted, key_index, load,
@@ -17,17 +17,21 @@ use crate::build::{
     check_range,
 };
 use crate::lod::{EntryMesh, Layout, LodError, LodParams, LodPlan, StoredBounds, plan_bounds};
-use crate::scene::{Key, Object, ObjectId, Scene};
+use crate::scene::{Key, KeyError, Object, ObjectId, Scene};
 use crate::store::StorageError;
 use crate::store::alloc::{FreeSpace, label_freed};
 use crate::store::format::frame::BlockType;
 use crate::store::format::freelist::{FreeListBlock, FreeRange, ranges_per_block};
+use crate::store::format::geometry;
 use crate::store::format::header::{self, Commit, Slot, SlotState};
 use crate::store::format::meta::{LOD_TABLE_LEN, LodCodes, Meta};
-use crate::store::format::{geometry, run};
 
+mod cow;
 mod hosted;
 mod relocate;
+
+pub use cow::ChangeStats;
+use cow::{Change, Edits};
 
 /// The one write transaction. Dropping it without `commit` aborts it: the
 /// committed state is untouched.
@@ -49,8 +53,10 @@ pub struct WriteTransaction<'db> {
     meta: Option<(u32, u32, Meta)>,
     /// How the levels of detail below M are built.
     lod_params: LodParams,
-    /// Objects inserted, updated and deleted, once the first change began.
-    changes: Option<Changes>,
+    /// Objects inserted, updated and deleted, by key, once the first change began.
+    edits: Option<Edits>,
+    /// What the last commit of changes wrote.
+    change_stats: ChangeStats,
     /// The oldest snapshot a reader held when the transaction began.
     oldest_reader: Option<u64>,
     /// Allocates past the file's end only (the first step of a compaction).
@@ -134,7 +140,8 @@ impl<'db> WriteTransaction<'db> {
             written: FreeSpace::new(end, []),
             meta: None,
             lod_params: LodParams::default(),
-            changes: None,
+            edits: None,
+            change_stats: ChangeStats::default(),
             oldest_reader: b.oldest_reader,
             append_only: false,
             done: false,
@@ -167,7 +174,7 @@ impl<'db> WriteTransaction<'db> {
     }
 
     /// Builds the MKtree of `scene` with `params` and writes it: geometry,
-    /// node blocks with the levels of detail that pay, names, meta. Replaces
+    /// node blocks with the levels of detail that pay, the key index, meta. Replaces
     /// the tree on commit. Returns the hierarchy that was written.
     pub fn bulk_load(
         &mut self,
@@ -234,7 +241,7 @@ impl<'db> WriteTransaction<'db> {
     }
 
     fn may_write_tree(&self) -> Result<(), StorageError> {
-        if self.meta.is_some() || self.changes.is_some() {
+        if self.meta.is_some() || self.edits.is_some() {
             return Err(StorageError::Invalid(
                 "a transaction writes one tree: a bulk load, or changes to objects".into(),
             ));
@@ -242,48 +249,108 @@ impl<'db> WriteTransaction<'db> {
         Ok(())
     }
 
-    /// The changes to the committed tree, read back on the first one.
-    fn changes(&mut self) -> Result<&mut Changes, crate::Error> {
+    /// The transaction's changes; refuses them after a bulk load.
+    fn edits(&mut self) -> Result<&mut Edits, crate::Error> {
         if self.meta.is_some() {
             return Err(StorageError::Invalid(
                 "a transaction writes one tree: a bulk load, or changes to objects".into(),
             )
             .into());
         }
-        if self.changes.is_none() {
-            let snapshot = self.inner.read_installed()?;
-            let fresh = BuildParams::for_blocks(self.inner.pager().block_size());
-            self.changes = Some(Changes::load(&snapshot, fresh)?);
-        }
-        Ok(self.changes.as_mut().expect("loaded above"))
+        Ok(self.edits.get_or_insert_with(Edits::default))
     }
 
-    /// Adds `object` to the committed tree: into the leaf whose box grows
-    /// least, splitting it by the tree's method when it overflows. An
+    /// Refuses an object the file could not hold: its geometry's range,
+    /// its payload, and its key entry's bytes against a key block's.
+    fn check_change(&self, key: &Key, object: &Object) -> Result<(), crate::Error> {
+        let id = ObjectId(0);
+        source::check_object(id, object)?;
+        let len = crate::store::format::keys::entry_len(key, object.payload.len(), object.name.len());
+        let capacity = crate::store::format::keys::capacity(self.inner.pager().block_size());
+        if len > capacity {
+            return Err(StorageError::Invalid(format!(
+                "the key {key} with its payload and name takes {len} bytes and a key block holds {capacity}: use larger blocks"
+            ))
+            .into());
+        }
+        Ok(())
+    }
+
+    /// The largest integer key, as the transaction has the tree.
+    fn largest_int_key(&mut self) -> Result<Option<u64>, crate::Error> {
+        let committed = self.inner.read_installed()?.largest_int_key()?;
+        let edited =
+            self.edits()?.ops.keys().filter_map(|k| if let Key::Int(i) = k { Some(*i) } else { None }).max();
+        Ok(committed.max(edited))
+    }
+
+    /// Adds `object` to the tree: into the leaf whose box grows least. An
     /// object without a key gets the integer key one past the largest in
     /// the tree. Returns the object's key; a key already in the tree is
     /// [`KeyError::Exists`](crate::scene::KeyError::Exists).
     ///
-    /// The first change of a transaction reads the committed scene back,
-    /// and `commit` writes the changed tree whole (levels of detail
-    /// included): a commit costs about a bulk load's writes, not its
-    /// clustering.
-    pub fn insert(&mut self, object: Object) -> Result<Key, crate::Error> {
-        self.changes()?.insert(object)
+    /// Changes are applied at `commit`, which writes what they touch: the
+    /// changed leaves, the node blocks on their paths, the key index's
+    /// paths and the meta block (format-spec/commit.md). A change that
+    /// would split or empty a leaf makes the commit write the tree whole.
+    pub fn insert(&mut self, mut object: Object) -> Result<Key, crate::Error> {
+        self.edits()?;
+        let key = match object.key.take() {
+            Some(key) => key,
+            None => {
+                let next = match self.largest_int_key()? {
+                    None => 0,
+                    Some(i) => {
+                        i.checked_add(1).ok_or(StorageError::Invalid("integer keys are exhausted".into()))?
+                    }
+                };
+                Key::Int(next)
+            }
+        };
+        self.check_change(&key, &object)?;
+        if self.object(&key)?.is_some() {
+            return Err(KeyError::Exists { key }.into());
+        }
+        object.key = Some(key.clone());
+        self.edits()?.ops.insert(key.clone(), Change::Put(object));
+        Ok(key)
     }
 
-    /// Removes the object of key `key` (its leaf merges into its sibling
-    /// leaf when both fit one page), returning it; `None` if no object has
-    /// that key.
+    /// Removes the object of key `key`, returning it; `None` if no object
+    /// has that key. A leaf keeps its box until the tree is laid out anew.
     pub fn remove(&mut self, key: &Key) -> Result<Option<Object>, crate::Error> {
-        Ok(self.changes()?.remove(key))
+        self.edits()?;
+        let old = self.object(key)?;
+        if old.is_some() {
+            self.edits()?.ops.insert(key.clone(), Change::Remove);
+        }
+        Ok(old)
     }
 
     /// Replaces the object with `object`'s key by `object`, moved to the
     /// leaf it now fits best; returns the old object. A key not in the tree
     /// is [`KeyError::NotFound`](crate::scene::KeyError::NotFound).
     pub fn update(&mut self, object: Object) -> Result<Object, crate::Error> {
-        self.changes()?.update(object)
+        let key =
+            object.key.clone().ok_or(StorageError::Invalid("an update names its object by key".into()))?;
+        self.edits()?;
+        self.check_change(&key, &object)?;
+        let old = self.object(&key)?.ok_or_else(|| KeyError::NotFound { key: key.clone() })?;
+        self.edits()?.ops.insert(key, Change::Put(object));
+        Ok(old)
+    }
+
+    /// Moves the object of key `key` by `by` (mm) without the caller sending
+    /// its mesh again: its geometry is read and translated, and it is
+    /// written as an update. Returns whether the key has an object.
+    pub fn move_by(&mut self, key: &Key, by: crate::geom::Vector) -> Result<bool, crate::Error> {
+        let Some(mut object) = self.object(key)? else { return Ok(false) };
+        let moved: Vec<crate::geom::Point> = object.mesh.vertices().map(|p| p + by).collect();
+        object.mesh = crate::scene::Mesh::from_world(&moved, object.mesh.triangles().to_vec())
+            .map_err(|e| StorageError::Invalid(format!("the moved object: {e}")))?;
+        object.key = Some(key.clone());
+        self.update(object)?;
+        Ok(true)
     }
 
     /// The committed state's (file blocks, free blocks) this transaction began on.
@@ -293,7 +360,69 @@ impl<'db> WriteTransaction<'db> {
 
     /// The object of key `key` as this transaction has it, changes included.
     pub fn object(&mut self, key: &Key) -> Result<Option<Object>, crate::Error> {
-        Ok(self.changes()?.get(key).cloned())
+        if let Some(change) = self.edits()?.ops.get(key) {
+            return Ok(match change {
+                Change::Put(o) => Some(o.clone()),
+                Change::Remove => None,
+            });
+        }
+        Ok(self.inner.read_installed()?.object(key)?)
+    }
+
+    /// What the last commit of changes wrote (zero before one).
+    pub fn change_stats(&self) -> ChangeStats {
+        self.change_stats
+    }
+
+    /// Applies the transaction's changes: copy on write when they allow it,
+    /// else by writing the changed tree whole.
+    fn apply_edits(&mut self, edits: Edits) -> Result<bool, crate::Error> {
+        if edits.ops.is_empty() {
+            return Ok(false);
+        }
+        if self.inner.host.is_none() {
+            // An attempt that stops short leaves nothing reachable: its blocks go back.
+            let (avail, written) = (self.avail.clone(), self.written.clone());
+            match self.commit_in_place(&edits)? {
+                Some(stats) => {
+                    self.change_stats = stats;
+                    return Ok(false);
+                }
+                None => (self.avail, self.written) = (avail, written),
+            }
+        }
+        // The tree written whole: the committed objects with the changes
+        // applied, bulk-loaded with the file's build parameters.
+        let snapshot = self.inner.read_installed()?;
+        let params = snapshot
+            .info()
+            .and_then(|i| i.params)
+            .unwrap_or_else(|| BuildParams::for_blocks(self.inner.pager().block_size()));
+        let mut objects: BTreeMap<Key, Object> = BTreeMap::new();
+        for o in snapshot.scene()?.into_objects() {
+            let key =
+                o.key.clone().ok_or_else(|| StorageError::Invalid("a stored object without a key".into()))?;
+            objects.insert(key, o);
+        }
+        drop(snapshot);
+        for (key, change) in edits.ops {
+            match change {
+                Change::Remove => {
+                    objects.remove(&key);
+                }
+                Change::Put(object) => {
+                    objects.insert(key, object);
+                }
+            }
+        }
+        self.change_stats = ChangeStats { changes: self.change_stats.changes, ..ChangeStats::default() };
+        if objects.is_empty() {
+            return Ok(true);
+        }
+        let scene = Scene::new(objects.into_values().collect());
+        check_range(&scene, geometry::MAX_COORDINATE)?;
+        self.load(&scene, &params, &|_| {})?;
+        Ok(false)
     }
 
     /// Writes a valid tree of `objects` (built here, or checked by `write_tree`).
@@ -363,20 +492,6 @@ impl<'db> WriteTransaction<'db> {
             let allocate = &mut |count: u32| self.allocate(count);
             key_index::write(Sink { pager: &pager, txn, allocate }, objects, &written)?
         };
-        // Names, apart from geometry so queries never read them.
-        let mut stream = Vec::new();
-        for i in 0..objects.len() {
-            geometry::encode_name(objects.name(ObjectId(i as u32)), &mut stream);
-        }
-        let mut payloads = run::encode(&stream, objects.len() as u32, bs);
-        let names_block = self.allocate(payloads.len() as u32)?;
-        // Last block first: each block holds the checksum of the one after it.
-        let mut names_checksum = 0;
-        for (j, b) in payloads.iter_mut().enumerate().rev() {
-            run::set_next_checksum(j, b, names_checksum);
-            let t = if j == 0 { BlockType::Names } else { BlockType::Continuation };
-            names_checksum = pager.write(names_block + j as u32, b, t, self.txn)?;
-        }
         let mut lod_table = [[0.0; 2]; LOD_TABLE_LEN];
         for (row, e) in lod_table.iter_mut().zip(&stored.errors) {
             *row = *e;
@@ -399,6 +514,7 @@ impl<'db> WriteTransaction<'db> {
             root_checksum,
             root_offset,
             object_count: objects.len() as u32,
+            object_ids: objects.len() as u32,
             node_count: tree.nodes.len() as u32,
             leaf_count: tree.leaves().count() as u32,
             depth: tree.depth().saturating_sub(1),
@@ -408,8 +524,6 @@ impl<'db> WriteTransaction<'db> {
             vertex_count: written.vertices,
             scene_box: tree.nodes[0].aabb.to_array(),
             build: codes::encode(params, build_seconds),
-            names_block,
-            names_checksum,
             node_bytes: written.node_bytes,
             geometry_bytes: written.geometry_bytes,
             lod_table,
@@ -439,26 +553,29 @@ impl<'db> WriteTransaction<'db> {
 
     /// Makes the transaction durable: writes the free list, syncs, writes the
     /// commit slot, syncs (format-spec/commit.md, steps 3 to 5).
-    pub fn commit(mut self) -> Result<(), StorageError> {
+    pub fn commit(self) -> Result<(), StorageError> {
+        self.commit_with_stats().map(|_| ())
+    }
+
+    /// [`commit`](Self::commit), returning what the transaction's changes
+    /// wrote: blocks written, freed and read, and whether they went in
+    /// place (copy on write) or the tree was written whole.
+    pub fn commit_with_stats(mut self) -> Result<ChangeStats, StorageError> {
         let pager = self.inner.pager().clone();
         let mut cleared = false;
         // The committed free list's blocks, when this commit keeps the tree:
         // at the file's end they are cut off once the commit is durable.
         let mut old_chain = Vec::new();
-        if let Some(changes) = self.changes.take().filter(Changes::changed) {
-            let (scene, tree, params, seconds) = changes.finish();
-            if scene.objects().is_empty() {
-                cleared = true;
-            } else {
-                // What `write_tree` checks: a failure here is a bug, refused before it reaches the file.
-                let sizes: Vec<u64> = scene.objects().iter().map(|o| geometry::record_len(&o.mesh)).collect();
-                tree.validate(&scene.object_boxes(), Some(&sizes), &params)
-                    .map_err(|e| StorageError::Invalid(format!("the changed tree: {e}")))?;
-                self.write(&scene, &tree, &params, seconds, &|_| {})?;
-            }
+        if let Some(edits) = self.edits.take() {
+            self.change_stats.changes = edits.ops.len() as u64;
+            cleared = self.apply_edits(edits).map_err(|e| match e {
+                crate::Error::Storage(s) => s,
+                other => StorageError::Invalid(other.to_string()),
+            })?;
         }
         if let Some(host) = self.inner.host.clone() {
-            return self.commit_hosted(host.as_ref(), cleared);
+            let stats = self.change_stats;
+            return self.commit_hosted(host.as_ref(), cleared).map(|()| stats);
         }
         let (meta_block, meta_checksum, meta) = match self.meta.take() {
             Some((block, sum, meta)) => (block, sum, Some(meta)),
@@ -474,7 +591,7 @@ impl<'db> WriteTransaction<'db> {
                 if !shorter && !list_moves {
                     // Nothing to write: the same state under a new transaction id.
                     let c = Commit { txn: self.txn, ..self.base };
-                    return self.finish(c, None);
+                    return self.finish(c, None).map(|()| self.change_stats);
                 }
                 // The same tree, and a shorter file.
                 self.keep_base(&chain);
@@ -526,7 +643,7 @@ impl<'db> WriteTransaction<'db> {
             // After the commit: a crash before this leaves a longer file, which the next writer truncates.
             pager.device().set_len(u64::from(end) * u64::from(pager.block_size()))?;
         }
-        Ok(())
+        Ok(self.change_stats)
     }
 
     /// Drops the free ranges at the end of a file of `end` blocks that no

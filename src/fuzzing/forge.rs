@@ -17,12 +17,6 @@ pub enum Kind {
     Meta,
     Node,
     Geometry,
-    /// The names run's first block.
-    Names,
-    /// A continuation block of a run with `left` blocks after it.
-    Continuation {
-        left: u32,
-    },
     FreeList,
     /// A key index block `level` levels above the leaves (0: a key leaf).
     Key {
@@ -52,6 +46,8 @@ pub struct LeafAt {
     pub at: usize,
     pub objects: usize,
     pub span: usize,
+    /// The span blocks' checksums (after the record's own frame, if any).
+    pub sums_at: usize,
     /// The first object entry.
     pub objects_at: usize,
     /// The `end` word, just after the object entries.
@@ -82,8 +78,10 @@ pub struct KeyEntryAt {
     pub key: Option<(usize, usize)>,
     /// A leaf entry's payload length word; its payload follows.
     pub payload: Option<usize>,
-    /// The fixed part: a leaf's object id, node block, checksum, record
-    /// offset, entry, reserved and box; a branch's child block and checksum.
+    /// A leaf entry's name length word; its name follows.
+    pub name: Option<usize>,
+    /// The fixed part: a leaf's object id, path bits, path length,
+    /// reserved and box; a branch's child block and checksum.
     pub fixed: usize,
     /// Just past the entry.
     pub end: usize,
@@ -100,6 +98,7 @@ pub struct BoundAt {
 }
 
 const INTERNAL_LEN: usize = 84;
+const FRAME_BOX_LEN: usize = 48;
 const RECORDS_START: usize = 24;
 
 /// A file's bytes in blocks of `bs` bytes.
@@ -157,11 +156,13 @@ impl Image {
         let mut out = Vec::new();
         let mut at = base + RECORDS_START;
         for _ in 0..self.u16(base + 20) {
+            // A record with a frame of its own holds it after its fixed head.
             let len = match self.u8(at) {
-                1 => INTERNAL_LEN,
+                1 => INTERNAL_LEN + FRAME_BOX_LEN * usize::from(self.u8(at + 2) & 1),
                 2 => {
                     let (n, span) = (usize::from(self.u16(at + 2)), usize::from(self.u16(at + 12)));
-                    let objects_at = at + 20 + 4 * span;
+                    let sums_at = at + 20 + FRAME_BOX_LEN * usize::from(self.u8(at + 1) & 1);
+                    let objects_at = sums_at + 4 * span;
                     let end_at = objects_at + 20 * n;
                     let bounds_at = end_at + 4;
                     let bounds_len = self.u32(at + 16) as usize;
@@ -171,6 +172,7 @@ impl Image {
                         at,
                         objects: n,
                         span,
+                        sums_at,
                         objects_at,
                         end_at,
                         bounds_at,
@@ -189,7 +191,7 @@ impl Image {
             if at.saturating_add(len) > end {
                 break;
             }
-            if len == INTERNAL_LEN && self.u8(at) == 1 {
+            if self.u8(at) == 1 {
                 out.push(Record::Internal { at });
             }
             at += len;
@@ -222,10 +224,6 @@ impl Image {
         match kind {
             Kind::Meta => {
                 let mut out = vec![r(base + 20, self.u32(base + 16), Kind::Node)];
-                let names = self.u32(base + 144);
-                if names != 0 {
-                    out.push(r(base + 148, names, Kind::Names));
-                }
                 let (keys, height) = (self.u32(base + 904), self.u32(base + 912));
                 if keys != 0 && height >= 1 {
                     out.push(r(base + 908, keys, Kind::Key { level: height - 1 }));
@@ -249,7 +247,7 @@ impl Image {
                             let first = self.u32(l.at + 8);
                             for i in 0..l.span {
                                 if let Some(g) = u32::try_from(i).ok().and_then(|i| first.checked_add(i)) {
-                                    out.push(r(l.at + 20 + 4 * i, g, Kind::Geometry));
+                                    out.push(r(l.sums_at + 4 * i, g, Kind::Geometry));
                                 }
                             }
                         }
@@ -257,31 +255,24 @@ impl Image {
                 }
                 out
             }
-            Kind::Names => match self.u32(base + 16) {
-                n if n > 1 => vec![r(base + 32, id.saturating_add(1), Kind::Continuation { left: n - 2 })],
-                _ => Vec::new(),
-            },
-            Kind::Continuation { left } if left > 0 => {
-                vec![r(base + 16, id.saturating_add(1), Kind::Continuation { left: left - 1 })]
-            }
             Kind::FreeList => match self.u32(base + 16) {
                 0 => Vec::new(),
                 next => vec![r(base + 20, next, Kind::FreeList)],
             },
             Kind::Key { level } => self.key_references(base, level),
-            Kind::Continuation { .. } | Kind::Geometry => Vec::new(),
+            Kind::Geometry => Vec::new(),
         }
     }
 
-    /// A key block's references (format-spec/keys.md): a branch's children,
-    /// a leaf's entries' node blocks.
+    /// A key block's references (format-spec/keys.md): a branch's
+    /// children (a leaf's entries name no block).
     fn key_references(&self, base: usize, level: u32) -> Vec<Reference> {
-        self.key_entries(base, level > 0)
+        if level == 0 {
+            return Vec::new();
+        }
+        self.key_entries(base, true)
             .into_iter()
-            .map(|at| match level {
-                0 => Reference { field: at + 8, target: self.u32(at + 4), kind: Kind::Node },
-                _ => Reference { field: at + 4, target: self.u32(at), kind: Kind::Key { level: level - 1 } },
-            })
+            .map(|at| Reference { field: at + 4, target: self.u32(at), kind: Kind::Key { level: level - 1 } })
             .collect()
     }
 
@@ -309,19 +300,20 @@ impl Image {
         let mut out = Vec::new();
         let mut at = base + 24;
         for i in 0..self.u16(base + 16) {
-            let (key, payload, fixed, next) = if branch {
+            let (key, payload, name, fixed, next) = if branch {
                 let key = if i == 0 { None } else { Some(self.key_len(at)) };
                 let Some(k) = key.unwrap_or(Some(0)) else { break };
-                (key.map(|_| (at, k)), None, at + k, at + k + 8)
+                (key.map(|_| (at, k)), None, None, at + k, at + k + 8)
             } else {
                 let Some(k) = self.key_len(at) else { break };
-                let fixed = at + k + 2 + usize::from(self.u16(at + k));
-                (Some((at, k)), Some(at + k), fixed, fixed + 68)
+                let name = at + k + 2 + usize::from(self.u16(at + k));
+                let fixed = name + 2 + usize::from(self.u16(name));
+                (Some((at, k)), Some(at + k), Some(name), fixed, fixed + 64)
             };
             if next > end {
                 break;
             }
-            out.push(KeyEntryAt { at, key, payload, fixed, end: next });
+            out.push(KeyEntryAt { at, key, payload, name, fixed, end: next });
             at = next;
         }
         out

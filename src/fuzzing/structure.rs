@@ -26,7 +26,6 @@ use crate::store::device::MemDevice;
 use crate::store::format::header::{SLOT_LEN, slot_offset};
 use crate::store::format::node::NodeView;
 use crate::store::format::quant::QuantBox;
-use crate::store::format::run;
 use crate::store::{Block, BlockDevice, StorageError};
 
 /// The structure a target forges.
@@ -39,18 +38,16 @@ pub enum Structure {
     Geometry,
     /// The inline bounds (voxel blobs) of leaf records and the lattice.
     Lod,
-    Names,
     FreeList,
     /// The key index (its blocks and the meta block's root) and the leaves' keys areas.
     Keys,
 }
 
-const STRUCTURES: [Structure; 7] = [
+const STRUCTURES: [Structure; 6] = [
     Structure::Header,
     Structure::Node,
     Structure::Geometry,
     Structure::Lod,
-    Structure::Names,
     Structure::FreeList,
     Structure::Keys,
 ];
@@ -75,8 +72,6 @@ struct Base {
     catalogs: Vec<Catalog>,
     lattice: Lattice,
     sites: Vec<BoundSite>,
-    names_block: u32,
-    names: Vec<Vec<u8>>,
     /// The newest commit slot and its transaction.
     slot: usize,
     txn: u64,
@@ -136,7 +131,7 @@ fn strip() -> Mesh {
     mesh(&v, t)
 }
 
-/// Long names, some not ASCII, so that the names run takes several blocks.
+/// Long names, some not ASCII, so that the key entries holding them fill several blocks.
 fn name(kind: &str, i: usize) -> String {
     format!("{kind}-{i}: größe {}", "name ".repeat(20 + 2 * i))
 }
@@ -250,17 +245,6 @@ fn meta_fields(c: &mut Catalog, m: usize) {
     c.add(m, Width::F32, (0..32).map(|i| 776 + 4 * i));
 }
 
-/// Where stream byte `s` of a names run starting at block `first` lies.
-fn run_byte(first: u32, s: usize) -> usize {
-    let head = BS - run::FIRST_DATA;
-    if s < head {
-        first as usize * BS + run::FIRST_DATA + s
-    } else {
-        let rest = BS - 24;
-        (first as usize + 1 + (s - head) / rest) * BS + 24 + (s - head) % rest
-    }
-}
-
 impl Base {
     fn build() -> Base {
         let image = Image { bytes: base_file(), bs: BS };
@@ -275,10 +259,8 @@ impl Base {
         };
         let nodes = of(|k| k == Kind::Node);
         let geometry = of(|k| k == Kind::Geometry);
-        let run_blocks = of(|k| matches!(k, Kind::Names | Kind::Continuation { .. }));
         let free_lists = of(|k| k == Kind::FreeList);
         let meta = image.u32(at + 12) as usize * BS;
-        let names_block = image.u32(meta + 144);
         // The leaves' frames, from the engine's own walk.
         let db = Database::open_on(Arc::new(MemDevice::from_bytes(image.bytes.clone())))
             .unwrap_or_else(|e| panic!("the base file opens: {e}"));
@@ -296,6 +278,7 @@ impl Base {
         .unwrap_or_else(|e| panic!("the base file walks: {e}"));
         let lattice = r.lattice().unwrap_or_else(|| panic!("the base file has a lattice"));
         let names = r.names().unwrap_or_else(|e| panic!("the base file's names: {e}"));
+        assert_eq!(names.len(), base_scene().objects().len(), "the base file's names");
         let ids: Vec<ObjectId> = (0..names.len() as u32).map(ObjectId).collect();
         let meshes = object_meshes(&r, &ids).unwrap_or_else(|e| panic!("the base file's meshes: {e}"));
         let keyed: Vec<Keyed> = meshes
@@ -418,37 +401,6 @@ impl Base {
         lod.add(meta, Width::U32, [452, 456]);
         lod.add(0, Width::U8, [16]);
 
-        // The run and the meta block's pointer to it (its object count is the header target's).
-        let mut names_c = Catalog::default();
-        names_c.add(meta, Width::U32, [144]);
-        for &b in &run_blocks {
-            let base = b as usize * BS;
-            if b == names_block {
-                names_c.add(base, Width::U32, [16, 20]);
-                names_c.add(base, Width::U64, [24]);
-                names_c.add(base, Width::U8, [36, 39]);
-            } else {
-                names_c.add(base, Width::U32, [20]);
-            }
-            names_c.ranges.push((base + 16, BS - 16));
-        }
-        let mut s = 0;
-        let mut stream_names = Vec::new();
-        for n in &names {
-            let at = run_byte(names_block, s);
-            names_c.anchors.push(at);
-            // A length word that does not straddle two blocks.
-            if run_byte(names_block, s + 3) == at + 3 {
-                names_c.add(at, Width::U32, [0]);
-            }
-            names_c.fields.extend(
-                (0..n.len())
-                    .map(|j| super::edit::Field { at: run_byte(names_block, s + 4 + j), width: Width::U8 }),
-            );
-            s += (4 + n.len()).next_multiple_of(4);
-            stream_names.push(n.as_bytes().to_vec());
-        }
-
         let mut free = Catalog::default();
         for &b in &free_lists {
             let base = b as usize * BS;
@@ -487,7 +439,8 @@ impl Base {
                 if let Some((k, len)) = e.key {
                     key_fields(&mut keys_c, &image, k, len);
                 }
-                if let Some(p) = e.payload {
+                // The payload's and the name's length words and bytes.
+                for p in e.payload.into_iter().chain(e.name) {
                     keys_c.add(p, Width::U16, [0]);
                     let n = usize::from(image.u16(p));
                     if n > 0 {
@@ -496,10 +449,12 @@ impl Base {
                     }
                 }
                 if level == 0 {
+                    // Object id, path bits, path length, reserved, box.
                     keys_c.anchors.push(e.fixed);
-                    keys_c.add(e.fixed, Width::U32, [0, 4, 8, 12]);
-                    keys_c.add(e.fixed, Width::U16, [16, 18]);
-                    keys_c.add(e.fixed, Width::F64, (0..6).map(|j| 20 + 8 * j));
+                    keys_c.add(e.fixed, Width::U32, [0]);
+                    keys_c.add(e.fixed, Width::U64, [4]);
+                    keys_c.add(e.fixed, Width::U8, [12, 13, 15]);
+                    keys_c.add(e.fixed, Width::F64, (0..6).map(|j| 16 + 8 * j));
                 } else {
                     keys_c.add(e.fixed, Width::U32, [0, 4]);
                 }
@@ -524,11 +479,9 @@ impl Base {
         let exact = boxes.iter().map(|b| brute_force_region(&scene, &Region::Box(*b))).collect();
         let absent = absent_keys(keyed.iter().map(|o| &o.key));
         Base {
-            catalogs: vec![header, node, geo, lod, names_c, free, keys_c],
+            catalogs: vec![header, node, geo, lod, free, keys_c],
             lattice,
             sites,
-            names_block,
-            names: stream_names,
             slot,
             txn,
             free_lists,
@@ -583,7 +536,7 @@ fn base() -> &'static Base {
 }
 
 /// Opens the forged image and runs what `s` can change: every query kind
-/// for the tree's structures, `names` for the names run, a write for the
+/// for the tree's structures, `names` for the key index, a write for the
 /// slots and the free list; then `check`, and the oracles when it passes.
 fn exercise(s: Structure, bytes: Vec<u8>, probes: &[Aabb]) {
     // Compaction reads and moves every structure of the tree (slots and
@@ -596,7 +549,7 @@ fn exercise(s: Structure, bytes: Vec<u8>, probes: &[Aabb]) {
         let levels: Vec<u8> = match s {
             Structure::Header | Structure::Node | Structure::Lod => (1..=m).collect(),
             Structure::Geometry | Structure::Keys => vec![m],
-            Structure::Names | Structure::FreeList => Vec::new(),
+            Structure::FreeList => Vec::new(),
         };
         let corner = Aabb::from_array([0.0, 0.0, 0.0, 150.0, 150.0, 60.0]);
         for &k in &levels {
@@ -624,7 +577,7 @@ fn exercise(s: Structure, bytes: Vec<u8>, probes: &[Aabb]) {
                 let _ = r.fetch_level(info.nodes.saturating_sub(1), m, true, &mut Default::default());
             }
         }
-        if matches!(s, Structure::Header | Structure::Names) {
+        if matches!(s, Structure::Header | Structure::Keys) {
             let _ = r.names();
         }
     }
@@ -997,7 +950,6 @@ fn special(
             }
         }
         Structure::Lod => lod_op(base, img, op, c),
-        Structure::Names => names_op(base, img, op, c),
         Structure::FreeList => free_op(base, img, op, c),
         Structure::Keys => keys_op(base, img, op, c),
     }
@@ -1296,41 +1248,6 @@ fn lod_op(base: &Base, img: &mut Image, op: u8, c: &mut Choices) {
     rewrite_bounds(img, site.block, site.record, &entries);
 }
 
-/// Names forgeries: the run rewritten from an edited list of names (a name
-/// replaced by the input's bytes, valid UTF-8 or not; one dropped; one
-/// repeated), as long as the new stream needs, over the blocks after the first.
-fn names_op(base: &Base, img: &mut Image, op: u8, c: &mut Choices) {
-    let mut names = base.names.clone();
-    let j = c.below(names.len());
-    match op {
-        0 => {
-            let n = c.below(300);
-            names[j] = c.bytes(n);
-        }
-        1 => {
-            names.remove(j);
-        }
-        _ => {
-            let again = names[j].clone();
-            names.insert(j, again);
-        }
-    }
-    let mut stream = Vec::new();
-    for n in &names {
-        stream.extend_from_slice(&(n.len() as u32).to_le_bytes());
-        stream.extend_from_slice(n);
-        stream.resize(stream.len().next_multiple_of(4), 0);
-    }
-    let records = if c.u8() & 1 == 0 { names.len() as u32 } else { base.names.len() as u32 };
-    let txn = img.u64(base.names_block as usize * BS + 8);
-    for (i, payload) in run::encode(&stream, records, BS as u32).into_iter().enumerate() {
-        let Some(at) = img.base(base.names_block + i as u32) else { break };
-        img.put(at + 16, &payload[16..]);
-        img.put(at + 4, &[if i == 0 { 6 } else { 4 }, 0, 0, 0]);
-        img.put(at + 8, &txn.to_le_bytes());
-    }
-}
-
 /// Free-list forgeries: the list split into a chain of two blocks (the
 /// second taken from a free range), or blocks appended to the file as free.
 fn free_op(base: &Base, img: &mut Image, op: u8, c: &mut Choices) {
@@ -1425,8 +1342,8 @@ mod tests {
         let reached = img.reachable();
         let nodes = reached.iter().filter(|r| r.1 == Kind::Node).count();
         assert!(nodes >= 2, "several node blocks: {nodes}");
-        let run = img.u32(b.names_block as usize * BS + 16);
-        assert!(run >= 2, "the names run takes {run} blocks");
+        let key_leaves = b.key_blocks.iter().filter(|k| k.1 == 0).count();
+        assert!(key_leaves >= 2, "the key entries with their names take {key_leaves} blocks");
         let entries: usize = img
             .node_blocks()
             .iter()
@@ -1499,20 +1416,25 @@ mod tests {
     }
 
     #[test]
-    fn a_name_rewritten_is_read_back() {
+    fn a_name_rewritten_in_its_key_entry_is_read_back() {
         let b = base();
         let mut img = b.image.clone();
-        // Name 0 becomes the 5 bytes "hello" (a length below 300 takes two
-        // bytes); the record count stays.
-        let mut choices = vec![0, 5, 0];
-        choices.extend_from_slice(b"hello");
-        choices.push(0);
-        names_op(b, &mut img, 0, &mut Choices::new(&choices));
+        // Object 0's name (key 42) gets an X for its first byte.
+        let stored42 = stored(&base_key(0));
+        let entry = b
+            .key_blocks
+            .iter()
+            .filter(|k| k.1 == 0)
+            .flat_map(|&(block, _)| img.key_block_entries(block as usize * BS, false))
+            .find(|e| e.key.is_some_and(|(k, len)| img.bytes[k..k + len] == stored42[..]))
+            .expect("key 42 has an entry");
+        let name = entry.name.expect("a leaf entry has a name");
+        img.put(name + 2, b"X");
         img.reseal();
         let db = sound(img.bytes);
         let names = db.begin_read().expect("reads").names().expect("names");
-        assert_eq!(names[0], "hello");
-        assert_eq!(names.len(), b.names.len());
+        assert!(names[0].starts_with('X'), "{}", names[0]);
+        assert_eq!(names.len(), b.keyed.len());
     }
 
     /// The stored form of `key`.

@@ -770,11 +770,24 @@ impl<'a, S: Selection> Select<'a, S> {
             ));
         }
         self.stats.nodes_visited += 1;
+        let record = view(&block, offset)?;
+        // A record with a frame of its own quantizes its entries in it; the
+        // parent's entry bounds that frame, so whatever the subtree holds
+        // lies in every box above it (format-spec/node.md).
+        if let Some(own) = record.own_frame()
+            && !frame.contains(&own)
+        {
+            return Err(StorageError::corrupt(
+                block.id(),
+                "frame",
+                "a record's frame leaves its parent's box",
+            ));
+        }
+        let frame = record.frame(frame);
         if let Some(visitor) = self.visitor.as_deref_mut() {
             visitor.node(&block, offset, &frame)?;
         }
         let bad = |d: &str| StorageError::corrupt(block.id(), "record", d.to_string());
-        let record = view(&block, offset)?;
         let id = record.node_id();
         match record {
             NodeView::Internal(n) => {

@@ -32,7 +32,7 @@ impl ReadStats {
     fn count(&mut self, t: BlockType) {
         match t {
             BlockType::Node => self.node += 1,
-            BlockType::Geometry | BlockType::Continuation => self.geometry += 1,
+            BlockType::Geometry => self.geometry += 1,
             BlockType::KeyLeaf | BlockType::KeyBranch => self.keys += 1,
             _ => self.other += 1,
         }

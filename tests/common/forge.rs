@@ -130,8 +130,8 @@ impl Image {
 
     /// Re-seals block `b` as type `t` and every checksum up the chain that
     /// vouches for it: a node block's parent entries (or the meta block's
-    /// `root_checksum`), a geometry block's entry in its leaves' spans, the
-    /// names block's `names_checksum`, the meta block's in the committed slot.
+    /// `root_checksum`), a geometry block's entry in its leaf's span, the
+    /// meta block's in the committed slot.
     /// Block `b` itself is never parsed: its bytes may be the forgery.
     pub fn reseal(&mut self, b: usize, t: BlockType) {
         self.reseal_above(b, t, b);
@@ -145,11 +145,6 @@ impl Image {
                 let (i, c) = self.committed();
                 let c = Commit { meta_checksum: sum, ..c };
                 put_slot(&mut self.bytes, i, SlotState::Committed, &c);
-            }
-            BlockType::Names => {
-                let at = meta * self.bs + 148;
-                self.bytes[at..at + 4].copy_from_slice(&sum.to_le_bytes());
-                self.reseal_above(meta, BlockType::Meta, forged);
             }
             BlockType::Node | BlockType::Geometry => {
                 let mut parents = Vec::new();
@@ -165,26 +160,6 @@ impl Image {
                 parents.dedup();
                 for p in parents {
                     self.reseal_above(p, BlockType::Node, forged);
-                }
-                // Key index entries hold their leaf's node block checksum.
-                if t == BlockType::Node {
-                    for p in self.blocks_of(BlockType::KeyLeaf).into_iter().filter(|&p| p != forged) {
-                        let at = p * self.bs;
-                        let Ok(KeyBlock::Leaf(mut entries)) =
-                            keys::decode(p as u32, &self.bytes[at..at + self.bs], true)
-                        else {
-                            continue;
-                        };
-                        let mut changed = false;
-                        for e in entries.iter_mut().filter(|e| e.leaf.block == b as u32) {
-                            e.leaf.checksum = sum;
-                            changed = true;
-                        }
-                        if changed {
-                            keys::encode_leaf(&entries, &mut self.bytes[at..at + self.bs]).unwrap();
-                            self.reseal_above(p, BlockType::KeyLeaf, forged);
-                        }
-                    }
                 }
                 let root = meta * self.bs + 16;
                 if t == BlockType::Node && u32_at(&self.bytes, root) == b as u32 {
@@ -240,7 +215,7 @@ impl Image {
 /// root's first child pointed back at the root, and, if given, the meta
 /// block's `node_count` forged; every checksum resealed.
 pub fn golden_with_looping_root(node_count: Option<u32>) -> Vec<u8> {
-    let mut f = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v5.mkt")).unwrap();
+    let mut f = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v6.mkt")).unwrap();
     let block = |i: usize| i * 1024..(i + 1) * 1024;
     let of_type = |f: &[u8], t: BlockType| (1..f.len() / 1024).find(|&i| f[i * 1024 + 4] == t as u8).unwrap();
     let (node, meta) = (of_type(&f, BlockType::Node), of_type(&f, BlockType::Meta));

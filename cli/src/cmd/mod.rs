@@ -2,6 +2,7 @@
 
 mod batch;
 pub mod bench_build;
+pub mod bench_changes;
 mod bench_import;
 pub mod bench_peers;
 mod bench_queries;
@@ -17,6 +18,7 @@ mod dump;
 mod export_tiles;
 mod gen_info;
 mod get;
+mod insert;
 mod lods;
 mod navigate;
 mod query;
@@ -110,6 +112,14 @@ pub fn run(cli: Cli) -> Result<()> {
         }
         Command::Check { file, json } => check::run(&file, json),
         Command::Compact { file, json } => compact::run(&file, json),
+        Command::Insert { file, scene, key_names, json } => {
+            insert::run_insert(&file, &scene, key_names, json)
+        }
+        Command::Move { file, key, text, by, json } => {
+            let by: [f64; 3] =
+                by.try_into().map_err(|_| anyhow::anyhow!("--by takes three numbers: dx,dy,dz"))?;
+            insert::run_move(&file, &get::parse_key(&key, text)?, by, json)
+        }
         Command::Remove { file, keys, text, json } => {
             let keys = keys.iter().map(|k| get::parse_key(k, text)).collect::<Result<Vec<_>>>()?;
             remove::run(&file, &keys, json)
@@ -121,6 +131,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::BenchBuild(args) => bench_build::run(&args),
         Command::BenchPeers(args) => bench_peers::run(&args),
         Command::BenchReplace(args) => bench_replace::run(&args),
+        Command::BenchChanges(args) => bench_changes::run(&args),
         Command::BenchView(args) => bench_view::run(&args),
         Command::BenchImport { files, repeat, json, import } => {
             bench_import::run(&files, repeat, &import, json)

@@ -1,8 +1,8 @@
 //! `check` of the key index (format-spec/keys.md): every block reached
 //! once at its level, keys strictly increasing across the leaves, each
 //! branch's separators the least keys below them, and one entry per object
-//! that agrees with the tree: the key its leaf stores, the leaf record and
-//! entry that hold it, and the union of its parts' boxes.
+//! that agrees with the tree: the key its leaf stores, the path to the leaf
+//! that holds it, and the union of its parts' boxes.
 
 use std::collections::{HashMap, HashSet};
 
@@ -12,15 +12,15 @@ use crate::geom::Aabb;
 use crate::scene::Key;
 use crate::store::StorageError;
 use crate::store::format::frame::BlockType;
-use crate::store::format::keys::{KeyBlock, LeafLocator};
+use crate::store::format::keys::{KeyBlock, TreePath};
 use crate::store::format::meta::Meta;
 
 /// An object as the tree walk met it.
 pub(crate) struct KeyedObject {
     /// The key its leaf stores.
     pub key: Option<Key>,
-    /// Its leaf record and first entry.
-    pub at: LeafLocator,
+    /// The path from the root to its leaf.
+    pub path: TreePath,
     /// The union of its parts' boxes, from their geometry.
     pub aabb: Aabb,
 }
@@ -82,10 +82,10 @@ pub(super) fn check_keys(
                                         e.key, o.key
                                     ));
                                 }
-                                if o.at != e.leaf {
+                                if o.path != e.path {
                                     c.fault(format!(
-                                        "{here}: key {} locates object {id} at {:?}, the tree holds it at {:?}",
-                                        e.key, e.leaf, o.at
+                                        "{here}: key {}'s path to object {id} is {:?}, the tree holds it at {:?}",
+                                        e.key, e.path, o.path
                                     ));
                                 }
                                 if o.aabb != e.aabb {

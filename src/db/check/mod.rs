@@ -21,11 +21,10 @@ use crate::query::{Everything, QueryError, QueryOptions, Visitor, walk};
 use crate::scene::Mesh;
 use crate::store::format::frame::{self, BlockType};
 use crate::store::format::freelist::FreeListBlock;
-use crate::store::format::keys::LeafLocator;
+use crate::store::format::keys::TreePath;
 use crate::store::format::meta::LOD_TABLE_LEN;
 use crate::store::format::node::{BoundView, NodeView};
 use crate::store::format::quant::QuantBox;
-use crate::store::format::run;
 use crate::store::{Block, ReadStats, StorageError};
 use keys::KeyedObject;
 
@@ -165,6 +164,8 @@ struct Walker<'t> {
     facts: Vec<NodeFacts>,
     at: HashMap<(u32, u32), usize>,
     depth_of: HashMap<(u32, u32), u32>,
+    /// The path from the root to each record, as the walk met its parent.
+    path_of: HashMap<(u32, u32), TreePath>,
     /// The object ids met: as many as the leaves hold, whatever the meta block says.
     seen: HashSet<u32>,
     objects: u32,
@@ -250,6 +251,8 @@ impl Visitor for Walker<'_> {
                     let b = if r.block == 0 { block.id() } else { r.block };
                     *kid = ((b, r.offset), n.child_blocks(i));
                     self.depth_of.insert((b, r.offset), depth + 1);
+                    let path = self.path_of.get(&(block.id(), offset)).copied().unwrap_or_default();
+                    self.path_of.insert((b, r.offset), path.child(i));
                 }
                 facts.children = Some(kids);
             }
@@ -281,11 +284,10 @@ impl Visitor for Walker<'_> {
                         self.faults.push(format!("{here}: object {id}'s parts have different anchors"));
                     }
                     previous = Some((id.0, mesh.anchor()));
-                    let at =
-                        LeafLocator { block: block.id(), checksum: block.checksum, offset, entry: i as u16 };
+                    let path = self.path_of.get(&(block.id(), offset)).copied().unwrap_or_default();
                     let k = self.keyed.entry(id.0).or_insert_with(|| KeyedObject {
                         key: leaf.key(i),
-                        at,
+                        path,
                         aabb: Aabb::EMPTY,
                     });
                     k.aabb = k.aabb.union(&mesh.aabb());
@@ -325,23 +327,6 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
     let Some(info) = txn.info() else { return Ok(()) };
     let Some(root) = txn.root() else { return Ok(()) };
     let meta = txn.snapshot.meta.clone().unwrap_or_default();
-    let names = txn.names()?;
-    if names.len() != info.objects as usize {
-        c.fault(format!("{} names for {} objects", names.len(), info.objects));
-    }
-    if meta.names_block != 0 {
-        let (head, _) = txn.pager().read(
-            meta.names_block,
-            BlockType::Names,
-            Some(meta.names_checksum),
-            &mut ReadStats::default(),
-        )?;
-        let (blocks, _, _) = run::header(meta.names_block, &head)?;
-        c.claim(meta.names_block, Owner::Used(BlockType::Names));
-        for b in meta.names_block + 1..meta.names_block.saturating_add(blocks) {
-            c.claim(b, Owner::Used(BlockType::Continuation));
-        }
-    }
     let mut w = Walker {
         txn,
         reads: Reads::new(None),
@@ -349,8 +334,9 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
         facts: Vec::new(),
         at: HashMap::new(),
         depth_of: HashMap::new(),
+        path_of: HashMap::new(),
         seen: HashSet::new(),
-        objects: info.objects,
+        objects: meta.object_ids,
         rules: bound_rules(txn),
         eps: txn.lod_info().map(|l| l.eps).unwrap_or_default(),
         triangles: 0,
@@ -366,6 +352,7 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
     // Preorder ids, and each block claimed once.
     let mut node_blocks = HashSet::new();
     let mut geometry_blocks = HashSet::new();
+    let mut parent_block: HashMap<u32, u32> = HashMap::new();
     for (i, f) in w.facts.iter().enumerate() {
         if f.id as usize != i {
             c.fault(format!("node {} is met at preorder position {i}", f.id));
@@ -373,14 +360,25 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
         if node_blocks.insert(f.block) {
             c.claim(f.block, Owner::Used(BlockType::Node));
         }
+        // A leaf's span holds no other leaf's records (format-spec/geometry.md).
         for &g in &f.geometry {
             if geometry_blocks.insert(g) {
                 c.claim(g, Owner::Used(BlockType::Geometry));
+            } else {
+                c.fault(format!("node {}: geometry block {g} holds another leaf's records too", f.id));
+            }
+        }
+        // A node block's records are named from one other block at most
+        // (format-spec/node.md, "Packing"): a change commit rewrites a
+        // block's one parent block with it.
+        for ((b, _), _) in f.children.into_iter().flatten() {
+            if b != f.block && *parent_block.entry(b).or_insert(f.block) != f.block {
+                c.fault(format!("node block {b} is named from blocks {} and {}", parent_block[&b], f.block));
             }
         }
     }
-    // Each child entry's counts: the distinct node blocks of its subtree
-    // other than the parent's, and the geometry blocks of its objects.
+    // Each child entry's counts: (at least) the distinct node blocks of its
+    // subtree other than the parent's, and the geometry blocks of its objects.
     let n = w.facts.len();
     let mut sub_nodes: Vec<HashSet<u32>> = vec![HashSet::new(); n];
     let mut sub_geometry: Vec<HashSet<u32>> = vec![HashSet::new(); n];
@@ -394,7 +392,9 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
                 let Some(&j) = w.at.get(at) else { continue };
                 let mut below = sub_nodes[j].clone();
                 below.remove(&f.block);
-                if below.len() as u64 != u64::from(*nb) || sub_geometry[j].len() as u64 != u64::from(*gb) {
+                // Node blocks are exact after a bulk load and at most a bound after
+                // change commits (format-spec/commit.md, "Change commits").
+                if below.len() as u64 > u64::from(*nb) || sub_geometry[j].len() as u64 != u64::from(*gb) {
                     c.fault(format!(
                         "node {}: a child entry predicts {nb} node and {gb} geometry blocks, the subtree has {} and {}",
                         f.id,
@@ -413,11 +413,9 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
         sub_nodes[i] = nodes;
         sub_geometry[i] = geometry;
     }
-    // Fewer ids met than objects: among the first `seen + 1` ids one is missing.
-    if (w.seen.len() as u64) < u64::from(info.objects)
-        && let Some(missing) = (0..=w.seen.len() as u32).find(|i| !w.seen.contains(i))
-    {
-        c.fault(format!("object {missing} is in no leaf"));
+    // Ids are unique below `object_ids` (checked per entry); the tree holds as many as the meta block counts.
+    if w.seen.len() as u64 != u64::from(info.objects) {
+        c.fault(format!("meta says {} objects, the tree's leaves hold {}", info.objects, w.seen.len()));
     }
     let leaves = w.facts.iter().filter(|f| f.children.is_none()).count() as u64;
     let depth = w.facts.iter().map(|f| f.depth).max().unwrap_or(0);

@@ -16,7 +16,6 @@ use crate::store::format::frame::BlockType;
 use crate::store::format::keys::{self, KeyBlock};
 use crate::store::format::meta::Meta;
 use crate::store::format::node::{self, Limits};
-use crate::store::format::run;
 use crate::store::{Pager, ReadStats, StorageError};
 
 /// Where the blocks of one kind go: old id -> new id, and the checksum
@@ -66,7 +65,6 @@ impl WriteTransaction<'_> {
         let tree = TreeBlocks::walk(&pager, &meta)?;
         let (_, chain) = free_list_chain(&pager, &self.base)?;
         let free = FreeSpace::new(self.base.block_count, self.base_free.iter().map(|r| (r.first, r.count)));
-        let names = (0..tree.names.len() as u32).map(|j| meta.names_block + j);
         let keys = tree.keys.iter().flatten().map(|&(b, _)| b);
         let blocks = tree.nodes.order.iter().copied().chain(tree.nodes.geometry.keys().copied());
         let counts = [
@@ -80,7 +78,7 @@ impl WriteTransaction<'_> {
                 return Err(StorageError::corrupt(self.base.meta_block, field, detail).into());
             }
         }
-        for b in blocks.chain(keys).chain(names).chain([self.base.meta_block]) {
+        for b in blocks.chain(keys).chain([self.base.meta_block]) {
             if chain.contains(&b) || free.contains(b) || b >= self.base.block_count {
                 return Err(StorageError::corrupt(
                     b,
@@ -103,7 +101,7 @@ impl WriteTransaction<'_> {
         self.append_only = at_end;
         let pager = self.inner.pager().clone();
         let limits = limits(&pager, &meta);
-        let TreeBlocks { nodes: NodeWalk { order, sums: node_sums, geometry }, keys: levels, names } =
+        let TreeBlocks { nodes: NodeWalk { order, sums: node_sums, geometry }, keys: levels } =
             TreeBlocks::walk(&pager, &meta)?;
 
         // New places, allocated in the order a bulk load allocates them, so
@@ -125,7 +123,6 @@ impl WriteTransaction<'_> {
                 key_moves.to.insert(block, new);
             }
         }
-        let names_first = if names.is_empty() { 0 } else { self.allocate(names.len() as u32)? };
         let meta_block = self.allocate(1)?;
 
         let txn = self.txn;
@@ -166,12 +163,8 @@ impl WriteTransaction<'_> {
             for &(old, sum) in level {
                 let (mut bytes, _) = pager.read(old, t, Some(sum), &mut ReadStats::default())?;
                 match keys::decode(old, &bytes, leaf)? {
-                    KeyBlock::Leaf(mut entries) => {
-                        for e in &mut entries {
-                            (e.leaf.block, e.leaf.checksum) = node_moves.written(e.leaf.block, "node")?;
-                        }
-                        keys::encode_leaf(&entries, &mut bytes).map_err(StorageError::Invalid)?;
-                    }
+                    // Key entries name no node block: a leaf moves as it is.
+                    KeyBlock::Leaf(_) => {}
                     KeyBlock::Branch(mut children) => {
                         for c in &mut children {
                             (c.block, c.checksum) = key_moves.written(c.block, "key")?;
@@ -183,24 +176,10 @@ impl WriteTransaction<'_> {
                 key_moves.sums.insert(old, pager.write(to, &mut bytes, t, txn)?);
             }
         }
-        // Last block first: each holds the new checksum of the one after it.
-        let mut next = 0;
-        for (j, &sum) in names.iter().enumerate().rev() {
-            let (old, t) = (
-                meta.names_block + j as u32,
-                if j == 0 { BlockType::Names } else { BlockType::Continuation },
-            );
-            let (mut bytes, _) = pager.read(old, t, Some(sum), &mut ReadStats::default())?;
-            run::set_next_checksum(j, &mut bytes, next);
-            next = pager.write(names_first + j as u32, &mut bytes, t, txn)?;
-        }
 
         let mut moved = meta;
         (moved.root_block, moved.root_checksum) = node_moves.written(moved.root_block, "node")?;
         (moved.keys_block, moved.keys_checksum) = key_moves.written(moved.keys_block, "key")?;
-        if !names.is_empty() {
-            (moved.names_block, moved.names_checksum) = (names_first, next);
-        }
         let mut block = vec![0u8; pager.block_size() as usize];
         moved.encode(&mut block);
         let sum = pager.write(meta_block, &mut block, BlockType::Meta, txn)?;
@@ -211,7 +190,7 @@ impl WriteTransaction<'_> {
 
 /// What node validation needs of the file.
 fn limits(pager: &Pager, meta: &Meta) -> Limits {
-    Limits { block_size: pager.block_size(), lod_levels: pager.lod_levels(), object_count: meta.object_count }
+    Limits { block_size: pager.block_size(), lod_levels: pager.lod_levels(), object_count: meta.object_ids }
 }
 
 /// Every block a committed tree holds but its meta block, each verified
@@ -220,9 +199,6 @@ struct TreeBlocks {
     nodes: NodeWalk,
     /// The key index, level by level from the root: (block, checksum).
     keys: Vec<Vec<(u32, u32)>>,
-    /// The names run: each block's checksum, as the block before it (or
-    /// the meta block) holds it.
-    names: Vec<u32>,
 }
 
 impl TreeBlocks {
@@ -246,26 +222,7 @@ impl TreeBlocks {
                 levels.push(below);
             }
         }
-        let mut names: Vec<u32> = Vec::new();
-        if meta.names_block != 0 {
-            let (first, _) = pager.read(
-                meta.names_block,
-                BlockType::Names,
-                Some(meta.names_checksum),
-                &mut ReadStats::default(),
-            )?;
-            let (blocks, _, _) = run::header(meta.names_block, &first)?;
-            names.push(meta.names_checksum);
-            let mut next = run::next_checksum(0, &first);
-            for j in 1..blocks {
-                let id = meta.names_block.checked_add(j).ok_or_else(|| past_end(meta.names_block))?;
-                let (b, _) =
-                    pager.read(id, BlockType::Continuation, Some(next), &mut ReadStats::default())?;
-                names.push(next);
-                next = run::next_checksum(j as usize, &b);
-            }
-        }
-        Ok(TreeBlocks { nodes, keys: levels, names })
+        Ok(TreeBlocks { nodes, keys: levels })
     }
 }
 

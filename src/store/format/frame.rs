@@ -26,9 +26,7 @@ pub enum BlockType {
     Meta = 1,
     Node = 2,
     Geometry = 3,
-    Continuation = 4,
     FreeList = 5,
-    Names = 6,
     Free = 7,
     KeyLeaf = 8,
     KeyBranch = 9,
@@ -38,7 +36,7 @@ impl BlockType {
     /// The type with this code, if any.
     pub fn from_code(code: u8) -> Option<BlockType> {
         use BlockType::*;
-        [Meta, Node, Geometry, Continuation, FreeList, Names, Free, KeyLeaf, KeyBranch]
+        [Meta, Node, Geometry, FreeList, Free, KeyLeaf, KeyBranch]
             .into_iter()
             .find(|t| *t as u8 == code)
     }
@@ -49,9 +47,7 @@ impl BlockType {
             BlockType::Meta => "meta",
             BlockType::Node => "node",
             BlockType::Geometry => "geometry",
-            BlockType::Continuation => "continuation",
             BlockType::FreeList => "free-list",
-            BlockType::Names => "names",
             BlockType::Free => "free",
             BlockType::KeyLeaf => "key-leaf",
             BlockType::KeyBranch => "key-branch",

@@ -179,6 +179,13 @@ impl Placement {
         pos
     }
 
+    /// Starts the next record at a block's start: a leaf's span holds no
+    /// other leaf's records (format-spec/geometry.md), so a change commit
+    /// rewrites a leaf's blocks without touching its neighbours'.
+    pub fn start_block(&mut self) {
+        self.at = self.at.next_multiple_of(self.payload);
+    }
+
     /// Bytes left in the current block (a whole block at a block's start).
     pub fn room(&self) -> u64 {
         self.payload - self.at % self.payload
@@ -255,33 +262,6 @@ pub fn decode_object(id: u32, bytes: &[u8]) -> Result<(ObjectId, Mesh), StorageE
         return Err(bad("triangles", format!("triangle {i} indexes past {v} vertices")));
     }
     Ok((ObjectId(h.object_id.get()), Mesh::from_parts(anchor, offsets, triangles)))
-}
-
-/// Appends a names-run record: length, UTF-8 bytes, zero padding to 4.
-pub fn encode_name(name: &str, stream: &mut Vec<u8>) {
-    stream.extend_from_slice(&(name.len() as u32).to_le_bytes());
-    stream.extend_from_slice(name.as_bytes());
-    stream.resize(stream.len().next_multiple_of(4), 0);
-}
-
-/// Decodes `records` names from a names-run stream starting at block `id`.
-pub fn decode_names(id: u32, words: &[u32], len: usize, records: u32) -> Result<Vec<String>, StorageError> {
-    let bytes: &[u8] = &bytemuck::cast_slice(words)[..len];
-    let mut at = 0usize;
-    // Each name takes at least 4 bytes: the stream bounds the allocation, not the count.
-    let mut names = Vec::with_capacity((records as usize).min(len / 4));
-    for r in 0..records {
-        let bad = |detail: &str| StorageError::corrupt_record(id, r, "name", detail.to_string());
-        let n = bytes.get(at..at + 4).ok_or_else(|| bad("the stream ends inside a name"))?;
-        let n = u32::from_le_bytes([n[0], n[1], n[2], n[3]]) as usize;
-        let s = bytes.get(at + 4..at + 4 + n).ok_or_else(|| bad("a name overruns the stream"))?;
-        names.push(std::str::from_utf8(s).map_err(|_| bad("not UTF-8"))?.to_string());
-        at = (at + 4 + n).next_multiple_of(4);
-    }
-    if at != len {
-        return Err(StorageError::corrupt(id, "data_bytes", "bytes after the last name"));
-    }
-    Ok(names)
 }
 
 #[cfg(test)]
@@ -387,15 +367,5 @@ mod tests {
         assert_eq!(pl.place(50), 7 * p - 100, "the large record's tail block is shared");
         assert_eq!(blocks_of(0, p, bs), 0..=0);
         assert_eq!(blocks_of(p - 4, p + 4, bs), 0..=1);
-    }
-
-    #[test]
-    fn names_round_trip() {
-        let mut s = Vec::new();
-        for n in ["", "PIPE-1", "välve"] {
-            encode_name(n, &mut s);
-        }
-        let words: Vec<u32> = bytemuck::pod_collect_to_vec(&s);
-        assert_eq!(decode_names(3, &words, s.len(), 3).unwrap(), vec!["", "PIPE-1", "välve"]);
     }
 }

@@ -1,7 +1,9 @@
 //! The key index (format-spec/keys.md): a B+tree from each object's key to
-//! its id, its exact box, the leaf record holding it and its payload, so a
-//! lookup by key reads the index's path and never walks the MKtree.
-//! Written bottom-up by a bulk load; a block is validated whole when read.
+//! its id, its exact box, its name and payload, and the path from the root
+//! to the leaf holding it. Entries name no block of the MKtree, so a change
+//! that moves node blocks leaves the index alone. Written bottom-up by a
+//! bulk load and path by path by a change commit; a block is validated
+//! whole when read.
 
 use super::all_zero;
 use super::frame::FRAME_LEN;
@@ -13,23 +15,45 @@ use crate::store::StorageError;
 const HEAD_LEN: usize = 8;
 /// Entries start here.
 pub const ENTRIES_START: usize = FRAME_LEN + HEAD_LEN;
-/// Bytes of an entry after its key and payload: id, node block, its
-/// checksum, record offset, entry index, reserved, box.
-const FIXED_LEN: usize = 4 + 4 + 4 + 4 + 2 + 2 + 48;
+/// Bytes of an entry after its key, payload and name: id, path bits, path
+/// length, reserved, box.
+const FIXED_LEN: usize = 4 + 8 + 1 + 3 + 48;
+/// The longest name an entry holds, bytes.
+pub const MAX_NAME: usize = u16::MAX as usize;
 /// Bytes of a branch's child reference: block and checksum.
 const CHILD_LEN: usize = 8;
-/// The deepest key index a file may claim (a branch has at least two
-/// children, so 2^64 keys need fewer levels).
+/// The deepest key index a file may claim (a bulk load's branches have at
+/// least two children, so 2^64 keys need fewer levels; a change commit adds
+/// a level only when the top one holds two blocks).
 pub const MAX_HEIGHT: u32 = 64;
 
-/// Where an object's entries are in the MKtree: the leaf record and the
-/// index of the object's first entry in it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct LeafLocator {
-    pub block: u32,
-    pub checksum: u32,
-    pub offset: u32,
-    pub entry: u16,
+/// The path from the root to the leaf holding an object: bit `i` of `bits`
+/// is the child taken at depth `i` (0 the first child), for `len` levels.
+/// A path deeper than 64 levels keeps its first 64; a lookup goes on below
+/// by the object's box.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+pub struct TreePath {
+    pub bits: u64,
+    pub len: u8,
+}
+
+impl TreePath {
+    /// The deepest path held.
+    pub const MAX_LEN: u8 = 64;
+
+    /// The child taken at depth `depth`, if the path goes that deep.
+    pub fn step(&self, depth: usize) -> Option<usize> {
+        (depth < usize::from(self.len)).then(|| (self.bits >> depth) as usize & 1)
+    }
+
+    /// This path, one level deeper through child `child`; a path already
+    /// at its longest stays as it is.
+    pub fn child(&self, child: usize) -> TreePath {
+        if self.len >= Self::MAX_LEN {
+            return *self;
+        }
+        TreePath { bits: self.bits | ((child as u64 & 1) << self.len), len: self.len + 1 }
+    }
 }
 
 /// One key's entry.
@@ -37,8 +61,11 @@ pub struct LeafLocator {
 pub struct KeyEntry {
     pub key: Key,
     pub payload: Vec<u8>,
+    /// The object's name (empty for none).
+    pub name: String,
     pub object_id: u32,
-    pub leaf: LeafLocator,
+    /// The path to the leaf holding the object.
+    pub path: TreePath,
     /// The object's exact box.
     pub aabb: Aabb,
 }
@@ -48,11 +75,11 @@ impl KeyEntry {
         self.key.encode(out);
         out.extend_from_slice(&(self.payload.len() as u16).to_le_bytes());
         out.extend_from_slice(&self.payload);
-        for x in [self.object_id, self.leaf.block, self.leaf.checksum, self.leaf.offset] {
-            out.extend_from_slice(&x.to_le_bytes());
-        }
-        out.extend_from_slice(&self.leaf.entry.to_le_bytes());
-        out.extend_from_slice(&[0, 0]);
+        out.extend_from_slice(&(self.name.len() as u16).to_le_bytes());
+        out.extend_from_slice(self.name.as_bytes());
+        out.extend_from_slice(&self.object_id.to_le_bytes());
+        out.extend_from_slice(&self.path.bits.to_le_bytes());
+        out.extend_from_slice(&[self.path.len, 0, 0, 0]);
         for x in self.aabb.to_array() {
             out.extend_from_slice(&x.to_le_bytes());
         }
@@ -93,12 +120,15 @@ pub fn encode_leaf(entries: &[KeyEntry], block: &mut [u8]) -> Result<(), String>
         if e.payload.len() > Object::MAX_PAYLOAD {
             return Err(format!("a payload of {} bytes (at most {})", e.payload.len(), Object::MAX_PAYLOAD));
         }
+        if e.name.len() > MAX_NAME {
+            return Err(format!("a name of {} bytes (at most {MAX_NAME})", e.name.len()));
+        }
         e.encode(&mut bytes);
     }
     put(block, entries.len(), &bytes)
 }
 
-/// Encodes a branch's children (in key order, at least two) into `block`'s payload.
+/// Encodes a branch's children (in key order, at least one) into `block`'s payload.
 pub fn encode_branch(children: &[ChildRef], block: &mut [u8]) -> Result<(), String> {
     let mut bytes = Vec::with_capacity(capacity(block.len() as u32));
     for (i, c) in children.iter().enumerate() {
@@ -135,6 +165,10 @@ fn u32_of(at: &mut &[u8]) -> Option<u32> {
     take(at, 4).and_then(|b| b.try_into().ok()).map(u32::from_le_bytes)
 }
 
+fn u64_of(at: &mut &[u8]) -> Option<u64> {
+    take(at, 8).and_then(|b| b.try_into().ok()).map(u64::from_le_bytes)
+}
+
 fn u16_of(at: &mut &[u8]) -> Option<u16> {
     take(at, 2).and_then(|b| b.try_into().ok()).map(u16::from_le_bytes)
 }
@@ -162,7 +196,7 @@ pub fn decode(id: u32, block: &[u8], leaf: bool) -> Result<KeyBlock, StorageErro
     if !all_zero(&block[ENTRIES_START + used..]) {
         return Err(bad("used_bytes", "bytes past the entries are not zero".into()));
     }
-    if count == 0 || (!leaf && count < 2) {
+    if count == 0 {
         return Err(bad("entry_count", format!("{count} entries")));
     }
     let mut at = area;
@@ -190,12 +224,18 @@ pub fn decode(id: u32, block: &[u8], leaf: bool) -> Result<KeyBlock, StorageErro
                 return Err(bad("payload", format!("{n} bytes (at most {})", Object::MAX_PAYLOAD)));
             }
             let payload = take(&mut at, n).ok_or_else(short)?.to_vec();
-            let mut words = [0u32; 4];
-            for w in &mut words {
-                *w = u32_of(&mut at).ok_or_else(short)?;
+            let n = usize::from(u16_of(&mut at).ok_or_else(short)?);
+            let name = std::str::from_utf8(take(&mut at, n).ok_or_else(short)?)
+                .map_err(|_| bad("name", "a name is not UTF-8".into()))?
+                .to_string();
+            let object_id = u32_of(&mut at).ok_or_else(short)?;
+            let bits = u64_of(&mut at).ok_or_else(short)?;
+            let tail = take(&mut at, 4).ok_or_else(short)?;
+            let len = tail[0];
+            if len > TreePath::MAX_LEN || (len < 64 && bits >> len != 0) {
+                return Err(bad("path", format!("{len} levels with bits {bits:#x}")));
             }
-            let entry = u16_of(&mut at).ok_or_else(short)?;
-            if u16_of(&mut at).ok_or_else(short)? != 0 {
+            if tail[1..] != [0, 0, 0] {
                 return Err(bad("reserved", "an entry's reserved bytes are not zero".into()));
             }
             let mut b = [0f64; 6];
@@ -208,8 +248,9 @@ pub fn decode(id: u32, block: &[u8], leaf: bool) -> Result<KeyBlock, StorageErro
             entries.push(KeyEntry {
                 key: key.to_key(),
                 payload,
-                object_id: words[0],
-                leaf: LeafLocator { block: words[1], checksum: words[2], offset: words[3], entry },
+                name,
+                object_id,
+                path: TreePath { bits, len },
                 aabb: Aabb::from_array(b),
             });
         }
@@ -243,10 +284,10 @@ pub fn child_for<'a>(children: &'a [ChildRef], key: &Key) -> Option<&'a ChildRef
     children.get(i)
 }
 
-/// Bytes of an entry of key `key` and a payload of `payload_len` bytes,
-/// known before the entry is made.
-pub fn entry_len(key: &Key, payload_len: usize) -> usize {
-    key.encoded_len() + 2 + payload_len + FIXED_LEN
+/// Bytes of an entry of key `key`, a payload of `payload_len` bytes and a
+/// name of `name_len` bytes, known before the entry is made.
+pub fn entry_len(key: &Key, payload_len: usize, name_len: usize) -> usize {
+    key.encoded_len() + 2 + payload_len + 2 + name_len + FIXED_LEN
 }
 
 #[cfg(test)]
@@ -257,8 +298,9 @@ mod tests {
         KeyEntry {
             key,
             payload: vec![id as u8; id as usize % 5],
+            name: "n".repeat(id as usize % 3),
             object_id: id,
-            leaf: LeafLocator { block: 3, checksum: 77, offset: 24, entry: id as u16 },
+            path: TreePath { bits: u64::from(id) & 3, len: 2 + id as u8 },
             aabb: Aabb::from_array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0 + f64::from(id)]),
         }
     }
@@ -299,12 +341,17 @@ mod tests {
         assert!(broken(&|b| b[1000] = 1), "a byte past the entries");
         assert!(broken(&|b| b[ENTRIES_START] = 7), "an unknown key tag");
         // The second key made equal to the first.
-        let second = ENTRIES_START + entry_len(&entries[0].key, entries[0].payload.len());
+        let second = ENTRIES_START + entry_len(&entries[0].key, entries[0].payload.len(), entries[0].name.len());
         assert!(broken(&|b| b[second + 8] = 0), "keys that do not increase");
         assert!(broken(&|b| b[ENTRIES_START + 10] = 0xff), "a payload longer than allowed");
+        // The first entry (key 0, no payload, no name): its path length, then a bit past it.
+        let path = ENTRIES_START + 9 + 2 + 2 + 4;
+        assert!(broken(&|b| b[path + 8] = 65), "a path deeper than 64 levels");
+        assert!(broken(&|b| b[path + 7] = 0x80), "a path bit past its length");
+        assert!(broken(&|b| b[path + 9] = 1), "reserved bytes after the path");
         assert!(!broken(&|_| {}));
         let mut one_child = vec![0u8; 1024];
         encode_branch(&[ChildRef { first_key: Key::Int(0), block: 4, checksum: 9 }], &mut one_child).unwrap();
-        assert!(decode(5, &one_child, false).unwrap_err().is_corruption(), "a branch of one child");
+        assert!(decode(5, &one_child, false).is_ok(), "a branch of one child, as a change commit may leave");
     }
 }

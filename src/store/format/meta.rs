@@ -33,8 +33,8 @@ pub(crate) struct MetaRecord {
     pub(crate) look_ahead: U32,
     pub(crate) rate: F64,
     pub(crate) leaf_capacity: U64,
-    pub(crate) names_block: U32,
-    pub(crate) names_checksum: U32,
+    pub(crate) object_ids: U32,
+    pub(crate) reserved3: [u8; 4],
     pub(crate) build_seconds: F64,
     pub(crate) lod_table: [[F64; 2]; LOD_TABLE_LEN],
     pub(crate) lattice_origin: [F64; 3],
@@ -110,8 +110,9 @@ pub struct Meta {
     pub vertex_count: u64,
     pub scene_box: [f64; 6],
     pub build: BuildCodes,
-    pub names_block: u32,
-    pub names_checksum: u32,
+    /// Object ids lie below this (at least `object_count`): a change
+    /// commit gives a new object the next id and leaves a removed one's unused.
+    pub object_ids: u32,
     /// Bytes of node records, and of geometry records, over all blocks (block fill).
     pub node_bytes: u64,
     pub geometry_bytes: u64,
@@ -155,8 +156,8 @@ impl Meta {
             look_ahead: self.build.look_ahead.into(),
             rate: f(self.build.rate),
             leaf_capacity: self.build.leaf_capacity.into(),
-            names_block: self.names_block.into(),
-            names_checksum: self.names_checksum.into(),
+            object_ids: self.object_ids.into(),
+            reserved3: [0; 4],
             build_seconds: f(self.build.build_seconds),
             lod_table: self.lod_table.map(|p| p.map(f)),
             lattice_origin: self.lods.lattice_origin.map(f),
@@ -185,7 +186,7 @@ impl Meta {
         let end = FRAME_LEN + size_of::<MetaRecord>();
         let r = MetaRecord::read_from_bytes(&block[FRAME_LEN..end])
             .map_err(|_| StorageError::corrupt(id, "meta", "block too small"))?;
-        if r.reserved1 != 0 || r.reserved2 != [0; 4] || !all_zero(&block[end..]) {
+        if r.reserved1 != 0 || r.reserved2 != [0; 4] || r.reserved3 != [0; 4] || !all_zero(&block[end..]) {
             return Err(StorageError::corrupt(id, "reserved", "reserved bytes are not zero"));
         }
         let bad = |field, detail: String| Err(StorageError::corrupt(id, field, detail));
@@ -208,6 +209,10 @@ impl Meta {
                 "node_count",
                 format!("{nodes} nodes, {leaves} leaves, {objects} objects is not a binary tree"),
             );
+        }
+        let object_ids = r.object_ids.get();
+        if object_ids < objects {
+            return bad("object_ids", format!("ids below {object_ids} for {objects} objects"));
         }
         let scene_box = r.scene_box.map(|x| x.get());
         if scene_box.iter().any(|x| !x.is_finite()) || (0..3).any(|i| scene_box[i] > scene_box[i + 3]) {
@@ -267,8 +272,7 @@ impl Meta {
                 leaf_capacity: r.leaf_capacity.get(),
                 build_seconds: r.build_seconds.get(),
             },
-            names_block: r.names_block.get(),
-            names_checksum: r.names_checksum.get(),
+            object_ids,
             node_bytes: r.node_bytes.get(),
             geometry_bytes: r.geometry_bytes.get(),
             lod_table: r.lod_table.map(|p| p.map(|x| x.get())),

@@ -1,8 +1,8 @@
-//! Node blocks, version 3 (format-spec/node.md): variable-size records read
-//! in place. A block is validated once, when it is read, and then walked
-//! through borrowed views ([`NodeView`]) with no decoding or copying.
+//! Node blocks (format-spec/node.md): variable-size records read in place.
+//! A block is validated once, when it is read, and then walked through
+//! borrowed views ([`NodeView`]) with no decoding or copying.
 
-use zerocopy::byteorder::little_endian::{F32, U16, U32};
+use zerocopy::byteorder::little_endian::{F32, F64, U16, U32};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
 use super::all_zero;
@@ -22,6 +22,10 @@ pub const LEAF_HEAD_LEN: usize = 20;
 pub const OBJECT_LEN: usize = 20;
 /// Bytes of a bound entry's head (before its blob).
 pub const BOUND_HEAD_LEN: usize = 4;
+/// Bytes of a record's own frame, when it carries one (six f64).
+pub const FRAME_BOX_LEN: usize = 48;
+/// Bit 0 of a record's flags: the record carries its own frame.
+const FLAG_FRAME: u8 = 1;
 
 const KIND_INTERNAL: u8 = 1;
 const KIND_LEAF: u8 = 2;
@@ -51,7 +55,8 @@ pub(crate) struct ChildRaw {
 pub(crate) struct InternalRaw {
     pub(crate) kind: u8,
     pub(crate) split: u8,
-    pub(crate) reserved: [u8; 2],
+    pub(crate) flags: u8,
+    pub(crate) reserved: u8,
     pub(crate) node_id: U32,
     pub(crate) object_count: U32,
     pub(crate) split_overlap: F32,
@@ -64,7 +69,7 @@ const _: () = assert!(size_of::<InternalRaw>() == INTERNAL_LEN);
 #[repr(C)]
 pub(crate) struct LeafRaw {
     pub(crate) kind: u8,
-    pub(crate) reserved0: u8,
+    pub(crate) flags: u8,
     pub(crate) object_count: U16,
     pub(crate) node_id: U32,
     pub(crate) first_block: U32,
@@ -165,9 +170,13 @@ pub enum RecordDraft {
         object_count: u32,
         split: SplitInfo,
         children: [ChildEntry; 2],
+        /// The record's own frame; `None`: the box its parent's entry decodes to.
+        frame: Option<Aabb>,
     },
     Leaf {
         node_id: u32,
+        /// The record's own frame; `None`: the box its parent's entry decodes to.
+        frame: Option<Aabb>,
         first_block: u32,
         /// Checksums of the geometry blocks `first_block ..`, one per block of the span.
         checksums: Vec<u32>,
@@ -191,18 +200,29 @@ pub fn keys_len<'a>(keys: impl IntoIterator<Item = &'a Key>) -> usize {
 }
 
 /// Bytes of a leaf record with `objects` entries over `span` geometry
-/// blocks, `bounds` bytes of inline bounds and `keys` bytes of keys.
+/// blocks, `bounds` bytes of inline bounds and `keys` bytes of keys, and
+/// no frame of its own ([`FRAME_BOX_LEN`] more with one).
 pub const fn leaf_len(objects: usize, span: usize, bounds: usize, keys: usize) -> usize {
     LEAF_HEAD_LEN + 4 * span + OBJECT_LEN * objects + 4 + bounds + keys
+}
+
+fn frame_len(frame: &Option<Aabb>) -> usize {
+    if frame.is_some() { FRAME_BOX_LEN } else { 0 }
+}
+
+fn encode_frame(frame: &Option<Aabb>, out: &mut Vec<u8>) {
+    for x in frame.iter().flat_map(Aabb::to_array) {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
 }
 
 impl RecordDraft {
     /// Encoded bytes (a multiple of 4).
     pub fn encoded_len(&self) -> usize {
         match self {
-            RecordDraft::Internal { .. } => INTERNAL_LEN,
-            RecordDraft::Leaf { checksums, objects, bounds, keys, .. } => {
-                leaf_len(objects.len(), checksums.len(), bounds_len(bounds), keys_len(keys))
+            RecordDraft::Internal { frame, .. } => INTERNAL_LEN + frame_len(frame),
+            RecordDraft::Leaf { frame, checksums, objects, bounds, keys, .. } => {
+                leaf_len(objects.len(), checksums.len(), bounds_len(bounds), keys_len(keys)) + frame_len(frame)
             }
         }
     }
@@ -210,7 +230,7 @@ impl RecordDraft {
     fn encode(&self, out: &mut Vec<u8>) -> Result<(), String> {
         let start = out.len();
         match self {
-            RecordDraft::Internal { node_id, object_count, split, children } => {
+            RecordDraft::Internal { node_id, object_count, split, children, frame } => {
                 let child = |c: &ChildEntry| ChildRaw {
                     qbox: c.qbox.map(U16::new),
                     block: c.at.block.into(),
@@ -222,7 +242,8 @@ impl RecordDraft {
                 let raw = InternalRaw {
                     kind: KIND_INTERNAL,
                     split: split.axis.index() as u8 | (split.order << 2),
-                    reserved: [0; 2],
+                    flags: if frame.is_some() { FLAG_FRAME } else { 0 },
+                    reserved: 0,
                     node_id: (*node_id).into(),
                     object_count: (*object_count).into(),
                     split_overlap: split.overlap.into(),
@@ -230,11 +251,12 @@ impl RecordDraft {
                     children: [child(&children[0]), child(&children[1])],
                 };
                 out.extend_from_slice(raw.as_bytes());
+                encode_frame(frame, out);
             }
-            RecordDraft::Leaf { node_id, first_block, checksums, objects, end, bounds, keys } => {
+            RecordDraft::Leaf { node_id, frame, first_block, checksums, objects, end, bounds, keys } => {
                 let raw = LeafRaw {
                     kind: KIND_LEAF,
-                    reserved0: 0,
+                    flags: if frame.is_some() { FLAG_FRAME } else { 0 },
                     object_count: u16::try_from(objects.len())
                         .map_err(|_| format!("a leaf of {} objects (at most 65,535)", objects.len()))?
                         .into(),
@@ -251,6 +273,7 @@ impl RecordDraft {
                     bounds_bytes: (bounds_len(bounds) as u32).into(),
                 };
                 out.extend_from_slice(raw.as_bytes());
+                encode_frame(frame, out);
                 for c in checksums {
                     out.extend_from_slice(&c.to_le_bytes());
                 }
@@ -391,7 +414,8 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
     let qbox_ok = |q: &[U16; 6]| (0..3).all(|a| q[a].get() <= q[a + 3].get());
     match bytes.first() {
         Some(&KIND_INTERNAL) => {
-            let (raw, _) = InternalRaw::ref_from_prefix(bytes).map_err(|_| bad("record", "short".into()))?;
+            let (raw, rest) = InternalRaw::ref_from_prefix(bytes).map_err(|_| bad("record", "short".into()))?;
+            let frame = validate_frame(raw.flags, rest).map_err(|d| bad("frame", d))?;
             if raw.split & 0b11 > 2 || raw.split >> 2 > 2 {
                 return Err(bad("split", format!("{:#x} is not an axis and order", raw.split)));
             }
@@ -414,16 +438,16 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
                     return Err(bad("child_offset", format!("{} is not a record offset", c.offset.get())));
                 }
             }
-            if raw.reserved != [0; 2] {
+            if raw.reserved != 0 {
                 return Err(bad("reserved", "reserved bytes are not zero".into()));
             }
-            Ok(INTERNAL_LEN)
+            Ok(INTERNAL_LEN + frame)
         }
         Some(&KIND_LEAF) => {
-            let (raw, _) = LeafRaw::ref_from_prefix(bytes).map_err(|_| bad("record", "short".into()))?;
-            if raw.reserved0 != 0 {
-                return Err(bad("reserved", "reserved bytes are not zero".into()));
-            }
+            let (raw, rest) = LeafRaw::ref_from_prefix(bytes).map_err(|_| bad("record", "short".into()))?;
+            let frame = validate_frame(raw.flags, rest).map_err(|d| bad("frame", d))?;
+            // The rest of the record is read as if the frame were not there.
+            let bytes = &bytes[frame..];
             let (n, span) = (usize::from(raw.object_count.get()), usize::from(raw.span.get()));
             if n == 0 || span == 0 || raw.first_block.get() == 0 {
                 return Err(bad(
@@ -493,11 +517,39 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
             let bounds_end = end_at + 4 + bounds;
             validate_bounds(&bytes[end_at + 4..bounds_end], n, limits).map_err(|d| bad("bounds", d))?;
             validate_keys(&bytes[bounds_end..len], starts_in_order).map_err(|d| bad("keys", d))?;
-            Ok(len)
+            Ok(len + frame)
         }
         Some(k) => Err(bad("kind", format!("{k} is neither internal (1) nor leaf (2)"))),
         None => Err(bad("record", "empty".into())),
     }
+}
+
+/// A record's own frame, when its flags say it has one: six finite f64,
+/// lower corner below the upper, within the coordinate range. Returns its
+/// bytes (0 without one).
+fn validate_frame(flags: u8, rest: &[u8]) -> Result<usize, String> {
+    if flags & !FLAG_FRAME != 0 {
+        return Err(format!("unknown flags {flags:#x}"));
+    }
+    if flags & FLAG_FRAME == 0 {
+        return Ok(0);
+    }
+    let (f, _) = <[F64; 6]>::ref_from_prefix(rest).map_err(|_| "the frame is cut".to_string())?;
+    let f = f.map(|x| x.get());
+    let range = super::geometry::MAX_COORDINATE;
+    if !f.iter().all(|x| x.is_finite() && x.abs() <= range) || (0..3).any(|a| f[a] > f[a + 3]) {
+        return Err(format!("{f:?} is not a box in the coordinate range"));
+    }
+    Ok(FRAME_BOX_LEN)
+}
+
+/// The frame a record carries after its fixed head, if its flags say so.
+fn frame_at(flags: u8, rest: &[u8]) -> Option<Aabb> {
+    if flags & FLAG_FRAME == 0 {
+        return None;
+    }
+    let (f, _) = <[F64; 6]>::ref_from_prefix(rest).ok()?;
+    Some(Aabb::from_array(f.map(|x| x.get())))
 }
 
 /// A leaf's keys area holds one key per object, then fewer than 4 zero bytes.
@@ -554,12 +606,14 @@ pub enum NodeView<'a> {
 #[derive(Debug, Clone, Copy)]
 pub struct InternalView<'a> {
     raw: &'a InternalRaw,
+    frame: Option<Aabb>,
 }
 
 /// A leaf record in place.
 #[derive(Debug, Clone, Copy)]
 pub struct LeafView<'a> {
     raw: &'a LeafRaw,
+    frame: Option<Aabb>,
     checksums: &'a [U32],
     objects: &'a [ObjectRaw],
     end: u64,
@@ -573,11 +627,13 @@ impl<'a> NodeView<'a> {
         let bytes = block.get(offset as usize..).ok_or("offset past the block")?;
         match bytes.first() {
             Some(&KIND_INTERNAL) => {
-                let (raw, _) = InternalRaw::ref_from_prefix(bytes).map_err(|_| "short record")?;
-                Ok(NodeView::Internal(InternalView { raw }))
+                let (raw, rest) = InternalRaw::ref_from_prefix(bytes).map_err(|_| "short record")?;
+                Ok(NodeView::Internal(InternalView { raw, frame: frame_at(raw.flags, rest) }))
             }
             Some(&KIND_LEAF) => {
                 let (raw, rest) = LeafRaw::ref_from_prefix(bytes).map_err(|_| "short record")?;
+                let frame = frame_at(raw.flags, rest);
+                let rest = rest.get(frame_len(&frame)..).ok_or("short record")?;
                 let (checksums, rest) =
                     <[U32]>::ref_from_prefix_with_elems(rest, usize::from(raw.span.get()))
                         .map_err(|_| "short")?;
@@ -590,6 +646,7 @@ impl<'a> NodeView<'a> {
                 let keys = rest.get(..usize::from(raw.keys_bytes.get())).ok_or("keys overrun")?;
                 Ok(NodeView::Leaf(LeafView {
                     raw,
+                    frame,
                     checksums,
                     objects,
                     end: u64::from(end.get()) * 4,
@@ -609,11 +666,75 @@ impl<'a> NodeView<'a> {
         }
     }
 
+    /// The frame the record's entries are quantized in: its own, or
+    /// `decoded`, the box its parent's entry decodes to (the root's: the
+    /// meta block's scene box).
+    pub fn frame(&self, decoded: Aabb) -> Aabb {
+        let own = match self {
+            NodeView::Internal(n) => n.frame,
+            NodeView::Leaf(l) => l.frame,
+        };
+        own.unwrap_or(decoded)
+    }
+
+    /// The record's own frame, if it carries one.
+    pub fn own_frame(&self) -> Option<Aabb> {
+        match self {
+            NodeView::Internal(n) => n.frame,
+            NodeView::Leaf(l) => l.frame,
+        }
+    }
+
     /// Objects in the subtree.
     pub fn object_count(&self) -> u32 {
         match self {
             NodeView::Internal(n) => n.raw.object_count.get(),
             NodeView::Leaf(l) => l.object_count(),
+        }
+    }
+}
+
+impl NodeView<'_> {
+    /// The record as a draft to write again: every field as stored.
+    pub fn to_draft(&self) -> RecordDraft {
+        match self {
+            NodeView::Internal(n) => {
+                let child = |i: usize| {
+                    let c = &n.raw.children[i];
+                    ChildEntry {
+                        qbox: c.qbox.map(|x| x.get()),
+                        at: n.child_ref(i),
+                        node_blocks: c.node_blocks.get(),
+                        geometry_blocks: c.geometry_blocks.get(),
+                    }
+                };
+                RecordDraft::Internal {
+                    node_id: n.raw.node_id.get(),
+                    object_count: n.raw.object_count.get(),
+                    split: n.split(),
+                    children: [child(0), child(1)],
+                    frame: n.frame,
+                }
+            }
+            NodeView::Leaf(l) => {
+                let objects = (0..l.len())
+                    .filter_map(|i| l.object(i))
+                    .map(|o| ObjectEntry { object_id: o.object_id, qbox: o.qbox, position: o.span.0 })
+                    .collect();
+                RecordDraft::Leaf {
+                    node_id: l.raw.node_id.get(),
+                    frame: l.frame,
+                    first_block: l.raw.first_block.get(),
+                    checksums: l.checksums.iter().map(|c| c.get()).collect(),
+                    objects,
+                    end: l.end,
+                    bounds: l
+                        .bounds()
+                        .map(|b| BoundEntry { target: b.target, level: b.level, blob: b.blob.to_vec() })
+                        .collect(),
+                    keys: l.keys().map(|(_, k)| k.to_key()).collect(),
+                }
+            }
         }
     }
 }
@@ -769,6 +890,8 @@ pub fn relocate_block(
             }
             Some(&KIND_LEAF) => {
                 let (raw, rest) = LeafRaw::mut_from_prefix(bytes).map_err(|_| short(r))?;
+                let skip = if raw.flags & FLAG_FRAME != 0 { FRAME_BOX_LEN } else { 0 };
+                let rest = rest.get_mut(skip..).ok_or_else(|| short(r))?;
                 let (sums, _) = <[U32]>::mut_from_prefix_with_elems(rest, usize::from(raw.span.get()))
                     .map_err(|_| short(r))?;
                 let old: Vec<u32> = sums.iter().map(|c| c.get()).collect();
@@ -795,6 +918,7 @@ mod tests {
     fn drafts() -> Vec<RecordDraft> {
         let leaf = RecordDraft::Leaf {
             node_id: 1,
+            frame: None,
             first_block: 9,
             checksums: vec![77],
             objects: vec![
@@ -824,6 +948,7 @@ mod tests {
                     geometry_blocks: 1,
                 },
             ],
+            frame: None,
         };
         vec![inner, leaf]
     }
@@ -846,6 +971,57 @@ mod tests {
         let blob = [1, 1, 4];
         assert_eq!(l.bounds().collect::<Vec<_>>(), vec![BoundView { target: 1, level: 2, blob: &blob }]);
         assert_eq!(l.geometry().1.collect::<Vec<_>>(), vec![77]);
+    }
+
+    #[test]
+    fn a_record_read_back_is_the_draft_it_was_written_from() {
+        let mut block = vec![0u8; 1024];
+        let drafts = drafts();
+        let offsets = encode_block(&drafts, &mut block).unwrap();
+        for (d, &o) in drafts.iter().zip(&offsets) {
+            assert_eq!(&NodeView::at(&block, o).unwrap().to_draft(), d);
+        }
+    }
+
+    #[test]
+    fn records_with_their_own_frames_round_trip() {
+        let frame = Aabb::from_array([-1.5, 0.0, 2.0, 10.0, 20.25, 30.0]);
+        let mut drafts = drafts();
+        for d in &mut drafts {
+            match d {
+                RecordDraft::Internal { frame: f, .. } | RecordDraft::Leaf { frame: f, .. } => *f = Some(frame),
+            }
+        }
+        // The in-block child follows an internal record that is a frame longer.
+        if let RecordDraft::Internal { children, .. } = &mut drafts[0] {
+            children[0].at.offset += FRAME_BOX_LEN as u32;
+        }
+        let mut block = vec![0u8; 1024];
+        let offsets = encode_block(&drafts, &mut block).unwrap();
+        assert_eq!(offsets[1] as usize, RECORDS_START + INTERNAL_LEN + FRAME_BOX_LEN);
+        assert_eq!(validate_block(3, &block, &limits()).unwrap(), offsets);
+        let decoded = Aabb::from_array([0.0; 6]);
+        for &o in &offsets {
+            let v = NodeView::at(&block, o).unwrap();
+            assert_eq!(v.own_frame(), Some(frame));
+            assert_eq!(v.frame(decoded), frame);
+        }
+        let NodeView::Leaf(l) = NodeView::at(&block, offsets[1]).unwrap() else { panic!() };
+        assert_eq!(l.object(1).unwrap().span, (100, 200));
+        assert_eq!(l.key(2), Some(Key::bytes("four").unwrap()));
+        assert_eq!(l.geometry().1.collect::<Vec<_>>(), vec![77]);
+        // A frame turned inside out, a NaN, an unknown flag: corruption.
+        let leaf_frame = offsets[1] as usize + LEAF_HEAD_LEN;
+        for (at, bytes) in [
+            (leaf_frame, 100.0f64.to_le_bytes()),
+            (leaf_frame + 8, f64::NAN.to_le_bytes()),
+            (offsets[0] as usize + 2, [3, 0, 0, 0, 0, 0, 0, 0]),
+        ] {
+            let mut b = block.clone();
+            let n = if at == offsets[0] as usize + 2 { 1 } else { 8 };
+            b[at..at + n].copy_from_slice(&bytes[..n]);
+            assert!(validate_block(3, &b, &limits()).is_err(), "byte {at}");
+        }
     }
 
     #[test]

@@ -9,7 +9,6 @@ use super::geometry::ObjectHeader;
 use super::header::{FixedHeader, Slot};
 use super::meta::MetaRecord;
 use super::node::{BlockHead, BoundRaw, ChildRaw, InternalRaw, LeafRaw, ObjectRaw};
-use super::run::RunHeader;
 
 /// (offset, size) of the row whose name column is `` `name` `` in the
 /// table that follows `heading` (or the file's first table) in `md`.
@@ -87,8 +86,7 @@ fn spec_tables_match_the_records() {
         look_ahead,
         rate,
         leaf_capacity,
-        names_block,
-        names_checksum,
+        object_ids,
         build_seconds,
         lod_table,
         lattice_origin,
@@ -114,11 +112,11 @@ fn spec_tables_match_the_records() {
     field!(node, payload, FRAME_LEN, BlockHead, record_count);
     field!(node, payload, FRAME_LEN, BlockHead, reserved);
     macro_rules! internal { ($($f:ident),*) => { $( field!(node, Some("## Internal record"), 0, InternalRaw, $f); )* } }
-    internal!(kind, split, reserved, node_id, object_count, split_overlap, split_gap, children);
+    internal!(kind, split, flags, reserved, node_id, object_count, split_overlap, split_gap, children);
     macro_rules! child { ($($f:ident),*) => { $( field!(node, Some("### Child entry"), 0, ChildRaw, $f); )* } }
     child!(qbox, block, checksum, offset, node_blocks, geometry_blocks);
     macro_rules! leaf { ($($f:ident),*) => { $( field!(node, Some("## Leaf record"), 0, LeafRaw, $f); )* } }
-    leaf!(kind, reserved0, object_count, node_id, first_block, span, keys_bytes, bounds_bytes);
+    leaf!(kind, flags, object_count, node_id, first_block, span, keys_bytes, bounds_bytes);
     macro_rules! object { ($($f:ident),*) => { $( field!(node, Some("### Object entry"), 0, ObjectRaw, $f); )* } }
     object!(object_id, qbox, position);
     macro_rules! bound { ($($f:ident),*) => { $( field!(node, Some("## Bounds"), 0, BoundRaw, $f); )* } }
@@ -128,11 +126,6 @@ fn spec_tables_match_the_records() {
     macro_rules! blob { ($($f:ident),*) => { $( field!(lod, Some("## Inline voxel blob"), 0, crate::lod::BlobHead, $f); )* } }
     blob!(level, form);
 
-    let runs = include_str!("../../../format-spec/runs.md");
-    field!(runs, Some("## First block"), FRAME_LEN, RunHeader, run_blocks);
-    field!(runs, Some("## First block"), FRAME_LEN, RunHeader, record_count);
-    field!(runs, Some("## First block"), FRAME_LEN, RunHeader, data_bytes);
-    field!(runs, Some("## First block"), FRAME_LEN, RunHeader, next_checksum);
     let geometry = include_str!("../../../format-spec/geometry.md");
     macro_rules! obj { ($($f:ident),*) => { $( field!(geometry, Some("## Object record"), 0, ObjectHeader, $f); )* } }
     obj!(object_id, vertex_count, triangle_count, anchor);

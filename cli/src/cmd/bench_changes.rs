@@ -1,0 +1,105 @@
+//! `mktree bench-changes`: change commits on mktree and on SQLite's R*Tree
+//! plus blobs (WAL and rollback journal, `synchronous = FULL`) in the same
+//! run, through `mktree_bench::bench_changes`.
+
+use std::path::PathBuf;
+
+use anyhow::{Result, bail};
+use clap::Args;
+use mktree::build::BuildParams;
+use mktree::db::CreateOptions;
+use mktree_bench::{ChangeOptions, bench_changes, standard_sets};
+
+use crate::args::ImportArgs;
+use crate::output;
+
+/// `bench-changes`' arguments.
+#[derive(Args, Debug, Clone)]
+pub struct BenchChangesArgs {
+    /// Scenes: files, or presets (tanker1, tanker2, tanker3, ship, ship:N).
+    #[arg(required = true)]
+    pub scenes: Vec<String>,
+    /// Single-object commits of each kind: insert, move, remove.
+    #[arg(long, default_value_t = 200)]
+    pub singles: usize,
+    /// Changes in the one mixed commit.
+    #[arg(long, default_value_t = 1000)]
+    pub batch: usize,
+    /// Queries per generated set, run on the changed file and a fresh load.
+    #[arg(long, default_value_t = 100)]
+    pub queries: usize,
+    /// Seed of the changes and the query sets.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Where the files are built (removed afterwards).
+    #[arg(long, default_value = ".")]
+    pub dir: PathBuf,
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub import: ImportArgs,
+}
+
+pub fn run(args: &BenchChangesArgs) -> Result<()> {
+    if args.singles == 0 && args.batch == 0 {
+        bail!("nothing to measure: --singles and --batch are both 0");
+    }
+    let options = args.import.options();
+    let create = CreateOptions::default();
+    let params = BuildParams::for_blocks(create.block_size);
+    let mut reports = Vec::new();
+    for name in &args.scenes {
+        let scene = crate::cmd::scene_or_preset(name, &options)?;
+        let sets = standard_sets(&scene.object_boxes(), args.queries, args.seed);
+        let opts = ChangeOptions { singles: args.singles, batch: args.batch, seed: args.seed, create };
+        let report = bench_changes(&scene, &params, &sets, &opts, &args.dir)?;
+        if !args.json {
+            print(name, &report);
+        }
+        reports.push((name.clone(), report));
+    }
+    if args.json {
+        let rows: Vec<_> =
+            reports.iter().map(|(name, r)| serde_json::json!({ "scene": name, "report": r })).collect();
+        return output::json(&serde_json::json!({ "scenes": rows }));
+    }
+    Ok(())
+}
+
+fn print(name: &str, r: &mktree_bench::ChangesReport) {
+    println!(
+        "{name} ({} objects): per commit, median / p95 ms, bytes written, blocks written, syncs",
+        r.objects
+    );
+    println!(
+        "| engine | phase | commits | median ms | p95 ms | bytes | blocks | syncs | in place | file bytes after |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for row in &r.rows {
+        println!(
+            "| {} | {} | {} | {:.2} | {:.2} | {:.0} | {:.1} | {:.1} | {:.0}% | {} |",
+            row.engine,
+            row.phase,
+            row.commits,
+            row.median_ms,
+            row.p95_ms,
+            row.bytes_per_commit,
+            row.blocks_per_commit,
+            row.syncs_per_commit,
+            100.0 * row.in_place,
+            row.file_bytes
+        );
+    }
+    println!(
+        "mean block reads per exact query after the changes, changed file / fresh bulk load of the same objects:"
+    );
+    for (label, changed, fresh) in &r.reads {
+        println!(
+            "  {label}: {:.2} / {:.2} ({:.3}x)",
+            changed.mean_total_reads,
+            fresh.mean_total_reads,
+            changed.mean_total_reads / fresh.mean_total_reads.max(f64::MIN_POSITIVE)
+        );
+    }
+    println!("  file blocks: {} / {}", r.file_blocks.0, r.file_blocks.1);
+}

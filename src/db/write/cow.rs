@@ -1,0 +1,1031 @@
+//! A change commit that writes what it touches (format-spec/commit.md,
+//! "Change commits"): the changed leaves' records and geometry spans, the
+//! node blocks holding them and, block by block, their parent blocks up to
+//! the root's; the changed key index paths; the meta block. Everything else
+//! is shared with the committed tree, and what the new tree no longer
+//! reaches goes to the free list under this commit's id.
+//!
+//! A change finds its object's leaf through the key index's path and an
+//! insert its leaf by the least growth of a box, reading one path from the
+//! root each; nothing is held per object of the tree. A box that grows
+//! past its parent's frame rewrites its parent's record with a frame
+//! grown to hold it, and gives the sibling, whose own frame does not
+//! change, a frame of its own (format-spec/node.md, "Quantized boxes"), so
+//! no subtree is rewritten below the path. A box that shrinks stays as it
+//! was: boxes stay conservative, and `compact` lays the tree out anew.
+//!
+//! What this step does not do: split a leaf or drop an emptied one. A
+//! change that would need either (a leaf past twice its bulk load's
+//! capacity, or whose record would no longer fit a node block; a leaf left
+//! with no object) is committed by writing the changed tree whole, as
+//! every commit did before format version 6.
+
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::sync::Arc;
+
+use super::WriteTransaction;
+use crate::db::path::PathStep;
+use crate::db::read::view;
+use crate::db::source::check_object;
+use crate::db::{ReadTransaction, Reads, free_list_chain};
+use crate::geom::Aabb;
+use crate::scene::{Key, KeyError, Object, ObjectId};
+use crate::store::format::frame::{BlockType, FRAME_LEN};
+use crate::store::format::geometry::{self, Placement};
+use crate::store::format::keys::{self, ChildRef, KeyBlock, KeyEntry, TreePath};
+use crate::store::format::meta::Meta;
+use crate::store::format::node::{self, BoundEntry, NodeView, ObjectEntry, RecordDraft, RecordRef};
+use crate::store::format::quant::quantize;
+use crate::store::{Block, StorageError};
+
+/// A change to one key, as the transaction last asked for it.
+#[derive(Debug, Clone)]
+pub(crate) enum Change {
+    /// Store this object under its key (an insert, or an update of the
+    /// committed object).
+    Put(Object),
+    /// Remove the committed object of the key.
+    Remove,
+}
+
+/// The transaction's changes by key, applied at commit.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Edits {
+    pub ops: BTreeMap<Key, Change>,
+}
+
+/// What a change commit wrote, for its caller and the benchmarks.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ChangeStats {
+    /// Objects inserted, updated and removed.
+    pub changes: u64,
+    /// Blocks written: node, geometry, key index and the meta block.
+    pub blocks_written: u64,
+    /// Blocks of the committed tree the new one no longer reaches.
+    pub blocks_freed: u64,
+    /// Blocks read to find the changed objects and rewrite their paths.
+    pub blocks_read: u64,
+    /// Whether the changes were written in place (copy on write); `false`:
+    /// the tree was written whole.
+    pub in_place: bool,
+}
+
+/// A record on a changed path, and what it becomes.
+struct Mod {
+    block: Arc<Block>,
+    offset: u32,
+    /// The record's frame before the change.
+    frame: Aabb,
+    /// Its parent record and the child index it is there.
+    parent: Option<((u32, u32), usize)>,
+    depth: usize,
+    /// The new record, once made.
+    draft: Option<RecordDraft>,
+    /// `Some(b)`: the parent's entry must hold `b` (quantized anew);
+    /// `None`: the parent's entry stays as it is.
+    required: Option<Aabb>,
+    /// Objects and geometry blocks the subtree gains (or loses).
+    objects: i64,
+    geometry_blocks: i64,
+}
+
+/// An object added to a leaf: its id, key and the object.
+struct Added {
+    id: u32,
+    object: Object,
+}
+
+/// A leaf's changes: the objects it loses and gains.
+#[derive(Default)]
+struct LeafEdit {
+    remove: HashSet<u32>,
+    add: Vec<Added>,
+}
+
+/// Counts the meta block keeps, changed by the commit.
+#[derive(Default)]
+struct Deltas {
+    objects: i64,
+    node_blocks: i64,
+    node_bytes: i64,
+    geometry_blocks: i64,
+    geometry_bytes: i64,
+    triangles: i64,
+    vertices: i64,
+    lod_usage: Vec<[i64; 2]>,
+}
+
+/// A change that needs the tree written whole (see the module's header).
+struct Structural;
+
+type Step<T> = Result<Result<T, Structural>, crate::Error>;
+
+/// Blocks in a set of ranges.
+fn written_count(w: &crate::store::alloc::FreeSpace) -> u64 {
+    w.ranges().iter().map(|&(_, n)| u64::from(n)).sum()
+}
+
+fn apply(x: u64, d: i64) -> Result<u64, StorageError> {
+    x.checked_add_signed(d)
+        .ok_or_else(|| StorageError::Invalid("a count of the meta block went out of range".into()))
+}
+
+impl WriteTransaction<'_> {
+    /// Writes `edits` copy on write. `Ok(None)`: a change needs the tree
+    /// written whole, and nothing was written.
+    pub(super) fn commit_in_place(&mut self, edits: &Edits) -> Result<Option<ChangeStats>, crate::Error> {
+        let r = self.inner.read_installed()?;
+        let Some(meta) = r.snapshot.meta.clone() else { return Ok(None) };
+        let mut reads = Reads::new(None);
+        let mut stats =
+            ChangeStats { changes: edits.ops.len() as u64, in_place: true, ..ChangeStats::default() };
+        let plan = match plan_leaves(&r, &meta, edits, &mut reads)? {
+            Ok(p) => p,
+            Err(Structural) => return Ok(None),
+        };
+        let written_before = written_count(&self.written);
+        let outcome = self.write_changes(&r, &meta, plan, &mut reads)?;
+        // The caller takes back the blocks of an attempt that stops short.
+        let Ok((new_meta, freed)) = outcome else { return Ok(None) };
+        let pager = self.inner.pager().clone();
+        let meta_block = self.allocate(1)?;
+        let mut block = vec![0u8; pager.block_size() as usize];
+        new_meta.encode(&mut block);
+        let sum = pager.write(meta_block, &mut block, BlockType::Meta, self.txn)?;
+        self.meta = Some((meta_block, sum, new_meta));
+        stats.blocks_written = written_count(&self.written) - written_before;
+        // The committed tree stays but for what this commit replaced.
+        let (_, chain) = free_list_chain(&pager, &self.base)?;
+        self.keep_base(&chain);
+        let mut gone: Vec<(u32, u32)> = freed.iter().map(|&b| (b, 1)).collect();
+        gone.push((self.base.meta_block, 1));
+        self.written.remove_all(&gone);
+        stats.blocks_freed = gone.len() as u64;
+        stats.blocks_read = reads.stats.total();
+        Ok(Some(stats))
+    }
+
+    /// Writes the changed leaves, their paths and the key index; returns the
+    /// new meta block's fields and the blocks the new tree no longer reaches.
+    fn write_changes(
+        &mut self,
+        r: &ReadTransaction,
+        meta: &Meta,
+        plan: Plan,
+        reads: &mut Reads,
+    ) -> Step<(Meta, Vec<u32>)> {
+        let pager = self.inner.pager().clone();
+        let bs = pager.block_size();
+        let m = pager.lod_levels();
+        let mut freed: Vec<u32> = Vec::new();
+        let mut deltas = Deltas { lod_usage: vec![[0; 2]; usize::from(m)], ..Deltas::default() };
+        let Plan { mut mods, leaves, key_changes, next_id } = plan;
+        // Leaves: their new records and geometry.
+        for (at, edit) in &leaves {
+            match self.rewrite_leaf(r, &mut mods, *at, edit, reads, &mut deltas, &mut freed)? {
+                Ok(()) => {}
+                Err(Structural) => return Ok(Err(Structural)),
+            }
+        }
+        // Internal records, deepest first: boxes, counts, frames.
+        let mut order: Vec<(u32, u32)> = mods.keys().copied().collect();
+        order.sort_by_key(|k| std::cmp::Reverse(mods[k].depth));
+        let mut scene_box = Aabb::from_array(meta.scene_box);
+        for at in order {
+            if mods[&at].draft.is_some() {
+                continue;
+            }
+            if let Some(grown) = self.rewrite_internal(r, &mut mods, at, reads)? {
+                // The root's frame grew: the scene box is its frame.
+                scene_box = grown;
+            }
+        }
+        // A root leaf's frame of its own lies in the scene box, which grows to hold it.
+        let root_at = (meta.root_block, meta.root_offset);
+        if let Some(b) = mods.get(&root_at).and_then(|m| m.required) {
+            scene_box = scene_box.union(&b);
+        }
+        // Node blocks, children before parents.
+        let root = match self.rewrite_blocks(&mut mods, root_at, bs, &mut deltas, &mut freed)? {
+            Ok(root) => root,
+            Err(Structural) => return Ok(Err(Structural)),
+        };
+        let keys = self.rewrite_keys(r, meta, key_changes, reads, &mut freed)?;
+        let mut new = meta.clone();
+        (new.root_block, new.root_checksum, new.root_offset) = (root.block, root.checksum, root.offset);
+        new.scene_box = scene_box.to_array();
+        new.object_count = u32::try_from(apply(u64::from(meta.object_count), deltas.objects)?)
+            .map_err(|_| StorageError::Invalid("more objects than ids".into()))?;
+        new.object_ids = next_id;
+        new.node_blocks = u32::try_from(apply(u64::from(meta.node_blocks), deltas.node_blocks)?)
+            .map_err(|_| StorageError::FileTooLarge)?;
+        new.node_bytes = apply(meta.node_bytes, deltas.node_bytes)?;
+        new.geometry_blocks = apply(meta.geometry_blocks, deltas.geometry_blocks)?;
+        new.geometry_bytes = apply(meta.geometry_bytes, deltas.geometry_bytes)?;
+        new.triangle_count = apply(meta.triangle_count, deltas.triangles)?;
+        new.vertex_count = apply(meta.vertex_count, deltas.vertices)?;
+        for (u, d) in new.lods.usage.iter_mut().zip(&deltas.lod_usage) {
+            u[0] = apply(u[0], d[0])?;
+            u[1] = apply(u[1], d[1])?;
+        }
+        (new.keys_block, new.keys_checksum, new.keys_height, new.keys_blocks) =
+            (keys.block, keys.checksum, keys.height, keys.blocks);
+        if new.object_count == 0 {
+            return Ok(Err(Structural));
+        }
+        Ok(Ok((new, freed)))
+    }
+}
+
+/// Every leaf a commit changes, the records on their paths, the key
+/// index's changes and the next free object id.
+struct Plan {
+    mods: HashMap<(u32, u32), Mod>,
+    leaves: BTreeMap<(u32, u32), LeafEdit>,
+    key_changes: BTreeMap<Key, Option<KeyEntry>>,
+    next_id: u32,
+}
+
+/// Finds each changed object's leaf (the key index's path for a committed
+/// one, the least growth for a new one) and notes the records on the way.
+fn plan_leaves(r: &ReadTransaction, meta: &Meta, edits: &Edits, reads: &mut Reads) -> Step<Plan> {
+    let mut plan = Plan {
+        mods: HashMap::new(),
+        leaves: BTreeMap::new(),
+        key_changes: BTreeMap::new(),
+        next_id: meta.object_ids,
+    };
+    for (key, change) in &edits.ops {
+        let old = r.key_entry(key, reads)?;
+        if let Some(e) = &old {
+            let steps = r.path_to(e.object_id, e.path, &e.aabb, reads)?;
+            let leaf = note_path(&mut plan.mods, &steps);
+            plan.leaves.entry(leaf).or_default().remove.insert(e.object_id);
+        }
+        match change {
+            Change::Remove => {
+                if old.is_some() {
+                    plan.key_changes.insert(key.clone(), None);
+                }
+            }
+            Change::Put(object) => {
+                let id = plan.next_id;
+                plan.next_id = id
+                    .checked_add(1)
+                    .ok_or_else(|| StorageError::Invalid("object ids are exhausted".into()))?;
+                check_object(ObjectId(id), object)?;
+                // The box as the file will hold it: its stored geometry's.
+                let aabb = stored_box(object)?;
+                let steps = choose_leaf(r, meta, &aabb, reads)?;
+                let path = path_of(&steps);
+                let leaf = note_path(&mut plan.mods, &steps);
+                plan.key_changes.insert(
+                    key.clone(),
+                    Some(KeyEntry {
+                        key: key.clone(),
+                        payload: object.payload.clone(),
+                        name: object.name.clone(),
+                        object_id: id,
+                        path,
+                        aabb,
+                    }),
+                );
+                let object = Object { key: Some(key.clone()), ..object.clone() };
+                plan.leaves.entry(leaf).or_default().add.push(Added { id, object });
+            }
+        }
+    }
+    Ok(Ok(plan))
+}
+
+/// The box of `object`'s geometry as a file stores it (f64 anchor, f32
+/// offsets): what a reader computes from the record.
+fn stored_box(object: &Object) -> Result<Aabb, StorageError> {
+    let mut record = Vec::new();
+    geometry::encode_object(ObjectId(0), &object.mesh, &mut record);
+    Ok(geometry::decode_object(0, &record)?.1.aabb())
+}
+
+/// The path bits of `steps` from the root.
+fn path_of(steps: &[PathStep]) -> TreePath {
+    steps.iter().filter_map(|s| s.child).fold(TreePath::default(), |p, c| p.child(c))
+}
+
+/// Notes each record of `steps` as changed; returns the leaf's place.
+fn note_path(mods: &mut HashMap<(u32, u32), Mod>, steps: &[PathStep]) -> (u32, u32) {
+    let mut parent: Option<((u32, u32), usize)> = None;
+    let mut at = (0, 0);
+    for (depth, s) in steps.iter().enumerate() {
+        at = (s.block.id(), s.offset);
+        mods.entry(at).or_insert_with(|| Mod {
+            block: s.block.clone(),
+            offset: s.offset,
+            frame: s.frame,
+            parent,
+            depth,
+            draft: None,
+            required: None,
+            objects: 0,
+            geometry_blocks: 0,
+        });
+        parent = s.child.map(|c| (at, c));
+    }
+    at
+}
+
+/// The leaf a new object of box `aabb` goes to: from the root, the child
+/// whose box holds it (the smaller when both do), else the one whose box
+/// grows least (R-tree's choice of subtree).
+fn choose_leaf(
+    r: &ReadTransaction,
+    meta: &Meta,
+    aabb: &Aabb,
+    reads: &mut Reads,
+) -> Result<Vec<PathStep>, StorageError> {
+    let root = r.root().ok_or_else(|| StorageError::Invalid("the file holds no tree".into()))?;
+    let mut block = r.block(root.block, BlockType::Node, root.checksum, reads)?;
+    let (mut offset, mut bound) = (root.offset, root.aabb);
+    let mut steps = Vec::new();
+    for _ in 0..=meta.depth {
+        let record = view(&block, offset)?;
+        let frame = record.frame(bound);
+        match record {
+            NodeView::Leaf(_) => {
+                steps.push(PathStep { block, offset, frame, child: None });
+                return Ok(steps);
+            }
+            NodeView::Internal(n) => {
+                let boxes = [0, 1].map(|c| n.child_box(c, &frame).map(|q| q.outer));
+                let cost = |c: usize| -> (bool, f64, f64) {
+                    let b = boxes[c].unwrap_or(Aabb::EMPTY);
+                    let grown = b.union(aabb);
+                    (!b.contains(aabb), grown.volume() - b.volume(), b.volume())
+                };
+                let c = if cost(1).partial_cmp(&cost(0)) == Some(std::cmp::Ordering::Less) { 1 } else { 0 };
+                let next = boxes[c].ok_or_else(|| {
+                    StorageError::corrupt(block.id(), "child_box", "a child box is backwards")
+                })?;
+                let at = n.child_ref(c);
+                let child = r.node_block(&block, at, reads)?;
+                steps.push(PathStep { block, offset, frame, child: Some(c) });
+                (block, offset, bound) = (child, at.offset, next);
+            }
+        }
+    }
+    Err(StorageError::corrupt(meta.root_block, "depth", "a path longer than the tree is deep"))
+}
+
+/// A leaf's entry as the commit rewrites it: its object, its record, its
+/// box as stored, and its bounds.
+struct NewEntry {
+    id: u32,
+    record: Vec<u8>,
+    /// The box of the entry's triangles, from its record.
+    aabb: Aabb,
+    /// The entry's box as the old leaf held it, for a kept entry.
+    old_q: Option<[u16; 6]>,
+    bounds: Vec<BoundEntry>,
+}
+
+impl WriteTransaction<'_> {
+    /// The new record and geometry of leaf `at` with `edit` applied.
+    #[allow(clippy::too_many_arguments)]
+    fn rewrite_leaf(
+        &mut self,
+        r: &ReadTransaction,
+        mods: &mut HashMap<(u32, u32), Mod>,
+        at: (u32, u32),
+        edit: &LeafEdit,
+        reads: &mut Reads,
+        deltas: &mut Deltas,
+        freed: &mut Vec<u32>,
+    ) -> Step<()> {
+        let pager = self.inner.pager().clone();
+        let bs = pager.block_size();
+        let p = geometry::payload(bs);
+        let md = &mods[&at];
+        let (block, frame) = (md.block.clone(), md.frame);
+        let NodeView::Leaf(leaf) = view(&block, md.offset)? else {
+            return Err(StorageError::corrupt(block.id(), "path", "a path ends at no leaf").into());
+        };
+        let (first_block, sums) = leaf.geometry();
+        let sums: Vec<u32> = sums.collect();
+        let old_frame = view(&block, md.offset)?.own_frame();
+        let mut keys = leaf.keys().map(|(_, k)| k.to_key());
+        let mut entries: Vec<NewEntry> = Vec::new();
+        let mut kept_keys: Vec<Key> = Vec::new();
+        let mut removed_objects = 0i64;
+        let mut last_id = None;
+        for i in 0..leaf.len() {
+            let o = leaf
+                .object(i)
+                .ok_or_else(|| StorageError::corrupt(block.id(), "objects", "an entry is missing"))?;
+            let first_of_object = last_id != Some(o.object_id);
+            last_id = Some(o.object_id);
+            let key = if first_of_object { keys.next() } else { None };
+            let (_, mesh) = r.read_object(block.id(), &leaf, i, reads)?;
+            let record_len = geometry::record_len(&mesh) as i64;
+            if edit.remove.contains(&o.object_id) {
+                deltas.geometry_bytes -= record_len;
+                deltas.triangles -= mesh.triangle_count() as i64;
+                deltas.vertices -= mesh.vertex_count() as i64;
+                if first_of_object {
+                    removed_objects += 1;
+                }
+                for b in leaf.bounds().filter(|b| usize::from(b.target) == i) {
+                    let k = usize::from(b.level) - 1;
+                    if let Some(u) = deltas.lod_usage.get_mut(k) {
+                        u[0] -= b.blob.len() as i64;
+                        u[1] -= 1;
+                    }
+                }
+                continue;
+            }
+            if let Some(k) = key {
+                kept_keys.push(k);
+            }
+            let mut record = Vec::new();
+            geometry::encode_object(ObjectId(o.object_id), &mesh, &mut record);
+            let bounds = leaf
+                .bounds()
+                .filter(|b| usize::from(b.target) == i)
+                .map(|b| BoundEntry { target: 0, level: b.level, blob: b.blob.to_vec() })
+                .collect();
+            entries.push(NewEntry {
+                id: o.object_id,
+                record,
+                aabb: mesh.aabb(),
+                old_q: Some(o.qbox),
+                bounds,
+            });
+        }
+        let mut added_keys = Vec::new();
+        for a in &edit.add {
+            let pieces = if geometry::record_len(&a.object.mesh) <= p {
+                vec![a.object.mesh.clone()]
+            } else {
+                geometry::parts(&a.object.mesh, p, p)
+            };
+            for mesh in pieces {
+                let mut record = Vec::new();
+                geometry::encode_object(ObjectId(a.id), &mesh, &mut record);
+                let stored = geometry::decode_object(0, &record)?.1;
+                deltas.geometry_bytes += record.len() as i64;
+                deltas.triangles += stored.triangle_count() as i64;
+                deltas.vertices += stored.vertex_count() as i64;
+                entries.push(NewEntry {
+                    id: a.id,
+                    record,
+                    aabb: stored.aabb(),
+                    old_q: None,
+                    bounds: Vec::new(),
+                });
+            }
+            added_keys.push(
+                a.object
+                    .key
+                    .clone()
+                    .ok_or_else(|| StorageError::Invalid("an object without a key".into()))?,
+            );
+        }
+        if entries.is_empty() {
+            return Ok(Err(Structural));
+        }
+        // The frame stays when what is added lies in it; else it grows, and
+        // every entry is quantized anew in the leaf's own frame (their
+        // bounds, drawn on the grid around the old boxes, go).
+        let added = entries.iter().filter(|e| e.old_q.is_none()).fold(Aabb::EMPTY, |b, e| b.union(&e.aabb));
+        let (new_frame, requantize) = if added.is_empty() || frame.contains(&added) {
+            (old_frame, false)
+        } else {
+            (Some(frame.union(&added)), true)
+        };
+        let quant_frame = new_frame.unwrap_or(frame);
+        // Unshared span: the leaf's records from a block of their own.
+        let mut placement = Placement::new(bs);
+        let mut objects = Vec::with_capacity(entries.len());
+        let mut bounds = Vec::new();
+        for (j, e) in entries.iter_mut().enumerate() {
+            let position = placement.place(e.record.len() as u64);
+            let qbox = match (requantize, e.old_q) {
+                (false, Some(q)) => q,
+                _ => quantize(&quant_frame, &e.aabb),
+            };
+            objects.push(ObjectEntry { object_id: e.id, qbox, position });
+            for mut b in std::mem::take(&mut e.bounds) {
+                if requantize {
+                    let k = usize::from(b.level) - 1;
+                    if let Some(u) = deltas.lod_usage.get_mut(k) {
+                        u[0] -= b.blob.len() as i64;
+                        u[1] -= 1;
+                    }
+                    continue;
+                }
+                b.target = u16::try_from(j)
+                    .map_err(|_| StorageError::Invalid("a leaf of too many entries".into()))?;
+                bounds.push(b);
+            }
+        }
+        let end = placement.end();
+        let span = end.div_ceil(p);
+        // A leaf grows to twice its bulk load's capacity at most (its
+        // reads with it); past that, a rewrite splits it (see the module's header).
+        let objects_held = (edit.add.len() + kept_keys.len()) as u64;
+        let over = match r.info().and_then(|i| i.params).map(|p| p.leaf) {
+            Some(crate::build::LeafRule::Objects(n)) => objects_held > 2 * u64::from(n),
+            Some(crate::build::LeafRule::Bytes { capacity }) => end > 2 * capacity.max(p),
+            None => span > 4,
+        };
+        if over && objects_held > 1 {
+            return Ok(Err(Structural));
+        }
+        let first = self.allocate(u32::try_from(span).map_err(|_| StorageError::FileTooLarge)?)?;
+        let mut checksums = Vec::with_capacity(span as usize);
+        let mut blockbuf = vec![0u8; bs as usize];
+        for (j, e) in entries.iter().enumerate() {
+            // Records were placed on this stream; lay each one's bytes.
+            let mut at = objects[j].position;
+            let mut rest = &e.record[..];
+            while !rest.is_empty() {
+                let b = at / p;
+                while checksums.len() as u64 != b {
+                    let id = first + checksums.len() as u32;
+                    checksums.push(pager.write(id, &mut blockbuf, BlockType::Geometry, self.txn)?);
+                    blockbuf.fill(0);
+                }
+                let off = (at % p) as usize;
+                let take = rest.len().min(p as usize - off);
+                blockbuf[FRAME_LEN + off..FRAME_LEN + off + take].copy_from_slice(&rest[..take]);
+                rest = &rest[take..];
+                at += take as u64;
+            }
+        }
+        while (checksums.len() as u64) < span {
+            let id = first + checksums.len() as u32;
+            checksums.push(pager.write(id, &mut blockbuf, BlockType::Geometry, self.txn)?);
+            blockbuf.fill(0);
+        }
+        freed.extend((0..sums.len() as u32).map(|j| first_block + j));
+        deltas.geometry_blocks += span as i64 - sums.len() as i64;
+        let node_id = view(&block, mods[&at].offset)?.node_id();
+        kept_keys.extend(added_keys);
+        let draft = RecordDraft::Leaf {
+            node_id,
+            frame: new_frame,
+            first_block: first,
+            checksums,
+            objects,
+            end,
+            bounds,
+            keys: kept_keys,
+        };
+        if draft.encoded_len() > node::capacity(bs) {
+            return Ok(Err(Structural));
+        }
+        let md =
+            mods.get_mut(&at).ok_or_else(|| StorageError::Invalid("a changed leaf is not noted".into()))?;
+        md.required = if requantize { new_frame } else { None };
+        md.objects = edit.add.len() as i64 - removed_objects;
+        md.geometry_blocks = span as i64 - sums.len() as i64;
+        md.draft = Some(draft);
+        deltas.objects += md.objects;
+        Ok(Ok(()))
+    }
+
+    /// The new record of internal node `at`, whose changed children are
+    /// made: their boxes, object counts and geometry counts; a frame of its
+    /// own when a child's box no longer fits its frame (and one for the
+    /// unchanged sibling then). Returns the root's new frame when the root's grew.
+    fn rewrite_internal(
+        &mut self,
+        r: &ReadTransaction,
+        mods: &mut HashMap<(u32, u32), Mod>,
+        at: (u32, u32),
+        reads: &mut Reads,
+    ) -> Result<Option<Aabb>, crate::Error> {
+        let md = &mods[&at];
+        let (block, frame, is_root) = (md.block.clone(), md.frame, md.parent.is_none());
+        let record = view(&block, md.offset)?;
+        let NodeView::Internal(n) = record else {
+            return Err(StorageError::corrupt(block.id(), "path", "a leaf above a changed record").into());
+        };
+        let RecordDraft::Internal { node_id, object_count, split, mut children, frame: own } =
+            record.to_draft()
+        else {
+            return Err(StorageError::Invalid("an internal record drafted as a leaf".into()).into());
+        };
+        // Each child's place, and whether it changed.
+        let places: [(u32, u32); 2] = [0, 1].map(|c| {
+            let a = n.child_ref(c);
+            (if a.block == 0 { block.id() } else { a.block }, a.offset)
+        });
+        let mut need = Aabb::EMPTY;
+        let (mut objects, mut geometry) = (0i64, 0i64);
+        for (c, place) in places.iter().enumerate() {
+            if let Some(child) = mods.get(place).filter(|x| x.parent.map(|p| p.0) == Some(at)) {
+                if let Some(b) = child.required {
+                    need = need.union(&b);
+                }
+                objects += child.objects;
+                geometry += child.geometry_blocks;
+                children[c].geometry_blocks =
+                    apply(u64::from(children[c].geometry_blocks), child.geometry_blocks)?
+                        .try_into()
+                        .map_err(|_| StorageError::FileTooLarge)?;
+            }
+        }
+        let grows = !need.is_empty() && !frame.contains(&need);
+        let new_frame = if grows { frame.union(&need) } else { frame };
+        for (c, place) in places.iter().enumerate() {
+            let changed = mods.get(place).is_some_and(|x| x.parent.map(|p| p.0) == Some(at));
+            if changed {
+                let child = &mods[place];
+                match child.required {
+                    Some(b) => children[c].qbox = quantize(&new_frame, &b),
+                    None if grows => {
+                        // The child keeps its frame as its own; the entry is quantized anew.
+                        let old = child.frame;
+                        let child = mods
+                            .get_mut(place)
+                            .ok_or_else(|| StorageError::Invalid("a child vanished".into()))?;
+                        set_own_frame(child.draft.as_mut(), old);
+                        children[c].qbox = quantize(&new_frame, &old);
+                    }
+                    None => {}
+                }
+            } else if grows {
+                // An unchanged sibling: its entry is quantized anew around
+                // its frame, which it keeps (its own, or the one it had).
+                let q = n
+                    .child_box(c, &frame)
+                    .ok_or_else(|| StorageError::corrupt(block.id(), "child_box", "backwards"))?;
+                let sib_block = r.node_block(&block, n.child_ref(c), reads)?;
+                let sib = view(&sib_block, place.1)?;
+                let sib_frame = sib.frame(q.outer);
+                if sib.own_frame().is_none() {
+                    let mut draft = sib.to_draft();
+                    set_own_frame(Some(&mut draft), sib_frame);
+                    mods.insert(
+                        *place,
+                        Mod {
+                            block: sib_block,
+                            offset: place.1,
+                            frame: sib_frame,
+                            parent: Some((at, c)),
+                            depth: mods[&at].depth + 1,
+                            draft: Some(draft),
+                            required: None,
+                            objects: 0,
+                            geometry_blocks: 0,
+                        },
+                    );
+                }
+                children[c].qbox = quantize(&new_frame, &sib_frame);
+            }
+        }
+        let object_count = u32::try_from(apply(u64::from(object_count), objects)?)
+            .map_err(|_| StorageError::FileTooLarge)?;
+        let (own, required, root_frame) = match (grows, is_root) {
+            (false, _) => (own, None, None),
+            // The root's frame is the scene box, which grows with it.
+            (true, true) => (None, None, Some(new_frame)),
+            (true, false) => (Some(new_frame), Some(new_frame), None),
+        };
+        let md =
+            mods.get_mut(&at).ok_or_else(|| StorageError::Invalid("a changed record vanished".into()))?;
+        md.draft = Some(RecordDraft::Internal { node_id, object_count, split, children, frame: own });
+        md.required = required;
+        md.objects = objects;
+        md.geometry_blocks = geometry;
+        Ok(root_frame)
+    }
+
+    /// Writes every node block holding a changed record, children's blocks
+    /// before their parent's (one parent block each, format-spec/node.md,
+    /// "Packing"); returns where the root went.
+    fn rewrite_blocks(
+        &mut self,
+        mods: &mut HashMap<(u32, u32), Mod>,
+        root_at: (u32, u32),
+        bs: u32,
+        deltas: &mut Deltas,
+        freed: &mut Vec<u32>,
+    ) -> Step<RecordRef> {
+        let pager = self.inner.pager().clone();
+        let capacity = node::capacity(bs);
+        // Each changed block, its parent block, and its old bytes.
+        let mut blocks: HashMap<u32, Arc<Block>> = HashMap::new();
+        let mut parent_block: HashMap<u32, u32> = HashMap::new();
+        for md in mods.values() {
+            blocks.insert(md.block.id(), md.block.clone());
+            if let Some((p, _)) = md.parent
+                && p.0 != md.block.id()
+            {
+                parent_block.insert(md.block.id(), p.0);
+            }
+        }
+        // Children blocks first: deeper blocks (more parent blocks above) first.
+        let depth = |mut b: u32| {
+            let mut d = 0;
+            while let Some(&p) = parent_block.get(&b) {
+                b = p;
+                d += 1;
+                if d > blocks.len() {
+                    break;
+                }
+            }
+            d
+        };
+        let mut order: Vec<u32> = blocks.keys().copied().collect();
+        order.sort_by_key(|&b| (std::cmp::Reverse(depth(b)), b));
+        let mut relocated: HashMap<(u32, u32), RecordRef> = HashMap::new();
+        for b in order {
+            let old = blocks[&b].clone();
+            // The block's records, as they will be written.
+            let mut drafts: Vec<(u32, RecordDraft)> = Vec::with_capacity(old.records.len());
+            for &o in &old.records {
+                let d = match mods.get(&(b, o)).and_then(|x| x.draft.clone()) {
+                    Some(d) => d,
+                    None => view(&old, o)?.to_draft(),
+                };
+                drafts.push((o, d));
+            }
+            // A block that no longer holds its records moves its largest
+            // changed leaves out, each to a block of its own.
+            let mut moved: Vec<u32> = Vec::new();
+            let mut total: usize = drafts.iter().map(|(_, d)| d.encoded_len()).sum();
+            while total > capacity {
+                let candidate = drafts
+                    .iter()
+                    .filter(|(o, d)| {
+                        matches!(d, RecordDraft::Leaf { .. })
+                            && mods.contains_key(&(b, *o))
+                            && !moved.contains(o)
+                    })
+                    .max_by_key(|(_, d)| d.encoded_len())
+                    .map(|(o, d)| (*o, d.encoded_len()));
+                let Some((o, len)) = candidate else { return Ok(Err(Structural)) };
+                moved.push(o);
+                total -= len;
+                // Every entry above it now reaches one more node block.
+                let mut here = (b, o);
+                while let Some((p, c)) = mods.get(&here).and_then(|x| x.parent) {
+                    if let Some(RecordDraft::Internal { children, .. }) =
+                        mods.get_mut(&p).and_then(|x| x.draft.as_mut())
+                    {
+                        children[c].node_blocks = children[c].node_blocks.saturating_add(1);
+                    }
+                    here = p;
+                }
+                deltas.node_blocks += 1;
+            }
+            // The counts above changed drafts of this block too: take them again.
+            for (o, d) in &mut drafts {
+                if let Some(x) = mods.get(&(b, *o)).and_then(|x| x.draft.clone()) {
+                    *d = x;
+                }
+            }
+            for &o in &moved {
+                let Some((_, d)) = drafts.iter().find(|(x, _)| *x == o) else { continue };
+                let id = self.allocate(1)?;
+                let mut bytes = vec![0u8; bs as usize];
+                let offsets =
+                    node::encode_block(std::slice::from_ref(d), &mut bytes).map_err(StorageError::Invalid)?;
+                let checksum = pager.write(id, &mut bytes, BlockType::Node, self.txn)?;
+                deltas.node_bytes += d.encoded_len() as i64;
+                relocated.insert((b, o), RecordRef { block: id, checksum, offset: offsets[0] });
+            }
+            drafts.retain(|(o, _)| !moved.contains(o));
+            // New offsets, then every reference: within the block, to moved
+            // records, and to the children's rewritten blocks.
+            let mut new_offset: HashMap<u32, u32> = HashMap::new();
+            let mut at = node::RECORDS_START as u32;
+            for (o, d) in &drafts {
+                new_offset.insert(*o, at);
+                at += d.encoded_len() as u32;
+            }
+            for (_, d) in &mut drafts {
+                if let RecordDraft::Internal { children, .. } = d {
+                    for c in children.iter_mut() {
+                        let target =
+                            if c.at.block == 0 { (b, c.at.offset) } else { (c.at.block, c.at.offset) };
+                        if let Some(r) = relocated.get(&target) {
+                            c.at = *r;
+                        } else if c.at.block == 0 {
+                            let o = new_offset.get(&c.at.offset).ok_or_else(|| {
+                                StorageError::corrupt(
+                                    b,
+                                    "child_offset",
+                                    "a child that is no record of its block",
+                                )
+                            })?;
+                            c.at = RecordRef { block: 0, checksum: 0, offset: *o };
+                        }
+                    }
+                }
+            }
+            let records: Vec<RecordDraft> = drafts.iter().map(|(_, d)| d.clone()).collect();
+            let id = self.allocate(1)?;
+            let mut bytes = vec![0u8; bs as usize];
+            node::encode_block(&records, &mut bytes).map_err(StorageError::Invalid)?;
+            let checksum = pager.write(id, &mut bytes, BlockType::Node, self.txn)?;
+            let used = records.iter().map(RecordDraft::encoded_len).sum::<usize>() as i64;
+            let old_used = old
+                .records
+                .iter()
+                .map(|&o| view(&old, o).map(|v| v.to_draft().encoded_len()).unwrap_or(0))
+                .sum::<usize>() as i64;
+            deltas.node_bytes += used - old_used;
+            for (o, _) in &drafts {
+                relocated.insert((b, *o), RecordRef { block: id, checksum, offset: new_offset[o] });
+            }
+            freed.push(b);
+        }
+        let root = relocated
+            .get(&root_at)
+            .copied()
+            .ok_or_else(|| StorageError::Invalid("the root's block was not rewritten".into()))?;
+        Ok(Ok(root))
+    }
+}
+
+/// Gives a drafted record the frame `frame` as its own.
+fn set_own_frame(draft: Option<&mut RecordDraft>, frame: Aabb) {
+    match draft {
+        Some(RecordDraft::Internal { frame: f, .. } | RecordDraft::Leaf { frame: f, .. }) => *f = Some(frame),
+        None => {}
+    }
+}
+
+/// The key index as a change commit leaves it.
+struct NewKeys {
+    block: u32,
+    checksum: u32,
+    height: u32,
+    blocks: u32,
+}
+
+/// A key block's replacement after changes: the blocks (with their least
+/// keys) that stand where it stood, at its level; none when it emptied.
+type Replacement = Vec<ChildRef>;
+
+impl WriteTransaction<'_> {
+    /// Applies `changes` (a key's new entry, or `None` to drop it) to the
+    /// key index copy on write: the leaves they fall in and the branches
+    /// above them are written anew; a leaf that fills splits, and one that
+    /// empties goes (a branch may be left with one child: format-spec/keys.md).
+    fn rewrite_keys(
+        &mut self,
+        r: &ReadTransaction,
+        meta: &Meta,
+        changes: BTreeMap<Key, Option<KeyEntry>>,
+        reads: &mut Reads,
+        freed: &mut Vec<u32>,
+    ) -> Result<NewKeys, crate::Error> {
+        let mut blocks = i64::from(meta.keys_blocks);
+        if changes.is_empty() {
+            return Ok(NewKeys {
+                block: meta.keys_block,
+                checksum: meta.keys_checksum,
+                height: meta.keys_height,
+                blocks: meta.keys_blocks,
+            });
+        }
+        let changes: Vec<(Key, Option<KeyEntry>)> = changes.into_iter().collect();
+        let root = ChildRef { first_key: Key::Int(0), block: meta.keys_block, checksum: meta.keys_checksum };
+        let mut level =
+            self.update_key_block(r, &root, meta.keys_height, &changes, reads, freed, &mut blocks)?;
+        let mut height = meta.keys_height;
+        if level.is_empty() {
+            return Err(StorageError::Invalid("a change commit emptied the key index".into()).into());
+        }
+        // Levels above the old root while more than one block stands there.
+        while level.len() > 1 {
+            level = self.write_branches(&level, &mut blocks)?;
+            height += 1;
+        }
+        let top = &level[0];
+        Ok(NewKeys {
+            block: top.block,
+            checksum: top.checksum,
+            height,
+            blocks: u32::try_from(blocks)
+                .map_err(|_| StorageError::Invalid("a key index of fewer than no blocks".into()))?,
+        })
+    }
+
+    /// The replacement of key block `at` (`height` levels: 1 a leaf) with
+    /// `changes` (all within its key range) applied.
+    #[allow(clippy::too_many_arguments)]
+    fn update_key_block(
+        &mut self,
+        r: &ReadTransaction,
+        at: &ChildRef,
+        height: u32,
+        changes: &[(Key, Option<KeyEntry>)],
+        reads: &mut Reads,
+        freed: &mut Vec<u32>,
+        blocks: &mut i64,
+    ) -> Result<Replacement, crate::Error> {
+        let pager = self.inner.pager().clone();
+        let capacity = keys::capacity(pager.block_size());
+        freed.push(at.block);
+        *blocks -= 1;
+        match r.key_block(at.block, at.checksum, height == 1, reads)? {
+            KeyBlock::Leaf(entries) => {
+                let mut map: BTreeMap<Key, KeyEntry> =
+                    entries.into_iter().map(|e| (e.key.clone(), e)).collect();
+                for (k, e) in changes {
+                    match e {
+                        Some(e) => {
+                            map.insert(k.clone(), e.clone());
+                        }
+                        None => {
+                            map.remove(k);
+                        }
+                    }
+                }
+                let entries: Vec<KeyEntry> = map.into_values().collect();
+                let sizes: Vec<usize> =
+                    entries.iter().map(|e| keys::entry_len(&e.key, e.payload.len(), e.name.len())).collect();
+                if let Some(i) = sizes.iter().position(|&s| s > capacity) {
+                    return Err(KeyError::PayloadTooLong {
+                        object: ObjectId(entries[i].object_id),
+                        len: sizes[i],
+                    }
+                    .into());
+                }
+                let mut out = Vec::new();
+                for group in crate::db::key_index::pack(&sizes, capacity) {
+                    let part = &entries[group];
+                    let mut block = vec![0u8; pager.block_size() as usize];
+                    keys::encode_leaf(part, &mut block).map_err(StorageError::Invalid)?;
+                    let id = self.allocate(1)?;
+                    let checksum = pager.write(id, &mut block, BlockType::KeyLeaf, self.txn)?;
+                    *blocks += 1;
+                    out.push(ChildRef { first_key: part[0].key.clone(), block: id, checksum });
+                }
+                if entries.is_empty() {
+                    out.clear();
+                }
+                Ok(out)
+            }
+            KeyBlock::Branch(children) => {
+                // Each child's share of the changes, in key order.
+                let mut next: Vec<ChildRef> = Vec::new();
+                let mut i = 0;
+                for (c, child) in children.iter().enumerate() {
+                    let upper = children.get(c + 1).map(|n| &n.first_key);
+                    let start = i;
+                    while i < changes.len() && upper.is_none_or(|u| changes[i].0 < *u) {
+                        i += 1;
+                    }
+                    // The least key below the first child is this block's own.
+                    let least = if c == 0 { at.first_key.clone() } else { child.first_key.clone() };
+                    if start == i {
+                        next.push(ChildRef { first_key: least, ..child.clone() });
+                        continue;
+                    }
+                    let child = ChildRef { first_key: least, ..child.clone() };
+                    next.extend(self.update_key_block(
+                        r,
+                        &child,
+                        height - 1,
+                        &changes[start..i],
+                        reads,
+                        freed,
+                        blocks,
+                    )?);
+                }
+                if next.is_empty() {
+                    return Ok(Vec::new());
+                }
+                self.write_branches(&next, blocks).map_err(Into::into)
+            }
+        }
+    }
+
+    /// Branch blocks over `children` (in key order), packed as a bulk load
+    /// packs them.
+    fn write_branches(
+        &mut self,
+        children: &[ChildRef],
+        blocks: &mut i64,
+    ) -> Result<Vec<ChildRef>, StorageError> {
+        let pager = self.inner.pager().clone();
+        let capacity = keys::capacity(pager.block_size());
+        let sizes: Vec<usize> =
+            children.iter().enumerate().map(|(i, c)| keys::child_len(&c.first_key, i == 0)).collect();
+        let mut out = Vec::new();
+        for group in crate::db::key_index::pack(&sizes, capacity) {
+            let part = &children[group];
+            let mut block = vec![0u8; pager.block_size() as usize];
+            keys::encode_branch(part, &mut block).map_err(StorageError::Invalid)?;
+            let id = self.allocate(1)?;
+            let checksum = pager.write(id, &mut block, BlockType::KeyBranch, self.txn)?;
+            *blocks += 1;
+            out.push(ChildRef { first_key: part[0].first_key.clone(), block: id, checksum });
+        }
+        Ok(out)
+    }
+}
