@@ -5,13 +5,16 @@
 //! (random boxes, cubes and collision boxes from a seed, and the leaves a
 //! box query reaches in a tree held in memory), and the peer benchmark of
 //! `mktree bench-peers`, and the piecewise replacement of `mktree
-//! bench-replace`, and the view query's sweep of `mktree bench-view`.
+//! bench-replace`, and the view query's sweep of `mktree bench-view`; and
+//! what the levels of detail decide in exact collision queries (`mktree
+//! demo`).
 
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
 
 mod bench_peers;
 mod error;
+mod levels;
 pub mod peers;
 mod query_sets;
 pub mod record;
@@ -26,6 +29,7 @@ pub use bench_peers::{
     DEFAULT_QUERIES, PeerOptions, PeerRow, QuerySet, bench_scene, parse_query_file, standard_sets,
 };
 pub use error::BenchError;
+pub use levels::{LevelsQuery, clearance_workload, collision_levels};
 pub use query_sets::{
     COLLISION_MARGIN_MM, QueryKind, TreeQueryCount, collision_boxes, count_in_tree, random_cubes,
 };

@@ -55,8 +55,8 @@ pub const FAMILY: &str = "sans-serif";
 /// per process.
 pub fn register_font() -> Result<()> {
     static REGISTERED: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    let ok = *REGISTERED
-        .get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
+    let ok =
+        *REGISTERED.get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
     if ok { Ok(()) } else { Err(anyhow!("the embedded chart font does not load")) }
 }
 
@@ -82,13 +82,13 @@ fn draw_tradeoff<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, series: &[Tr
         .caption("speed against accuracy: collision queries at each level k", (FAMILY, 18))
         .x_label_area_size(40)
         .y_label_area_size(56);
-    let mut chart = builder.build_cartesian_2d(0.0..x_max, 0.0..1.05).map_err(failed)?;
-    chart
-        .configure_mesh()
-        .x_desc("mean block reads per query")
-        .y_desc("precision")
-        .draw()
-        .map_err(failed)?;
+    // Precision from a little below the lowest point, so levels that
+    // differ by a percent are told apart.
+    let y_min = series.iter().flat_map(|s| s.points.iter().map(|p| p.1)).fold(1.0f64, f64::min);
+    let y_lo = (((y_min - 0.02) * 50.0).floor() / 50.0).max(0.0);
+    let y_hi = 1.0 + (1.0 - y_lo) * 0.05;
+    let mut chart = builder.build_cartesian_2d(0.0..x_max, y_lo..y_hi).map_err(failed)?;
+    chart.configure_mesh().x_desc("mean block reads per query").y_desc("precision").draw().map_err(failed)?;
     for (i, s) in series.iter().enumerate() {
         let colour = Palette99::pick(i).to_rgba();
         let line = s.points.iter().map(|p| (p.0, p.1));
