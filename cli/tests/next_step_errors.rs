@@ -29,17 +29,15 @@ fn a_scene_given_to_a_reader_suggests_building_it() {
         "{o} is a scene, not an MKtree file: build it first with `mktree build {o} -o {}`",
         mkt.display()
     );
-    for args in [
-        vec!["query", o, "--box", "0,0,0,1,1,1"],
-        vec!["lods", o],
-        vec!["check", o],
-        vec!["compact", o],
-    ] {
+    for args in
+        [vec!["query", o, "--box", "0,0,0,1,1,1"], vec!["lods", o], vec!["check", o], vec!["compact", o]]
+    {
         let err = fails(&args);
         assert!(err.contains(&want), "{args:?}: {err}");
     }
     // The suggestion works: the file it names then answers.
-    let out = mktree().args(["build", o, "-o", mkt.to_str().unwrap(), "--block-size", "4096"]).output().unwrap();
+    let out =
+        mktree().args(["build", o, "-o", mkt.to_str().unwrap(), "--block-size", "4096"]).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let out = mktree().args(["query", mkt.to_str().unwrap(), "--box", "0,0,0,1,1,1"]).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));

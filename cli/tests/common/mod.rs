@@ -61,6 +61,10 @@ pub fn assert_chart_has_text(path: &Path) {
         ("x label (bottom 26 rows)", dark_pixels(path, 0..w, h.saturating_sub(26)..h), 60),
     ];
     for (band, found, least) in bands {
-        assert!(found >= least, "{}: {found} glyph pixels in the {band}, expected {least} or more", path.display());
+        assert!(
+            found >= least,
+            "{}: {found} glyph pixels in the {band}, expected {least} or more",
+            path.display()
+        );
     }
 }
