@@ -44,10 +44,22 @@ fn a_scene_given_to_a_reader_suggests_building_it() {
 }
 
 #[test]
+fn a_scene_shorter_than_a_header_also_suggests_building_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("tiny.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let err = fails(&["check", obj.to_str().unwrap()]);
+    assert!(
+        err.contains("tiny.obj is a scene, not an MKtree file: build it first with `mktree build"),
+        "{err}"
+    );
+}
+
+#[test]
 fn another_file_is_named_as_not_an_mktree_file() {
     let dir = tempfile::tempdir().unwrap();
     let notes = dir.path().join("notes.txt");
-    std::fs::write(&notes, "not a tree, and longer than a header's magic number").unwrap();
+    std::fs::write(&notes, "not a tree, and longer than a header. ".repeat(64)).unwrap();
     let err = fails(&["query", notes.to_str().unwrap(), "--box", "0,0,0,1,1,1"]);
     assert!(err.contains("notes.txt is not an MKtree file"), "{err}");
     assert!(err.contains("mktree build SCENE -o FILE.mkt"), "{err}");

@@ -215,6 +215,11 @@ pub fn opening(e: StorageError, path: &Path) -> anyhow::Error {
     match e {
         StorageError::Open { .. } => e.into(),
         StorageError::NotMktree => anyhow::anyhow!("{}", not_mktree(path)),
+        // A scene shorter than a header is refused as truncated before its
+        // magic number is read.
+        StorageError::Truncated { .. } if is_scene_path(path) && !is_mkt(path) => {
+            anyhow::anyhow!("{}", not_mktree(path))
+        }
         e => anyhow::Error::new(e).context(format!("opening {}", path.display())),
     }
 }
@@ -222,11 +227,7 @@ pub fn opening(e: StorageError, path: &Path) -> anyhow::Error {
 /// Why `path` cannot be opened as an MKtree file, and what to do instead:
 /// a scene (by its extension) is built first; anything else is named.
 fn not_mktree(path: &Path) -> String {
-    let scene = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| ["obj", "stl", "gltf", "glb"].iter().any(|s| e.eq_ignore_ascii_case(s)));
-    if scene {
+    if is_scene_path(path) {
         let mkt = path.with_extension("mkt");
         format!(
             "{} is a scene, not an MKtree file: build it first with `mktree build {} -o {}`",
@@ -240,6 +241,13 @@ fn not_mktree(path: &Path) -> String {
             path.display()
         )
     }
+}
+
+/// True when `path` names a scene file by its extension (OBJ, STL, glTF).
+fn is_scene_path(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| ["obj", "stl", "gltf", "glb"].iter().any(|s| e.eq_ignore_ascii_case(s)))
 }
 
 /// True when `path` is an .mkt file (by its magic number).

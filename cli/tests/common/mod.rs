@@ -57,7 +57,7 @@ pub fn assert_chart_has_text(path: &Path) {
     let (w, h, _) = read_png(path);
     let bands = [
         ("title (top 40 rows)", dark_pixels(path, 0..w, 0..40), 200),
-        ("y label (left 30 columns)", dark_pixels(path, 0..30, 0..h), 60),
+        ("y label (left 30 columns)", dark_pixels(path, 0..30, 0..h), 25),
         ("x label (bottom 26 rows)", dark_pixels(path, 0..w, h.saturating_sub(26)..h), 60),
     ];
     for (band, found, least) in bands {
