@@ -48,7 +48,8 @@
 //! println!("{} objects in the corner, {} block reads", corner.objects.len(), corner.stats.reads.total());
 //!
 //! // The same traversal, lazily: stop early and only the blocks read so far are read.
-//! let mut hits = r.select(&Region::Box(scene.aabb()), &QueryOptions::default(), None)?;
+//! let region = Region::Box(scene.aabb());
+//! let mut hits = r.select(&region, &QueryOptions::default(), None)?;
 //! let first = hits.next().expect("the scene's box meets every object")?;
 //! assert!(everything.objects.contains(&first.object));
 //! # drop(hits);
