@@ -52,6 +52,9 @@ impl LevelsQuery {
     }
 }
 
+/// Query objects with their translations, mm.
+type Picks = Vec<(ObjectId, [f64; 3])>;
+
 /// `count` scene objects drawn uniformly from `seed`, each with a
 /// translation of up to `shift_mm` along each axis, and their meshes.
 fn picks(
@@ -59,13 +62,13 @@ fn picks(
     count: usize,
     shift_mm: f64,
     seed: u64,
-) -> Result<(Vec<(ObjectId, [f64; 3])>, Vec<Mesh>), BenchError> {
+) -> Result<(Picks, Vec<Mesh>), BenchError> {
     let objects = txn.info().ok_or_else(|| BenchError::Invalid("the file holds no tree".into()))?.objects;
     if objects == 0 {
         return Err(BenchError::Invalid("the file's tree has no objects".into()));
     }
     let mut rng = Rng::new(seed, 0x1e7e15);
-    let picks: Vec<(ObjectId, [f64; 3])> = (0..count)
+    let picks: Picks = (0..count)
         .map(|_| {
             let id = ObjectId(rng.below(u64::from(objects)) as u32);
             (id, [0; 3].map(|_| (2.0 * rng.unit() - 1.0) * shift_mm))
