@@ -1,8 +1,9 @@
 //! Claim: the README's command table lists every subcommand of the binary,
-//! and no command the binary lacks; and the file format version the README
+//! and no command the binary lacks; the file format version the README
 //! names is the one a new file is written with (`format_version`, header
 //! offset 8, format-spec/header.md) and the newest in
-//! format-spec/versions.md.
+//! format-spec/versions.md; and the README stays a short first read (at
+//! most 250 lines) whose links to the repository's pages all resolve.
 
 mod common;
 
@@ -85,4 +86,23 @@ fn the_readme_names_the_format_version_files_are_written_with() {
         .max()
         .expect("versions.md has a table of versions");
     assert_eq!(newest, written, "format-spec/versions.md's newest version");
+}
+
+#[test]
+fn the_readme_is_short_and_its_links_resolve() {
+    let readme = repo_file("README.md");
+    let lines = readme.lines().count();
+    assert!(lines <= 250, "README.md has {lines} lines; move the detail into docs/");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut links = 0;
+    for (at, _) in readme.match_indices("](") {
+        let target = readme[at + 2..].split(')').next().unwrap();
+        if target.starts_with("http") || target.starts_with('#') {
+            continue;
+        }
+        let file = target.split('#').next().unwrap();
+        assert!(root.join(file).exists(), "README links to {target}, which is not in the repository");
+        links += 1;
+    }
+    assert!(links >= 10, "the README links to {links} pages; where to go next?");
 }
