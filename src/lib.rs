@@ -1,12 +1,74 @@
 //! # mktree
 //!
-//! A persistent spatial index for very large 3D scenes, after the MKtree
-//! (Multiresolution Kd-tree) of Franquesa-Niubó and Brunet: a binary
-//! bounding-volume hierarchy bulk-loaded by minimum-overlap splits, with
-//! levels of detail at every node, stored in a paged file whose reads are
-//! counted exactly.
+//! A persistent spatial index for very large 3D scenes (ship, plant and
+//! building models of thousands to millions of triangle-mesh objects), after
+//! the MKtree (Multiresolution Kd-tree) of Franquesa-Niubó and Brunet: a
+//! binary bounding-volume hierarchy bulk-loaded from the whole scene, with
+//! coarser bounds of the objects (levels of detail) stored in the leaves
+//! where they pay, in a transactional file of fixed-size blocks whose reads
+//! every query counts.
 //!
-//! Layers point down: `build` -> `scene` -> `geom`.
+//! # Start here
+//!
+//! - [`Database`] is the file: [`Database::create`], [`Database::open`],
+//!   [`Database::open_read_only`]. Any number of processes may open one
+//!   file; one of them writes at a time.
+//! - [`Database::begin_write`] gives a [`WriteTransaction`]: load a whole
+//!   [`Scene`] with [`WriteTransaction::bulk_load`], or change objects by
+//!   their [`Key`] with [`WriteTransaction::insert`],
+//!   [`WriteTransaction::update`] and [`WriteTransaction::remove`]; then
+//!   [`WriteTransaction::commit`] (atomic: the old tree or the new one).
+//! - [`Database::begin_read`] gives a [`ReadTransaction`], a snapshot that
+//!   no later commit changes. Its queries: [`ReadTransaction::query_box`]
+//!   and [`ReadTransaction::select`] (any [`Region`], one hit at a time),
+//!   [`ReadTransaction::nearest`], [`ReadTransaction::ray`],
+//!   [`ReadTransaction::view`], [`ReadTransaction::get`] by key; and in
+//!   [`query`], [`query::collide`] (a posed mesh) and [`query::clash`] (the
+//!   tree against itself). Each answer carries the blocks it read.
+//!
+//! ```
+//! use mktree::{Aabb, BuildParams, CreateOptions, Database, QueryOptions, Region};
+//! use mktree::scene::generate::{GenOptions, Preset, generate_scene};
+//!
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! // A generated scene of 222 objects; `scene::import::load` reads OBJ, STL and glTF.
+//! let scene = generate_scene(&GenOptions { preset: Preset::Tanker1, objects: None, seed: 0 })?;
+//! let dir = std::env::temp_dir().join(format!("mktree-doc-{}", std::process::id()));
+//! std::fs::create_dir_all(&dir)?;
+//! let db = Database::create(dir.join("t1.mkt"), CreateOptions::default())?;
+//!
+//! let mut w = db.begin_write()?;
+//! w.bulk_load(&scene, &BuildParams::default(), &|_| {})?;
+//! w.commit()?;
+//!
+//! let r = db.begin_read()?;
+//! let everything = r.query_box(&scene.aabb())?;
+//! assert_eq!(everything.objects.len(), scene.len());
+//! let corner = r.query_box(&Aabb::from_array([0.0, 0.0, 0.0, 500.0, 500.0, 500.0]))?;
+//! println!("{} objects in the corner, {} block reads", corner.objects.len(), corner.stats.reads.total());
+//!
+//! // The same traversal, lazily: stop early and only the blocks read so far are read.
+//! let region = Region::Box(scene.aabb());
+//! let mut hits = r.select(&region, &QueryOptions::default(), None)?;
+//! let first = hits.next().expect("the scene's box meets every object")?;
+//! assert!(everything.objects.contains(&first.object));
+//! # drop(hits);
+//! # drop((r, db));
+//! # std::fs::remove_dir_all(&dir)?;
+//! # Ok(())
+//! # }
+//! ```
+//!
+//! # Layers
+//!
+//! Each module uses only those below it: [`db`] (the database and its
+//! transactions) and [`query`] (every query, one traversal) over [`build`]
+//! (the bulk loaders) and [`lod`] (levels of detail), over [`store`] (blocks,
+//! pager, format records), over [`scene`] (objects, import, generator), over
+//! [`geom`] (boxes and exact tests). [`render`] and [`tiles`] draw and export
+//! what the view query cuts. The storage format is specified in the
+//! repository's `format-spec/`; its internals are public only with the
+//! `internals` feature.
 
 // The one exception is the byte-range locks of src/store/lock.rs (fcntl).
 #![deny(unsafe_code)]

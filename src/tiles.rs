@@ -1,4 +1,4 @@
-//! Export to 3D Tiles 1.1 (issue 16): the tree as a tileset a web viewer
+//! Export to 3D Tiles 1.1: the tree as a tileset a web viewer
 //! streams, refining a tile when its geometric error, projected to the
 //! screen, passes its pixel threshold, the same test the view query makes.
 //!

@@ -6,7 +6,9 @@
 //! box query reaches in a tree held in memory), and the peer benchmark of
 //! `mktree bench-peers`, the piecewise replacement of `mktree
 //! bench-replace`, the change commits against SQLite of `mktree
-//! bench-changes`, and the view query's sweep of `mktree bench-view`.
+//! bench-changes`, and the view query's sweep of `mktree bench-view`; and
+//! what the levels of detail decide in exact collision queries (`mktree
+//! demo`).
 
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
@@ -14,6 +16,7 @@
 mod bench_peers;
 mod changes;
 mod error;
+mod levels;
 pub mod peers;
 mod query_sets;
 pub mod record;
@@ -29,6 +32,7 @@ pub use bench_peers::{
 };
 pub use changes::{ChangeOptions, ChangeRow, ChangesReport, bench_changes};
 pub use error::BenchError;
+pub use levels::{LevelsQuery, clearance_workload, collision_levels};
 pub use query_sets::{
     COLLISION_MARGIN_MM, QueryKind, TreeQueryCount, collision_boxes, count_in_tree, random_cubes,
 };

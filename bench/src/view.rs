@@ -1,5 +1,5 @@
 //! `mktree bench-view`: the view query's speed against its accuracy along
-//! a camera path (issue 16's chart). Per tolerance τ, the block reads and
+//! a camera path (its chart: `mktree bench-view --out`). Per tolerance τ, the block reads and
 //! the triangles a frame draws; under a block budget, the largest projected
 //! error the cut had to keep; and, as the yardstick, the reads of an exact
 //! frustum query (object ids only) along the same path.

@@ -1,10 +1,13 @@
-//! Charts (plotters), as SVG and PNG: `bench-build`'s reads per query by
-//! method and query set; `tradeoff`'s block reads against precision.
+//! Charts (plotters), as SVG and PNG, each with a title, axis labels and a
+//! legend: `bench-build`'s reads per query by method and query set,
+//! `bench-peers`' ratios to SQLite, `tradeoff`'s block reads against
+//! precision, `bench-view`'s reads, triangles and errors per frame.
 //!
-//! The PNG carries no text: plotters draws text into a bitmap only through
-//! a TTF font (font-kit and the system's fonts, or a font embedded with
-//! ab_glyph), and the CLI takes neither. Its lines and colours are the
-//! SVG's, whose labels and legend name them.
+//! The SVG names its font and leaves the glyphs to the viewer; the PNG's
+//! glyphs are drawn by plotters through ab_glyph from DejaVu Sans, embedded
+//! in the binary (`cli/fonts/`, its licence beside it), so a PNG looks the
+//! same on every machine and needs no system font. Both lay their text out
+//! with that font's metrics.
 
 use std::path::Path;
 
@@ -25,20 +28,37 @@ pub fn bench_build(bench: &Bench, svg: &Path, png: &Path) -> Result<()> {
     svg_and_png!(size, svg, png, draw(bench))
 }
 
-/// Draws a chart twice, `$draw(area, args.., text)`: as SVG with text, as
-/// PNG without (see the module's note on fonts).
+/// Draws a chart twice, `$draw(area, args..)`: as SVG and as PNG, the
+/// PNG's text in the embedded font (see the module's note on fonts).
 macro_rules! svg_and_png {
     ($size:expr, $svg:expr, $png:expr, $draw:ident ( $($arg:expr),* )) => {{
+        // Both backends lay text out with the font's metrics.
+        $crate::chart::register_font()?;
         let svg_root = SVGBackend::new($svg, $size).into_drawing_area();
-        $draw(&svg_root, $($arg,)* true)?;
+        $draw(&svg_root, $($arg,)*)?;
         svg_root.present().map_err(|e| anyhow!("writing {}: {e}", $svg.display()))?;
         let png_root = BitMapBackend::new($png, $size).into_drawing_area();
-        $draw(&png_root, $($arg,)* false)?;
+        $draw(&png_root, $($arg,)*)?;
         png_root.present().map_err(|e| anyhow!("writing {}: {e}", $png.display()))?;
         Ok(())
     }};
 }
 pub(crate) use svg_and_png;
+
+/// DejaVu Sans (`cli/fonts/LICENSE-DejaVu.txt`): the PNG charts' font.
+static FONT: &[u8] = include_bytes!("../fonts/DejaVuSans.ttf");
+
+/// The family name every chart asks for.
+pub const FAMILY: &str = "sans-serif";
+
+/// Gives plotters' bitmap text the embedded font under [`FAMILY`], once
+/// per process.
+pub fn register_font() -> Result<()> {
+    static REGISTERED: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    let ok =
+        *REGISTERED.get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
+    if ok { Ok(()) } else { Err(anyhow!("the embedded chart font does not load")) }
+}
 
 /// One series of `tradeoff`'s chart: a file's (mean block reads, precision)
 /// per level k.
@@ -53,48 +73,37 @@ pub fn tradeoff(series: &[Tradeoff], svg: &Path, png: &Path) -> Result<()> {
     svg_and_png!((900, 600), svg, png, draw_tradeoff(series))
 }
 
-fn draw_tradeoff<DB: DrawingBackend>(
-    root: &DrawingArea<DB, Shift>,
-    series: &[Tradeoff],
-    text: bool,
-) -> Result<()> {
+fn draw_tradeoff<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, series: &[Tradeoff]) -> Result<()> {
     root.fill(&WHITE).map_err(failed)?;
     let x_max = series.iter().flat_map(|s| s.points.iter().map(|p| p.0)).fold(1.0f64, f64::max) * 1.1;
     let mut builder = ChartBuilder::on(root);
-    builder.margin(16);
-    if text {
-        builder
-            .caption("speed against accuracy: collision queries at each level k", ("sans-serif", 18))
-            .x_label_area_size(36)
-            .y_label_area_size(48);
-    }
-    let mut chart = builder.build_cartesian_2d(0.0..x_max, 0.0..1.05).map_err(failed)?;
-    let mut mesh = chart.configure_mesh();
-    if text {
-        mesh.x_desc("mean block reads per query").y_desc("precision").draw().map_err(failed)?;
-    } else {
-        mesh.x_labels(0).y_labels(0).draw().map_err(failed)?;
-    }
+    builder
+        .margin(16)
+        .caption("speed against accuracy: collision queries at each level k", (FAMILY, 18))
+        .x_label_area_size(40)
+        .y_label_area_size(56);
+    // Precision from a little below the lowest point, so levels that
+    // differ by a percent are told apart.
+    let y_min = series.iter().flat_map(|s| s.points.iter().map(|p| p.1)).fold(1.0f64, f64::min);
+    let y_lo = (((y_min - 0.02) * 50.0).floor() / 50.0).max(0.0);
+    let y_hi = 1.0 + (1.0 - y_lo) * 0.05;
+    let mut chart = builder.build_cartesian_2d(0.0..x_max, y_lo..y_hi).map_err(failed)?;
+    chart.configure_mesh().x_desc("mean block reads per query").y_desc("precision").draw().map_err(failed)?;
     for (i, s) in series.iter().enumerate() {
         let colour = Palette99::pick(i).to_rgba();
         let line = s.points.iter().map(|p| (p.0, p.1));
-        let drawn = chart.draw_series(LineSeries::new(line, colour.stroke_width(2))).map_err(failed)?;
-        if text {
-            drawn
-                .label(s.name.clone())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
-            let labels =
-                s.points.iter().map(|&(x, y, k)| Text::new(format!("k{k}"), (x, y), ("sans-serif", 13)));
-            chart.draw_series(labels).map_err(failed)?;
-        }
+        chart
+            .draw_series(LineSeries::new(line, colour.stroke_width(2)))
+            .map_err(failed)?
+            .label(s.name.clone())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
+        let labels = s.points.iter().map(|&(x, y, k)| Text::new(format!("k{k}"), (x, y), (FAMILY, 13)));
+        chart.draw_series(labels).map_err(failed)?;
         chart
             .draw_series(s.points.iter().map(|&(x, y, _)| Circle::new((x, y), 4, colour.filled())))
             .map_err(failed)?;
     }
-    if text {
-        legend(&mut chart, SeriesLabelPosition::LowerRight)?;
-    }
-    Ok(())
+    legend(&mut chart, SeriesLabelPosition::LowerRight)
 }
 
 /// The chart's legend of labelled series, boxed at `position`.
@@ -115,22 +124,17 @@ pub fn failed(e: impl std::fmt::Display) -> anyhow::Error {
     anyhow!("drawing the chart: {e}")
 }
 
-fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, bench: &Bench, text: bool) -> Result<()> {
+fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, bench: &Bench) -> Result<()> {
     root.fill(&WHITE).map_err(failed)?;
     let panels = root.split_evenly((bench.scenes.len().max(1), 1));
     for (area, scene) in panels.iter().zip(&bench.scenes) {
-        panel(area, scene, bench.block_size.is_some(), text)?;
+        panel(area, scene, bench.block_size.is_some())?;
     }
     Ok(())
 }
 
 /// One scene: a line per method across the query sets.
-fn panel<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
-    scene: &SceneResult,
-    reads: bool,
-    text: bool,
-) -> Result<()> {
+fn panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, scene: &SceneResult, reads: bool) -> Result<()> {
     let labels: Vec<String> = scene
         .methods
         .first()
@@ -157,18 +161,22 @@ fn panel<DB: DrawingBackend>(
     let what = if reads { "block reads" } else { "leaves visited" };
     let panel = RatioPanel {
         caption: format!("{}: {what} per query / best of median, sah, vsah", scene.scene),
+        x_desc: "query set",
+        y_desc: format!("{what} / best reference's"),
         sets: &labels,
         lines,
         y: lo..hi,
         rules: vec![(1.0, BLACK.mix(0.6)), (0.9, RED.mix(0.4))],
     };
-    ratio_panel(area, &panel, text)
+    ratio_panel(area, &panel)
 }
 
 /// One panel of ratios by query set: a line per series, horizontal rules at
 /// reference ratios, the legend upper right.
 pub struct RatioPanel<'a> {
     pub caption: String,
+    pub x_desc: &'a str,
+    pub y_desc: String,
     /// The query sets' names, one per x position.
     pub sets: &'a [String],
     /// Per series: its name and (set index, ratio) points.
@@ -177,30 +185,27 @@ pub struct RatioPanel<'a> {
     pub rules: Vec<(f64, RGBAColor)>,
 }
 
-pub fn ratio_panel<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
-    p: &RatioPanel,
-    text: bool,
-) -> Result<()> {
+pub fn ratio_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &RatioPanel) -> Result<()> {
     let mut builder = ChartBuilder::on(area);
-    builder.margin(12);
-    if text {
-        builder
-            .caption(&p.caption, ("sans-serif", 18))
-            .x_label_area_size(28)
-            .y_label_area_size(48)
-            .right_y_label_area_size(90);
-    }
+    builder
+        .margin(12)
+        .caption(&p.caption, (FAMILY, 18))
+        .x_label_area_size(44)
+        .y_label_area_size(64)
+        .right_y_label_area_size(90);
     let sets = p.sets.len().max(1) as f64;
     let mut chart = builder.build_cartesian_2d(-0.5f64..sets - 0.5, p.y.clone()).map_err(failed)?;
-    let mut mesh = chart.configure_mesh();
-    mesh.x_labels(p.sets.len()).disable_x_mesh();
-    if text {
-        let fmt = |x: &f64| p.sets.get(x.round() as usize).cloned().unwrap_or_default();
-        mesh.x_label_formatter(&fmt).y_label_formatter(&|y| format!("{y:.2}")).draw().map_err(failed)?;
-    } else {
-        mesh.x_labels(0).y_labels(0).draw().map_err(failed)?;
-    }
+    let fmt = |x: &f64| p.sets.get(x.round() as usize).cloned().unwrap_or_default();
+    chart
+        .configure_mesh()
+        .x_labels(p.sets.len())
+        .disable_x_mesh()
+        .x_label_formatter(&fmt)
+        .y_label_formatter(&|y| format!("{y:.2}"))
+        .x_desc(p.x_desc)
+        .y_desc(p.y_desc.as_str())
+        .draw()
+        .map_err(failed)?;
     for &(level, colour) in &p.rules {
         chart
             .draw_series(LineSeries::new([(-0.5, level), (sets - 0.5, level)], colour.stroke_width(1)))
@@ -208,20 +213,14 @@ pub fn ratio_panel<DB: DrawingBackend>(
     }
     for (i, (name, points)) in p.lines.iter().enumerate() {
         let colour = Palette99::pick(i).to_rgba();
-        let series = chart
+        chart
             .draw_series(LineSeries::new(points.iter().copied(), colour.stroke_width(2)))
-            .map_err(failed)?;
-        if text {
-            series
-                .label(*name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
-        }
+            .map_err(failed)?
+            .label(*name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
         chart.draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled()))).map_err(failed)?;
     }
-    if text {
-        legend(&mut chart, SeriesLabelPosition::UpperRight)?;
-    }
-    Ok(())
+    legend(&mut chart, SeriesLabelPosition::UpperRight)
 }
 
 /// `bench-view`'s chart, three panels side by side: block reads per frame
@@ -235,7 +234,6 @@ pub fn bench_view(results: &[(String, mktree_bench::ViewBench)], svg: &Path, png
 fn draw_bench_view<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     results: &[(String, mktree_bench::ViewBench)],
-    text: bool,
 ) -> Result<()> {
     root.fill(&WHITE).map_err(failed)?;
     let panels = root.split_evenly((1, 3));
@@ -274,20 +272,12 @@ fn draw_bench_view<DB: DrawingBackend>(
     ];
     for (p, (panel, (caption, x_desc, y_desc, x_max, y_max))) in panels.iter().zip(specs).enumerate() {
         let mut builder = ChartBuilder::on(panel);
-        builder.margin(14);
-        if text {
-            builder.caption(caption, ("sans-serif", 16)).x_label_area_size(34).y_label_area_size(56);
-        }
+        builder.margin(14).caption(caption, (FAMILY, 16)).x_label_area_size(40).y_label_area_size(64);
         let x_min = if p == 2 { 1.0 } else { 0.5 };
         let mut chart = builder
             .build_cartesian_2d((x_min..x_max * 1.5).log_scale(), (0.1..y_max).log_scale())
             .map_err(failed)?;
-        let mut mesh = chart.configure_mesh();
-        if text {
-            mesh.x_desc(x_desc).y_desc(y_desc).draw().map_err(failed)?;
-        } else {
-            mesh.x_labels(0).y_labels(0).draw().map_err(failed)?;
-        }
+        chart.configure_mesh().x_desc(x_desc).y_desc(y_desc).draw().map_err(failed)?;
         for (i, ((name, _), file)) in results.iter().zip(&per_file).enumerate() {
             let colour = Palette99::pick(i).to_rgba();
             let points = match p {
@@ -295,14 +285,11 @@ fn draw_bench_view<DB: DrawingBackend>(
                 1 => &file.1,
                 _ => &file.2,
             };
-            let drawn = chart
+            chart
                 .draw_series(LineSeries::new(points.iter().copied(), colour.stroke_width(2)))
-                .map_err(failed)?;
-            if text {
-                drawn.label(name.clone()).legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2))
-                });
-            }
+                .map_err(failed)?
+                .label(name.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
             chart
                 .draw_series(points.iter().map(|&(x, y)| Circle::new((x, y), 3, colour.filled())))
                 .map_err(failed)?;
@@ -318,9 +305,7 @@ fn draw_bench_view<DB: DrawingBackend>(
                 chart.draw_series(dashes).map_err(failed)?;
             }
         }
-        if text {
-            legend(&mut chart, SeriesLabelPosition::UpperRight)?;
-        }
+        legend(&mut chart, SeriesLabelPosition::UpperRight)?;
     }
     Ok(())
 }

@@ -1,13 +1,11 @@
 //! Claim: `mktree bench-build --json` reports every method on every query
 //! set, with leaves visited never below the leaves that hold an answer, and
 //! with `--block-size` the block reads of each set; `--out` writes the JSON
-//! and both charts. A bad scene name is one line on stderr and exit 1.
+//! and both charts, the PNG with its title and axis labels drawn. A bad scene name is one line on stderr and exit 1.
 
-use std::process::Command;
+mod common;
 
-fn mktree() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_mktree"))
-}
+use common::mktree;
 
 fn bench(args: &[&str]) -> serde_json::Value {
     let out =
@@ -47,6 +45,7 @@ fn block_reads_are_counted_and_the_chart_is_written() {
     for f in ["bench-build.json", "bench-build.svg", "bench-build.png"] {
         assert!(dir.path().join(f).metadata().unwrap().len() > 0, "{f}");
     }
+    common::assert_chart_has_text(&dir.path().join("bench-build.png"));
 }
 
 #[test]

@@ -1,14 +1,12 @@
 //! Claim: `mktree bench-peers --json` reports a row per query set with the
 //! reads of both peers and their ratios; `--out` writes the JSON, both
-//! charts and keeps the built files; `--query-file` replaces the generated
+//! charts (the PNG with its title and axis labels drawn) and keeps the built files; `--query-file` replaces the generated
 //! sets by its labelled ones. A bad block size or query file is one line on
 //! stderr and exit 1.
 
-use std::process::Command;
+mod common;
 
-fn mktree() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_mktree"))
-}
+use common::mktree;
 
 #[test]
 fn every_set_is_measured_and_the_chart_and_files_are_written() {
@@ -38,6 +36,7 @@ fn every_set_is_measured_and_the_chart_and_files_are_written() {
     ] {
         assert!(dir.path().join(f).metadata().unwrap().len() > 0, "{f}");
     }
+    common::assert_chart_has_text(&dir.path().join("bench-peers.png"));
 }
 
 #[test]

@@ -2,7 +2,8 @@
 //! page's packages on 127.0.0.1 and nothing outside its two folders, and
 //! refuses a folder without a tileset in one line; `mktree bench-view`
 //! keeps every frame's error within τ and every budgeted frame within its
-//! reads, and writes its JSON, chart and frame strip.
+//! reads, and writes its JSON, chart (the PNG with its title and axis labels
+//! drawn) and frame strip.
 
 mod common;
 
@@ -133,6 +134,7 @@ fn bench_view_keeps_errors_within_tau_and_reads_within_budgets() {
     for file in ["bench-view.json", "bench-view.svg", "bench-view.png", "frames-t1.png"] {
         assert!(std::fs::metadata(out_dir.join(file)).unwrap().len() > 0, "{file}");
     }
+    common::assert_chart_has_text(&out_dir.join("bench-view.png"));
     let out = mktree().arg("bench-view").arg(&mkt).arg("--taus=-1").output().unwrap();
     assert_eq!(out.status.code(), Some(1), "a negative tau is refused");
 }

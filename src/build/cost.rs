@@ -103,7 +103,7 @@ impl CostModel {
 
     /// The expected block reads of a query, as `refine` estimates them: a
     /// leaf reached costs one geometry read, every node reached (leaves
-    /// included) [`NODE_READ_WEIGHT`] of a node block read. Summed in preorder.
+    /// included) `NODE_READ_WEIGHT` (a third) of a node block read. Summed in preorder.
     pub fn expected_cost(&self, tree: &Hierarchy) -> f64 {
         tree.nodes.iter().map(|n| self.node_cost(&n.aabb, n.objects().is_some())).sum()
     }

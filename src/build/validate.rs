@@ -12,7 +12,7 @@ use crate::scene::{Mesh, ObjectId, Scene};
 /// Refuses `scene` when an object's anchor or a vertex, used or not, has a
 /// coordinate beyond ±`limit` mm, naming the first object and axis at fault.
 /// A file holds coordinates within
-/// [`MAX_COORDINATE`](crate::store::format::geometry::MAX_COORDINATE)
+/// `MAX_COORDINATE` (2^53 mm)
 /// (format-spec/geometry.md, "Coordinate range"), and its writer checks
 /// against that; within it, f32 also holds every offset and split value.
 pub fn check_range(scene: &Scene, limit: f64) -> Result<(), BuildError> {

@@ -188,7 +188,7 @@ impl StoredBounds {
     }
 
     /// Measures the error of the bounds stored (`errors[k][1]`): per level,
-    /// every ceil(n / [`MEASURED_BOUNDS`])-th of its n bounds in node order,
+    /// every ceil(n / `MEASURED_BOUNDS`)-th of its n bounds (`MEASURED_BOUNDS` = 1,024) in node order,
     /// at `cells` of its cells each (see [`ErrorProbe::measure`]).
     pub fn measure_errors(&mut self, layout: &Layout, cells: usize) -> Result<(), LodError> {
         let Some(lattice) = self.lattice else { return Ok(()) };

@@ -1,4 +1,4 @@
-//! The view query (paper §1, "time-critical rendering"; issue 16): a cut
+//! The view query (paper §1, "time-critical rendering"): a cut
 //! through the tree that shows everything a camera sees, each part either
 //! exact or by a stand-in whose error, seen from the camera, is at most τ
 //! pixels. It runs the one traversal (`traverse.rs`) with a [`Selection`]

@@ -1,4 +1,4 @@
-//! Pictures without a GPU (issue 16): a z-buffer rasterizer with flat
+//! Pictures without a GPU: a z-buffer rasterizer with flat
 //! shading (`raster.rs`) and what it draws, a view's cut or one node's level
 //! of detail, coloured by level (`draw.rs`). Writing an image file is left
 //! to the caller (the CLI writes PNG), so no image crate reaches an

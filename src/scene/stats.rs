@@ -29,7 +29,7 @@ impl Distribution {
 }
 
 /// What `mktree info` prints. JSON keys `objects`, `triangles`, `vertices`,
-/// `extent` [dx,dy,dz] and `bbox` [x0,y0,z0,x1,y1,z1] are part of the CLI contract.
+/// `extent` (`[dx, dy, dz]`) and `bbox` (`[x0, y0, z0, x1, y1, z1]`) are part of the CLI contract.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SceneInfo {
     pub objects: usize,

@@ -1,8 +1,7 @@
 //! `mktree bench-peers`: mktree against SQLite's R*Tree with geometry blobs
 //! (and rstar as a reference line) on the same scenes and queries, through
 //! `mktree_bench::bench_scene`. A markdown table, or JSON; with `--out`,
-//! bench-peers.json and a chart of the read ratios (SVG, and PNG without
-//! text, as `chart.rs` explains).
+//! bench-peers.json and a chart of the read ratios (SVG and PNG).
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -223,27 +222,23 @@ const LEVELS: [f64; 2] = [0.6, 0.8];
 
 /// The chart: one panel per scene, mktree / SQLite mean reads for exact
 /// answers and for the box filter by query set, with lines at 0.6 and 0.8
-/// (and parity, 1); as SVG with text and as PNG without.
+/// (and parity, 1); as SVG and PNG.
 fn chart(groups: &[Vec<PeerRow>], svg: &Path, png: &Path) -> Result<()> {
     let size = (PANEL.0, PANEL.1 * groups.len().max(1) as u32);
     svg_and_png!(size, svg, png, draw(groups))
 }
 
-fn draw<DB: DrawingBackend>(
-    root: &DrawingArea<DB, Shift>,
-    groups: &[Vec<PeerRow>],
-    text: bool,
-) -> Result<()> {
+fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, groups: &[Vec<PeerRow>]) -> Result<()> {
     root.fill(&WHITE).map_err(failed)?;
     let panels = root.split_evenly((groups.len().max(1), 1));
     for (area, rows) in panels.iter().zip(groups) {
-        panel(area, rows, text)?;
+        panel(area, rows)?;
     }
     Ok(())
 }
 
 /// One scene: a line for exact answers and one for the filter.
-fn panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, rows: &[PeerRow], text: bool) -> Result<()> {
+fn panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, rows: &[PeerRow]) -> Result<()> {
     let scene = rows.first().map_or("", |r| r.scene.as_str());
     let lines = [
         ("exact answers", points(rows, |r| r.exact_reads_ratio)),
@@ -254,12 +249,14 @@ fn panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, rows: &[PeerRow], te
     let sets: Vec<String> = rows.iter().map(|r| r.set.clone()).collect();
     let panel = RatioPanel {
         caption: format!("{scene}: mean reads per query, mktree / SQLite"),
+        x_desc: "query set",
+        y_desc: "mktree reads / SQLite page reads".into(),
         sets: &sets,
         lines: lines.into(),
         y: 0.0..top,
         rules: [(1.0, BLACK.mix(0.4))].into_iter().chain(LEVELS.map(|l| (l, RED.mix(0.4)))).collect(),
     };
-    ratio_panel(area, &panel, text)
+    ratio_panel(area, &panel)
 }
 
 /// (set index, ratio) for the sets that have one.

@@ -105,7 +105,9 @@ fn open_output(out: &Path, args: &BuildArgs, lod: &LodArgs) -> Result<(Database,
         lod_levels: lod.lods.unwrap_or(mktree::db::DEFAULT_LOD_LEVELS),
     };
     let (db, created) = match Database::open_or_create(out, options) {
-        Err(StorageError::NotMktree) => bail!("{} is not an mktree file; not overwriting it", out.display()),
+        Err(StorageError::NotMktree) => {
+            bail!("{} is not an mktree file; not overwriting it (give -o a new .mkt path)", out.display())
+        }
         opened => opened.map_err(|e| crate::cmd::opening(e, out))?,
     };
     if args.block_size.is_some_and(|b| b != db.block_size()) {

@@ -219,12 +219,46 @@ pub fn open_to_read(path: &Path) -> Result<Database> {
     Ok(db)
 }
 
-/// An error opening `path`, naming the file unless the error already does.
+/// An error opening `path` to read or change its tree, naming the file
+/// unless the error already does; a scene file passed where an .mkt file
+/// belongs gets the `build` command that makes one.
 pub fn opening(e: StorageError, path: &Path) -> anyhow::Error {
     match e {
         StorageError::Open { .. } => e.into(),
+        StorageError::NotMktree => anyhow::anyhow!("{}", not_mktree(path)),
+        // A scene shorter than a header is refused as truncated before its
+        // magic number is read.
+        StorageError::Truncated { .. } if is_scene_path(path) && !is_mkt(path) => {
+            anyhow::anyhow!("{}", not_mktree(path))
+        }
         e => anyhow::Error::new(e).context(format!("opening {}", path.display())),
     }
+}
+
+/// Why `path` cannot be opened as an MKtree file, and what to do instead:
+/// a scene (by its extension) is built first; anything else is named.
+fn not_mktree(path: &Path) -> String {
+    if is_scene_path(path) {
+        let mkt = path.with_extension("mkt");
+        format!(
+            "{} is a scene, not an MKtree file: build it first with `mktree build {} -o {}`",
+            path.display(),
+            path.display(),
+            mkt.display()
+        )
+    } else {
+        format!(
+            "{} is not an MKtree file (bad magic number): `mktree build SCENE -o FILE.mkt` makes one",
+            path.display()
+        )
+    }
+}
+
+/// True when `path` names a scene file by its extension (OBJ, STL, glTF).
+fn is_scene_path(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| ["obj", "stl", "gltf", "glb"].iter().any(|s| e.eq_ignore_ascii_case(s)))
 }
 
 /// True when `path` is an .mkt file (by its magic number).

@@ -34,7 +34,7 @@ pub fn run(file: &Path, region: &Region, opts: &QueryOptions, as_json: bool) -> 
     print(&query_region(&r, region, opts, None)?, as_json)
 }
 
-/// An answer's JSON: the keys, then the traversal's statistics.
+/// An answer's JSON: the CLI contract's keys, then the traversal's statistics.
 pub fn answer_json(a: &QueryAnswer) -> Value {
     let s = &a.stats;
     json!({

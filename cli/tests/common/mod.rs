@@ -20,3 +20,51 @@ pub fn tanker1_in(dir: &Path) -> (PathBuf, PathBuf) {
     }
     (obj, mkt)
 }
+
+/// The PNG at `path`: (width, height, RGB pixels row by row).
+pub fn read_png(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
+    let decoder = png::Decoder::new(std::fs::File::open(path).unwrap());
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let frame = reader.next_frame(&mut buf).unwrap();
+    let step = match frame.color_type {
+        png::ColorType::Rgb => 3,
+        png::ColorType::Rgba => 4,
+        other => panic!("{}: colour type {other:?}", path.display()),
+    };
+    assert_eq!(frame.bit_depth, png::BitDepth::Eight, "{}", path.display());
+    let pixels = buf[..frame.buffer_size()].chunks(step).map(|p| [p[0], p[1], p[2]]).collect();
+    (frame.width, frame.height, pixels)
+}
+
+/// Pixels of the PNG at `path` in columns `x` and rows `y` dark enough to
+/// be glyphs (every channel below 110: the charts' text is black, their
+/// series coloured, their grid light grey).
+pub fn dark_pixels(path: &Path, x: std::ops::Range<u32>, y: std::ops::Range<u32>) -> usize {
+    let (w, h, pixels) = read_png(path);
+    (y.start..y.end.min(h))
+        .flat_map(|row| (x.start..x.end.min(w)).map(move |col| (row * w + col) as usize))
+        .filter(|&i| pixels[i].iter().all(|&c| c < 110))
+        .count()
+}
+
+/// Asserts that the chart at `path` has text where a title, the y axis's
+/// label and the x axis's label go: glyph pixels in its top 40 rows (the
+/// title; only text is drawn there), in its 30 leftmost columns (the y
+/// label, turned) and in its 26 bottom rows (the x label). A chart drawn
+/// without text has none in any of the three.
+pub fn assert_chart_has_text(path: &Path) {
+    let (w, h, _) = read_png(path);
+    let bands = [
+        ("title (top 40 rows)", dark_pixels(path, 0..w, 0..40), 200),
+        ("y label (left 30 columns)", dark_pixels(path, 0..30, 0..h), 25),
+        ("x label (bottom 26 rows)", dark_pixels(path, 0..w, h.saturating_sub(26)..h), 60),
+    ];
+    for (band, found, least) in bands {
+        assert!(
+            found >= least,
+            "{}: {found} glyph pixels in the {band}, expected {least} or more",
+            path.display()
+        );
+    }
+}
