@@ -209,7 +209,7 @@ pub fn bench_changes(
     w.commit()?;
     let mut model: std::collections::BTreeMap<Key, Object> =
         keyed.objects().iter().map(|o| (o.key.clone().unwrap_or(Key::Int(0)), o.clone())).collect();
-    let mut run =
+    let run =
         |ops: &[Op], model: &mut std::collections::BTreeMap<Key, Object>| -> Result<Phase, BenchError> {
             let mut phase = Phase::default();
             for chunk in ops.chunks(if ops.len() == opts.batch { ops.len().max(1) } else { 1 }) {
@@ -284,7 +284,7 @@ pub fn bench_changes(
                 .map(|m| m.len())
                 .sum()
         };
-        let mut rows_of = |ops: &[Op], batch: bool| -> Result<Phase, BenchError> {
+        let rows_of = |ops: &[Op], batch: bool| -> Result<Phase, BenchError> {
             let mut phase = Phase::default();
             for chunk in ops.chunks(if batch { ops.len().max(1) } else { 1 }) {
                 let bytes = written_bytes();

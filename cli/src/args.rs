@@ -347,7 +347,7 @@ pub enum Command {
         #[arg(long)]
         text: bool,
         /// The offset in mm: dx,dy,dz.
-        #[arg(long, value_delimiter = ',', num_args = 3, allow_hyphen_values = true, required = true)]
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true, required = true)]
         by: Vec<f64>,
         #[arg(long)]
         json: bool,
