@@ -112,10 +112,10 @@ impl<'db> WriteTransaction<'db> {
         let reusable = base_free.iter().filter(|r| oldest.is_none_or(|o| r.freed <= o));
         let avail = FreeSpace::new(base.block_count, reusable.map(|r| (r.first, r.count)));
         let txn = base.txn + 1;
-        // Step 1: the other slot may hold the state before `base`, whose blocks we may reuse.
-        for copy in order {
-            write_slot_copy(&pager, slot, copy, SlotState::Pending, &Commit { txn, ..Commit::default() })?;
-        }
+        // Step 1: the other slot may hold the state before `base`, whose
+        // blocks we may reuse. One copy saying pending outranks the other
+        // (its transaction is newer), so one write and one sync mark it.
+        write_slot_copy(&pager, slot, order[0], SlotState::Pending, &Commit { txn, ..Commit::default() })?;
         let begun = Begun { txn, base, base_free, slot, recovery, avail, oldest_reader: oldest };
         Ok(WriteTransaction::new(inner, guard, file_lock, begun))
     }
