@@ -209,46 +209,48 @@ pub fn bench_changes(
     w.commit()?;
     let mut model: std::collections::BTreeMap<Key, Object> =
         keyed.objects().iter().map(|o| (o.key.clone().unwrap_or(Key::Int(0)), o.clone())).collect();
-    let run =
-        |ops: &[Op], model: &mut std::collections::BTreeMap<Key, Object>| -> Result<Phase, BenchError> {
-            let mut phase = Phase::default();
-            for chunk in ops.chunks(if ops.len() == opts.batch { ops.len().max(1) } else { 1 }) {
-                let (bytes, counts) = (written_bytes(), dev.counts());
-                let started = Instant::now();
-                let mut w = db.begin_write()?;
-                for op in chunk {
-                    match op {
-                        Op::Insert(k, o) => {
-                            w.insert(o.clone().with_key(*k))?;
-                            model.insert(Key::Int(*k), o.clone());
-                        }
-                        Op::Move(k, by) => {
-                            w.move_by(&Key::Int(*k), *by)?;
-                            if let Some(o) = model.get(&Key::Int(*k)).map(|o| moved(o, *by)) {
-                                model.insert(Key::Int(*k), o);
-                            }
-                        }
-                        Op::Remove(k) => {
-                            w.remove(&Key::Int(*k))?;
-                            model.remove(&Key::Int(*k));
+    let run = |ops: &[Op],
+               batch: bool,
+               model: &mut std::collections::BTreeMap<Key, Object>|
+     -> Result<Phase, BenchError> {
+        let mut phase = Phase::default();
+        for chunk in ops.chunks(if batch { ops.len().max(1) } else { 1 }) {
+            let (bytes, counts) = (written_bytes(), dev.counts());
+            let started = Instant::now();
+            let mut w = db.begin_write()?;
+            for op in chunk {
+                match op {
+                    Op::Insert(k, o) => {
+                        w.insert(o.clone().with_key(*k))?;
+                        model.insert(Key::Int(*k), o.clone());
+                    }
+                    Op::Move(k, by) => {
+                        w.move_by(&Key::Int(*k), *by)?;
+                        if let Some(o) = model.get(&Key::Int(*k)).map(|o| moved(o, *by)) {
+                            model.insert(Key::Int(*k), o);
                         }
                     }
+                    Op::Remove(k) => {
+                        w.remove(&Key::Int(*k))?;
+                        model.remove(&Key::Int(*k));
+                    }
                 }
-                let stats = w.commit_with_stats()?;
-                phase.ms.push(started.elapsed().as_secs_f64() * 1e3);
-                let after = dev.counts();
-                phase.bytes += written_bytes() - bytes;
-                phase.blocks += after.writes - counts.writes;
-                phase.syncs += after.syncs - counts.syncs;
-                phase.in_place += usize::from(stats.in_place);
             }
-            Ok(phase)
-        };
+            let stats = w.commit_with_stats()?;
+            phase.ms.push(started.elapsed().as_secs_f64() * 1e3);
+            let after = dev.counts();
+            phase.bytes += written_bytes() - bytes;
+            phase.blocks += after.writes - counts.writes;
+            phase.syncs += after.syncs - counts.syncs;
+            phase.in_place += usize::from(stats.in_place);
+        }
+        Ok(phase)
+    };
     for (ops, name) in phases.iter().zip(names) {
-        let phase = run(ops, &mut model)?;
+        let phase = run(ops, false, &mut model)?;
         rows.push(phase.row("mktree", name, file_len(&path)));
     }
-    let phase = run(&mixed, &mut model)?;
+    let phase = run(&mixed, true, &mut model)?;
     rows.push(phase.row("mktree", &format!("mixed {}", mixed.len()), file_len(&path)));
 
     // The changed file's reads against a fresh load of the same objects.

@@ -48,7 +48,7 @@ impl ReadTransaction {
             QueryError::Storage(s) => s,
             other => StorageError::Invalid(other.to_string()),
         })?;
-        let mut found: Vec<(u32, (Option<Key>, Vec<Mesh>))> = gather.found.into_iter().collect();
+        let mut found: Vec<_> = gather.found.into_iter().collect();
         found.sort_unstable_by_key(|(id, _)| *id);
         let mut objects = Vec::with_capacity(found.len());
         for (id, (key, parts)) in found {
