@@ -136,8 +136,9 @@ pub enum Command {
     #[command(group = clap::ArgGroup::new("shape").required(true).multiple(false))]
     Query {
         file: PathBuf,
-        /// x0,y0,z0,x1,y1,z1 in mm.
-        #[arg(long = "box", value_parser = six_numbers, allow_hyphen_values = true, group = "shape")]
+        /// x0,y0,z0,x1,y1,z1 in mm, x0 <= x1, y0 <= y1, z0 <= z1, each in
+        /// [-2^53, 2^53] (the library's rule, as in `batch`).
+        #[arg(long = "box", value_parser = numbers::<6>, allow_hyphen_values = true, group = "shape")]
         aabb: Option<[f64; 6]>,
         /// x,y,z,r in mm.
         #[arg(long, value_parser = numbers::<4>, allow_hyphen_values = true, group = "shape")]
@@ -573,13 +574,4 @@ fn byte_size(s: &str) -> Result<u64, String> {
     n.checked_mul(1 << shift)
         .filter(|&b| b > 0)
         .ok_or_else(|| format!("{s:?} is not a positive size below 2^64 bytes"))
-}
-
-/// Six comma-separated finite numbers (a box x0,y0,z0,x1,y1,z1).
-fn six_numbers(s: &str) -> Result<[f64; 6], String> {
-    let a = numbers::<6>(s)?;
-    if a[0] > a[3] || a[1] > a[4] || a[2] > a[5] {
-        return Err("a box is finite, with x0 <= x1, y0 <= y1, z0 <= z1".into());
-    }
-    Ok(a)
 }
