@@ -195,6 +195,10 @@ pub enum Command {
         /// Read the requests from this file instead of stdin.
         #[arg(long)]
         queries: Option<PathBuf>,
+        /// The longest request line, bytes (e.g. 64K, 1M): a longer line
+        /// gets an error answer and is skipped, never held in memory.
+        #[arg(long, value_parser = byte_size, default_value = "1M")]
+        max_line: u64,
     },
     /// The view's cut through the levels of detail: (node, level) pieces front to back, as JSON.
     View {

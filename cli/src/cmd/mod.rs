@@ -68,7 +68,7 @@ pub fn run(cli: Cli) -> Result<()> {
             collide::run(&file, &query, &level.options(), &import.options(), json)
         }
         Command::Clash { file, clearance, lod, json } => clash::run(&file, clearance, lod, json),
-        Command::Batch { file, queries } => batch::run(&file, queries.as_deref()),
+        Command::Batch { file, queries, max_line } => batch::run(&file, queries.as_deref(), max_line),
         Command::View { file, view } => view::run(&file, &view),
         Command::Export3dTiles { file, out, json } => export_tiles::run(&file, &out, json),
         Command::Serve { tiles, port, vendor } => serve::run(&tiles, port, vendor.as_deref()),
