@@ -318,12 +318,18 @@ pub enum Command {
         /// Take the keys as text even when they read as numbers.
         #[arg(long)]
         text: bool,
+        /// If another process is writing the file, wait for it instead of failing.
+        #[arg(long)]
+        wait: bool,
         #[arg(long)]
         json: bool,
     },
     /// Give the file's free blocks back: rewrite the tree low and cut the free end.
     Compact {
         file: PathBuf,
+        /// If another process is writing the file, wait for it instead of failing.
+        #[arg(long)]
+        wait: bool,
         #[arg(long)]
         json: bool,
     },

@@ -109,10 +109,10 @@ pub fn run(cli: Cli) -> Result<()> {
             get::run(&file, &get::parse_key(&key, text)?, mesh, json)
         }
         Command::Check { file, json } => check::run(&file, json),
-        Command::Compact { file, json } => compact::run(&file, json),
-        Command::Remove { file, keys, text, json } => {
+        Command::Compact { file, wait, json } => compact::run(&file, wait, json),
+        Command::Remove { file, keys, text, wait, json } => {
             let keys = keys.iter().map(|k| get::parse_key(k, text)).collect::<Result<Vec<_>>>()?;
-            remove::run(&file, &keys, json)
+            remove::run(&file, &keys, wait, json)
         }
         Command::Demo { dir } => demo::run(&dir),
         Command::BenchQueries { files, queries, shares, seed, json } => {
