@@ -89,9 +89,14 @@ pub enum Command {
         /// Memory the build may use (e.g. 4G, 512M): an OBJ file larger than
         /// half of it is staged on disk beside the output, meshes in a spill
         /// file, instead of read whole; a scene whose tree would still not
-        /// fit is refused before the build.
-        #[arg(long, value_parser = byte_size, default_value = "4G")]
+        /// fit is refused before the build. At least 64M: the OBJ reader alone
+        /// keeps up to 64 MB of vertices.
+        #[arg(long, value_parser = memory_size, default_value = "4G")]
         memory: u64,
+        /// Stage an OBJ file on disk whatever its size, as one larger than
+        /// half of --memory is (the same file results).
+        #[arg(long)]
+        stage: bool,
         #[arg(long)]
         json: bool,
     },
@@ -297,7 +302,8 @@ pub enum Command {
     /// One object by its key, through the key index: id, box, payload and the block reads.
     Get {
         file: PathBuf,
-        /// The key: an integer, or text (with --text, or when it is not a number).
+        /// The key: an integer (digits alone: 5, not +5 or 05), or text (with
+        /// --text, or when it is not such an integer).
         #[arg(long)]
         key: String,
         /// Take the key as text even when it reads as a number.
@@ -312,7 +318,8 @@ pub enum Command {
     /// Deletes objects by key in one transaction (all or none), refitting the tree.
     Remove {
         file: PathBuf,
-        /// The keys: integers, or text (with --text, or when not a number).
+        /// The keys: integers (digits alone: 5, not +5 or 05), or text (with
+        /// --text, or when not such an integer).
         #[arg(long = "key", required = true)]
         keys: Vec<String>,
         /// Take the keys as text even when they read as numbers.
@@ -568,6 +575,19 @@ fn numbers<const N: usize>(s: &str) -> Result<[f64; N], String> {
         return Err("numbers must be finite".into());
     }
     Ok(a)
+}
+
+/// The least `build --memory`: the OBJ reader keeps up to 64 MB of
+/// vertices however the scene is read, so less would be a promise broken.
+const MIN_MEMORY: u64 = 64 << 20;
+
+/// A `--memory` size: [`byte_size`], at least [`MIN_MEMORY`].
+fn memory_size(s: &str) -> Result<u64, String> {
+    let b = byte_size(s)?;
+    if b < MIN_MEMORY {
+        return Err(format!("{s:?} is below 64M, the least a build runs in (--stage stages a small scene)"));
+    }
+    Ok(b)
 }
 
 /// A size in bytes: a whole number with an optional K, M, G or T suffix (powers of 1024).

@@ -514,6 +514,13 @@ fn locked(locks: &FileLocks) -> StorageError {
 
 /// Opens `path` as `options` say; an error names the path.
 fn open_file(path: &Path, options: &OpenOptions) -> Result<std::fs::File, StorageError> {
+    // Opening a FIFO waits for its other end: refuse anything but a regular file.
+    if let Ok(m) = std::fs::metadata(path)
+        && !m.is_file()
+    {
+        let error = std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a regular file");
+        return Err(StorageError::Open { path: path.to_path_buf(), error });
+    }
     options.open(path).map_err(|error| StorageError::Open { path: path.to_path_buf(), error })
 }
 
@@ -570,7 +577,9 @@ impl Drop for SeatGuard<'_> {
 /// (what it holds is checked by [`Database::open`]).
 pub fn is_mktree_file(path: impl AsRef<Path>) -> bool {
     let mut magic = [0u8; 8];
-    std::fs::File::open(path).and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic)).is_ok()
+    // Opening a FIFO waits for a writer: only a regular file is opened.
+    std::fs::metadata(path.as_ref()).is_ok_and(|m| m.is_file())
+        && std::fs::File::open(path).and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic)).is_ok()
         && magic == header::MAGIC
 }
 

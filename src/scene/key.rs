@@ -36,6 +36,29 @@ impl Key {
         Ok(Key::Bytes(bytes.into_boxed_slice()))
     }
 
+    /// The key a person writes (`mktree get --key`, `remove --key`): an
+    /// integer key when `text` is a canonical decimal below 2^64 (digits
+    /// only, no sign, no leading zero but in "0"), else the byte-string key
+    /// of its UTF-8 bytes. So `+5`, `05` and ` 5` are byte-string keys and
+    /// never find key 5: one text, one key.
+    ///
+    /// ```
+    /// use mktree::scene::Key;
+    /// assert_eq!(Key::parse("5")?, Key::Int(5));
+    /// assert_eq!(Key::parse("+5")?, Key::bytes("+5")?);
+    /// assert_eq!(Key::parse("05")?, Key::bytes("05")?);
+    /// # Ok::<(), mktree::scene::KeyTooLong>(())
+    /// ```
+    pub fn parse(text: &str) -> Result<Key, KeyTooLong> {
+        let canonical = !text.is_empty()
+            && text.bytes().all(|b| b.is_ascii_digit())
+            && (text == "0" || !text.starts_with('0'));
+        match text.parse::<u64>() {
+            Ok(x) if canonical => Ok(Key::Int(x)),
+            _ => Key::bytes(text.as_bytes()),
+        }
+    }
+
     /// The integer, for an integer key.
     pub fn as_int(&self) -> Option<u64> {
         match self {

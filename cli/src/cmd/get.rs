@@ -10,12 +10,10 @@ use serde_json::json;
 
 use crate::output;
 
-/// A key as typed: an integer when it parses as one, unless `bytes`.
+/// A key as typed: [`Key::parse`] (an integer only when written as one,
+/// digits alone: `+5` and `05` are text), or its bytes when `bytes`.
 pub fn parse_key(text: &str, bytes: bool) -> Result<Key> {
-    match text.parse::<u64>() {
-        Ok(x) if !bytes => Ok(Key::Int(x)),
-        _ => Ok(Key::bytes(text.as_bytes())?),
-    }
+    Ok(if bytes { Key::bytes(text.as_bytes())? } else { Key::parse(text)? })
 }
 
 pub fn run(file: &Path, key: &Key, mesh: bool, as_json: bool) -> Result<()> {

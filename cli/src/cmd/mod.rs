@@ -50,8 +50,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Sweep { scene, pages, rates, look_ahead, json, import } => {
             sweep::run(&scene, &import.options(), pages, &rates, look_ahead, json)
         }
-        Command::Build { scene, output, build, lod, wait, key_names, memory, json } => {
-            build::run(&scene, &output, &build, &lod, build::Write { wait, key_names, memory }, json)
+        Command::Build { scene, output, build, lod, wait, key_names, memory, stage, json } => {
+            build::run(&scene, &output, &build, &lod, build::Write { wait, key_names, memory, stage }, json)
         }
         Command::Verify { file, scene, queries, json, import } => {
             verify::run(&file, &scene, queries, &import.options(), json)
