@@ -3,7 +3,8 @@
 //! clients stall mid-download and hundreds sit silent, and keeps
 //! answering; it answers a range request with 206 and exactly the bytes
 //! asked for; and it refuses a symbolic link that leaves the tiles folder
-//! (one to /etc/passwd) while serving one that stays inside.
+//! (one to /etc/passwd) while serving one that stays inside; clients that
+//! leave mid-download do not end it.
 
 mod common;
 
@@ -105,7 +106,7 @@ fn serve_streams_a_3_gib_file_within_its_memory_bound_beside_stalled_and_silent_
     let dir = tempfile::tempdir().unwrap();
     let big = 3u64 << 30;
     tiles_with_a_big_file(dir.path(), big);
-    let (server, port) = serve(dir.path());
+    let (mut server, port) = serve(dir.path());
     let pid = server.0.id();
 
     // Silent clients: connected, never a byte sent.
@@ -144,7 +145,29 @@ fn serve_streams_a_3_gib_file_within_its_memory_bound_beside_stalled_and_silent_
     let peak = status_bytes(pid, "VmHWM:");
     println!("serve's peak resident memory: {:.1} MiB after {} MiB sent", peak as f64 / 1048576.0, big >> 20);
     assert!(peak < MEMORY_BOUND, "peak {peak} bytes, over the stated bound {MEMORY_BOUND}");
+
+    // Clients that leave mid-download (unread bytes: the kernel resets the
+    // connection) cost the server nothing: it lived on SIGPIPE's default
+    // action once, and died here.
     drop((silent, stalled));
+    let leaving: Vec<_> = (0..8)
+        .map(|_| {
+            std::thread::spawn(move || {
+                let (mut r, _) = request(port, "/tiles/big.glb", "");
+                let mut buf = vec![0u8; 1 << 20];
+                for _ in 0..64 {
+                    r.read_exact(&mut buf).unwrap();
+                }
+            })
+        })
+        .collect();
+    for t in leaving {
+        t.join().unwrap();
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    let (code, _, _) = get(port, "/tiles/big.glb", "Range: bytes=0-9\r\n");
+    assert_eq!(code, 206);
+    assert!(server.0.try_wait().unwrap().is_none(), "the server ended when clients left");
 }
 
 #[test]

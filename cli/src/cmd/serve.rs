@@ -97,12 +97,6 @@ pub fn run(tiles: &Path, port: u16, vendor: Option<&Path>) -> Result<()> {
         std::net::TcpListener::bind(("127.0.0.1", port)).with_context(|| format!("127.0.0.1:{port}"))?;
     let port = listener.local_addr().context("the bound address")?.port();
     listener.set_nonblocking(true).context("the listening socket")?;
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .max_blocking_threads(BLOCKING_THREADS)
-        .enable_all()
-        .build()
-        .context("starting the server's runtime")?;
     // A script waiting for the server reads this line.
     println!("serving {} at http://127.0.0.1:{port}/", tiles.display());
     std::io::stdout().flush().context("stdout")?;
@@ -111,8 +105,31 @@ pub fn run(tiles: &Path, port: u16, vendor: Option<&Path>) -> Result<()> {
         CHUNK >> 10,
         MEMORY_BOUND >> 20
     );
+    ignore_broken_pipes();
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .max_blocking_threads(BLOCKING_THREADS)
+        .enable_all()
+        .build()
+        .context("starting the server's runtime")?;
     runtime.block_on(accept_loop(listener, roots))
 }
+
+/// main() gives SIGPIPE its default action, which ends the process, so
+/// that `mktree dump | head` ends quietly. A server must not end when a
+/// client closes mid-download: writing to that socket then fails with
+/// EPIPE instead, and hyper drops the connection.
+#[cfg(unix)]
+fn ignore_broken_pipes() {
+    // SAFETY: called before the runtime's threads start, with no other
+    // thread changing signal actions; SIG_IGN is a valid action for SIGPIPE.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_IGN);
+    }
+}
+
+#[cfg(not(unix))]
+fn ignore_broken_pipes() {}
 
 /// Accepts connections, at most [`MAX_CONNECTIONS`] served at once.
 async fn accept_loop(listener: std::net::TcpListener, roots: Arc<Roots>) -> Result<()> {
