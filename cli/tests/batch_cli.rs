@@ -168,3 +168,27 @@ fn batch_and_query_refuse_an_inverted_box_and_a_far_point_alike() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("coordinate range"));
 }
+
+#[test]
+fn batch_reports_an_endless_line_before_it_ends() {
+    use std::io::BufRead;
+    let dir = tempfile::tempdir().unwrap();
+    let (_, mkt) = tanker1_in(dir.path());
+    let mut child = mktree()
+        .args(["batch", mkt.to_str().unwrap(), "--max-line", "64K"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    // /dev/zero never ends its line: 1 MiB of it, the input left open.
+    stdin.write_all(&vec![0u8; 1 << 20]).unwrap();
+    stdin.flush().unwrap();
+    let mut first = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut first).unwrap();
+    let answer: serde_json::Value = serde_json::from_str(&first).unwrap();
+    assert_eq!(answer["line"], 1);
+    assert!(answer["error"].as_str().unwrap().contains("longer than 65536 bytes"), "{answer}");
+    drop(stdin);
+    assert!(child.wait().unwrap().success());
+}

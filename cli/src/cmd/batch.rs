@@ -6,7 +6,9 @@
 //! `--max-line` bytes (default 1 MiB: far above any request, a collide with
 //! every field being under 300 bytes) or not UTF-8 gets an
 //! error naming it too, and the over-long part is skipped, never held, so
-//! endless input (`/dev/zero`) costs at most that many bytes. The exit
+//! endless input (`/dev/zero`) costs at most that many bytes. The error
+//! comes as soon as the limit is passed, not when the line ends, so an
+//! endless line is reported at once. The exit
 //! status is 0 once every line is answered; it is 1 only when the file
 //! cannot be opened or the input not read. Lines starting with `#` are
 //! comments. Every query reads through the database's shared cache, so a
@@ -30,10 +32,17 @@ pub fn run(file: &Path, queries: Option<&Path>, max_line: u64) -> Result<()> {
     };
     let mut out = std::io::stdout().lock();
     let mut bytes = Vec::new();
+    let mut skipping = false;
     for n in 1.. {
+        if std::mem::take(&mut skipping) && !skip_line(&mut input).context("reading the requests")? {
+            break;
+        }
         let line = match read_line(&mut input, max_line, &mut bytes).context("reading the requests")? {
             Line::End => break,
-            Line::TooLong => Err(format!("line {n} is longer than {max_line} bytes (--max-line); skipped")),
+            Line::TooLong => {
+                skipping = true;
+                Err(format!("line {n} is longer than {max_line} bytes (--max-line); skipped"))
+            }
             Line::Read => std::str::from_utf8(&bytes).map_err(|e| {
                 format!("line {n} is not UTF-8 (byte {} of the line); skipped", e.valid_up_to() + 1)
             }),
@@ -68,19 +77,19 @@ pub fn run(file: &Path, queries: Option<&Path>, max_line: u64) -> Result<()> {
 enum Line {
     /// A whole line, without its end, is in the buffer.
     Read,
-    /// The line was longer than the limit: its first bytes are in the
-    /// buffer, the rest was read and dropped.
+    /// The line is longer than the limit: its first bytes are in the
+    /// buffer, the rest is still to be skipped ([`skip_line`]).
     TooLong,
     /// The input ended (no bytes before it).
     End,
 }
 
 /// Reads one line (ending in `\n`, or at the input's end) into `line`,
-/// holding at most `max` bytes of it: the rest of a longer one is consumed
-/// a buffer at a time and dropped.
+/// holding at most `max` bytes of it: a longer one stops at the limit,
+/// its rest left unread for [`skip_line`].
 fn read_line(input: &mut dyn BufRead, max: u64, line: &mut Vec<u8>) -> std::io::Result<Line> {
     line.clear();
-    let (mut any, mut too_long) = (false, false);
+    let mut any = false;
     loop {
         let buf = match input.fill_buf() {
             Ok(b) => b,
@@ -97,11 +106,11 @@ fn read_line(input: &mut dyn BufRead, max: u64, line: &mut Vec<u8>) -> std::io::
         };
         let room = usize::try_from(max).unwrap_or(usize::MAX).saturating_sub(line.len());
         if chunk.len() > room {
-            too_long = true;
+            line.extend_from_slice(&chunk[..room]);
+            input.consume(room);
+            return Ok(Line::TooLong);
         }
-        if !too_long {
-            line.extend_from_slice(chunk);
-        }
+        line.extend_from_slice(chunk);
         let used = done.unwrap_or(buf.len());
         input.consume(used);
         if done.is_some() {
@@ -111,11 +120,32 @@ fn read_line(input: &mut dyn BufRead, max: u64, line: &mut Vec<u8>) -> std::io::
     if line.last() == Some(&b'\r') {
         line.pop();
     }
-    Ok(match (any, too_long) {
-        (false, _) => Line::End,
-        (true, true) => Line::TooLong,
-        (true, false) => Line::Read,
-    })
+    Ok(if any { Line::Read } else { Line::End })
+}
+
+/// Consumes the input up to and with the next `\n`, a buffer at a time:
+/// false when the input ended first.
+fn skip_line(input: &mut dyn BufRead) -> std::io::Result<bool> {
+    loop {
+        let buf = match input.fill_buf() {
+            Ok(b) => b,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e),
+        };
+        if buf.is_empty() {
+            return Ok(false);
+        }
+        match buf.iter().position(|&b| b == b'\n') {
+            Some(i) => {
+                input.consume(i + 1);
+                return Ok(true);
+            }
+            None => {
+                let n = buf.len();
+                input.consume(n);
+            }
+        }
+    }
 }
 
 #[cfg(test)]
@@ -129,6 +159,12 @@ mod tests {
             let mut buf = Vec::new();
             match read_line(&mut r, max, &mut buf).unwrap() {
                 Line::End => return out,
+                Line::TooLong => {
+                    out.push((Line::TooLong, buf));
+                    if !skip_line(&mut r).unwrap() {
+                        return out;
+                    }
+                }
                 l => out.push((l, buf)),
             }
         }
