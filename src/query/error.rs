@@ -26,7 +26,7 @@ pub enum QueryError {
     )]
     OutOfRange { what: &'static str, coordinate: f64 },
     /// A length the query states is longer than [`MAX_LENGTH`](super::MAX_LENGTH).
-    #[error("{what}: {length} mm is longer than 2^55 mm, past any file's coordinate range")]
+    #[error("{what}: {length:e} mm is longer than 2^55 mm, past any file's coordinate range")]
     TooLong { what: &'static str, length: f64 },
     #[error("line {line}: {detail}")]
     Path { line: usize, detail: String },
