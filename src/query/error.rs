@@ -22,7 +22,7 @@ pub enum QueryError {
     /// A coordinate the query states lies outside every file's coordinate
     /// range, [-2^53, 2^53] mm (format-spec/geometry.md).
     #[error(
-        "{what}: coordinate {coordinate} lies outside the coordinate range [-2^53, 2^53] mm of every mktree file"
+        "{what}: coordinate {coordinate:e} lies outside the coordinate range [-2^53, 2^53] mm of every mktree file"
     )]
     OutOfRange { what: &'static str, coordinate: f64 },
     /// A length the query states is longer than [`MAX_LENGTH`](super::MAX_LENGTH).
