@@ -305,7 +305,7 @@ pub enum Command {
         /// The key: an integer (digits alone: 5, not +5 or 05), or text (with
         /// --text, or when it is not such an integer).
         #[arg(long)]
-        key: String,
+        key: std::ffi::OsString,
         /// Take the key as text even when it reads as a number.
         #[arg(long)]
         text: bool,
@@ -321,7 +321,7 @@ pub enum Command {
         /// The keys: integers (digits alone: 5, not +5 or 05), or text (with
         /// --text, or when not such an integer).
         #[arg(long = "key", required = true)]
-        keys: Vec<String>,
+        keys: Vec<std::ffi::OsString>,
         /// Take the keys as text even when they read as numbers.
         #[arg(long)]
         text: bool,

@@ -98,3 +98,34 @@ fn a_fifo_as_a_scene_or_a_file_is_refused_in_one_line() {
         assert_eq!(stderr.trim().lines().count(), 1, "{args:?}: {stderr}");
     }
 }
+
+/// The OBJ reader keys `o caf\xe9` (Latin-1) as `caf\u{fffd}`; `get` and
+/// `remove` read the same bytes typed as a key the same way (before, clap
+/// refused them as invalid UTF-8, and the object could not be reached).
+#[cfg(unix)]
+#[test]
+fn a_key_from_a_name_that_is_not_utf8_is_reached_by_that_name() {
+    use std::ffi::OsStr;
+    use std::os::unix::ffi::OsStrExt;
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("latin1.obj");
+    let mut text = b"o caf\xe9\nv 0 0 0\nv 10 0 0\nv 0 10 0\nf 1 2 3\n".to_vec();
+    text.extend_from_slice(b"o plain\nv 0 0 5\nv 10 0 5\nv 0 10 5\nf 4 5 6\n");
+    std::fs::write(&obj, text).unwrap();
+    let mkt = dir.path().join("k.mkt");
+    let (obj, mkt) = (obj.to_str().unwrap(), mkt.to_str().unwrap());
+    json(&run(&["build", obj, "-o", mkt, "--key-names", "--json"]));
+    let shown = json(&run(&["query", mkt, "--box", "-1,-1,-1,11,11,1", "--json"]))["keys"][0].clone();
+    assert_eq!(shown, "caf\u{fffd}");
+    let latin1 = OsStr::from_bytes(b"caf\xe9");
+    let get = |key: &OsStr| mktree().args(["get", mkt, "--json", "--key"]).arg(key).output().unwrap();
+    assert_eq!(json(&get(latin1))["id"], 0);
+    assert_eq!(json(&get(OsStr::new("caf\u{fffd}")))["id"], 0);
+    json(&mktree().args(["remove", mkt, "--json", "--key"]).arg(latin1).output().unwrap());
+    assert_eq!(get(latin1).status.code(), Some(1));
+    assert_eq!(
+        json(&run(&["get", mkt, "--key", "plain", "--json"]))["id"],
+        0,
+        "ids close up after a removal"
+    );
+}
