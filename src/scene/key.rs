@@ -181,7 +181,7 @@ impl From<u64> for Key {
 /// no control characters, else as `0x` and hex digits.
 /// The bytes an even number of hex digits spell (either case), if they are that.
 fn decode_hex(hex: &str) -> Option<Vec<u8>> {
-    if hex.is_empty() || hex.len() % 2 != 0 {
+    if hex.is_empty() || !hex.len().is_multiple_of(2) {
         return None;
     }
     let digit = |c: u8| (c as char).to_digit(16);
