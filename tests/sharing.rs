@@ -110,3 +110,58 @@ fn an_open_that_fails_names_the_file_and_why() {
     let text = Database::create(&path, CreateOptions::default()).err().unwrap().to_string();
     assert!(text.contains("t.mkt") && text.contains("exists"), "{text}");
 }
+
+/// Issue 39: `check` is a reader. Run over and over by one opener while
+/// another commits, it never makes a writer fail (before, it held the
+/// writer's lock shared and writers failed with "locked"), and it finds no
+/// fault in the free blocks the writer fills meanwhile.
+#[test]
+fn check_beside_a_writer_never_blocks_it_and_passes() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("t.mkt");
+    let a = Database::create(&path, CreateOptions::default()).unwrap();
+    load(&a, 200);
+    let checker = Database::open_read_only(&path).unwrap();
+    let done = AtomicBool::new(false);
+    std::thread::scope(|s| {
+        let checks = s.spawn(|| {
+            let mut runs = 0;
+            while !done.load(Ordering::Relaxed) {
+                let report = check(&checker).unwrap();
+                assert!(report.ok(), "check beside a writer: {:?}", report.faults);
+                runs += 1;
+            }
+            runs
+        });
+        for id in 0..40u64 {
+            let mut w = a.begin_write().expect("a writer is never refused because of a check");
+            assert!(w.remove(&mktree::scene::Key::Int(id)).unwrap().is_some());
+            w.commit().unwrap();
+        }
+        let compacted = a.compact().expect("compact is never refused because of a check");
+        assert!(compacted.blocks_after <= compacted.blocks_before);
+        done.store(true, Ordering::Relaxed);
+        let runs = checks.join().unwrap();
+        assert!(runs > 0);
+        println!("{runs} checks ran beside 40 commits and a compaction");
+    });
+    assert!(check(&a).unwrap().ok());
+    assert_eq!(a.begin_read().unwrap().info().unwrap().objects, 160);
+}
+
+/// Issue 39: a refused writer is told who holds the lock, and how to wait.
+#[test]
+fn a_refused_writer_is_told_a_writer_holds_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("t.mkt");
+    let a = Database::create(&path, CreateOptions::default()).unwrap();
+    load(&a, 10);
+    let b = Database::open(&path).unwrap();
+    let _r = b.begin_read().unwrap();
+    let w = a.begin_write().unwrap();
+    let e = b.compact().unwrap_err().to_string();
+    assert!(e.contains("another process is writing the file") && e.contains("--wait"), "{e}");
+    drop(w);
+    assert!(b.compact_with(WriterWait::Wait).is_ok());
+}

@@ -99,9 +99,14 @@ pub enum Command {
         /// Memory the build may use (e.g. 4G, 512M): an OBJ file larger than
         /// half of it is staged on disk beside the output, meshes in a spill
         /// file, instead of read whole; a scene whose tree would still not
-        /// fit is refused before the build.
-        #[arg(long, value_parser = byte_size, default_value = "4G")]
+        /// fit is refused before the build. At least 64M: the OBJ reader alone
+        /// keeps up to 64 MB of vertices.
+        #[arg(long, value_parser = memory_size, default_value = "4G")]
         memory: u64,
+        /// Stage an OBJ file on disk whatever its size, as one larger than
+        /// half of --memory is (the same file results).
+        #[arg(long)]
+        stage: bool,
         #[arg(long)]
         json: bool,
     },
@@ -146,8 +151,9 @@ pub enum Command {
     #[command(group = clap::ArgGroup::new("shape").required(true).multiple(false))]
     Query {
         file: PathBuf,
-        /// x0,y0,z0,x1,y1,z1 in mm.
-        #[arg(long = "box", value_parser = six_numbers, allow_hyphen_values = true, group = "shape")]
+        /// x0,y0,z0,x1,y1,z1 in mm, x0 <= x1, y0 <= y1, z0 <= z1, each in
+        /// [-2^53, 2^53] (the library's rule, as in `batch`).
+        #[arg(long = "box", value_parser = numbers::<6>, allow_hyphen_values = true, group = "shape")]
         aabb: Option<[f64; 6]>,
         /// x,y,z,r in mm.
         #[arg(long, value_parser = numbers::<4>, allow_hyphen_values = true, group = "shape")]
@@ -204,6 +210,10 @@ pub enum Command {
         /// Read the requests from this file instead of stdin.
         #[arg(long)]
         queries: Option<PathBuf>,
+        /// The longest request line, bytes (e.g. 64K, 1M): a longer line
+        /// gets an error answer and is skipped, never held in memory.
+        #[arg(long, value_parser = byte_size, default_value = "1M")]
+        max_line: u64,
     },
     /// The view's cut through the levels of detail: (node, level) pieces front to back, as JSON.
     View {
@@ -302,9 +312,10 @@ pub enum Command {
     /// One object by its key, through the key index: id, box, payload and the block reads.
     Get {
         file: PathBuf,
-        /// The key: an integer, or text (with --text, or when it is not a number).
+        /// The key: an integer (digits alone: 5, not +5 or 05), or text (with
+        /// --text, or when it is not such an integer).
         #[arg(long)]
-        key: String,
+        key: std::ffi::OsString,
         /// Take the key as text even when it reads as a number.
         #[arg(long)]
         text: bool,
@@ -317,12 +328,16 @@ pub enum Command {
     /// Deletes objects by key in one transaction (all or none), refitting the tree.
     Remove {
         file: PathBuf,
-        /// The keys: integers, or text (with --text, or when not a number).
+        /// The keys: integers (digits alone: 5, not +5 or 05), or text (with
+        /// --text, or when not such an integer).
         #[arg(long = "key", required = true)]
-        keys: Vec<String>,
+        keys: Vec<std::ffi::OsString>,
         /// Take the keys as text even when they read as numbers.
         #[arg(long)]
         text: bool,
+        /// If another process is writing the file, wait for it instead of failing.
+        #[arg(long)]
+        wait: bool,
         #[arg(long)]
         json: bool,
     },
@@ -340,21 +355,25 @@ pub enum Command {
     /// Moves one object by an offset, written copy on write.
     Move {
         file: PathBuf,
-        /// The key: an integer, or text (with --text, or when it is not a number).
+        /// The key: an integer (digits alone: 5, not +5 or 05), or text (with
+        /// --text, or when it is not such an integer).
         #[arg(long)]
-        key: String,
+        key: std::ffi::OsString,
         /// Take the key as text even when it reads as a number.
         #[arg(long)]
         text: bool,
         /// The offset in mm: dx,dy,dz.
-        #[arg(long, value_delimiter = ',', allow_hyphen_values = true, required = true)]
-        by: Vec<f64>,
+        #[arg(long, value_parser = numbers::<3>, allow_hyphen_values = true)]
+        by: [f64; 3],
         #[arg(long)]
         json: bool,
     },
     /// Give the file's free blocks back: rewrite the tree low and cut the free end.
     Compact {
         file: PathBuf,
+        /// If another process is writing the file, wait for it instead of failing.
+        #[arg(long)]
+        wait: bool,
         #[arg(long)]
         json: bool,
     },
@@ -612,6 +631,19 @@ fn numbers<const N: usize>(s: &str) -> Result<[f64; N], String> {
     Ok(a)
 }
 
+/// The least `build --memory`: the OBJ reader keeps up to 64 MB of
+/// vertices however the scene is read, so less would be a promise broken.
+const MIN_MEMORY: u64 = 64 << 20;
+
+/// A `--memory` size: [`byte_size`], at least [`MIN_MEMORY`].
+fn memory_size(s: &str) -> Result<u64, String> {
+    let b = byte_size(s)?;
+    if b < MIN_MEMORY {
+        return Err(format!("{s:?} is below 64M, the least a build runs in (--stage stages a small scene)"));
+    }
+    Ok(b)
+}
+
 /// A size in bytes: a whole number with an optional K, M, G or T suffix (powers of 1024).
 fn byte_size(s: &str) -> Result<u64, String> {
     let t = s.trim();
@@ -626,13 +658,4 @@ fn byte_size(s: &str) -> Result<u64, String> {
     n.checked_mul(1 << shift)
         .filter(|&b| b > 0)
         .ok_or_else(|| format!("{s:?} is not a positive size below 2^64 bytes"))
-}
-
-/// Six comma-separated finite numbers (a box x0,y0,z0,x1,y1,z1).
-fn six_numbers(s: &str) -> Result<[f64; 6], String> {
-    let a = numbers::<6>(s)?;
-    if a[0] > a[3] || a[1] > a[4] || a[2] > a[5] {
-        return Err("a box is finite, with x0 <= x1, y0 <= y1, z0 <= z1".into());
-    }
-    Ok(a)
 }

@@ -62,3 +62,65 @@ fn remove_is_all_or_none_and_compact_shrinks_a_rewritten_file() {
     assert_eq!(len, after["file_blocks"].as_u64().unwrap() * 4096);
     assert!(run(&["check", mkt]).status.success());
 }
+
+/// Issue 39: `check` is a reader, so `remove` and `compact` beside a
+/// running `check` succeed (before, 23 of 24 writers failed with "another
+/// process is writing the file"); a writer refused by a real writer is told
+/// so, and with `--wait` waits for it.
+#[test]
+fn remove_and_compact_beside_check_succeed_and_wait_waits_for_a_writer() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let dir = tempfile::tempdir().unwrap();
+    let (_, mkt) = tanker1_in(dir.path());
+    let mkt = mkt.to_str().unwrap();
+    let done = AtomicBool::new(false);
+    std::thread::scope(|s| {
+        let checks = s.spawn(|| {
+            let mut runs = 0;
+            while !done.load(Ordering::Relaxed) {
+                let out = run(&["check", mkt]);
+                assert!(
+                    out.status.success(),
+                    "check beside writers: {}",
+                    String::from_utf8_lossy(&out.stdout)
+                );
+                runs += 1;
+            }
+            runs
+        });
+        for key in 0..12 {
+            let out = run(&["remove", mkt, "--key", &key.to_string()]);
+            assert!(out.status.success(), "remove beside check: {}", String::from_utf8_lossy(&out.stderr));
+        }
+        let out = run(&["compact", mkt]);
+        assert!(out.status.success(), "compact beside check: {}", String::from_utf8_lossy(&out.stderr));
+        done.store(true, Ordering::Relaxed);
+        assert!(checks.join().unwrap() > 0);
+    });
+
+    // A real writer: this process holds the writer's lock.
+    let db = mktree::db::Database::open(mkt).unwrap();
+    let w = db.begin_write().unwrap();
+    for args in [["remove", mkt, "--key", "20"].as_slice(), ["compact", mkt].as_slice()] {
+        let out = run(args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains("another process is writing the file") && stderr.contains("--wait"),
+            "{stderr}"
+        );
+        assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    }
+    let waiting = mktree()
+        .args(["remove", mkt, "--key", "20", "--wait"])
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    drop(w);
+    let out = waiting.wait_with_output().unwrap();
+    assert!(out.status.success(), "remove --wait");
+    let out = run(&["compact", mkt, "--wait"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(json(&run(&["check", mkt, "--json"]))["faults"].as_array().unwrap().is_empty());
+}

@@ -22,8 +22,7 @@ fn a_staged_build_writes_the_same_tree_as_a_whole_one() {
     std::fs::create_dir(&staged_dir).unwrap();
     let staged = staged_dir.join("t1.mkt");
     let (obj, whole, staged) = (obj.to_str().unwrap(), whole.to_str().unwrap(), staged.to_str().unwrap());
-    // 1 KiB of memory: the file is staged.
-    json(&["build", obj, "-o", staged, "--block-size", "4096", "--memory", "1K", "--json"]);
+    json(&["build", obj, "-o", staged, "--block-size", "4096", "--stage", "--json"]);
     assert_eq!(std::fs::read_dir(&staged_dir).unwrap().count(), 1, "the spill file is removed");
     assert_eq!(std::fs::metadata(whole).unwrap().len(), std::fs::metadata(staged).unwrap().len());
     let mut a = json(&["stats", whole, "--json"]);
@@ -43,7 +42,7 @@ fn a_staged_build_writes_the_same_tree_as_a_whole_one() {
 
 #[test]
 fn a_memory_size_that_is_not_one_is_refused() {
-    for bad in ["lots", "0", "4Q", "99999999999T"] {
+    for bad in ["lots", "0", "4Q", "99999999999T", "1", "1K", "63M"] {
         let out = mktree().args(["build", "x.obj", "-o", "x.mkt", "--memory", bad]).output().unwrap();
         assert!(!out.status.success(), "{bad}");
         assert!(String::from_utf8_lossy(&out.stderr).contains("--memory"), "{bad}");

@@ -39,7 +39,7 @@ use crate::store::format::freelist::{FreeListBlock, FreeRange};
 use crate::store::format::header::{self, Commit, PREFIX_LEN, SlotPair, SlotRead, SlotState};
 use crate::store::format::meta::Meta;
 use crate::store::format::{validate_block_size, validate_lod_levels};
-use crate::store::lock::FileLocks;
+use crate::store::lock::{FileLocks, Holder};
 use crate::store::{BlockCache, BlockDevice, Pager, ReadStats, StorageError};
 
 /// Default block size, bytes. See the README's measurements.
@@ -218,7 +218,7 @@ impl Database {
         // Another process may open the file before its header is written: it
         // sees no magic and gives up, and it cannot write meanwhile.
         if !locks.lock_writer(false)? {
-            return Err(StorageError::Locked);
+            return Err(locked(&locks));
         }
         let device = Arc::new(FileDevice::new(file));
         initialize(device.as_ref(), options)?;
@@ -377,7 +377,7 @@ impl Database {
         }
         let guard = self.inner.writer.take();
         let file_lock = match &self.inner.locks {
-            Some(l) if !l.lock_writer(wait == WriterWait::Wait)? => return Err(StorageError::Locked),
+            Some(l) if !l.lock_writer(wait == WriterWait::Wait)? => return Err(locked(l)),
             Some(l) => Some(WriterLock(l)),
             None => None,
         };
@@ -392,8 +392,14 @@ impl Database {
     /// at the new places: nothing is laid out or computed again. Blocks a
     /// reader of an older snapshot may still read are kept.
     pub fn compact(&self) -> Result<Compaction, crate::Error> {
+        self.compact_with(WriterWait::Fail)
+    }
+
+    /// [`compact`](Self::compact), meeting another process's write as
+    /// `wait` says before each of its transactions.
+    pub fn compact_with(&self, wait: WriterWait) -> Result<Compaction, crate::Error> {
         let space = |db: &Database| -> Result<(u32, u32), StorageError> {
-            let w = db.begin_write()?;
+            let w = db.begin_write_with(wait)?;
             let space = w.base_space();
             w.abort()?;
             Ok(space)
@@ -401,19 +407,19 @@ impl Database {
         let blocks_before = space(self)?.0;
         // A tree the commits below would cut short is refused before any of them.
         {
-            let w = self.begin_write()?;
+            let w = self.begin_write_with(wait)?;
             w.check_movable()?;
             w.abort()?;
         }
         let mut rewrites = 0;
-        self.trim_end()?;
+        self.trim_end(wait)?;
         if space(self)?.1 > 0 {
             for at_end in [true, false] {
-                let mut w = self.begin_write()?;
+                let mut w = self.begin_write_with(wait)?;
                 w.relocate(at_end)?;
                 w.commit()?;
                 rewrites += 1;
-                self.trim_end()?;
+                self.trim_end(wait)?;
             }
         }
         let (blocks_after, free_after) = space(self)?;
@@ -423,17 +429,17 @@ impl Database {
     /// Commits without changes until the file stops shrinking: each commit
     /// cuts off the free end, or moves the free list below it so that the
     /// next one can.
-    fn trim_end(&self) -> Result<(), StorageError> {
+    fn trim_end(&self, wait: WriterWait) -> Result<(), StorageError> {
         let end = |db: &Database| -> Result<u32, StorageError> {
-            let w = db.begin_write()?;
+            let w = db.begin_write_with(wait)?;
             let end = w.base_space().0;
             w.abort()?;
             Ok(end)
         };
         let mut last = end(self)?;
         loop {
-            self.begin_write()?.commit()?;
-            self.begin_write()?.commit()?;
+            self.begin_write_with(wait)?.commit()?;
+            self.begin_write_with(wait)?.commit()?;
             let now = end(self)?;
             if now >= last {
                 return Ok(());
@@ -469,15 +475,17 @@ impl Database {
         &self.inner.pager
     }
 
-    /// Keeps writers out while `check` reads free blocks, and brings the
-    /// committed state up to date.
-    pub(crate) fn exclude_writers(&self) -> Result<CheckerLock<'_>, StorageError> {
-        let guard = self.inner.writer.take();
-        if let Some(l) = &self.inner.locks {
-            l.lock_checker(true)?;
+    /// True when a writer, in this process or another, may be writing free
+    /// blocks right now: `check`, a reader, never keeps writers out, so it
+    /// asks this before it counts a free block's damage as a fault.
+    pub(crate) fn writer_active(&self) -> Result<bool, StorageError> {
+        if self.inner.writer.is_taken() {
+            return Ok(true);
         }
-        self.inner.refresh()?;
-        Ok(CheckerLock { _guard: guard, locks: self.inner.locks.as_ref() })
+        match &self.inner.locks {
+            Some(l) => Ok(l.writer_holder()?.is_some()),
+            None => Ok(false),
+        }
     }
 
     /// The committed slot, its free ranges and the header's warnings (for `check`).
@@ -495,8 +503,24 @@ impl Database {
     }
 }
 
+/// The error for a writer's lock another owner holds, naming its role.
+fn locked(locks: &FileLocks) -> StorageError {
+    match locks.writer_holder() {
+        Ok(Some(Holder::OldChecker)) => StorageError::LockedByCheck,
+        // A writer, or one that ended since the refusal: "writing" is the likely truth.
+        _ => StorageError::Locked,
+    }
+}
+
 /// Opens `path` as `options` say; an error names the path.
 fn open_file(path: &Path, options: &OpenOptions) -> Result<std::fs::File, StorageError> {
+    // Opening a FIFO waits for its other end: refuse anything but a regular file.
+    if let Ok(m) = std::fs::metadata(path)
+        && !m.is_file()
+    {
+        let error = std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a regular file");
+        return Err(StorageError::Open { path: path.to_path_buf(), error });
+    }
     options.open(path).map_err(|error| StorageError::Open { path: path.to_path_buf(), error })
 }
 
@@ -532,6 +556,11 @@ impl Seat {
         *taken = true;
         SeatGuard(self)
     }
+
+    /// True while a writer of this process holds the seat.
+    fn is_taken(&self) -> bool {
+        *self.taken.lock().unwrap_or_else(|e| e.into_inner())
+    }
 }
 
 /// The seat, held until dropped.
@@ -544,25 +573,13 @@ impl Drop for SeatGuard<'_> {
     }
 }
 
-/// Writers kept out while `check` runs.
-pub(crate) struct CheckerLock<'a> {
-    _guard: SeatGuard<'a>,
-    locks: Option<&'a FileLocks>,
-}
-
-impl Drop for CheckerLock<'_> {
-    fn drop(&mut self) {
-        if let Some(l) = self.locks {
-            let _ = l.unlock_writer();
-        }
-    }
-}
-
 /// True when the file at `path` starts with an mktree file's magic number
 /// (what it holds is checked by [`Database::open`]).
 pub fn is_mktree_file(path: impl AsRef<Path>) -> bool {
     let mut magic = [0u8; 8];
-    std::fs::File::open(path).and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic)).is_ok()
+    // Opening a FIFO waits for a writer: only a regular file is opened.
+    std::fs::metadata(path.as_ref()).is_ok_and(|m| m.is_file())
+        && std::fs::File::open(path).and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic)).is_ok()
         && magic == header::MAGIC
 }
 

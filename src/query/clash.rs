@@ -10,7 +10,9 @@
 //! run (the caller's cache, or one of `DEFAULT_CACHE_BLOCKS` blocks): while
 //! the blocks the run touches fit it, the reads are at most the file's
 //! blocks (reported beside them); past that, memory stays at the pool's
-//! size and a block read again is counted again.
+//! size and a block read again is counted again. A file with no tree (new,
+//! or emptied by removals) has no pairs, as a region query over it has no
+//! objects.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -108,8 +110,10 @@ pub fn clash(
         return Err(QueryError::Clearance(d));
     }
     let (k, m) = levels(txn, opts.lod)?;
-    let info = txn.info().ok_or(QueryError::NoTree)?;
-    let root = txn.root().ok_or(QueryError::NoTree)?;
+    let (Some(info), Some(root)) = (txn.info(), txn.root()) else {
+        let file_blocks = u32::try_from(txn.pager().block_count()?).unwrap_or(u32::MAX);
+        return Ok(ClashAnswer { pairs: Vec::new(), level: k, file_blocks, stats: TraverseStats::default() });
+    };
     let own = BlockCache::new(crate::db::DEFAULT_CACHE_BLOCKS);
     let pool = cache.unwrap_or(&own);
     let mut total = TraverseStats::default();

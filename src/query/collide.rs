@@ -81,11 +81,17 @@ impl Visitor for Fetch<'_, '_> {
 /// The exact meshes of `ids`, in their order: the tree's node blocks are
 /// walked and the geometry of the wanted objects read.
 pub fn object_meshes(txn: &ReadTransaction, ids: &[ObjectId]) -> Result<Vec<Mesh>, QueryError> {
-    let info = txn.info().ok_or(QueryError::NoTree)?;
+    // A file with no tree holds no objects: asking for one is asking for
+    // an object it does not hold, as `query` and `clash` see it.
+    let (Some(info), Some(root)) = (txn.info(), txn.root()) else {
+        return match ids.first() {
+            Some(id) => Err(QueryError::NoObject { id: id.0, objects: 0 }),
+            None => Ok(Vec::new()),
+        };
+    };
     if let Some(bad) = ids.iter().find(|id| id.0 >= info.objects) {
         return Err(QueryError::NoObject { id: bad.0, objects: info.objects });
     }
-    let root = txn.root().ok_or(QueryError::NoTree)?;
     let mut fetch =
         Fetch { txn, wanted: ids.iter().copied().collect(), reads: Reads::new(None), found: HashMap::new() };
     let all = QueryOptions { lod: Some(1), budget: None, ..Default::default() };

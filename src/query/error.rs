@@ -19,6 +19,15 @@ pub enum QueryError {
     NoObject { id: u32, objects: u32 },
     #[error("clearance {0} is not a finite distance >= 0")]
     Clearance(f64),
+    /// A coordinate the query states lies outside every file's coordinate
+    /// range, [-2^53, 2^53] mm (format-spec/geometry.md).
+    #[error(
+        "{what}: coordinate {coordinate:e} lies outside the coordinate range [-2^53, 2^53] mm of every mktree file"
+    )]
+    OutOfRange { what: &'static str, coordinate: f64 },
+    /// A length the query states is longer than [`MAX_LENGTH`](super::MAX_LENGTH).
+    #[error("{what}: {length:e} mm is longer than 2^55 mm, past any file's coordinate range")]
+    TooLong { what: &'static str, length: f64 },
     #[error("line {line}: {detail}")]
     Path { line: usize, detail: String },
     #[error("level {k} missed object {object} of query {query}: a bound lost containment")]

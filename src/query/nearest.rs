@@ -7,6 +7,7 @@
 
 use super::QueryError;
 use super::rank::Rank;
+use super::select::Selection;
 use super::traverse::{QueryOptions, Select, TraverseStats};
 use crate::db::{ReadTransaction, Reads};
 use crate::geom::{Point, ShapeError};
@@ -76,6 +77,7 @@ impl ReadTransaction {
             return Err(ShapeError::NotFinite { what: "a point" }.into());
         }
         let rank = Rank::Nearest(point);
+        rank.check_input()?;
         let select =
             Select::new(self, self.root(), rank, &QueryOptions::default(), Reads::new(cache), Some(rank))?;
         Ok(Nearest { select })

@@ -12,6 +12,7 @@
 //! value is a function of the query and the stored coordinates alone, so
 //! brute force over a scene computes the same numbers.
 
+use super::QueryError;
 use super::select::Selection;
 use crate::geom::{Aabb, Point, Ray, distance_point_triangle};
 use crate::scene::Mesh;
@@ -89,6 +90,12 @@ impl Rank {
 /// A best-first query as a selection: what may be met is what has a
 /// distance; nothing is held or confirmed before its exact distance is known.
 impl Selection for Rank {
+    fn check_input(&self) -> Result<(), QueryError> {
+        match self {
+            Rank::Nearest(p) => super::range::check_point("a nearest query's point", p),
+            Rank::Ray { ray, .. } => super::range::check_point("a ray's origin", &ray.origin()),
+        }
+    }
     fn may_meet_box(&self, b: &Aabb) -> bool {
         self.box_distance(b).is_some()
     }

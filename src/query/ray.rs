@@ -9,6 +9,7 @@ use serde::Serialize;
 
 use super::QueryError;
 use super::rank::Rank;
+use super::select::Selection;
 use super::traverse::{QueryOptions, Select, TraverseStats};
 use crate::db::{ReadTransaction, Reads};
 use crate::geom::{Point, Ray};
@@ -62,6 +63,7 @@ impl ReadTransaction {
         let root = self.root();
         let scene = root.map_or(crate::geom::Aabb::EMPTY, |r| r.aabb);
         let rank = rank(ray, &scene);
+        rank.check_input()?;
         let select = Select::new(self, root, rank, &QueryOptions::default(), Reads::new(cache), Some(rank))?;
         Ok(RayHits { select, ray: *ray })
     }

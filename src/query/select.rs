@@ -14,6 +14,7 @@
 //! at most d is. Bounds are closed and hold what they bound, so a "may
 //! meet" never rules out a touching object.
 
+use super::{QueryError, range};
 use crate::geom::{
     Aabb, Frustum, Point, Pose, ShapeError, Sphere, distance_point_triangle, intersects_triangle_box,
     triangles_within,
@@ -56,6 +57,13 @@ pub trait Selection {
     fn stand_in_error(&self, _b: &Aabb, _eps_mm: f64) -> f64 {
         0.0
     }
+    /// Refuses what the query states that no file can hold: a point outside
+    /// the coordinate range, an inverted box, a length past
+    /// [`MAX_LENGTH`](super::MAX_LENGTH) (`range.rs`). Every public query
+    /// entry runs it before reading anything; the default states nothing.
+    fn check_input(&self) -> Result<(), QueryError> {
+        Ok(())
+    }
 }
 
 /// A selection by reference is the selection (what `ReadTransaction::select` runs).
@@ -81,6 +89,9 @@ impl<T: Selection + ?Sized> Selection for &T {
     fn stand_in_error(&self, b: &Aabb, eps_mm: f64) -> f64 {
         (**self).stand_in_error(b, eps_mm)
     }
+    fn check_input(&self) -> Result<(), QueryError> {
+        (**self).check_input()
+    }
 }
 
 /// A region query's shape.
@@ -102,6 +113,19 @@ impl Region {
 }
 
 impl Selection for Region {
+    fn check_input(&self) -> Result<(), QueryError> {
+        match self {
+            Region::Box(q) => range::check_box("a box", q),
+            Region::Sphere(s) => {
+                range::check_point("a sphere's centre", &s.center())?;
+                range::check_length("a sphere's radius", s.radius())
+            }
+            Region::Frustum(f) => {
+                f.corners().iter().try_for_each(|c| range::check_point("a frustum's corner", c))
+            }
+        }
+    }
+
     fn may_meet_voxels(&self, v: &Voxels) -> bool {
         match self {
             // The cells in the query's range, not every cell.
@@ -206,6 +230,14 @@ pub(crate) fn reach(b: &Aabb, d: f64) -> Aabb {
 }
 
 impl Selection for Triangles {
+    fn check_input(&self) -> Result<(), QueryError> {
+        range::check_length("a clearance", self.clearance)?;
+        if self.triangles.is_empty() {
+            return Ok(());
+        }
+        range::check_box("a posed mesh's box", &self.bounds)
+    }
+
     fn may_meet_box(&self, b: &Aabb) -> bool {
         let g = reach(b, self.clearance);
         g.intersects(&self.bounds)

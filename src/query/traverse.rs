@@ -968,6 +968,7 @@ impl ReadTransaction {
         opts: &QueryOptions,
         cache: Option<&'a BlockCache>,
     ) -> Result<Select<'a, &'a S>, QueryError> {
+        sel.check_input()?;
         Select::new(self, self.root(), sel, opts, Reads::new(cache), None)
     }
 }

@@ -223,6 +223,9 @@ struct Sight {
 }
 
 impl Selection for Sight {
+    fn check_input(&self) -> Result<(), QueryError> {
+        self.frustum.check_input()
+    }
     fn may_meet_box(&self, b: &Aabb) -> bool {
         self.frustum.may_meet_box(b)
     }
@@ -362,6 +365,7 @@ impl ReadTransaction {
         }
         let frustum = Region::Frustum(Box::new(Frustum::from_camera(&view.camera())?));
         let sight = Sight { view: *view, frustum, tolerance: tau };
+        sight.check_input()?;
         let m = self.pager().lod_levels();
         let mut cut = Cut { view, m, shapes: opts.shapes, pieces: BTreeMap::new(), boxes: 0 };
         let q = QueryOptions { lod: None, budget: opts.budget, bounds_up_to: None };

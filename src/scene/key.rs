@@ -36,6 +36,42 @@ impl Key {
         Ok(Key::Bytes(bytes.into_boxed_slice()))
     }
 
+    /// The key a person writes (`mktree get --key`, `remove --key`): an
+    /// integer key when `text` is a canonical decimal below 2^64 (digits
+    /// only, no sign, no leading zero but in "0"); the bytes `0x` and an
+    /// even number of hex digits spell, as [`Display`](fmt::Display) writes
+    /// a key that is not plain text (a name that is not UTF-8, say); else
+    /// the byte-string key of its UTF-8 bytes. So `+5`, `05` and ` 5` are
+    /// byte-string keys and never find key 5, and every key but a text of
+    /// digits alone reads back from how it is shown.
+    ///
+    /// ```
+    /// use mktree::scene::Key;
+    /// assert_eq!(Key::parse("5")?, Key::Int(5));
+    /// assert_eq!(Key::parse("+5")?, Key::bytes("+5")?);
+    /// assert_eq!(Key::parse("05")?, Key::bytes("05")?);
+    /// let latin1 = Key::bytes(b"caf\xe9".to_vec())?;
+    /// assert_eq!(latin1.to_string(), "0x636166e9");
+    /// assert_eq!(Key::parse("0x636166e9")?, latin1);
+    /// # Ok::<(), mktree::scene::KeyTooLong>(())
+    /// ```
+    pub fn parse(text: &str) -> Result<Key, KeyTooLong> {
+        let canonical = !text.is_empty()
+            && text.bytes().all(|b| b.is_ascii_digit())
+            && (text == "0" || !text.starts_with('0'));
+        if let Ok(x) = text.parse::<u64>()
+            && canonical
+        {
+            return Ok(Key::Int(x));
+        }
+        if let Some(hex) = text.strip_prefix("0x")
+            && let Some(bytes) = decode_hex(hex)
+        {
+            return Key::bytes(bytes);
+        }
+        Key::bytes(text.as_bytes())
+    }
+
     /// The integer, for an integer key.
     pub fn as_int(&self) -> Option<u64> {
         match self {
@@ -143,6 +179,15 @@ impl From<u64> for Key {
 
 /// Integers as themselves; byte strings as text when they are UTF-8 with
 /// no control characters, else as `0x` and hex digits.
+/// The bytes an even number of hex digits spell (either case), if they are that.
+fn decode_hex(hex: &str) -> Option<Vec<u8>> {
+    if hex.is_empty() || !hex.len().is_multiple_of(2) {
+        return None;
+    }
+    let digit = |c: u8| (c as char).to_digit(16);
+    hex.as_bytes().chunks(2).map(|p| Some((digit(p[0])? * 16 + digit(p[1])?) as u8)).collect()
+}
+
 impl fmt::Display for Key {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -205,6 +250,26 @@ mod tests {
             let (rb, _) = KeyRef::decode(&y).expect("decodes");
             prop_assert_eq!(ra.cmp(&rb), a.cmp(&b));
         }
+
+        /// How a key is shown is how it is typed back (`get --key`), but
+        /// for a text of digits alone, which reads as the integer.
+        #[test]
+        fn a_shown_key_parses_back_to_itself(k in key()) {
+            let shown = k.to_string();
+            let digits_text = matches!(k, Key::Bytes(_)) && matches!(Key::parse(&shown), Ok(Key::Int(_)));
+            prop_assume!(!digits_text);
+            prop_assert_eq!(Key::parse(&shown).unwrap(), k);
+        }
+    }
+
+    #[test]
+    fn typed_keys_are_integers_only_when_written_as_one() {
+        assert_eq!(Key::parse("0"), Ok(Key::Int(0)));
+        assert_eq!(Key::parse("18446744073709551615"), Ok(Key::Int(u64::MAX)));
+        for text in ["+5", "05", " 5", "5 ", "-5", "18446744073709551616", "", "0x", "0x1", "0xzz"] {
+            assert_eq!(Key::parse(text), Key::bytes(text), "{text:?}");
+        }
+        assert_eq!(Key::parse("0xFF00"), Key::bytes(vec![0xff, 0]));
     }
 
     #[test]

@@ -28,8 +28,15 @@ pub enum StorageError {
     /// A checksum or structural rule failed; names the block, the record (if any) and the field.
     #[error("corrupt file: block {block}{}: {field}: {detail}", record.map(|r| format!(", record {r}")).unwrap_or_default())]
     Corruption { block: u32, record: Option<u32>, field: &'static str, detail: String },
-    #[error("another process is writing the file (wait for it, e.g. with --wait)")]
+    /// Another process holds the writer's lock: it is writing the file.
+    #[error("another process is writing the file: try again when it ends, or wait for it (--wait)")]
     Locked,
+    /// Another process holds the writer's lock shared: a `check` of an
+    /// mktree from before issue 39 (today's `check` never blocks writers).
+    #[error(
+        "a check by an older mktree in another process keeps writers out: try again when it ends, or wait for it (--wait)"
+    )]
+    LockedByCheck,
     #[error("the file was opened read-only")]
     ReadOnly,
     #[error("the file would exceed 2^32 blocks")]

@@ -131,11 +131,12 @@ pub fn build_in_memory(scene: &Scene, args: &BuildArgs) -> Result<Hierarchy> {
 }
 
 /// How `build` writes: wait for another writer, key objects by their
-/// names, the memory it may use.
+/// names, the memory it may use, whether to stage an OBJ whatever its size.
 pub struct Write {
     pub wait: bool,
     pub key_names: bool,
     pub memory: u64,
+    pub stage: bool,
 }
 
 /// The scene `build` loads: read whole, or staged on disk.
@@ -165,7 +166,8 @@ fn read_input(path: &Path, args: &BuildArgs, write: &Write, spill_dir: &Path) ->
     );
     reading.enable_steady_tick(std::time::Duration::from_millis(200));
     let streams = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"));
-    let large = std::fs::metadata(path).is_ok_and(|m| m.is_file() && m.len() > write.memory / 2);
+    let large =
+        std::fs::metadata(path).is_ok_and(|m| m.is_file() && (write.stage || m.len() > write.memory / 2));
     let input = if streams && large {
         reading.set_message(format!("{} (staged in {})", path.display(), spill_dir.display()));
         let (mut staged, degenerate) = StagedScene::import(path, &args.import.options(), spill_dir)?;

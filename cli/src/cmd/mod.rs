@@ -52,8 +52,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Sweep { scene, pages, rates, look_ahead, json, import } => {
             sweep::run(&scene, &import.options(), pages, &rates, look_ahead, json)
         }
-        Command::Build { scene, output, build, lod, wait, key_names, memory, json } => {
-            build::run(&scene, &output, &build, &lod, build::Write { wait, key_names, memory }, json)
+        Command::Build { scene, output, build, lod, wait, key_names, memory, stage, json } => {
+            build::run(&scene, &output, &build, &lod, build::Write { wait, key_names, memory, stage }, json)
         }
         Command::Verify { file, scene, queries, json, import } => {
             verify::run(&file, &scene, queries, &import.options(), json)
@@ -70,7 +70,7 @@ pub fn run(cli: Cli) -> Result<()> {
             collide::run(&file, &query, &level.options(), &import.options(), json)
         }
         Command::Clash { file, clearance, lod, json } => clash::run(&file, clearance, lod, json),
-        Command::Batch { file, queries } => batch::run(&file, queries.as_deref()),
+        Command::Batch { file, queries, max_line } => batch::run(&file, queries.as_deref(), max_line),
         Command::View { file, view } => view::run(&file, &view),
         Command::Export3dTiles { file, out, json } => export_tiles::run(&file, &out, json),
         Command::Serve { tiles, port, vendor } => serve::run(&tiles, port, vendor.as_deref()),
@@ -111,18 +111,16 @@ pub fn run(cli: Cli) -> Result<()> {
             get::run(&file, &get::parse_key(&key, text)?, mesh, json)
         }
         Command::Check { file, json } => check::run(&file, json),
-        Command::Compact { file, json } => compact::run(&file, json),
+        Command::Compact { file, wait, json } => compact::run(&file, wait, json),
         Command::Insert { file, scene, key_names, json } => {
             insert::run_insert(&file, &scene, key_names, json)
         }
         Command::Move { file, key, text, by, json } => {
-            let by: [f64; 3] =
-                by.try_into().map_err(|_| anyhow::anyhow!("--by takes three numbers: dx,dy,dz"))?;
             insert::run_move(&file, &get::parse_key(&key, text)?, by, json)
         }
-        Command::Remove { file, keys, text, json } => {
+        Command::Remove { file, keys, text, wait, json } => {
             let keys = keys.iter().map(|k| get::parse_key(k, text)).collect::<Result<Vec<_>>>()?;
-            remove::run(&file, &keys, json)
+            remove::run(&file, &keys, wait, json)
         }
         Command::Demo { dir } => demo::run(&dir),
         Command::BenchQueries { files, queries, shares, seed, json } => {

@@ -3,15 +3,15 @@
 use std::path::Path;
 
 use anyhow::{Result, bail};
-use mktree::db::Database;
+use mktree::db::{Database, WriterWait};
 use mktree::scene::Key;
 use serde_json::json;
 
 use crate::output;
 
-pub fn run(file: &Path, keys: &[Key], as_json: bool) -> Result<()> {
+pub fn run(file: &Path, keys: &[Key], wait: bool, as_json: bool) -> Result<()> {
     let db = Database::open(file).map_err(|e| crate::cmd::opening(e, file))?;
-    let mut w = db.begin_write()?;
+    let mut w = db.begin_write_with(if wait { WriterWait::Wait } else { WriterWait::Fail })?;
     for key in keys {
         if w.remove(key)?.is_none() {
             // Nothing is committed: the file keeps every object.

@@ -8,6 +8,14 @@
 //! encoded as the writer encodes it, within eps_k, the block counts every
 //! child entry predicts, and the meta block's totals. Whatever it sizes, it
 //! sizes by what it has read, never by a count the file states.
+//!
+//! `check` is a reader (format-spec/commit.md, "Many processes"): it pins
+//! the newest snapshot and never keeps writers out. A writer may meanwhile
+//! fill blocks that are free in that snapshot, so a free block that fails
+//! its checksum is a fault only if no writer wrote while `check` ran: it is
+//! read again after the scan, and set aside when a writer holds the lock,
+//! a commit landed, or a write was interrupted. The counts by block type
+//! then may include such blocks as their new type.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::sync::Arc;
@@ -20,7 +28,8 @@ use crate::lod::{LodParams, LodPlan, Voxels, bound_grid};
 use crate::query::{Everything, QueryError, QueryOptions, Visitor, walk};
 use crate::scene::Mesh;
 use crate::store::format::frame::{self, BlockType};
-use crate::store::format::freelist::FreeListBlock;
+use crate::store::format::freelist::{FreeListBlock, FreeRange};
+use crate::store::format::header::Commit;
 use crate::store::format::keys::TreePath;
 use crate::store::format::meta::LOD_TABLE_LEN;
 use crate::store::format::node::{BoundView, NodeView};
@@ -83,11 +92,8 @@ impl Checker {
 
 /// Verifies the whole of `db` (see the module doc).
 pub fn check(db: &Database) -> Result<CheckReport, StorageError> {
-    // Free blocks are checked too: no writer may be writing them meanwhile.
-    let _writers_out = db.exclude_writers()?;
-    let (commit, free, warnings) = db.committed()?;
+    let (txn, commit, free, warnings) = pinned(db)?;
     let pager = db.pager();
-    let txn = db.begin_read()?;
     let mut c = Checker {
         owner: vec![Owner::Unseen; commit.block_count as usize],
         report: CheckReport { txn: commit.txn, file_blocks: commit.block_count, ..CheckReport::default() },
@@ -105,14 +111,30 @@ pub fn check(db: &Database) -> Result<CheckReport, StorageError> {
         i > 0 && id - free[i - 1].0 < free[i - 1].1
     };
     c.owner[0] = Owner::Header;
-    // Every block's checksum, whatever it holds.
+    // Every block's checksum, whatever it holds. A free block that fails
+    // (or is gone: a compaction may cut the free end) is judged after the
+    // scan, once it is known whether a writer wrote meanwhile.
+    let mut free_failed = Vec::new();
     for id in 1..commit.block_count {
-        let raw = pager.read_raw(id)?;
+        let raw = match pager.read_raw(id) {
+            Ok(raw) => raw,
+            Err(_) if is_free(id) => {
+                free_failed.push(id);
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
         match frame::open(id, &raw) {
             Ok((_, t)) => *c.report.blocks_by_type.entry(t.name().to_string()).or_default() += 1,
             // An interrupted transaction may have torn the free blocks it wrote.
             Err(_) if torn_may_be_free && is_free(id) => {}
+            Err(_) if is_free(id) => free_failed.push(id),
             Err(e) => c.fault(e.to_string()),
+        }
+    }
+    for id in free_failed {
+        if let Some(fault) = free_block_fault(db, &commit, id)? {
+            c.fault(fault);
         }
     }
     for &(first, count) in &free {
@@ -138,6 +160,51 @@ pub fn check(db: &Database) -> Result<CheckReport, StorageError> {
         }
     }
     Ok(c.report)
+}
+
+/// A read transaction on the newest snapshot, with that snapshot's commit,
+/// free ranges and header warnings. Other processes' commits may land
+/// between the pin and the look at the committed state: then pin again.
+fn pinned(db: &Database) -> Result<(ReadTransaction, Commit, Vec<FreeRange>, Vec<Warning>), StorageError> {
+    const ATTEMPTS: usize = 100;
+    for _ in 0..ATTEMPTS {
+        let txn = db.begin_read()?;
+        let (commit, free, warnings) = db.committed()?;
+        if commit.txn == txn.snapshot.txn {
+            return Ok((txn, commit, free, warnings));
+        }
+    }
+    Err(StorageError::Invalid(format!(
+        "no snapshot held still through {ATTEMPTS} commits by other processes"
+    )))
+}
+
+/// Free block `id` of `commit` failed its checksum (or could not be read)
+/// in the scan: the fault, unless a writer may have been writing it. Free
+/// blocks are a writer's to fill, so only a failure that no writer
+/// explains is damage.
+fn free_block_fault(db: &Database, commit: &Commit, id: u32) -> Result<Option<String>, StorageError> {
+    let written = |db: &Database| -> Result<bool, StorageError> {
+        if db.writer_active()? {
+            return Ok(true);
+        }
+        // A fresh reader brings the committed state and its warnings up to date.
+        drop(db.begin_read()?);
+        let (now, _, warnings) = db.committed()?;
+        Ok(now.txn != commit.txn || warnings.contains(&Warning::Interrupted))
+    };
+    if written(db)? {
+        return Ok(None);
+    }
+    let fault = match db.pager().read_raw(id) {
+        Ok(raw) => match frame::open(id, &raw) {
+            Ok(_) => return Ok(None),
+            Err(e) => e.to_string(),
+        },
+        Err(e) => e.to_string(),
+    };
+    // A writer that began after the first look may have torn it since.
+    Ok(if written(db)? { None } else { Some(fault) })
 }
 
 /// What the walk learns of one record, for the checks that need the whole tree.

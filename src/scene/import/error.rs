@@ -43,6 +43,9 @@ pub enum ImportError {
         #[source]
         source: io::Error,
     },
+    /// The path names a FIFO, socket or device, not a file or directory.
+    #[error("{} is not a regular file or a directory (a FIFO, socket or device is not read)", file.display())]
+    NotAFile { file: PathBuf },
     /// A line of an OBJ file is not what the format allows there.
     #[error("{}: line {line}: expected {expected}, found {found:?}", file.display())]
     Malformed { file: PathBuf, line: u64, expected: &'static str, found: String },

@@ -56,7 +56,7 @@ pub struct Imported {
 /// assert_eq!(imported.scene.triangle_count(), 1);
 /// ```
 pub fn load(path: &Path, options: &ImportOptions) -> Result<Imported, ImportError> {
-    let metadata = fs::metadata(path).map_err(|source| ImportError::Io { file: path.into(), source })?;
+    let metadata = regular(path)?;
     if metadata.is_dir() {
         return dir::load(path);
     }
@@ -83,13 +83,24 @@ pub fn load_each(
     spill_dir: Option<&Path>,
     on_object: &mut dyn FnMut(Object),
 ) -> Result<usize, ImportError> {
-    let metadata = fs::metadata(path).map_err(|source| ImportError::Io { file: path.into(), source })?;
+    let metadata = regular(path)?;
     if !metadata.is_dir() && Format::of(path) == Some(Format::Obj) {
         return obj::each_obj_object(open(path)?, path, spill_dir, on_object);
     }
     let imported = load(path, options)?;
     imported.scene.into_objects().into_iter().for_each(on_object);
     Ok(imported.degenerate_triangles)
+}
+
+/// The metadata of `path` (links followed) if it is a regular file or a
+/// directory. A FIFO, socket or device is refused before it is opened:
+/// opening or reading one may wait for ever (a FIFO no one writes).
+fn regular(path: &Path) -> Result<fs::Metadata, ImportError> {
+    let metadata = fs::metadata(path).map_err(|source| ImportError::Io { file: path.into(), source })?;
+    if !metadata.is_file() && !metadata.is_dir() {
+        return Err(ImportError::NotAFile { file: path.into() });
+    }
+    Ok(metadata)
 }
 
 /// The file formats `load` reads, by extension.

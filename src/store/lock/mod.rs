@@ -1,8 +1,10 @@
 //! Locks between processes that share one file (format-spec/commit.md,
 //! "Many processes"). They are byte-range locks far past any block, so they
-//! never touch data: one byte a writer holds exclusively (a checker holds it
-//! shared, to keep writers out), and one byte per transaction id, which a
-//! process reading that transaction's state holds shared. A writer finds the
+//! never touch data: one byte a writer holds exclusively, and one byte per
+//! transaction id, which a process reading that transaction's state holds
+//! shared. `check` is a reader like any other and never blocks a writer;
+//! mktree before issue 39 held the writer's byte shared while checking,
+//! so a shared holder of it is reported as such a checker. A writer finds the
 //! oldest state another process still reads and leaves the blocks that
 //! state may reach alone.
 //!
@@ -38,6 +40,15 @@ enum Kind {
     Unlock,
 }
 
+/// Who holds the writer's byte.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Holder {
+    /// A write transaction (or a file being created).
+    Writer,
+    /// A `check` of an mktree from before issue 39, which held the byte shared.
+    OldChecker,
+}
+
 /// The locks of one open file.
 #[derive(Debug)]
 pub struct FileLocks {
@@ -64,9 +75,13 @@ impl FileLocks {
         self.set(Kind::Exclusive, WRITER, wait)
     }
 
-    /// Takes the writer's byte shared (a checker: no writer runs meanwhile).
-    pub fn lock_checker(&self, wait: bool) -> io::Result<bool> {
-        self.set(Kind::Shared, WRITER, wait)
+    /// Who holds the writer's byte in another owner, if anyone: the
+    /// role a "locked" error names.
+    pub fn writer_holder(&self) -> io::Result<Option<Holder>> {
+        Ok(sys::holder(&self.file, WRITER, 1)?.map(|k| match k {
+            Kind::Shared => Holder::OldChecker,
+            _ => Holder::Writer,
+        }))
     }
 
     /// Releases the writer's byte.
@@ -122,14 +137,19 @@ mod tests {
 
     #[cfg(any(target_os = "linux", target_os = "android", windows))]
     #[test]
-    fn writers_exclude_each_other_and_checkers() {
+    fn writers_exclude_each_other_and_the_holder_is_named() {
         let (_f, a, b) = two_owners();
+        assert_eq!(b.writer_holder().unwrap(), None);
         assert!(a.lock_writer(false).unwrap());
         assert!(!b.lock_writer(false).unwrap(), "a second writer is refused");
-        assert!(!b.lock_checker(false).unwrap(), "a checker waits for the writer");
+        assert_eq!(b.writer_holder().unwrap(), Some(Holder::Writer));
         a.unlock_writer().unwrap();
-        assert!(b.lock_checker(false).unwrap());
-        assert!(!a.lock_writer(false).unwrap(), "a writer waits for the checker");
+        assert!(b.lock_writer(false).unwrap());
+        b.unlock_writer().unwrap();
+        // What a checker before issue 39 held.
+        assert!(a.set(Kind::Shared, WRITER, false).unwrap());
+        assert!(!b.lock_writer(false).unwrap());
+        assert_eq!(b.writer_holder().unwrap(), Some(Holder::OldChecker));
     }
 
     // Windows counts a range its own handle holds as taken.

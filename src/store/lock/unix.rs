@@ -59,11 +59,20 @@ pub(super) fn set(file: &File, kind: Kind, start: u64, wait: bool) -> io::Result
 /// True when another owner holds a lock in `start .. start + len` that an
 /// exclusive lock would conflict with.
 pub(super) fn taken(file: &File, start: u64, len: u64) -> io::Result<bool> {
+    Ok(holder(file, start, len)?.is_some())
+}
+
+/// The kind of a lock another owner holds in `start .. start + len`, if any.
+pub(super) fn holder(file: &File, start: u64, len: u64) -> io::Result<Option<Kind>> {
     let mut fl = flock(Kind::Exclusive, start, len);
     // SAFETY: as in `set`; the kernel writes the conflicting lock into `fl`.
     let r = unsafe { libc::fcntl(file.as_raw_fd(), GET, &mut fl) };
     if r != 0 {
         return Err(io::Error::last_os_error());
     }
-    Ok(fl.l_type != libc::F_UNLCK as libc::c_short)
+    Ok(match fl.l_type as libc::c_int {
+        libc::F_UNLCK => None,
+        libc::F_RDLCK => Some(Kind::Shared),
+        _ => Some(Kind::Exclusive),
+    })
 }

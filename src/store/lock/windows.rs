@@ -64,6 +64,20 @@ pub(super) fn set(file: &File, kind: Kind, start: u64, wait: bool) -> io::Result
     }
 }
 
+/// The kind of a lock another owner holds on byte `start`, if any. Windows
+/// cannot be asked, so a shared lock is tried: it fails only beside an
+/// exclusive one.
+pub(super) fn holder(file: &File, start: u64, _len: u64) -> io::Result<Option<Kind>> {
+    if !taken(file, start, 1)? {
+        return Ok(None);
+    }
+    if lock(file, false, start, 1, false)? {
+        unlock(file, start, 1)?;
+        return Ok(Some(Kind::Shared));
+    }
+    Ok(Some(Kind::Exclusive))
+}
+
 /// True when a lock in `start .. start + len` conflicts with an exclusive one.
 pub(super) fn taken(file: &File, start: u64, len: u64) -> io::Result<bool> {
     if lock(file, true, start, len, false)? {
