@@ -113,10 +113,10 @@ fn plan(scene: &Scene, opts: &ChangeOptions) -> (Vec<Vec<Op>>, Vec<Op>) {
         Op::Insert(fresh_key, Object { key: None, ..moved(o, by) })
     };
     let mut taken = order.into_iter();
-    let mut phases = Vec::new();
-    phases.push((0..opts.singles).map(|_| insert(&mut rng)).collect());
-    phases.push(taken.by_ref().take(opts.singles).map(|k| Op::Move(k, shift(&mut rng, 0.01))).collect());
-    phases.push(taken.by_ref().take(opts.singles).map(Op::Remove).collect());
+    let inserts = (0..opts.singles).map(|_| insert(&mut rng)).collect();
+    let moves = taken.by_ref().take(opts.singles).map(|k| Op::Move(k, shift(&mut rng, 0.01))).collect();
+    let removes = taken.by_ref().take(opts.singles).map(Op::Remove).collect();
+    let phases = vec![inserts, moves, removes];
     let mut mixed = Vec::with_capacity(opts.batch);
     for j in 0..opts.batch {
         match j % 3 {
