@@ -11,9 +11,9 @@
 //!    rule below (`blocks_are_mostly_full_under_one_parent_block`; 90% and
 //!    more without it), at the price of more pieces a query may cross. The writer chooses the
 //!    size by the reads of its read model (`db/tree_writer.rs`).
-//! 2. Fill blocks with whole pieces: the earliest ready piece in preorder
-//!    (its parent piece placed), then the ready pieces hanging from the
-//!    same block and those hanging from what the block took.
+//! 2. Fill blocks with whole pieces in preorder of their roots: the next
+//!    piece that fits and whose parent piece is already placed, looking a
+//!    few pieces ahead, so small pieces of one neighbourhood share a block.
 //!    A piece never lands in an earlier block than its parent's, so blocks
 //!    can be written last to first with every child's checksum known. The
 //!    pieces of a block whose parents lie in another block all have them in
@@ -21,7 +21,8 @@
 //!    that rewrites a block rewrites that one parent block with it
 //!    (format-spec/node.md, "Packing").
 
-use std::collections::{BTreeMap, BTreeSet};
+/// How far ahead a block looks for a piece that fits.
+const LOOK_AHEAD: usize = 64;
 
 /// Where each node went: `place[i]` = (block index, position in the
 /// block); `blocks[b]` lists block b's nodes in record order.
@@ -86,56 +87,51 @@ pub fn pack(
             pieces[piece_of[i]].1.push(i as u32);
         }
     }
-    // Step 2: fill blocks. A piece is ready once its parent piece is
-    // placed; ready pieces wait under their parent's block. Each block
-    // takes the earliest ready piece (in preorder), then, in preorder, the
-    // other ready pieces of the same parent block that fit, and the pieces
-    // that hang from what it took.
+    // Step 2: fill blocks: the next pieces in preorder that fit, whose
+    // parent pieces are placed, looking a few pieces ahead; a piece whose
+    // parent lies in another block joins only if every such piece of the
+    // block hangs from that same block.
     let bytes: Vec<usize> =
         pieces.iter().map(|(_, nodes)| nodes.iter().map(|&i| sizes[i as usize]).sum()).collect();
-    let mut kids: Vec<Vec<usize>> = vec![Vec::new(); pieces.len()];
-    for (p, (parent, _)) in pieces.iter().enumerate() {
-        if *parent != usize::MAX {
-            kids[*parent].push(p);
-        }
-    }
     let mut block_of_piece = vec![u32::MAX; pieces.len()];
     let mut blocks: Vec<Vec<u32>> = Vec::new();
-    // Ready pieces: all of them, and by the block their parent is in.
-    let mut ready: BTreeSet<usize> = BTreeSet::from([0]);
-    let mut ready_under: BTreeMap<u32, BTreeSet<usize>> = BTreeMap::new();
-    while let Some(&first) = ready.first() {
+    let mut next = 0usize;
+    while next < pieces.len() {
         let b = blocks.len() as u32;
-        let parent_block = (first != 0).then(|| block_of_piece[pieces[first].0]);
         let mut room = capacity;
         let mut members = Vec::new();
-        // Candidates in preorder: the parent block's ready pieces, then
-        // those that hang from pieces this block takes.
-        let mut candidates: BTreeSet<usize> = match parent_block {
-            Some(pb) => ready_under.remove(&pb).unwrap_or_default(),
-            None => BTreeSet::from([first]),
-        };
-        let mut here: BTreeSet<usize> = BTreeSet::new();
-        let mut taken_any = false;
-        while let Some(p) = candidates.pop_first().or_else(|| here.pop_first()) {
-            // The first piece always goes: it fits an empty block.
-            if taken_any && bytes[p] > room {
-                if block_of_piece[pieces.get(p).map_or(usize::MAX, |x| x.0)] == b {
-                    ready_under.entry(b).or_default().insert(p);
-                } else if let Some(pb) = parent_block {
-                    ready_under.entry(pb).or_default().insert(p);
+        // The block this block's pieces hang from, once one does.
+        let mut parent_block: Option<u32> = None;
+        let mut scan = next;
+        let mut looked = 0;
+        while scan < pieces.len() && looked < LOOK_AHEAD {
+            if block_of_piece[scan] == u32::MAX {
+                looked += 1;
+                let parent = pieces[scan].0;
+                let parent_at = (parent != usize::MAX).then(|| block_of_piece[parent]);
+                let placed = parent_at != Some(u32::MAX);
+                let one = match parent_at {
+                    Some(pb) if pb != b => parent_block.is_none_or(|x| x == pb),
+                    _ => true,
+                };
+                if placed && one && bytes[scan] <= room {
+                    room -= bytes[scan];
+                    block_of_piece[scan] = b;
+                    members.extend_from_slice(&pieces[scan].1);
+                    if let Some(pb) = parent_at.filter(|&pb| pb != b) {
+                        parent_block = Some(pb);
+                    }
                 }
-                continue;
             }
-            taken_any = true;
-            room = room.saturating_sub(bytes[p]);
-            block_of_piece[p] = b;
-            ready.remove(&p);
-            members.extend_from_slice(&pieces[p].1);
-            for &k in &kids[p] {
-                ready.insert(k);
-                here.insert(k);
-            }
+            scan += 1;
+        }
+        while next < pieces.len() && block_of_piece[next] != u32::MAX {
+            next += 1;
+        }
+        // The first unplaced piece's parent is placed (pieces are in preorder), so it fits an empty block.
+        if members.is_empty() && next < pieces.len() {
+            block_of_piece[next] = b;
+            members.extend_from_slice(&pieces[next].1);
         }
         blocks.push(members);
     }
@@ -222,7 +218,7 @@ mod tests {
         let total: usize = sizes.iter().sum();
         let fill = total as f64 / (p.blocks.len() * cap) as f64;
         // One parent block per block costs fill: 0.75 here, against 0.85
-        // and more when any ready piece may share a block.
+        // and more when a block may take pieces hanging from any block.
         assert!(fill > 0.7, "fill {fill}");
     }
 }
