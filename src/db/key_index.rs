@@ -139,15 +139,14 @@ impl ReadTransaction {
         keys::decode(id, &b.bytes, leaf)
     }
 
-    /// The entry of `key`, descending the key index (its height in reads at most).
-    pub(crate) fn key_entry(&self, key: &Key, reads: &mut Reads) -> Result<Option<KeyEntry>, StorageError> {
+    /// The entries of the key leaf whose range holds `key`, descending the
+    /// key index (its height in reads); none without a tree.
+    fn key_leaf(&self, key: &Key, reads: &mut Reads) -> Result<Option<Vec<KeyEntry>>, StorageError> {
         let Some(m) = self.snapshot.meta.as_ref() else { return Ok(None) };
         let (mut block, mut checksum) = (m.keys_block, m.keys_checksum);
         for level in (1..=m.keys_height).rev() {
             match self.key_block(block, checksum, level == 1, reads)? {
-                KeyBlock::Leaf(entries) => {
-                    return Ok(entries.into_iter().find(|e| e.key == *key));
-                }
+                KeyBlock::Leaf(entries) => return Ok(Some(entries)),
                 KeyBlock::Branch(children) => {
                     let c = keys::child_for(&children, key)
                         .ok_or_else(|| StorageError::corrupt(block, "children", "a branch of no children"))?;
@@ -160,6 +159,11 @@ impl ReadTransaction {
             "keys_height",
             "the index is deeper than the meta block says",
         ))
+    }
+
+    /// The entry of `key`, descending the key index (its height in reads at most).
+    pub(crate) fn key_entry(&self, key: &Key, reads: &mut Reads) -> Result<Option<KeyEntry>, StorageError> {
+        Ok(self.key_leaf(key, reads)?.and_then(|entries| entries.into_iter().find(|e| e.key == *key)))
     }
 
     /// Every entry of the key index, in key order: each block read once.
@@ -262,37 +266,15 @@ impl ReadTransaction {
     }
 
     /// The largest integer key of the tree: the last integer in key order
-    /// (integers order before byte strings), one path of the index.
+    /// (integers order before byte strings), in the leaf whose range holds
+    /// the largest integer there can be; one path of the index.
     pub(crate) fn largest_int_key(&self) -> Result<Option<u64>, StorageError> {
-        let Some(m) = self.snapshot.meta.as_ref() else { return Ok(None) };
-        let mut reads = Reads::new(Some(self.cache()));
-        let (mut block, mut checksum) = (m.keys_block, m.keys_checksum);
-        for level in (1..=m.keys_height).rev() {
-            match self.key_block(block, checksum, level == 1, &mut reads)? {
-                KeyBlock::Leaf(entries) => {
-                    return Ok(entries
-                        .iter()
-                        .rev()
-                        .find_map(|e| if let Key::Int(i) = e.key { Some(i) } else { None }));
-                }
-                KeyBlock::Branch(children) => {
-                    // The last child whose least key is an integer (the first child's is below all).
-                    let c = children
-                        .iter()
-                        .enumerate()
-                        .rev()
-                        .find(|(i, c)| *i == 0 || matches!(c.first_key, Key::Int(_)))
-                        .map(|(_, c)| c)
-                        .ok_or_else(|| StorageError::corrupt(block, "children", "a branch of no children"))?;
-                    (block, checksum) = (c.block, c.checksum);
-                }
-            }
-        }
-        Err(StorageError::corrupt(
-            m.keys_block,
-            "keys_height",
-            "the index is deeper than the meta block says",
-        ))
+        let leaf = self.key_leaf(&Key::Int(u64::MAX), &mut Reads::new(Some(self.cache())))?;
+        Ok(leaf
+            .into_iter()
+            .flatten()
+            .rev()
+            .find_map(|e| if let Key::Int(i) = e.key { Some(i) } else { None }))
     }
 
     /// The exact mesh of the object with key `key` (see [`ReadTransaction::mesh_with`]).
