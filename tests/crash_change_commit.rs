@@ -9,11 +9,11 @@ use std::sync::Arc;
 
 use common::{box_mesh, grid_scene};
 use mktree::build::{BuildParams, LeafRule, Method};
-use mktree::db::{ChangeStats, CreateOptions, Database, check};
+use mktree::db::{ChangeStats, CreateOptions, Database};
 use mktree::geom::Aabb;
 use mktree::scene::{Key, Object};
 use mktree::store::BlockDevice;
-use mktree::store::device::{CrashDevice, CrashImage, MemDevice};
+use mktree::store::device::{CrashDevice, MemDevice};
 
 /// One move, one removal and one insert in one transaction.
 fn change(db: &Database) -> Result<ChangeStats, mktree::Error> {
@@ -62,29 +62,13 @@ fn a_crash_anywhere_in_a_change_commit_reopens_at_one_side_of_it() {
     let new = fingerprint(&db);
     let events = clean.events() - before;
     assert_ne!(old, new);
-    let modes = [
-        CrashImage::DropAll,
-        CrashImage::KeepAll,
-        CrashImage::TearLast,
-        CrashImage::Mask(0x5555_5555_5555_5555),
-        CrashImage::Mask(0xF0F0_0F0F_3333_CCCC),
-    ];
-    let mut outcomes = [0usize; 2];
-    for crash_at in 0..events {
-        let dev = Arc::new(CrashDevice::new(image.clone(), crash_at));
-        let db = Database::open_on(dev.clone() as Arc<dyn BlockDevice>).unwrap();
-        assert!(change(&db).is_err(), "crash at event {crash_at} must fail the commit");
-        drop(db);
-        for mode in modes {
-            let after = Arc::new(MemDevice::from_bytes(dev.image(mode)));
-            let db = Database::open_on(after as Arc<dyn BlockDevice>)
-                .unwrap_or_else(|e| panic!("crash at {crash_at} ({mode:?}): reopen failed: {e}"));
-            let got = fingerprint(&db);
-            assert!(got == old || got == new, "crash at {crash_at} ({mode:?}) gave a mix");
-            outcomes[usize::from(got == new)] += 1;
-            let report = check(&db).unwrap();
-            assert!(report.ok(), "crash at {crash_at} ({mode:?}): check: {:?}", report.faults);
-        }
-    }
+    let outcomes = common::crash::every_crash_reopens_at_one_side(
+        &image,
+        events,
+        |db: &Database| change(db).is_ok(),
+        fingerprint,
+        &old,
+        &new,
+    );
     assert!(outcomes[0] > 0 && outcomes[1] > 0, "both outcomes occur: {outcomes:?}");
 }

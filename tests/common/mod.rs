@@ -2,6 +2,7 @@
 //! in-memory database built from them.
 #![allow(dead_code)]
 
+pub mod crash;
 pub mod forge;
 
 use std::sync::Arc;
