@@ -77,7 +77,7 @@ fn queries() -> Vec<Aabb> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 96, ..ProptestConfig::default() })]
 
     /// Random inserts, moves and deletes over a few transactions keep every
     /// `check` rule and answer box queries as brute force does.

@@ -169,9 +169,9 @@ fn the_file_does_not_grow_with_the_number_of_commits() {
     });
 }
 
-#[test]
-fn a_change_that_empties_a_leaf_writes_the_tree_whole() {
-    let objects: Vec<Object> = (0..12)
+/// A row of `n` boxes along x, bulk-loaded in leaves of two objects.
+fn row(n: u32) -> (Database, Model) {
+    let objects: Vec<Object> = (0..n)
         .map(|i| {
             Object::new(
                 format!("o{i}"),
@@ -180,7 +180,7 @@ fn a_change_that_empties_a_leaf_writes_the_tree_whole() {
         })
         .collect();
     let scene = Scene::new(objects.clone());
-    let params = BuildParams { leaf: mktree::build::LeafRule::Objects(2), ..BuildParams::paper() };
+    let params = BuildParams { leaf: mktree::build::LeafRule::Objects(2), rate: 0.5, ..BuildParams::paper() };
     let db = Database::create_on(
         Arc::new(MemDevice::new()),
         CreateOptions { block_size: 4096, ..Default::default() },
@@ -189,14 +189,106 @@ fn a_change_that_empties_a_leaf_writes_the_tree_whole() {
     let mut w = db.begin_write().unwrap();
     w.bulk_load(&scene, &params, &|_| {}).unwrap();
     w.commit().unwrap();
-    let mut model: Model = objects.into_iter().enumerate().map(|(i, o)| (Key::Int(i as u64), o)).collect();
-    // Every object gone from one end: some leaf loses all it held.
+    (db, objects.into_iter().enumerate().map(|(i, o)| (Key::Int(i as u64), o)).collect())
+}
+
+#[test]
+fn a_leaf_emptied_beside_a_leaf_merges_with_it_in_place() {
+    // Two leaves under the root: emptying one leaves the root a leaf.
+    let (db, mut model) = row(4);
     let mut w = db.begin_write().unwrap();
-    for i in 0..4u64 {
+    for i in 0..2u64 {
         w.remove(&Key::Int(i)).unwrap();
         model.remove(&Key::Int(i));
     }
     let stats = w.commit_with_stats().unwrap();
-    assert!(!stats.in_place, "{stats:?}");
+    assert!(stats.in_place, "{stats:?}");
+    let info = db.begin_read().unwrap().info().unwrap();
+    assert_eq!((info.nodes, info.leaves), (1, 1));
+    agrees(&db, &model);
+    // The merged leaf takes changes like any other, and splits again.
+    let mut w = db.begin_write().unwrap();
+    for i in 10..16u64 {
+        let o = shifted(&model[&Key::Int(2)], [f64::from(i as u32) * 10.0, 0.0, 0.0]);
+        w.insert(o.clone().with_key(Key::Int(i))).unwrap();
+        model.insert(Key::Int(i), o);
+    }
+    assert!(w.commit_with_stats().unwrap().in_place);
+    agrees(&db, &model);
+    let r = db.begin_read().unwrap();
+    for key in model.keys() {
+        assert!(r.mesh_with(key, &mut Reads::new(None)).unwrap().is_some(), "{key}");
+    }
+}
+
+#[test]
+fn removals_that_empty_leaves_keep_the_tree_right() {
+    // Every object gone from one end, one commit each: leaves empty
+    // beside leaves (a merge) and beside subtrees (the tree written whole).
+    let (db, mut model) = row(24);
+    let nodes = |db: &Database| db.begin_read().unwrap().info().unwrap().nodes;
+    let mut merged = 0;
+    for i in 0..14u64 {
+        let before = nodes(&db);
+        let mut w = db.begin_write().unwrap();
+        w.remove(&Key::Int(i)).unwrap();
+        model.remove(&Key::Int(i));
+        let stats = w.commit_with_stats().unwrap();
+        merged += usize::from(stats.in_place && nodes(&db) < before);
+        agrees(&db, &model);
+    }
+    assert!(merged >= 3, "{merged} merges in place");
+}
+
+#[test]
+fn a_leaf_past_its_capacity_splits_in_place() {
+    let (db, _, mut model) = tanker2();
+    let info = |db: &Database| db.begin_read().unwrap().info().unwrap();
+    let before = info(&db);
+    // Many small objects around one object: its leaf, then the leaves the
+    // split makes, overflow again and again.
+    let centre = model[&Key::Int(1500)].aabb();
+    let mut n = 0u32;
+    for commit in 0..6 {
+        let mut w = db.begin_write().unwrap();
+        for _ in 0..(if commit == 0 { 120 } else { 25 }) {
+            let d = f64::from(n % 10) * 7.0;
+            let lo = [centre.min.x + d, centre.min.y + f64::from(n / 10) * 3.0, centre.min.z];
+            let o = Object::new(format!("s{n}"), box_mesh(lo, [lo[0] + 5.0, lo[1] + 2.0, lo[2] + 4.0]));
+            let key = w.insert(o.clone().with_key(Key::bytes(format!("s{n}")).unwrap())).unwrap();
+            model.insert(key, o);
+            n += 1;
+        }
+        let stats = w.commit_with_stats().unwrap();
+        assert!(stats.in_place, "commit {commit} wrote the tree whole: {stats:?}");
+        agrees(&db, &model);
+    }
+    let after = info(&db);
+    assert!(after.nodes > before.nodes, "no leaf split: {} nodes", after.nodes);
+    assert_eq!(after.nodes, 2 * after.leaves - 1);
+    // Every key still finds its mesh, through paths a split left at an ancestor.
+    let r = db.begin_read().unwrap();
+    for (key, o) in &model {
+        let mesh = r.mesh_with(key, &mut Reads::new(None)).unwrap().expect("a key lost its object");
+        assert_eq!(mesh.triangle_count(), o.mesh.triangle_count(), "{key}");
+    }
+    // Nodes are found by id, though ids are no longer preorder numbers: a
+    // split's nodes took the ids after the bulk load's.
+    let mut stats = mktree::store::ReadStats::default();
+    for id in [0, before.nodes - 1, before.nodes, after.nodes - 1] {
+        assert!(r.fetch_level(id, 1, true, &mut stats).is_ok(), "node {id} is not found");
+    }
+    assert!(r.fetch_level(after.nodes, 1, true, &mut stats).is_err());
+}
+
+#[test]
+fn changes_that_cancel_out_commit_the_same_tree() {
+    let (db, _, model) = tanker2();
+    let mut w = db.begin_write().unwrap();
+    let o = shifted(&model[&Key::Int(7)], [1.0, 0.0, 0.0]);
+    let key = w.insert(o.with_key(Key::bytes("brief").unwrap())).unwrap();
+    assert!(w.remove(&key).unwrap().is_some());
+    let stats = w.commit_with_stats().unwrap();
+    assert!(stats.in_place, "{stats:?}");
     agrees(&db, &model);
 }

@@ -1,7 +1,9 @@
 //! Claim: a crash at any write or sync of a change commit written in place
 //! (copy on write, sharing blocks with the committed tree), with the
 //! unsynced writes dropped, kept, torn or mixed, reopens at the committed
-//! tree or at the new one, never a mix, and `check` passes after reopening.
+//! tree or at the new one, never a mix, and `check` passes after reopening:
+//! for a commit of a move, a removal and an insert, for one that splits a
+//! leaf, and for one that merges two.
 
 mod common;
 
@@ -34,9 +36,30 @@ fn fingerprint(db: &Database) -> Option<Vec<Key>> {
     Some(keys)
 }
 
-#[test]
-fn a_crash_anywhere_in_a_change_commit_reopens_at_one_side_of_it() {
-    let scene = grid_scene(120);
+/// Fourteen small objects inserted around one place: their leaf splits.
+fn split(db: &Database) -> Result<ChangeStats, mktree::Error> {
+    let mut w = db.begin_write()?;
+    for i in 0..14u64 {
+        let x = 3.0 + i as f64 * 0.5;
+        w.insert(Object::new("s", box_mesh([x, 5.0, 7.0], [x + 0.3, 5.3, 7.3])).with_key(2_000 + i))?;
+    }
+    Ok(w.commit_with_stats()?)
+}
+
+/// The two objects of the first leaf removed: it merges with its sibling leaf.
+fn merge(db: &Database) -> Result<ChangeStats, mktree::Error> {
+    let mut w = db.begin_write()?;
+    w.remove(&Key::Int(0))?;
+    w.remove(&Key::Int(1))?;
+    Ok(w.commit_with_stats()?)
+}
+
+/// Bulk-loads `scene` in 1 KiB blocks, then runs the crash loop over `change`.
+fn crash_loop(
+    scene: &mktree::scene::Scene,
+    params: BuildParams,
+    change: fn(&Database) -> Result<ChangeStats, mktree::Error>,
+) {
     let base = Arc::new(MemDevice::new());
     let db = Database::create_on(
         base.clone() as Arc<dyn BlockDevice>,
@@ -44,12 +67,7 @@ fn a_crash_anywhere_in_a_change_commit_reopens_at_one_side_of_it() {
     )
     .unwrap();
     let mut w = db.begin_write().unwrap();
-    w.bulk_load(
-        &scene,
-        &BuildParams { method: Method::Moa, leaf: LeafRule::Objects(6), ..BuildParams::paper() },
-        &|_| {},
-    )
-    .unwrap();
+    w.bulk_load(scene, &params, &|_| {}).unwrap();
     w.commit().unwrap();
     let old = fingerprint(&db);
     drop(db);
@@ -71,4 +89,29 @@ fn a_crash_anywhere_in_a_change_commit_reopens_at_one_side_of_it() {
         &new,
     );
     assert!(outcomes[0] > 0 && outcomes[1] > 0, "both outcomes occur: {outcomes:?}");
+}
+
+fn moa(leaf: u32) -> BuildParams {
+    BuildParams { method: Method::Moa, leaf: LeafRule::Objects(leaf), rate: 0.5, ..BuildParams::paper() }
+}
+
+#[test]
+fn a_crash_anywhere_in_a_change_commit_reopens_at_one_side_of_it() {
+    crash_loop(&grid_scene(120), moa(6), change);
+}
+
+#[test]
+fn a_crash_anywhere_in_a_split_reopens_at_one_side_of_it() {
+    crash_loop(&grid_scene(120), moa(6), split);
+}
+
+#[test]
+fn a_crash_anywhere_in_a_merge_reopens_at_one_side_of_it() {
+    let row: Vec<Object> = (0..8)
+        .map(|i| {
+            let x = f64::from(i) * 100.0;
+            Object::new(format!("o{i}"), box_mesh([x, 0.0, 0.0], [x + 50.0, 50.0, 50.0]))
+        })
+        .collect();
+    crash_loop(&mktree::scene::Scene::new(row), moa(2), merge);
 }

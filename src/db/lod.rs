@@ -117,67 +117,58 @@ impl ReadTransaction {
         Some(info)
     }
 
-    /// Node `node` (a preorder id): its record and the block counts its
-    /// parent's entry holds for it (the root's come from the meta block).
-    /// The reads to find it are not counted.
+    /// Node `node`: its record and the block counts its parent's entry
+    /// holds for it (the root's come from the meta block). While ids are
+    /// preorder numbers, one path from the root finds it; after a change
+    /// commit split or merged a leaf (format-spec/meta.md, `node_ids`), a
+    /// walk of the node records does. The reads to find it are not counted.
     pub fn locate(&self, node: u32) -> Result<(NodeRef, (u64, u64)), StorageError> {
         let meta = self
             .snapshot
             .meta
             .as_ref()
             .ok_or_else(|| StorageError::Invalid("the file holds no tree".into()))?;
-        if node >= meta.node_count {
-            return Err(StorageError::Invalid(format!("no node {node}: the tree has {}", meta.node_count)));
+        let bound = if meta.node_ids == 0 { meta.node_count } else { meta.node_ids };
+        if node >= bound {
+            return Err(StorageError::Invalid(format!("no node {node}: the tree's ids lie below {bound}")));
         }
-        let mut at = self.root().ok_or_else(|| StorageError::Invalid("the file holds no tree".into()))?;
+        let root = self.root().ok_or_else(|| StorageError::Invalid("the file holds no tree".into()))?;
         // With the root's record in hand, its subtree is every other node block.
-        let mut below = (u64::from(meta.node_blocks).saturating_sub(1), meta.geometry_blocks);
+        let below = (u64::from(meta.node_blocks).saturating_sub(1), meta.geometry_blocks);
         let mut reads = Reads::new(None);
-        // One level per step: a path longer than the tree is deep means the links loop.
-        for _ in 0..=meta.depth {
+        // Records still to look at; more than the tree holds means the links loop.
+        let mut pending = vec![(root, below)];
+        let mut budget = u64::from(meta.node_count) + 1;
+        while let Some((at, below)) = pending.pop() {
+            budget = budget.checked_sub(1).ok_or_else(|| {
+                StorageError::corrupt(
+                    at.block,
+                    "child_block",
+                    "more records than the tree holds: the links loop",
+                )
+            })?;
             let block = self.block(at.block, BlockType::Node, at.checksum, &mut reads)?;
             let record = view(&block, at.offset)?;
-            let NodeView::Internal(n) = record else { break };
             let id = record.node_id();
             if id == node {
-                break;
+                return Ok((at, below));
             }
-            let second = n.child_ref(1);
-            let second_block = self.node_block(&block, second, &mut reads)?;
-            let second_id = view(&second_block, second.offset)?.node_id();
-            let i = usize::from(node >= second_id);
-            let r = n.child_ref(i);
-            let (nb, gb) = n.child_blocks(i);
-            let frame = n
-                .child_box(i, &record.frame(at.aabb))
-                .ok_or_else(|| StorageError::corrupt(at.block, "child_box", "backwards"))?
-                .outer;
-            // The child's count excludes this block; with the child's own record in hand, its block too.
-            below = (
-                u64::from(nb).checked_sub(u64::from(r.block != 0)).ok_or_else(|| {
-                    StorageError::corrupt(
-                        at.block,
-                        "node_blocks",
-                        "a child in another block claims no node block",
-                    )
-                })?,
-                u64::from(gb),
-            );
-            at = if r.block == 0 {
-                NodeRef { block: at.block, checksum: at.checksum, offset: r.offset, aabb: frame }
+            let NodeView::Internal(n) = record else { continue };
+            if meta.node_ids == 0 {
+                // Preorder: node lies under the second child when its id is at least the second child's.
+                let second = n.child_ref(1);
+                let second_block = self.node_block(&block, second, &mut reads)?;
+                let second_id = view(&second_block, second.offset)?.node_id();
+                if node > id {
+                    pending.push(child_at(&at, &record, &n, usize::from(node >= second_id))?);
+                }
             } else {
-                NodeRef { block: r.block, checksum: r.checksum, offset: r.offset, aabb: frame }
-            };
+                for i in [1, 0] {
+                    pending.push(child_at(&at, &record, &n, i)?);
+                }
+            }
         }
-        let block = self.block(at.block, BlockType::Node, at.checksum, &mut reads)?;
-        if view(&block, at.offset)?.node_id() != node {
-            return Err(StorageError::corrupt(
-                at.block,
-                "child_block",
-                format!("no path leads to node {node}"),
-            ));
-        }
-        Ok((at, below))
+        Err(StorageError::Invalid(format!("no node {node} in the tree")))
     }
 
     /// Fetches level `k` (1-based) of node `node` as the paper's queries do:
@@ -235,6 +226,32 @@ impl ReadTransaction {
         }
         Ok(level)
     }
+}
+
+/// Child `i` of internal record `record` at `at`: its place, its box, and
+/// its subtree's block counts with its own record in hand.
+fn child_at(
+    at: &NodeRef,
+    record: &NodeView,
+    n: &crate::store::format::node::InternalView,
+    i: usize,
+) -> Result<(NodeRef, (u64, u64)), StorageError> {
+    let r = n.child_ref(i);
+    let (nb, gb) = n.child_blocks(i);
+    let frame = n
+        .child_box(i, &record.frame(at.aabb))
+        .ok_or_else(|| StorageError::corrupt(at.block, "child_box", "backwards"))?
+        .outer;
+    // The child's count excludes this block; with the child's own record in hand, its block too.
+    let nodes = u64::from(nb).checked_sub(u64::from(r.block != 0)).ok_or_else(|| {
+        StorageError::corrupt(at.block, "node_blocks", "a child in another block claims no node block")
+    })?;
+    let child = if r.block == 0 {
+        NodeRef { block: at.block, checksum: at.checksum, offset: r.offset, aabb: frame }
+    } else {
+        NodeRef { block: r.block, checksum: r.checksum, offset: r.offset, aabb: frame }
+    };
+    Ok((child, (nodes, u64::from(gb))))
 }
 
 /// Every object of a subtree with its bound at the walk's level: may meet

@@ -26,10 +26,11 @@ pub(crate) struct PathStep {
 
 impl ReadTransaction {
     /// The records from the root to the leaf holding object `id`: down
-    /// `path`, then, below a path cut at 64 levels, through every child
+    /// `path`, then, below its end (a path cut at 64 levels, or one that a
+    /// later split left at an ancestor of the leaf), through every child
     /// whose box holds `aabb` (the object's exact box) until a leaf holds
     /// the object. A path that leads elsewhere is corruption: a key entry's
-    /// path is exact.
+    /// path leads to the object's leaf or to an ancestor of it.
     pub(crate) fn path_to(
         &self,
         id: u32,

@@ -229,6 +229,13 @@ impl ReadTransaction {
         })
     }
 
+    /// Whether node ids are preorder numbers (format-spec/meta.md,
+    /// `node_ids`): true after a bulk load, false once a change commit
+    /// split or merged a leaf, until `compact` lays the tree out anew.
+    pub(crate) fn ids_in_preorder(&self) -> bool {
+        self.snapshot.meta.as_ref().is_none_or(|m| m.node_ids == 0)
+    }
+
     fn check_in_snapshot(&self, block: u32) -> Result<(), StorageError> {
         if block == 0 || block >= self.snapshot.block_count {
             return Err(StorageError::corrupt(

@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use super::source::ObjectSource;
 
-use crate::build::{Hierarchy, LoadProgress, Order, QueryMix, Stage, StageMeter};
+use crate::build::{Hierarchy, LoadProgress, Order, QueryMix, Split, Stage, StageMeter};
 use crate::geom::Aabb;
 use crate::lod::LeafEntry;
 use crate::lod::{StoredBounds, Voxels};
@@ -642,20 +642,10 @@ pub(crate) fn write(
                                 geometry_blocks,
                             }
                         };
-                        let order = match s.order {
-                            Order::Min => 0,
-                            Order::Max => 1,
-                            Order::Center => 2,
-                        };
                         RecordDraft::Internal {
                             node_id: i as u32,
                             object_count: object_count(tree, i),
-                            split: SplitInfo {
-                                axis: s.axis,
-                                order,
-                                overlap: s.overlap as f32,
-                                gap: s.gap as f32,
-                            },
+                            split: split_info(s),
                             children: [child(kids[0].index()), child(kids[1].index())],
                             frame: None,
                         }
@@ -726,6 +716,16 @@ pub(crate) fn write(
 }
 
 /// The distinct objects of a leaf's entries, in entry order (an object's parts are consecutive).
+/// A node's split as its record stores it.
+pub(crate) fn split_info(s: &Split) -> SplitInfo {
+    let order = match s.order {
+        Order::Min => 0,
+        Order::Max => 1,
+        Order::Center => 2,
+    };
+    SplitInfo { axis: s.axis, order, overlap: s.overlap as f32, gap: s.gap as f32 }
+}
+
 fn object_ids(entries: &[Entry]) -> impl Iterator<Item = ObjectId> + '_ {
     entries.iter().enumerate().filter(|(j, e)| *j == 0 || entries[j - 1].id != e.id).map(|(_, e)| e.id)
 }

@@ -515,6 +515,7 @@ impl<'db> WriteTransaction<'db> {
             root_offset,
             object_count: objects.len() as u32,
             object_ids: objects.len() as u32,
+            node_ids: 0,
             node_count: tree.nodes.len() as u32,
             leaf_count: tree.leaves().count() as u32,
             depth: tree.depth().saturating_sub(1),

@@ -221,7 +221,7 @@ impl Ord for Queued {
 /// decided it (or the finest it passed), its mesh when its geometry was
 /// read, and the decision.
 pub struct Seen<'a> {
-    /// The preorder id of the leaf holding it.
+    /// The id of the leaf holding it.
     pub leaf: u32,
     pub aabb: Aabb,
     pub bound: Option<(u8, &'a Voxels)>,
@@ -230,9 +230,10 @@ pub struct Seen<'a> {
 }
 
 /// A node as a query that takes stand-ins may meet it before reading it:
-/// its preorder id when known without a read (a record read, a first child
-/// (its parent's id + 1), a child in its parent's block), its parent's id
-/// and which child it is (the root has no parent).
+/// its id when known without a read (a record read, a child in its
+/// parent's block, or a first child, its parent's id + 1 while ids are
+/// preorder numbers), its parent's id and which child it is (the root has
+/// no parent).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct NodeName {
     pub id: Option<u32>,
@@ -804,7 +805,7 @@ impl<'a, S: Selection> Select<'a, S> {
                     }
                     let at = n.child_ref(i);
                     // Preorder: the first child follows its parent.
-                    let first = (i == 0).then(|| id.checked_add(1)).flatten();
+                    let first = (i == 0 && self.txn.ids_in_preorder()).then(|| id.checked_add(1)).flatten();
                     let name = NodeName { id: first, parent: Some(id), child: i as u8 };
                     if at.block == 0 {
                         let name = NodeName { id: Some(view(&block, at.offset)?.node_id()), ..name };

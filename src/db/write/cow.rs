@@ -14,19 +14,22 @@
 //! no subtree is rewritten below the path. A box that shrinks stays as it
 //! was: boxes stay conservative, and `compact` lays the tree out anew.
 //!
-//! What this step does not do: split a leaf or drop an emptied one. A
-//! change that would need either (a leaf past twice its bulk load's
-//! capacity, or whose record would no longer fit a node block; a leaf left
-//! with no object) is committed by writing the changed tree whole, as
-//! every commit did before format version 6.
+//! A leaf past twice its bulk load's capacity, or whose record would not
+//! fit a node block, splits in place into the subtree a bulk load of its
+//! objects builds; a leaf a change empties merges with its sibling leaf
+//! (format-spec/commit.md, "Splits", "Merges"). An emptied leaf beside a
+//! subtree or a changed leaf is committed by writing the changed tree
+//! whole, as every commit did before format version 6.
 
-use std::collections::{BTreeMap, HashMap, HashSet};
+use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
 use std::sync::Arc;
 
 use super::WriteTransaction;
+use crate::build::{BuildParams, LeafRule};
 use crate::db::path::PathStep;
 use crate::db::read::view;
 use crate::db::source::check_object;
+use crate::db::tree_writer::split_info;
 use crate::db::{ReadTransaction, Reads, free_list_chain};
 use crate::geom::Aabb;
 use crate::scene::{Key, KeyError, Object, ObjectId};
@@ -34,8 +37,11 @@ use crate::store::format::frame::{BlockType, FRAME_LEN};
 use crate::store::format::geometry::{self, Placement};
 use crate::store::format::keys::{self, ChildRef, KeyBlock, KeyEntry, TreePath};
 use crate::store::format::meta::Meta;
-use crate::store::format::node::{self, BoundEntry, NodeView, ObjectEntry, RecordDraft, RecordRef};
-use crate::store::format::quant::quantize;
+use crate::store::format::node::{
+    self, BoundEntry, ChildEntry, NodeView, ObjectEntry, RecordDraft, RecordRef,
+};
+use crate::store::format::quant::{QuantBox, quantize};
+use crate::store::layout;
 use crate::store::{Block, StorageError};
 
 /// A change to one key, as the transaction last asked for it.
@@ -87,6 +93,16 @@ struct Mod {
     /// Objects and geometry blocks the subtree gains (or loses).
     objects: i64,
     geometry_blocks: i64,
+    /// Node blocks the subtree gains below the record (a split's).
+    node_blocks: i64,
+    /// The record leaves the tree (a merge's).
+    gone: bool,
+}
+
+/// What an emptied leaf took from its parent's subtree.
+struct Gone {
+    objects: i64,
+    geometry_blocks: i64,
 }
 
 /// An object added to a leaf: its id, key and the object.
@@ -113,6 +129,33 @@ struct Deltas {
     triangles: i64,
     vertices: i64,
     lod_usage: Vec<[i64; 2]>,
+    /// Nodes and leaves splits add.
+    nodes: i64,
+    leaves: i64,
+    /// The deepest level a split reaches.
+    depth: u32,
+    /// The next node id; whether a split took one.
+    next_node: u32,
+    new_ids: bool,
+}
+
+impl Deltas {
+    /// A bound of level `level` and `len` bytes that goes.
+    fn drop_bound(&mut self, level: u8, len: usize) {
+        if let Some(u) = usize::from(level).checked_sub(1).and_then(|k| self.lod_usage.get_mut(k)) {
+            u[0] -= len as i64;
+            u[1] -= 1;
+        }
+    }
+
+    /// An id for a new node (format-spec/meta.md, `node_ids`).
+    fn next_node_id(&mut self) -> Result<u32, StorageError> {
+        let id = self.next_node;
+        self.next_node =
+            id.checked_add(1).ok_or_else(|| StorageError::Invalid("node ids are exhausted".into()))?;
+        self.new_ids = true;
+        Ok(id)
+    }
 }
 
 /// A change that needs the tree written whole (see the module's header).
@@ -178,11 +221,24 @@ impl WriteTransaction<'_> {
         let bs = pager.block_size();
         let m = pager.lod_levels();
         let mut freed: Vec<u32> = Vec::new();
-        let mut deltas = Deltas { lod_usage: vec![[0; 2]; usize::from(m)], ..Deltas::default() };
-        let Plan { mut mods, leaves, key_changes, next_id } = plan;
+        let mut deltas = Deltas {
+            lod_usage: vec![[0; 2]; usize::from(m)],
+            next_node: if meta.node_ids == 0 { meta.node_count } else { meta.node_ids },
+            ..Deltas::default()
+        };
+        let Plan { mut mods, leaves, mut key_changes, next_id } = plan;
         // Leaves: their new records and geometry.
         for (at, edit) in &leaves {
-            match self.rewrite_leaf(r, &mut mods, *at, edit, reads, &mut deltas, &mut freed)? {
+            match self.rewrite_leaf(
+                r,
+                &mut mods,
+                *at,
+                edit,
+                &mut key_changes,
+                reads,
+                &mut deltas,
+                &mut freed,
+            )? {
                 Ok(()) => {}
                 Err(Structural) => return Ok(Err(Structural)),
             }
@@ -192,7 +248,7 @@ impl WriteTransaction<'_> {
         order.sort_by_key(|k| std::cmp::Reverse(mods[k].depth));
         let mut scene_box = Aabb::from_array(meta.scene_box);
         for at in order {
-            if mods[&at].draft.is_some() {
+            if mods[&at].draft.is_some() || mods[&at].gone {
                 continue;
             }
             if let Some(grown) = self.rewrite_internal(r, &mut mods, at, reads)? {
@@ -205,10 +261,15 @@ impl WriteTransaction<'_> {
         if let Some(b) = mods.get(&root_at).and_then(|m| m.required) {
             scene_box = scene_box.union(&b);
         }
-        // Node blocks, children before parents.
-        let root = match self.rewrite_blocks(&mut mods, root_at, bs, &mut deltas, &mut freed)? {
-            Ok(root) => root,
-            Err(Structural) => return Ok(Err(Structural)),
+        // Node blocks, children before parents; none when the changes
+        // cancel out (an object inserted and removed again).
+        let root = if mods.is_empty() {
+            RecordRef { block: meta.root_block, checksum: meta.root_checksum, offset: meta.root_offset }
+        } else {
+            match self.rewrite_blocks(&mut mods, root_at, bs, &mut deltas, &mut freed)? {
+                Ok(root) => root,
+                Err(Structural) => return Ok(Err(Structural)),
+            }
         };
         let keys = self.rewrite_keys(r, meta, key_changes, reads, &mut freed)?;
         let mut new = meta.clone();
@@ -217,6 +278,15 @@ impl WriteTransaction<'_> {
         new.object_count = u32::try_from(apply(u64::from(meta.object_count), deltas.objects)?)
             .map_err(|_| StorageError::Invalid("more objects than ids".into()))?;
         new.object_ids = next_id;
+        new.node_count = u32::try_from(apply(u64::from(meta.node_count), deltas.nodes)?)
+            .map_err(|_| StorageError::FileTooLarge)?;
+        new.leaf_count = u32::try_from(apply(u64::from(meta.leaf_count), deltas.leaves)?)
+            .map_err(|_| StorageError::FileTooLarge)?;
+        // After a merge, a bound: no deeper than a split took it, nor than its leaves allow.
+        new.depth = meta.depth.max(deltas.depth).min(new.leaf_count.saturating_sub(1));
+        if deltas.new_ids {
+            new.node_ids = deltas.next_node;
+        }
         new.node_blocks = u32::try_from(apply(u64::from(meta.node_blocks), deltas.node_blocks)?)
             .map_err(|_| StorageError::FileTooLarge)?;
         new.node_bytes = apply(meta.node_bytes, deltas.node_bytes)?;
@@ -327,6 +397,8 @@ fn note_path(mods: &mut HashMap<(u32, u32), Mod>, steps: &[PathStep]) -> (u32, u
             required: None,
             objects: 0,
             geometry_blocks: 0,
+            node_blocks: 0,
+            gone: false,
         });
         parent = s.child.map(|c| (at, c));
     }
@@ -377,6 +449,7 @@ fn choose_leaf(
 
 /// A leaf's entry as the commit rewrites it: its object, its record, its
 /// box as stored, and its bounds.
+#[derive(Clone)]
 struct NewEntry {
     id: u32,
     record: Vec<u8>,
@@ -396,6 +469,7 @@ impl WriteTransaction<'_> {
         mods: &mut HashMap<(u32, u32), Mod>,
         at: (u32, u32),
         edit: &LeafEdit,
+        key_changes: &mut BTreeMap<Key, Option<KeyEntry>>,
         reads: &mut Reads,
         deltas: &mut Deltas,
         freed: &mut Vec<u32>,
@@ -459,7 +533,7 @@ impl WriteTransaction<'_> {
                 bounds,
             });
         }
-        let mut added_keys = Vec::new();
+        let mut keys = kept_keys;
         for a in &edit.add {
             let pieces = if geometry::record_len(&a.object.mesh) <= p {
                 vec![a.object.mesh.clone()]
@@ -481,7 +555,7 @@ impl WriteTransaction<'_> {
                     bounds: Vec::new(),
                 });
             }
-            added_keys.push(
+            keys.push(
                 a.object
                     .key
                     .clone()
@@ -489,7 +563,11 @@ impl WriteTransaction<'_> {
             );
         }
         if entries.is_empty() {
-            return Ok(Err(Structural));
+            freed.extend((0..sums.len() as u32).map(|j| first_block + j));
+            deltas.geometry_blocks -= sums.len() as i64;
+            deltas.objects -= removed_objects;
+            let gone = Gone { objects: removed_objects, geometry_blocks: sums.len() as i64 };
+            return self.merge_with_sibling(r, mods, at, gone, key_changes, reads, deltas);
         }
         // The frame stays when what is added lies in it; else it grows, and
         // every entry is quantized anew in the leaf's own frame (their
@@ -501,50 +579,156 @@ impl WriteTransaction<'_> {
             (Some(frame.union(&added)), true)
         };
         let quant_frame = new_frame.unwrap_or(frame);
-        // Unshared span: the leaf's records from a block of their own.
-        let mut placement = Placement::new(bs);
-        let mut objects = Vec::with_capacity(entries.len());
-        let mut bounds = Vec::new();
-        for (j, e) in entries.iter_mut().enumerate() {
-            let position = placement.place(e.record.len() as u64);
-            let qbox = match (requantize, e.old_q) {
-                (false, Some(q)) => q,
-                _ => quantize(&quant_frame, &e.aabb),
-            };
-            objects.push(ObjectEntry { object_id: e.id, qbox, position });
-            for mut b in std::mem::take(&mut e.bounds) {
-                if requantize {
-                    let k = usize::from(b.level) - 1;
-                    if let Some(u) = deltas.lod_usage.get_mut(k) {
-                        u[0] -= b.blob.len() as i64;
-                        u[1] -= 1;
-                    }
-                    continue;
-                }
-                b.target = u16::try_from(j)
-                    .map_err(|_| StorageError::Invalid("a leaf of too many entries".into()))?;
-                bounds.push(b);
-            }
-        }
-        let end = placement.end();
-        let span = end.div_ceil(p);
-        // A leaf grows to twice its bulk load's capacity at most (its
-        // reads with it); past that, a rewrite splits it (see the module's header).
-        let objects_held = (edit.add.len() + kept_keys.len()) as u64;
-        let over = match r.info().and_then(|i| i.params).map(|p| p.leaf) {
-            Some(crate::build::LeafRule::Objects(n)) => objects_held > 2 * u64::from(n),
-            Some(crate::build::LeafRule::Bytes { capacity }) => end > 2 * capacity.max(p),
-            None => span > 4,
+        let node_id = view(&block, mods[&at].offset)?.node_id();
+        let objects_held = keys.len() as u64;
+        let (mut draft, dropped) =
+            leaf_draft(&entries, keys.clone(), node_id, new_frame, &quant_frame, requantize, bs)?;
+        // A leaf grows to twice its bulk load's capacity at most (its reads
+        // with it), and its record must fit a node block; past either, it
+        // splits as its file's method splits (format-spec/commit.md, "Splits").
+        let RecordDraft::Leaf { end, .. } = &draft else {
+            return Err(StorageError::Invalid("a leaf drafted as an internal record".into()).into());
         };
-        if over && objects_held > 1 {
+        let params = r.info().and_then(|i| i.params);
+        let over = match params.as_ref().map(|p| p.leaf) {
+            Some(crate::build::LeafRule::Objects(n)) => objects_held > 2 * u64::from(n),
+            Some(crate::build::LeafRule::Bytes { capacity }) => *end > 2 * capacity.max(p),
+            None => end.div_ceil(p) > 4,
+        };
+        let (span, node_blocks) = if (over || draft.encoded_len() > node::capacity(bs)) && objects_held > 1 {
+            let Some(params) = params else { return Ok(Err(Structural)) };
+            let split = SplitLeaf { params: &params, frame: quant_frame, own_frame: new_frame, node_id };
+            let Ok(sub) = self.split_leaf(split, entries, keys, deltas)? else { return Ok(Err(Structural)) };
+            let depth = mods[&at].depth as u32 + sub.levels;
+            deltas.depth = deltas.depth.max(depth);
+            draft = sub.root;
+            (sub.geometry_blocks, sub.node_blocks)
+        } else {
+            if draft.encoded_len() > node::capacity(bs) {
+                return Ok(Err(Structural));
+            }
+            for (level, len) in dropped {
+                deltas.drop_bound(level, len);
+            }
+            (self.write_span(&entries, &mut draft)?, 0)
+        };
+        freed.extend((0..sums.len() as u32).map(|j| first_block + j));
+        deltas.geometry_blocks += span as i64 - sums.len() as i64;
+        let md =
+            mods.get_mut(&at).ok_or_else(|| StorageError::Invalid("a changed leaf is not noted".into()))?;
+        md.required = if requantize { new_frame } else { None };
+        md.objects = edit.add.len() as i64 - removed_objects;
+        md.geometry_blocks = span as i64 - sums.len() as i64;
+        md.node_blocks = i64::from(node_blocks);
+        md.draft = Some(draft);
+        deltas.objects += md.objects;
+        Ok(Ok(()))
+    }
+
+    /// Merges emptied leaf `at` with its sibling, when the sibling is an
+    /// unchanged leaf (format-spec/commit.md, "Merges"): the parent's record
+    /// becomes the sibling's, with the sibling's frame as its own, and the
+    /// sibling's objects' key entries lead to the parent. Any other empty
+    /// leaf needs the tree written whole.
+    #[allow(clippy::too_many_arguments)]
+    fn merge_with_sibling(
+        &mut self,
+        r: &ReadTransaction,
+        mods: &mut HashMap<(u32, u32), Mod>,
+        at: (u32, u32),
+        gone: Gone,
+        key_changes: &mut BTreeMap<Key, Option<KeyEntry>>,
+        reads: &mut Reads,
+        deltas: &mut Deltas,
+    ) -> Step<()> {
+        let Some((parent_at, c)) = mods[&at].parent else { return Ok(Err(Structural)) };
+        let parent = &mods[&parent_at];
+        let (parent_block, parent_frame, parent_depth) = (parent.block.clone(), parent.frame, parent.depth);
+        let NodeView::Internal(n) = view(&parent_block, parent.offset)? else {
+            return Err(
+                StorageError::corrupt(parent_block.id(), "path", "a leaf above a changed record").into()
+            );
+        };
+        let node_id = view(&parent_block, parent.offset)?.node_id();
+        let sib = n.child_ref(1 - c);
+        let sib_at = (if sib.block == 0 { parent_block.id() } else { sib.block }, sib.offset);
+        if mods.contains_key(&sib_at) {
             return Ok(Err(Structural));
         }
+        let sib_block = r.node_block(&parent_block, sib, reads)?;
+        let record = view(&sib_block, sib.offset)?;
+        let NodeView::Leaf(leaf) = record else { return Ok(Err(Structural)) };
+        let q = n
+            .child_box(1 - c, &parent_frame)
+            .ok_or_else(|| StorageError::corrupt(parent_block.id(), "child_box", "backwards"))?;
+        let sib_frame = record.frame(q.outer);
+        // The sibling's objects' paths ran through it: they end at the parent now.
+        for (_, k) in leaf.keys() {
+            let key = k.to_key();
+            let Some(mut e) = r.key_entry(&key, reads)? else {
+                return Err(StorageError::corrupt(
+                    sib_block.id(),
+                    "keys",
+                    format!("key {key} is not in the key index"),
+                )
+                .into());
+            };
+            if usize::from(e.path.len) > parent_depth {
+                e.path = e.path.truncated(parent_depth);
+                key_changes.insert(key, Some(e));
+            }
+        }
+        let mut draft = record.to_draft();
+        if let RecordDraft::Leaf { node_id: id, frame, .. } = &mut draft {
+            (*id, *frame) = (node_id, Some(sib_frame));
+        }
+        for (place, parent_entry) in [(at, (parent_at, c)), (sib_at, (parent_at, 1 - c))] {
+            let md = mods.entry(place).or_insert_with(|| Mod {
+                block: sib_block.clone(),
+                offset: place.1,
+                frame: sib_frame,
+                parent: Some(parent_entry),
+                depth: parent_depth + 1,
+                draft: None,
+                required: None,
+                objects: 0,
+                geometry_blocks: 0,
+                node_blocks: 0,
+                gone: false,
+            });
+            (md.gone, md.draft) = (true, None);
+        }
+        let md = mods
+            .get_mut(&parent_at)
+            .ok_or_else(|| StorageError::Invalid("a changed record vanished".into()))?;
+        // The frame its entries are quantized in is the sibling's now (what a
+        // parent growing around it must give it as its own).
+        (md.draft, md.frame) = (Some(draft), sib_frame);
+        md.objects = -gone.objects;
+        md.geometry_blocks = -gone.geometry_blocks;
+        deltas.nodes -= 2;
+        deltas.leaves -= 1;
+        deltas.new_ids = true;
+        Ok(Ok(()))
+    }
+
+    /// Writes the geometry records of `entries` at the positions `draft`
+    /// (a leaf) gives them, in a span of blocks of their own, and sets the
+    /// draft's span; returns its blocks.
+    fn write_span(&mut self, entries: &[NewEntry], draft: &mut RecordDraft) -> Result<u64, StorageError> {
+        let RecordDraft::Leaf { first_block, checksums, objects, end, .. } = draft else {
+            return Err(StorageError::Invalid("a span for an internal record".into()));
+        };
+        let pager = self.inner.pager().clone();
+        let bs = pager.block_size();
+        let p = geometry::payload(bs);
+        let span = end.div_ceil(p);
         let first = self.allocate(u32::try_from(span).map_err(|_| StorageError::FileTooLarge)?)?;
-        let mut checksums = Vec::with_capacity(span as usize);
+        checksums.clear();
         let mut blockbuf = vec![0u8; bs as usize];
-        for (j, e) in entries.iter().enumerate() {
+        for (e, o) in entries.iter().zip(objects.iter()) {
             // Records were placed on this stream; lay each one's bytes.
-            let mut at = objects[j].position;
+            let mut at = o.position;
             let mut rest = &e.record[..];
             while !rest.is_empty() {
                 let b = at / p;
@@ -565,31 +749,8 @@ impl WriteTransaction<'_> {
             checksums.push(pager.write(id, &mut blockbuf, BlockType::Geometry, self.txn)?);
             blockbuf.fill(0);
         }
-        freed.extend((0..sums.len() as u32).map(|j| first_block + j));
-        deltas.geometry_blocks += span as i64 - sums.len() as i64;
-        let node_id = view(&block, mods[&at].offset)?.node_id();
-        kept_keys.extend(added_keys);
-        let draft = RecordDraft::Leaf {
-            node_id,
-            frame: new_frame,
-            first_block: first,
-            checksums,
-            objects,
-            end,
-            bounds,
-            keys: kept_keys,
-        };
-        if draft.encoded_len() > node::capacity(bs) {
-            return Ok(Err(Structural));
-        }
-        let md =
-            mods.get_mut(&at).ok_or_else(|| StorageError::Invalid("a changed leaf is not noted".into()))?;
-        md.required = if requantize { new_frame } else { None };
-        md.objects = edit.add.len() as i64 - removed_objects;
-        md.geometry_blocks = span as i64 - sums.len() as i64;
-        md.draft = Some(draft);
-        deltas.objects += md.objects;
-        Ok(Ok(()))
+        *first_block = first;
+        Ok(span)
     }
 
     /// The new record of internal node `at`, whose changed children are
@@ -620,7 +781,7 @@ impl WriteTransaction<'_> {
             (if a.block == 0 { block.id() } else { a.block }, a.offset)
         });
         let mut need = Aabb::EMPTY;
-        let (mut objects, mut geometry) = (0i64, 0i64);
+        let (mut objects, mut geometry, mut node_blocks) = (0i64, 0i64, 0i64);
         for (c, place) in places.iter().enumerate() {
             if let Some(child) = mods.get(place).filter(|x| x.parent.map(|p| p.0) == Some(at)) {
                 if let Some(b) = child.required {
@@ -628,10 +789,14 @@ impl WriteTransaction<'_> {
                 }
                 objects += child.objects;
                 geometry += child.geometry_blocks;
+                node_blocks += child.node_blocks;
                 children[c].geometry_blocks =
                     apply(u64::from(children[c].geometry_blocks), child.geometry_blocks)?
                         .try_into()
                         .map_err(|_| StorageError::FileTooLarge)?;
+                children[c].node_blocks = apply(u64::from(children[c].node_blocks), child.node_blocks)?
+                    .try_into()
+                    .map_err(|_| StorageError::FileTooLarge)?;
             }
         }
         let grows = !need.is_empty() && !frame.contains(&need);
@@ -677,6 +842,8 @@ impl WriteTransaction<'_> {
                             required: None,
                             objects: 0,
                             geometry_blocks: 0,
+                            node_blocks: 0,
+                            gone: false,
                         },
                     );
                 }
@@ -697,6 +864,7 @@ impl WriteTransaction<'_> {
         md.required = required;
         md.objects = objects;
         md.geometry_blocks = geometry;
+        md.node_blocks = node_blocks;
         Ok(root_frame)
     }
 
@@ -744,6 +912,9 @@ impl WriteTransaction<'_> {
             // The block's records, as they will be written.
             let mut drafts: Vec<(u32, RecordDraft)> = Vec::with_capacity(old.records.len());
             for &o in &old.records {
+                if mods.get(&(b, o)).is_some_and(|x| x.gone) {
+                    continue;
+                }
                 let d = match mods.get(&(b, o)).and_then(|x| x.draft.clone()) {
                     Some(d) => d,
                     None => view(&old, o)?.to_draft(),
@@ -825,21 +996,22 @@ impl WriteTransaction<'_> {
                 }
             }
             let records: Vec<RecordDraft> = drafts.iter().map(|(_, d)| d.clone()).collect();
+            freed.push(b);
+            if records.is_empty() {
+                // Its records left the tree with a merge, and no record names the block.
+                deltas.node_blocks -= 1;
+                deltas.node_bytes -= old_used(&old);
+                continue;
+            }
             let id = self.allocate(1)?;
             let mut bytes = vec![0u8; bs as usize];
             node::encode_block(&records, &mut bytes).map_err(StorageError::Invalid)?;
             let checksum = pager.write(id, &mut bytes, BlockType::Node, self.txn)?;
             let used = records.iter().map(RecordDraft::encoded_len).sum::<usize>() as i64;
-            let old_used = old
-                .records
-                .iter()
-                .map(|&o| view(&old, o).map(|v| v.to_draft().encoded_len()).unwrap_or(0))
-                .sum::<usize>() as i64;
-            deltas.node_bytes += used - old_used;
+            deltas.node_bytes += used - old_used(&old);
             for (o, _) in &drafts {
                 relocated.insert((b, *o), RecordRef { block: id, checksum, offset: new_offset[o] });
             }
-            freed.push(b);
         }
         let root = relocated
             .get(&root_at)
@@ -847,6 +1019,278 @@ impl WriteTransaction<'_> {
             .ok_or_else(|| StorageError::Invalid("the root's block was not rewritten".into()))?;
         Ok(Ok(root))
     }
+}
+
+/// A leaf record of `entries` (each object's parts adjacent; `keys` one per
+/// object), quantized in `frame`, its span not yet written; and the bounds
+/// it drops as (level, bytes): every one when `requantize` (a bound is
+/// drawn on the grid around its entry's old box), else none.
+fn leaf_draft(
+    entries: &[NewEntry],
+    keys: Vec<Key>,
+    node_id: u32,
+    own_frame: Option<Aabb>,
+    frame: &Aabb,
+    requantize: bool,
+    bs: u32,
+) -> Result<(RecordDraft, Vec<(u8, usize)>), StorageError> {
+    let mut placement = Placement::new(bs);
+    let mut objects = Vec::with_capacity(entries.len());
+    let mut bounds = Vec::new();
+    let mut dropped = Vec::new();
+    for (j, e) in entries.iter().enumerate() {
+        let position = placement.place(e.record.len() as u64);
+        let qbox = match (requantize, e.old_q) {
+            (false, Some(q)) => q,
+            _ => quantize(frame, &e.aabb),
+        };
+        objects.push(ObjectEntry { object_id: e.id, qbox, position });
+        for b in &e.bounds {
+            if requantize {
+                dropped.push((b.level, b.blob.len()));
+                continue;
+            }
+            let target =
+                u16::try_from(j).map_err(|_| StorageError::Invalid("a leaf of too many entries".into()))?;
+            bounds.push(BoundEntry { target, level: b.level, blob: b.blob.clone() });
+        }
+    }
+    let end = placement.end();
+    let span =
+        usize::try_from(end.div_ceil(geometry::payload(bs))).map_err(|_| StorageError::FileTooLarge)?;
+    let draft = RecordDraft::Leaf {
+        node_id,
+        frame: own_frame,
+        first_block: 0,
+        checksums: vec![0; span],
+        objects,
+        end,
+        bounds,
+        keys,
+    };
+    Ok((draft, dropped))
+}
+
+/// What a leaf split needs besides its entries.
+struct SplitLeaf<'a> {
+    /// The file's build: its method and leaf rule.
+    params: &'a BuildParams,
+    /// The frame the subtree's root quantizes its children's boxes in.
+    frame: Aabb,
+    /// The root's own frame, if it has one.
+    own_frame: Option<Aabb>,
+    /// The leaf's id, which the subtree's root keeps.
+    node_id: u32,
+}
+
+/// A leaf split in place: the subtree's root record, which takes the
+/// leaf's place, and what was written below it.
+struct SubTree {
+    root: RecordDraft,
+    /// Node blocks written below the root's record.
+    node_blocks: u32,
+    /// Geometry blocks of its leaves.
+    geometry_blocks: u64,
+    /// Levels below the root.
+    levels: u32,
+}
+
+impl WriteTransaction<'_> {
+    /// Splits a leaf of `entries` as a bulk load of its objects with the
+    /// file's parameters would (format-spec/commit.md, "Splits"): writes
+    /// the new leaves' spans and every record below the subtree's root in
+    /// new node blocks, each named from one parent block; the root, which
+    /// takes the leaf's place and id, is returned. The entries' bounds go
+    /// (they are drawn around boxes quantized in the old leaf's frame).
+    fn split_leaf(
+        &mut self,
+        split: SplitLeaf,
+        entries: Vec<NewEntry>,
+        keys: Vec<Key>,
+        deltas: &mut Deltas,
+    ) -> Step<SubTree> {
+        let pager = self.inner.pager().clone();
+        let bs = pager.block_size();
+        let capacity = node::capacity(bs);
+        // Each object's entries: its parts are adjacent.
+        let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
+        for (j, e) in entries.iter().enumerate() {
+            match runs.last_mut() {
+                Some(r) if entries[r.start].id == e.id => r.end = j + 1,
+                _ => runs.push(j..j + 1),
+            }
+        }
+        if runs.len() != keys.len() {
+            return Err(StorageError::Invalid("a leaf's keys do not match its objects".into()).into());
+        }
+        if runs.len() < 2 {
+            return Ok(Err(Structural));
+        }
+        let boxes: Vec<Aabb> = runs
+            .iter()
+            .map(|r| entries[r.clone()].iter().fold(Aabb::EMPTY, |b, e| b.union(&e.aabb)))
+            .collect();
+        let sizes: Vec<u64> =
+            runs.iter().map(|r| entries[r.clone()].iter().map(|e| e.record.len() as u64).sum()).collect();
+        let by_bytes = matches!(split.params.leaf, LeafRule::Bytes { .. });
+        let mut tree = crate::build::build(&boxes, by_bytes.then_some(&sizes[..]), split.params, &|_| {})?;
+        if tree.nodes.len() == 1 {
+            // Within the file's rule, but not within a node block: halves.
+            let half = u32::try_from(runs.len().div_ceil(2)).map_err(|_| StorageError::FileTooLarge)?;
+            let params = BuildParams { leaf: LeafRule::Objects(half), ..split.params.clone() };
+            tree = crate::build::build(&boxes, None, &params, &|_| {})?;
+        }
+        for e in &entries {
+            for b in &e.bounds {
+                deltas.drop_bound(b.level, b.blob.len());
+            }
+        }
+        let n = tree.nodes.len();
+        let kids = |i: usize| tree.nodes[i].children().map(|c| c.map(|c| c.index()));
+        // Frames, parents before children (preorder): each child's box
+        // quantized in its parent's frame, as a reader decodes it.
+        let mut frames = vec![split.frame; n];
+        let mut qboxes = vec![[0u16; 6]; n];
+        for i in 0..n {
+            for c in kids(i).into_iter().flatten() {
+                let q = quantize(&frames[i], &tree.nodes[c].aabb);
+                frames[c] = QuantBox::decode(&frames[i], q)
+                    .ok_or_else(|| StorageError::Invalid("a child box is backwards".into()))?
+                    .outer;
+                qboxes[c] = q;
+            }
+        }
+        let mut ids = vec![split.node_id; n];
+        for id in ids.iter_mut().skip(1) {
+            *id = deltas.next_node_id()?;
+        }
+        // Leaves: their records and spans; then internal records, children first.
+        let mut drafts: Vec<Option<RecordDraft>> = vec![None; n];
+        let mut objects_below = vec![0u32; n];
+        let mut geometry_below = vec![0u64; n];
+        for (i, node) in tree.nodes.iter().enumerate() {
+            let Some(objects) = node.objects() else { continue };
+            let mut sub = Vec::new();
+            let mut sub_keys = Vec::with_capacity(objects.len());
+            for o in objects {
+                let run = runs
+                    .get(o.index())
+                    .ok_or_else(|| StorageError::Invalid("a split lost an object".into()))?;
+                sub.extend(entries[run.clone()].iter().cloned());
+                sub_keys.push(keys[o.index()].clone());
+            }
+            let (mut d, _) = leaf_draft(&sub, sub_keys, ids[i], None, &frames[i], true, bs)?;
+            if d.encoded_len() > capacity {
+                return Ok(Err(Structural));
+            }
+            geometry_below[i] = self.write_span(&sub, &mut d)?;
+            objects_below[i] = objects.len() as u32;
+            drafts[i] = Some(d);
+        }
+        for i in (0..n).rev() {
+            let Some([a, b]) = kids(i) else { continue };
+            objects_below[i] = objects_below[a] + objects_below[b];
+            geometry_below[i] = geometry_below[a] + geometry_below[b];
+            let s =
+                tree.nodes[i].split().ok_or_else(|| StorageError::Invalid("a node with no split".into()))?;
+            let child = |c: usize| -> Result<ChildEntry, StorageError> {
+                Ok(ChildEntry {
+                    qbox: qboxes[c],
+                    at: RecordRef { block: 0, checksum: 0, offset: 0 },
+                    node_blocks: 0,
+                    geometry_blocks: u32::try_from(geometry_below[c])
+                        .map_err(|_| StorageError::FileTooLarge)?,
+                })
+            };
+            drafts[i] = Some(RecordDraft::Internal {
+                node_id: ids[i],
+                object_count: objects_below[i],
+                split: split_info(s),
+                children: [child(a)?, child(b)?],
+                frame: if i == 0 { split.own_frame } else { None },
+            });
+        }
+        let mut drafts: Vec<RecordDraft> = drafts
+            .into_iter()
+            .collect::<Option<_>>()
+            .ok_or_else(|| StorageError::Invalid("a split node with no record".into()))?;
+        // The root stays in the leaf's block, alone in its piece; the rest
+        // is packed as a bulk load packs (store/layout.rs).
+        let mut sizes: Vec<usize> = drafts.iter().map(RecordDraft::encoded_len).collect();
+        sizes[0] = capacity;
+        let packing = layout::pack(&sizes, kids, capacity, capacity);
+        let root_block = packing.place[0].0 as usize;
+        if packing.blocks[root_block].len() != 1 {
+            return Err(StorageError::Invalid("a split's root shares its piece".into()).into());
+        }
+        // Each node's blocks in its subtree, for its parent's entry.
+        let mut below: Vec<BTreeSet<u32>> = vec![BTreeSet::new(); n];
+        for i in (0..n).rev() {
+            let mut set = BTreeSet::from([packing.place[i].0]);
+            for c in kids(i).into_iter().flatten() {
+                set.extend(below[c].iter().copied());
+            }
+            below[i] = set;
+        }
+        // Blocks whose records lie deeper first: a block's children blocks before it.
+        let mut order: Vec<usize> = (0..packing.blocks.len()).filter(|&b| b != root_block).collect();
+        let min_level = |b: usize| packing.blocks[b].iter().map(|&i| tree.nodes[i as usize].level).min();
+        order.sort_by_key(|&b| std::cmp::Reverse(min_level(b)));
+        let mut refs: Vec<Option<RecordRef>> = vec![None; n];
+        for b in order.iter().copied().chain([root_block]) {
+            let nodes: Vec<usize> = packing.blocks[b].iter().map(|&i| i as usize).collect();
+            let mut offset = HashMap::new();
+            let mut at = node::RECORDS_START as u32;
+            for &i in &nodes {
+                offset.insert(i, at);
+                at += drafts[i].encoded_len() as u32;
+            }
+            for &i in &nodes {
+                let Some(cs) = kids(i) else { continue };
+                let RecordDraft::Internal { children, .. } = &mut drafts[i] else { continue };
+                for (entry, c) in children.iter_mut().zip(cs) {
+                    let (cb, _) = packing.place[c];
+                    entry.at = if cb as usize == b {
+                        RecordRef { block: 0, checksum: 0, offset: offset[&c] }
+                    } else {
+                        refs[c].ok_or_else(|| StorageError::Invalid("a child block is not written".into()))?
+                    };
+                    entry.node_blocks = below[c].iter().filter(|&&x| x as usize != b).count() as u32;
+                }
+            }
+            if b == root_block {
+                break;
+            }
+            let records: Vec<RecordDraft> = nodes.iter().map(|&i| drafts[i].clone()).collect();
+            let id = self.allocate(1)?;
+            let mut bytes = vec![0u8; bs as usize];
+            node::encode_block(&records, &mut bytes).map_err(StorageError::Invalid)?;
+            let checksum = pager.write(id, &mut bytes, BlockType::Node, self.txn)?;
+            for &i in &nodes {
+                refs[i] = Some(RecordRef { block: id, checksum, offset: offset[&i] });
+            }
+            deltas.node_bytes += records.iter().map(RecordDraft::encoded_len).sum::<usize>() as i64;
+        }
+        let leaves = tree.leaves().count() as i64;
+        deltas.nodes += n as i64 - 1;
+        deltas.leaves += leaves - 1;
+        deltas.node_blocks += order.len() as i64;
+        Ok(Ok(SubTree {
+            root: drafts.swap_remove(0),
+            node_blocks: order.len() as u32,
+            geometry_blocks: geometry_below[0],
+            levels: tree.depth().saturating_sub(1),
+        }))
+    }
+}
+
+/// Bytes of the records of node block `block`.
+fn old_used(block: &Block) -> i64 {
+    block
+        .records
+        .iter()
+        .map(|&o| view(block, o).map(|v| v.to_draft().encoded_len()).unwrap_or(0))
+        .sum::<usize>() as i64
 }
 
 /// Gives a drafted record the frame `frame` as its own.

@@ -46,6 +46,20 @@ impl TreePath {
         (depth < usize::from(self.len)).then(|| (self.bits >> depth) as usize & 1)
     }
 
+    /// Whether this path leads to `other`'s node or to an ancestor of it.
+    pub fn is_prefix_of(&self, other: &TreePath) -> bool {
+        let mask = if self.len >= 64 { u64::MAX } else { (1u64 << self.len) - 1 };
+        self.len <= other.len && (other.bits & mask) == self.bits
+    }
+
+    /// The first `len` steps of this path (all of it when shorter).
+    pub fn truncated(&self, len: usize) -> TreePath {
+        if len >= usize::from(self.len) {
+            return *self;
+        }
+        TreePath { bits: self.bits & ((1u64 << len) - 1), len: len as u8 }
+    }
+
     /// This path, one level deeper through child `child`; a path already
     /// at its longest stays as it is.
     pub fn child(&self, child: usize) -> TreePath {
@@ -322,6 +336,22 @@ mod tests {
         assert_eq!(child_for(&children, &Key::bytes("a").unwrap()).unwrap().block, 4);
         assert_eq!(child_for(&children, &Key::bytes("m").unwrap()).unwrap().block, 6);
         assert_eq!(child_for(&children, &Key::bytes("z").unwrap()).unwrap().block, 6);
+    }
+
+    #[test]
+    fn a_path_is_a_prefix_of_its_descendants_only() {
+        let root = TreePath::default();
+        let p = root.child(1).child(0);
+        assert!(root.is_prefix_of(&p) && p.is_prefix_of(&p));
+        assert!(p.is_prefix_of(&p.child(1).child(1)));
+        assert!(!p.is_prefix_of(&root.child(1)), "a path is no prefix of its ancestor");
+        assert!(!p.is_prefix_of(&root.child(1).child(1).child(0)), "nor of a cousin");
+        let deep = (0..64).fold(root, |q, i| q.child(i % 2));
+        assert!(deep.is_prefix_of(&deep) && root.child(0).is_prefix_of(&deep));
+        assert!(!root.child(1).is_prefix_of(&deep));
+        assert_eq!(deep.truncated(1), root.child(0));
+        assert_eq!(p.truncated(0), root);
+        assert_eq!(p.truncated(9), p);
     }
 
     #[test]

@@ -34,7 +34,7 @@ pub(crate) struct MetaRecord {
     pub(crate) rate: F64,
     pub(crate) leaf_capacity: U64,
     pub(crate) object_ids: U32,
-    pub(crate) reserved3: [u8; 4],
+    pub(crate) node_ids: U32,
     pub(crate) build_seconds: F64,
     pub(crate) lod_table: [[F64; 2]; LOD_TABLE_LEN],
     pub(crate) lattice_origin: [F64; 3],
@@ -113,6 +113,11 @@ pub struct Meta {
     /// Object ids lie below this (at least `object_count`): a change
     /// commit gives a new object the next id and leaves a removed one's unused.
     pub object_ids: u32,
+    /// 0: node ids are the preorder numbers `0 .. node_count` (a bulk
+    /// load's). Else node ids lie below this, each used once, the root's
+    /// 0, in no order: a change commit that split or merged a leaf gave new
+    /// nodes the next ids and left removed ones' unused.
+    pub node_ids: u32,
     /// Bytes of node records, and of geometry records, over all blocks (block fill).
     pub node_bytes: u64,
     pub geometry_bytes: u64,
@@ -157,7 +162,7 @@ impl Meta {
             rate: f(self.build.rate),
             leaf_capacity: self.build.leaf_capacity.into(),
             object_ids: self.object_ids.into(),
-            reserved3: [0; 4],
+            node_ids: self.node_ids.into(),
             build_seconds: f(self.build.build_seconds),
             lod_table: self.lod_table.map(|p| p.map(f)),
             lattice_origin: self.lods.lattice_origin.map(f),
@@ -186,7 +191,7 @@ impl Meta {
         let end = FRAME_LEN + size_of::<MetaRecord>();
         let r = MetaRecord::read_from_bytes(&block[FRAME_LEN..end])
             .map_err(|_| StorageError::corrupt(id, "meta", "block too small"))?;
-        if r.reserved1 != 0 || r.reserved2 != [0; 4] || r.reserved3 != [0; 4] || !all_zero(&block[end..]) {
+        if r.reserved1 != 0 || r.reserved2 != [0; 4] || !all_zero(&block[end..]) {
             return Err(StorageError::corrupt(id, "reserved", "reserved bytes are not zero"));
         }
         let bad = |field, detail: String| Err(StorageError::corrupt(id, field, detail));
@@ -213,6 +218,10 @@ impl Meta {
         let object_ids = r.object_ids.get();
         if object_ids < objects {
             return bad("object_ids", format!("ids below {object_ids} for {objects} objects"));
+        }
+        let node_ids = r.node_ids.get();
+        if node_ids != 0 && node_ids < nodes {
+            return bad("node_ids", format!("ids below {node_ids} for {nodes} nodes"));
         }
         let scene_box = r.scene_box.map(|x| x.get());
         if scene_box.iter().any(|x| !x.is_finite()) || (0..3).any(|i| scene_box[i] > scene_box[i + 3]) {
@@ -273,6 +282,7 @@ impl Meta {
                 build_seconds: r.build_seconds.get(),
             },
             object_ids,
+            node_ids,
             node_bytes: r.node_bytes.get(),
             geometry_bytes: r.geometry_bytes.get(),
             lod_table: r.lod_table.map(|p| p.map(|x| x.get())),
