@@ -112,10 +112,16 @@ impl<'db> WriteTransaction<'db> {
         let reusable = base_free.iter().filter(|r| oldest.is_none_or(|o| r.freed <= o));
         let avail = FreeSpace::new(base.block_count, reusable.map(|r| (r.first, r.count)));
         let txn = base.txn + 1;
-        // Step 1: the other slot may hold the state before `base`, whose
-        // blocks we may reuse. One copy saying pending outranks the other
-        // (its transaction is newer), so one write and one sync mark it.
-        write_slot_copy(&pager, slot, order[0], SlotState::Pending, &Commit { txn, ..Commit::default() })?;
+        // Step 1: one copy saying pending outranks the other (its
+        // transaction is newer) and tells the next writer to clean up after
+        // a crash. It gets no sync of its own: sync 2 makes it durable
+        // before step 5 writes the other slot copy that could tear, and
+        // until then `base`, the newer committed slot, wins on reopen
+        // whatever this copy holds (format-spec/commit.md).
+        pager.write_header_bytes(
+            header::slot_offset(slot, order[0]) as u64,
+            &Slot::encode(slot, order[0], SlotState::Pending, &Commit { txn, ..Commit::default() }),
+        )?;
         let begun = Begun { txn, base, base_free, slot, recovery, avail, oldest_reader: oldest };
         Ok(WriteTransaction::new(inner, guard, file_lock, begun))
     }
@@ -391,8 +397,37 @@ impl<'db> WriteTransaction<'db> {
                 None => (self.avail, self.written) = (avail, written),
             }
         }
-        // The tree written whole: the committed objects with the changes
-        // applied, bulk-loaded with the file's build parameters.
+        self.rewrite_whole(edits)
+    }
+
+    /// Lays the tree out anew at commit, as a bulk load of its objects with
+    /// the file's build parameters would: what change commits leave behind
+    /// (boxes a removal left loose, the subtrees of split leaves, leaves
+    /// moved to node blocks of their own, bounds dropped by splits) goes,
+    /// and node ids are preorder numbers again. Geometry is copied as
+    /// stored; levels of detail are computed again. This transaction's
+    /// changes so far are applied first; it takes no more after this.
+    /// `mktree optimize` runs it; `mktree stats --drift` says what it gains.
+    pub fn optimize(&mut self) -> Result<(), crate::Error> {
+        if self.meta.is_some() {
+            return Err(StorageError::Invalid(
+                "a transaction writes one tree: a bulk load, or changes to objects".into(),
+            )
+            .into());
+        }
+        let edits = self.edits.take().unwrap_or_default();
+        self.change_stats.changes = edits.ops.len() as u64;
+        if self.rewrite_whole(edits.clone())? {
+            // The changes remove every object: the commit applies them, and
+            // leaves no tree to lay out.
+            self.edits = Some(edits);
+        }
+        Ok(())
+    }
+
+    /// The tree written whole: the committed objects with `edits` applied,
+    /// bulk-loaded with the file's build parameters. `true`: no object is left.
+    fn rewrite_whole(&mut self, edits: Edits) -> Result<bool, crate::Error> {
         let snapshot = self.inner.read_installed()?;
         let params = snapshot
             .info()

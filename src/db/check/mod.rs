@@ -12,10 +12,12 @@
 //! `check` is a reader (format-spec/commit.md, "Many processes"): it pins
 //! the newest snapshot and never keeps writers out. A writer may meanwhile
 //! fill blocks that are free in that snapshot, so a free block that fails
-//! its checksum is a fault only if no writer wrote while `check` ran: it is
-//! read again after the scan, and set aside when a writer holds the lock,
-//! a commit landed, or a write was interrupted. The counts by block type
-//! then may include such blocks as their new type.
+//! its checksum is read again after the scan, and set aside when a writer
+//! holds the lock, a commit landed, or a write was interrupted. One that no
+//! writer explains is a warning, not a fault: it holds nothing, and a
+//! commit interrupted before its pending mark was synced may have torn it
+//! (format-spec/commit.md, step 1). The counts by block type then may
+//! include such blocks as their new type.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::sync::Arc;
@@ -133,8 +135,8 @@ pub fn check(db: &Database) -> Result<CheckReport, StorageError> {
         }
     }
     for id in free_failed {
-        if let Some(fault) = free_block_fault(db, &commit, id)? {
-            c.fault(fault);
+        if let Some(damage) = free_block_damage(db, &commit, id)? {
+            c.report.warnings.push(format!("free block {id}, which holds nothing: {damage}"));
         }
     }
     for &(first, count) in &free {
@@ -180,10 +182,10 @@ fn pinned(db: &Database) -> Result<(ReadTransaction, Commit, Vec<FreeRange>, Vec
 }
 
 /// Free block `id` of `commit` failed its checksum (or could not be read)
-/// in the scan: the fault, unless a writer may have been writing it. Free
+/// in the scan: the failure, unless a writer may have been writing it. Free
 /// blocks are a writer's to fill, so only a failure that no writer
-/// explains is damage.
-fn free_block_fault(db: &Database, commit: &Commit, id: u32) -> Result<Option<String>, StorageError> {
+/// explains is reported.
+fn free_block_damage(db: &Database, commit: &Commit, id: u32) -> Result<Option<String>, StorageError> {
     let written = |db: &Database| -> Result<bool, StorageError> {
         if db.writer_active()? {
             return Ok(true);

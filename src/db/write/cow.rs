@@ -907,6 +907,8 @@ impl WriteTransaction<'_> {
         let mut order: Vec<u32> = blocks.keys().copied().collect();
         order.sort_by_key(|&b| (std::cmp::Reverse(depth(b)), b));
         let mut relocated: HashMap<(u32, u32), RecordRef> = HashMap::new();
+        // Node blocks records outside the changed paths gain below them (leaves moved out).
+        let mut extra: HashMap<(u32, u32), [u32; 2]> = HashMap::new();
         for b in order {
             let old = blocks[&b].clone();
             // The block's records, as they will be written.
@@ -917,36 +919,56 @@ impl WriteTransaction<'_> {
                 }
                 let d = match mods.get(&(b, o)).and_then(|x| x.draft.clone()) {
                     Some(d) => d,
-                    None => view(&old, o)?.to_draft(),
+                    None => {
+                        let mut d = view(&old, o)?.to_draft();
+                        if let (Some(more), RecordDraft::Internal { children, .. }) =
+                            (extra.get(&(b, o)), &mut d)
+                        {
+                            for (c, m) in children.iter_mut().zip(more) {
+                                c.node_blocks = c.node_blocks.saturating_add(*m);
+                            }
+                        }
+                        d
+                    }
                 };
                 drafts.push((o, d));
             }
-            // A block that no longer holds its records moves its largest
-            // changed leaves out, each to a block of its own.
+            // A block that no longer holds its records (a leaf grew, records
+            // took frames of their own) moves its largest leaves out, each to
+            // a block of its own: a leaf has no children, so no other block's
+            // parent block changes.
             let mut moved: Vec<u32> = Vec::new();
             let mut total: usize = drafts.iter().map(|(_, d)| d.encoded_len()).sum();
             while total > capacity {
                 let candidate = drafts
                     .iter()
-                    .filter(|(o, d)| {
-                        matches!(d, RecordDraft::Leaf { .. })
-                            && mods.contains_key(&(b, *o))
-                            && !moved.contains(o)
-                    })
+                    .filter(|(o, d)| matches!(d, RecordDraft::Leaf { .. }) && !moved.contains(o))
                     .max_by_key(|(_, d)| d.encoded_len())
                     .map(|(o, d)| (*o, d.encoded_len()));
                 let Some((o, len)) = candidate else { return Ok(Err(Structural)) };
                 moved.push(o);
                 total -= len;
                 // Every entry above it now reaches one more node block.
-                let mut here = (b, o);
-                while let Some((p, c)) = mods.get(&here).and_then(|x| x.parent) {
+                let mut at = (b, o);
+                while let Some((p, c)) = match mods.get(&at) {
+                    Some(x) => x.parent,
+                    None if at == root_at => None,
+                    None => Some(parent_record(&blocks, &parent_block, at)?),
+                } {
                     if let Some(RecordDraft::Internal { children, .. }) =
                         mods.get_mut(&p).and_then(|x| x.draft.as_mut())
                     {
                         children[c].node_blocks = children[c].node_blocks.saturating_add(1);
+                    } else if p.0 == b {
+                        if let Some((_, RecordDraft::Internal { children, .. })) =
+                            drafts.iter_mut().find(|(x, _)| *x == p.1)
+                        {
+                            children[c].node_blocks = children[c].node_blocks.saturating_add(1);
+                        }
+                    } else {
+                        extra.entry(p).or_insert([0; 2])[c] += 1;
                     }
-                    here = p;
+                    at = p;
                 }
                 deltas.node_blocks += 1;
             }
@@ -1282,6 +1304,33 @@ impl WriteTransaction<'_> {
             levels: tree.depth().saturating_sub(1),
         }))
     }
+}
+
+/// The record naming record `at` (not the root) as its child, and which
+/// child: in `at`'s block, or in that block's parent block.
+fn parent_record(
+    blocks: &HashMap<u32, Arc<Block>>,
+    parent_block: &HashMap<u32, u32>,
+    at: (u32, u32),
+) -> Result<((u32, u32), usize), StorageError> {
+    let same = blocks.get(&at.0).map(|b| (b, RecordRef { block: 0, checksum: 0, offset: at.1 }));
+    let above = parent_block
+        .get(&at.0)
+        .and_then(|p| blocks.get(p))
+        .map(|b| (b, RecordRef { block: at.0, checksum: 0, offset: at.1 }));
+    for (block, want) in same.into_iter().chain(above) {
+        for &o in &block.records {
+            if let NodeView::Internal(n) = view(block, o)? {
+                for c in 0..2 {
+                    let r = n.child_ref(c);
+                    if (r.block, r.offset) == (want.block, want.offset) {
+                        return Ok(((block.id(), o), c));
+                    }
+                }
+            }
+        }
+    }
+    Err(StorageError::corrupt(at.0, "child_block", format!("no record names record {} of the block", at.1)))
 }
 
 /// Bytes of the records of node block `block`.
