@@ -95,8 +95,6 @@ struct ReadmeDoctests;
 pub mod build;
 pub mod db;
 mod error;
-#[cfg(any(test, feature = "internals"))]
-pub mod fuzzing;
 pub mod geom;
 pub mod lod;
 pub mod query;
