@@ -7,8 +7,8 @@ use anyhow::Result;
 use mktree::build::{BuildParams, Report, TreeShape};
 use serde_json::{Value, json};
 
-use super::{Source, tree_of};
 use crate::args::BuildArgs;
+use crate::input::{Source, tree_of};
 use crate::output::{self, opt};
 
 /// A one-line description of the parameters.
