@@ -63,7 +63,7 @@
 //!
 //! Each module uses only those below it: [`db`] (the database and its
 //! transactions) and [`query`] (every query, one traversal), which still
-//! use each other, over [`lod`] (levels of detail), over [`build`] (the bulk
+//! use each other, over [`lod`] (levels of detail), over [`bulk`] (the bulk
 //! loaders), over [`store`] (blocks, pager, format records), over [`scene`]
 //! (objects, import, generator), over [`geom`] (boxes and exact tests).
 //! [`render`] and [`tiles`] draw and export what the view query cuts, over
@@ -78,7 +78,7 @@
 // below db (`BuildParams::default`): one size.
 const _: () = assert!(db::DEFAULT_BLOCK_SIZE == store::format::DEFAULT_BLOCK_SIZE);
 
-pub use build::{BuildParams, LeafRule, Method};
+pub use bulk::{BuildParams, LeafRule, Method};
 pub use db::{
     ChangeStats, CheckReport, Compaction, CreateOptions, Database, ReadTransaction, TreeInfo,
     WriteTransaction, check,
@@ -97,7 +97,7 @@ pub use store::StorageError;
 #[doc = include_str!("../README.md")]
 struct ReadmeDoctests;
 
-pub mod build;
+pub mod bulk;
 pub mod db;
 mod error;
 pub mod geom;

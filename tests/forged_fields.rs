@@ -13,7 +13,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::{Arc, OnceLock};
 
 use common::{box_mesh, forge};
-use mktree::build::{BuildParams, LeafRule, Method};
+use mktree::bulk::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database, Piece, check};
 use mktree::geom::{Aabb, Point};
 use mktree::lod::{LodParams, Voxels};

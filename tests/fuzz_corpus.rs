@@ -22,7 +22,7 @@ use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use common::forge;
-use mktree::build::{BuildParams, LeafRule, Method};
+use mktree::bulk::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database, check};
 use mktree::geom::{Aabb, Point};
 use mktree::lod::{Lattice, LodParams, Voxels, aligned_grid, decode, encode};

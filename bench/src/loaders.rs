@@ -7,7 +7,7 @@
 
 use std::time::Instant;
 
-use mktree::build::{
+use mktree::bulk::{
     BuildParams, CostModel, Hierarchy, LeafRule, LookAhead, Method, QueryExtent, Report, build,
 };
 use mktree::db::{CreateOptions, Database};
@@ -211,7 +211,7 @@ fn bench_method(
     model: &CostModel,
     block_size: Option<u32>,
 ) -> Result<MethodResult, BenchError> {
-    let sizes: Vec<u64> = scene.objects().iter().map(|o| mktree::build::object_bytes(&o.mesh)).collect();
+    let sizes: Vec<u64> = scene.objects().iter().map(|o| mktree::bulk::object_bytes(&o.mesh)).collect();
     let started = Instant::now();
     let tree = build(boxes, Some(&sizes), params, &|_| {}).map_err(mktree::Error::from)?;
     let build_seconds = started.elapsed().as_secs_f64();

@@ -9,7 +9,7 @@
 
 use serde::Serialize;
 
-use mktree::build::{Hierarchy, NodeId};
+use mktree::bulk::{Hierarchy, NodeId};
 use mktree::geom::{Aabb, Vector};
 
 use crate::rng::Rng;

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
-use mktree::build::{BuildParams, LeafRule, LookAhead, Method, QueryExtent, TieBreak};
+use mktree::bulk::{BuildParams, LeafRule, LookAhead, Method, QueryExtent, TieBreak};
 use mktree::geom::{Aabb, Point};
 use mktree::{View, ViewOptions};
 

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use mktree::build::{BuildProgress, Hierarchy, build};
+use mktree::bulk::{BuildProgress, Hierarchy, build};
 use mktree::db::{Database, TreeInfo, read_hierarchy};
 use mktree::scene::Scene;
 use mktree::scene::generate::{GenOptions, Preset, generate_scene};
@@ -141,7 +141,7 @@ pub enum Source {
 
 /// Builds the tree of `scene` in memory, with a progress bar.
 pub fn build_in_memory(scene: &Scene, args: &BuildArgs) -> Result<Hierarchy> {
-    let sizes: Vec<u64> = scene.objects().iter().map(|o| mktree::build::object_bytes(&o.mesh)).collect();
+    let sizes: Vec<u64> = scene.objects().iter().map(|o| mktree::bulk::object_bytes(&o.mesh)).collect();
     let pb = crate::output::progress_bar(scene.len(), &args.params());
     let tree = build(&scene.object_boxes(), Some(&sizes), &args.params(), &|p: BuildProgress| {
         pb.set_position(p.objects_placed)

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use mktree::build::{BuildParams, Stage, estimate_work};
+use mktree::bulk::{BuildParams, Stage, estimate_work};
 use mktree::query::{QueryAnswer, ViewCut};
 use mktree::render::Image;
 use serde::Serialize;

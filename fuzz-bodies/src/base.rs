@@ -7,7 +7,7 @@ use std::sync::{Arc, OnceLock};
 
 use crate::edit::{Catalog, Width};
 use crate::forge::{Image, Kind, LeafAt, Record, Reference};
-use mktree::build::{BuildParams, LeafRule, Method};
+use mktree::bulk::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database};
 use mktree::geom::{Aabb, Point};
 use mktree::lod::{Lattice, LodParams};

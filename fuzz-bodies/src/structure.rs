@@ -15,7 +15,7 @@ use crate::base::{BS, Base, absent_keys, base, cheap_lods, cuboid, record};
 use crate::edit::{Choices, copy_chunk, edit_field, edit_raw};
 
 use crate::forgeries::special;
-use mktree::build::{BuildParams, LeafRule};
+use mktree::bulk::{BuildParams, LeafRule};
 use mktree::db::{Database, check, read_hierarchy};
 use mktree::geom::{Aabb, Pose};
 use mktree::lod::LodParams;

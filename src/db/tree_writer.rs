@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use super::source::ObjectSource;
 
-use crate::build::{Hierarchy, LoadProgress, Order, QueryMix, Stage, StageMeter};
+use crate::bulk::{Hierarchy, LoadProgress, Order, QueryMix, Stage, StageMeter};
 use crate::geom::Aabb;
 use crate::lod::LeafEntry;
 use crate::lod::{StoredBounds, Voxels};
@@ -808,7 +808,7 @@ fn node_blocks_below(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::build::{BuildParams, LeafRule, Method, build};
+    use crate::bulk::{BuildParams, LeafRule, Method, build};
     use proptest::prelude::*;
 
     /// Per block, the queries that read it, walking every node a query meets.

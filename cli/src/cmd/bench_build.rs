@@ -4,7 +4,7 @@
 use std::io::IsTerminal;
 
 use anyhow::{Context, Result};
-use mktree::build::Method;
+use mktree::bulk::Method;
 use mktree_bench::{LoaderBench, LoaderOptions, SetResult, bench_loaders, leaf_rule};
 
 use crate::args::BenchBuildArgs;

@@ -3,7 +3,7 @@
 //! run, through `mktree_bench::bench_changes`.
 
 use anyhow::{Result, bail};
-use mktree::build::BuildParams;
+use mktree::bulk::BuildParams;
 use mktree::db::CreateOptions;
 use mktree_bench::{ChangeOptions, bench_changes, standard_sets};
 

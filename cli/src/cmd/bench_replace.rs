@@ -3,7 +3,7 @@
 //! fresh bulk load of the same objects, through `mktree_bench::bench_replace`.
 
 use anyhow::{Result, bail};
-use mktree::build::BuildParams;
+use mktree::bulk::BuildParams;
 use mktree::db::CreateOptions;
 use mktree_bench::{ReplaceOptions, bench_replace, standard_sets};
 

@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
-use mktree::build::{Hierarchy, LoadProgress, Report, Stage};
+use mktree::bulk::{Hierarchy, LoadProgress, Report, Stage};
 use mktree::db::{CreateOptions, Database, StagedScene, WriterWait};
 use mktree::scene::Scene;
 use mktree::store::StorageError;

@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Instant;
 
 use anyhow::Result;
-use mktree::build::{BuildParams, LeafRule, LookAhead, Method, Report, build};
+use mktree::bulk::{BuildParams, LeafRule, LookAhead, Method, Report, build};
 use mktree::scene::import::ImportOptions;
 use serde::Serialize;
 

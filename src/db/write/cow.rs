@@ -532,8 +532,8 @@ impl WriteTransaction<'_> {
         // reads with it); past that, a rewrite splits it (see the module's header).
         let objects_held = (edit.add.len() + kept_keys.len()) as u64;
         let over = match r.info().and_then(|i| i.params).map(|p| p.leaf) {
-            Some(crate::build::LeafRule::Objects(n)) => objects_held > 2 * u64::from(n),
-            Some(crate::build::LeafRule::Bytes { capacity }) => end > 2 * capacity.max(p),
+            Some(crate::bulk::LeafRule::Objects(n)) => objects_held > 2 * u64::from(n),
+            Some(crate::bulk::LeafRule::Bytes { capacity }) => end > 2 * capacity.max(p),
             None => span > 4,
         };
         if over && objects_held > 1 {

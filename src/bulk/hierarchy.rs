@@ -78,7 +78,7 @@ impl Split {
         let i = self.axis.index();
         match self.order {
             Order::Min | Order::Max => left.max[i] - right.min[i],
-            Order::Center => crate::build::driver::signed_intersection(left, right, self.axis),
+            Order::Center => crate::bulk::driver::signed_intersection(left, right, self.axis),
         }
     }
 }
