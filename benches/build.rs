@@ -30,7 +30,7 @@ use std::time::Duration;
 use criterion::{
     BatchSize, BenchmarkId, Criterion, SamplingMode, Throughput, criterion_group, criterion_main,
 };
-use mktree::build::{BuildParams, LeafRule, LookAhead, Method, build};
+use mktree::bulk::{BuildParams, LeafRule, LookAhead, Method, build};
 use mktree::geom::Aabb;
 use mktree::scene::generate::{GenOptions, Preset, generate};
 use rstar::RTree;

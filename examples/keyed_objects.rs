@@ -13,7 +13,7 @@ use std::error::Error;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use mktree::build::BuildParams;
+use mktree::bulk::BuildParams;
 use mktree::db::{CreateOptions, Database, ReadTransaction, check};
 use mktree::geom::{Aabb, Point, Ray, Vector};
 use mktree::lod::Voxels;

@@ -1,6 +1,6 @@
 //! The crate's umbrella error: each family converts into it.
 
-use crate::build::BuildError;
+use crate::bulk::BuildError;
 use crate::scene::generate::GenError;
 use crate::scene::import::ImportError;
 use crate::store::StorageError;

@@ -62,18 +62,23 @@
 //! # Layers
 //!
 //! Each module uses only those below it: [`db`] (the database and its
-//! transactions) and [`query`] (every query, one traversal) over [`build`]
-//! (the bulk loaders) and [`lod`] (levels of detail), over [`store`] (blocks,
-//! pager, format records), over [`scene`] (objects, import, generator), over
-//! [`geom`] (boxes and exact tests). [`render`] and [`tiles`] draw and export
-//! what the view query cuts. The storage format is specified in the
-//! repository's `format-spec/`; its internals are public only with the
-//! `internals` feature.
+//! transactions) and [`query`] (every query, one traversal), which still
+//! use each other, over [`lod`] (levels of detail), over [`bulk`] (the bulk
+//! loaders), over [`store`] (blocks, pager, format records), over [`scene`]
+//! (objects, import, generator), over [`geom`] (boxes and exact tests).
+//! [`render`] and [`tiles`] draw and export what the view query cuts, over
+//! db and query. The storage format is specified in the repository's
+//! `format-spec/`; its internals are public only with the `internals`
+//! feature.
 
 // The one exception is the byte-range locks of src/store/lock.rs (fcntl).
 #![deny(unsafe_code)]
 
-pub use build::{BuildParams, LeafRule, Method};
+// `db` names the default block size for its callers, `store` for the layers
+// below db (`BuildParams::default`): one size.
+const _: () = assert!(db::DEFAULT_BLOCK_SIZE == store::format::DEFAULT_BLOCK_SIZE);
+
+pub use bulk::{BuildParams, LeafRule, Method};
 pub use db::{
     ChangeStats, CheckReport, Compaction, CreateOptions, Database, ReadTransaction, TreeInfo,
     WriteTransaction, check,
@@ -92,11 +97,9 @@ pub use store::StorageError;
 #[doc = include_str!("../README.md")]
 struct ReadmeDoctests;
 
-pub mod build;
+pub mod bulk;
 pub mod db;
 mod error;
-#[cfg(any(test, feature = "internals"))]
-pub mod fuzzing;
 pub mod geom;
 pub mod lod;
 pub mod query;

@@ -22,7 +22,7 @@ use json::validation::Checked::Valid;
 use json::validation::USize64;
 use serde_json::{Value, json as jv};
 
-use crate::build::Hierarchy;
+use crate::bulk::Hierarchy;
 use crate::db::{Piece, ReadTransaction, read_hierarchy};
 use crate::geom::{Aabb, Point};
 use crate::query::{Bound, Shape};

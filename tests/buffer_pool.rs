@@ -5,7 +5,7 @@ mod common;
 
 use std::sync::Arc;
 
-use mktree::build::{BuildParams, LeafRule};
+use mktree::bulk::{BuildParams, LeafRule};
 use mktree::db::CreateOptions;
 use mktree::geom::Aabb;
 use mktree::query::{QueryOptions, Region, query_region};

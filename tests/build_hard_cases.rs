@@ -5,7 +5,7 @@
 //! R = 0.5 and `mem_page` = 1; and a tree as deep as it has objects does
 //! not overflow the stack.
 
-use mktree::build::{BuildParams, Hierarchy, LeafRule, LookAhead, Method, TieBreak, build};
+use mktree::bulk::{BuildParams, Hierarchy, LeafRule, LookAhead, Method, TieBreak, build};
 use mktree::geom::Aabb;
 use mktree::scene::ObjectId;
 

@@ -8,7 +8,7 @@ mod common;
 
 use common::arb_boxes;
 
-use mktree::build::{BuildParams, LeafRule, LookAhead, Method, QueryExtent, TieBreak, build};
+use mktree::bulk::{BuildParams, LeafRule, LookAhead, Method, QueryExtent, TieBreak, build};
 use proptest::prelude::*;
 
 fn params() -> impl Strategy<Value = BuildParams> {

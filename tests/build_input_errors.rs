@@ -3,7 +3,7 @@
 //! capacity, no objects, a non-finite or inverted box, sizes missing for
 //! the byte rule or not one per box.
 
-use mktree::build::{BuildError, BuildParams, LeafRule, build};
+use mktree::bulk::{BuildError, BuildParams, LeafRule, build};
 use mktree::geom::Aabb;
 use mktree::scene::ObjectId;
 

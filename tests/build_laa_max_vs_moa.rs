@@ -5,7 +5,7 @@
 //! most MOA's (up to float rounding), and look-ahead levels in between
 //! still give valid trees.
 
-use mktree::build::{BuildParams, LeafRule, LookAhead, Method, Report, TieBreak, build};
+use mktree::bulk::{BuildParams, LeafRule, LookAhead, Method, Report, TieBreak, build};
 use mktree::geom::Aabb;
 use proptest::prelude::*;
 

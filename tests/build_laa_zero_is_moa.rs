@@ -5,7 +5,7 @@ mod common;
 
 use common::arb_boxes;
 
-use mktree::build::{BuildParams, LeafRule, LookAhead, Method, TieBreak, build};
+use mktree::bulk::{BuildParams, LeafRule, LookAhead, Method, TieBreak, build};
 use proptest::prelude::*;
 
 proptest! {

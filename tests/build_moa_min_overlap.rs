@@ -8,7 +8,7 @@ mod common;
 
 use common::arb_boxes;
 
-use mktree::build::{BuildParams, Hierarchy, LeafRule, Method, NodeId, Order, TieBreak, build};
+use mktree::bulk::{BuildParams, Hierarchy, LeafRule, Method, NodeId, Order, TieBreak, build};
 use mktree::geom::Aabb;
 use proptest::prelude::*;
 

@@ -4,7 +4,7 @@
 
 use std::sync::Mutex;
 
-use mktree::build::{BuildParams, BuildProgress, LeafRule, LookAhead, Method, build, estimate_work};
+use mktree::bulk::{BuildParams, BuildProgress, LeafRule, LookAhead, Method, build, estimate_work};
 use mktree::geom::Aabb;
 
 /// 3000 boxes on a jittered 15 x 20 x 10 lattice.
@@ -85,7 +85,7 @@ fn the_estimate_grows_with_the_look_ahead_and_shrinks_with_the_page() {
 
 #[test]
 fn a_bulk_load_reports_each_stage_in_order_from_none_done_to_all_done() {
-    use mktree::build::{LoadProgress, Stage};
+    use mktree::bulk::{LoadProgress, Stage};
     use mktree::scene::generate::{GenOptions, Preset, generate_scene};
     use mktree::store::device::MemDevice;
     use mktree::{CreateOptions, Database};

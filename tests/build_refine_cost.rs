@@ -6,7 +6,7 @@
 mod common;
 
 use common::arb_boxes;
-use mktree::build::{BuildParams, CostModel, LeafRule, Method, QueryExtent, build};
+use mktree::bulk::{BuildParams, CostModel, LeafRule, Method, QueryExtent, build};
 use proptest::prelude::*;
 
 fn extent() -> impl Strategy<Value = QueryExtent> {

@@ -4,7 +4,7 @@
 //! (ovAccumulated, N_g, ovAverage), and their JSON keys; and the tree
 //! serialises in the dump format.
 
-use mktree::build::{BuildParams, LeafRule, Method, Report, TieBreak, TreeShape, build};
+use mktree::bulk::{BuildParams, LeafRule, Method, Report, TieBreak, TreeShape, build};
 use mktree::geom::Aabb;
 use serde_json::json;
 

@@ -7,7 +7,7 @@
 //! or among good objects, are accepted, with or without stored levels of
 //! detail, and read back: `check` finds no fault, a query answers them.
 
-use mktree::build::{BuildError, BuildParams, LeafRule};
+use mktree::bulk::{BuildError, BuildParams, LeafRule};
 use mktree::db::{CreateOptions, Database, check};
 use mktree::geom::{Axis, Point};
 use mktree::lod::LodParams;

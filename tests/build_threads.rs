@@ -4,7 +4,7 @@
 //! printed) for the six orders, the partitions, the subtrees and LAA's
 //! trials to run on rayon.
 
-use mktree::build::{BuildParams, Hierarchy, LeafRule, LookAhead, Method, build};
+use mktree::bulk::{BuildParams, Hierarchy, LeafRule, LookAhead, Method, build};
 use mktree::geom::Aabb;
 
 /// Splitmix64 as uniform [0, 1).

@@ -3,7 +3,7 @@
 //! in none, a wrong box, a wrong level, children out of preorder, an
 //! overfull leaf, a split record that does not match its children.
 
-use mktree::build::{BuildParams, Hierarchy, HierarchyError, LeafRule, Method, NodeId, NodeKind, build};
+use mktree::bulk::{BuildParams, Hierarchy, HierarchyError, LeafRule, Method, NodeId, NodeKind, build};
 use mktree::geom::Aabb;
 use mktree::scene::ObjectId;
 

@@ -12,7 +12,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use common::box_mesh;
-use mktree::build::BuildParams;
+use mktree::bulk::BuildParams;
 use mktree::db::{CreateOptions, Database, Reads, check};
 use mktree::geom::Aabb;
 use mktree::query::{Region, brute_force_region};
@@ -180,7 +180,7 @@ fn row(n: u32) -> (Database, Model) {
         })
         .collect();
     let scene = Scene::new(objects.clone());
-    let params = BuildParams { leaf: mktree::build::LeafRule::Objects(2), rate: 0.5, ..BuildParams::paper() };
+    let params = BuildParams { leaf: mktree::bulk::LeafRule::Objects(2), rate: 0.5, ..BuildParams::paper() };
     let db = Database::create_on(
         Arc::new(MemDevice::new()),
         CreateOptions { block_size: 4096, ..Default::default() },

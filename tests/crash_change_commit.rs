@@ -10,7 +10,7 @@ mod common;
 use std::sync::Arc;
 
 use common::{box_mesh, grid_scene};
-use mktree::build::{BuildParams, LeafRule, Method};
+use mktree::bulk::{BuildParams, LeafRule, Method};
 use mktree::db::{ChangeStats, CreateOptions, Database};
 use mktree::geom::Aabb;
 use mktree::scene::{Key, Object};

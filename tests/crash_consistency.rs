@@ -7,7 +7,7 @@ mod common;
 use std::sync::Arc;
 
 use common::grid_scene;
-use mktree::build::{BuildParams, LeafRule, Method};
+use mktree::bulk::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database, Warning, check};
 use mktree::geom::Aabb;
 use mktree::scene::Scene;

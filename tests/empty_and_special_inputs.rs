@@ -4,7 +4,7 @@
 //! FIFO given as a scene is refused with `ImportError::NotAFile` before it
 //! is opened, where opening it would wait for a writer for ever.
 
-use mktree::build::BuildParams;
+use mktree::bulk::BuildParams;
 use mktree::db::{CreateOptions, Database};
 use mktree::geom::{Aabb, Point};
 use mktree::query::{ClashOptions, QueryError, clash, object_mesh};

@@ -13,7 +13,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::{Arc, OnceLock};
 
 use common::{box_mesh, forge};
-use mktree::build::{BuildParams, LeafRule, Method};
+use mktree::bulk::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database, Piece, check};
 use mktree::geom::{Aabb, Point};
 use mktree::lod::{LodParams, Voxels};
@@ -158,7 +158,7 @@ fn answers(db: &Database, qs: &[Aabb]) -> Result<Vec<Vec<u32>>, String> {
 /// either `check` reports damage (a fault, or an error) or every answer to
 /// [`queries`] and `extra` equals the undamaged file's.
 fn never_silently_wrong(forged: &[u8], extra: &[Aabb], what: &str) -> Result<(), TestCaseError> {
-    mktree::fuzzing::open_and_query(forged);
+    mktree_fuzz::open_and_query(forged);
     let Ok(db) = open(forged) else { return Ok(()) };
     let clean = check(&db).is_ok_and(|r| r.ok());
     if !clean {
@@ -332,7 +332,7 @@ fn a_far_anchor_or_vertex_is_corruption_where_the_record_is_read() {
         assert!(err.to_string().contains(field), "{far}: {err}");
         let report = check(&db).unwrap();
         assert!(report.faults.iter().any(|f| f.contains(field)), "{far}: {:?}", report.faults);
-        mktree::fuzzing::open_and_query(&f);
+        mktree_fuzz::open_and_query(&f);
     }
 }
 
@@ -343,7 +343,7 @@ fn a_vertex_below_its_anchor_is_corruption_where_the_record_is_read() {
     let db = open(&f).unwrap();
     let err = object_mesh(&db.begin_read().unwrap(), id).expect_err("a negative offset reads as corrupt");
     assert!(err.to_string().contains("offsets"), "{err}");
-    mktree::fuzzing::open_and_query(&f);
+    mktree_fuzz::open_and_query(&f);
 }
 
 #[test]
@@ -449,7 +449,7 @@ fn forged_counts_are_bounded_by_the_bytes_that_hold_them() {
         ),
     ));
     for (what, f) in cases {
-        mktree::fuzzing::open_and_query(&f);
+        mktree_fuzz::open_and_query(&f);
         let Ok(db) = open(&f) else { continue };
         let report = check(&db);
         assert!(!report.as_ref().is_ok_and(|r| r.ok()), "{what}: check is clean");
@@ -476,5 +476,5 @@ fn a_looping_child_link_under_a_forged_node_count_is_an_error_not_an_abort() {
     let f = forge::golden_with_looping_root(Some(i32::MAX as u32));
     let err = open(&f).unwrap_err();
     assert!(err.is_corruption() && err.to_string().contains("node_count"), "{err}");
-    mktree::fuzzing::open_and_query(&f);
+    mktree_fuzz::open_and_query(&f);
 }

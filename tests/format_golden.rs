@@ -10,7 +10,7 @@ mod common;
 use std::sync::Arc;
 
 use common::{box_mesh, triangle};
-use mktree::build::{BuildParams, LeafRule, Method, build};
+use mktree::bulk::{BuildParams, LeafRule, Method, build};
 use mktree::db::{CreateOptions, Database, check};
 use mktree::lod::LodParams;
 use mktree::scene::{Object, Scene};

@@ -1,5 +1,5 @@
 //! Claim: every input in the checked-in fuzz corpus (`fuzz/corpus/`) runs
-//! through the fuzz targets' bodies (`mktree::fuzzing`) without a panic,
+//! through the fuzz targets' bodies (`mktree_fuzz`, `fuzz-bodies/`) without a panic,
 //! and without an allocation above the fuzz targets' limit (this binary
 //! refuses one, as the targets do: `fuzz/alloc_limit.rs`);
 //! and the version 3 seeds are what their names say, so that replaying and
@@ -22,9 +22,8 @@ use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use common::forge;
-use mktree::build::{BuildParams, LeafRule, Method};
+use mktree::bulk::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database, check};
-use mktree::fuzzing::forge::{Image, Record};
 use mktree::geom::{Aabb, Point};
 use mktree::lod::{Lattice, LodParams, Voxels, aligned_grid, decode, encode};
 use mktree::scene::Scene;
@@ -32,6 +31,7 @@ use mktree::store::BlockDevice;
 use mktree::store::device::MemDevice;
 use mktree::store::format::frame::BlockType;
 use mktree::store::format::node::{Limits, NodeView, validate_block};
+use mktree_fuzz::forge::{Image, Record};
 use proptest::prelude::*;
 
 const BS: usize = 1024;
@@ -56,15 +56,15 @@ type Body = fn(&[u8]);
 
 /// Every fuzz target with its body.
 const TARGETS: [(&str, Body); 9] = [
-    ("decode_block", mktree::fuzzing::decode_block),
-    ("open_and_query", mktree::fuzzing::open_and_query),
-    ("forge_header", mktree::fuzzing::forge_header),
-    ("forge_node", mktree::fuzzing::forge_node),
-    ("forge_geometry", mktree::fuzzing::forge_geometry),
-    ("forge_lod", mktree::fuzzing::forge_lod),
-    ("forge_free_list", mktree::fuzzing::forge_free_list),
-    ("forge_keys", mktree::fuzzing::forge_keys),
-    ("api_sequence", mktree::fuzzing::api_sequence),
+    ("decode_block", mktree_fuzz::decode_block),
+    ("open_and_query", mktree_fuzz::open_and_query),
+    ("forge_header", mktree_fuzz::forge_header),
+    ("forge_node", mktree_fuzz::forge_node),
+    ("forge_geometry", mktree_fuzz::forge_geometry),
+    ("forge_lod", mktree_fuzz::forge_lod),
+    ("forge_free_list", mktree_fuzz::forge_free_list),
+    ("forge_keys", mktree_fuzz::forge_keys),
+    ("api_sequence", mktree_fuzz::api_sequence),
 ];
 
 #[test]
@@ -116,7 +116,7 @@ fn bound_count(block: &[u8], m: u8) -> usize {
         .sum()
 }
 
-/// The box `mktree::fuzzing::decode_block` decodes its input's blob over,
+/// The box `mktree_fuzz::decode_block` decodes its input's blob over,
 /// on a unit lattice at the origin: the blob seeds' grids are over it.
 const BLOB_FRAME: [f64; 6] = [0.0, 0.0, 0.0, 40.0, 30.0, 20.0];
 
@@ -260,7 +260,7 @@ proptest! {
         if let Some(c) = cut {
             bytes.truncate(c.index(bytes.len() + 1));
         }
-        let body = if is_file { mktree::fuzzing::open_and_query } else { mktree::fuzzing::decode_block };
+        let body = if is_file { mktree_fuzz::open_and_query } else { mktree_fuzz::decode_block };
         let run = finishes_within(10, move || body(&bytes));
         prop_assert!(run.is_ok(), "{:?}", run);
     }
@@ -286,7 +286,7 @@ proptest! {
             img.bytes[b * BS + 16 + i.index(BS - 16)] ^= x;
         }
         img.reseal(b, t);
-        let run = finishes_within(10, move || mktree::fuzzing::open_and_query(&img.bytes));
+        let run = finishes_within(10, move || mktree_fuzz::open_and_query(&img.bytes));
         prop_assert!(run.is_ok(), "block {} ({:?}) of {}: {:?}", b, t, name, run);
     }
 }
@@ -304,7 +304,7 @@ fn forged_golden(b: usize, t: BlockType, forge: impl FnOnce(&mut [u8])) -> Vec<u
 fn a_forged_far_lattice_origin_is_an_error_not_a_hang() {
     // format-spec/example.md: block 5 is the meta block, lattice_origin at 416.
     let f = forged_golden(5, BlockType::Meta, |m| m[416..424].copy_from_slice(&1e300f64.to_le_bytes()));
-    let run = finishes_within(10, move || mktree::fuzzing::open_and_query(&f));
+    let run = finishes_within(10, move || mktree_fuzz::open_and_query(&f));
     assert!(run.is_ok(), "{run:?}");
 }
 

@@ -6,7 +6,7 @@ mod common;
 use std::sync::Arc;
 
 use common::grid_scene;
-use mktree::build::{BuildParams, LeafRule};
+use mktree::bulk::{BuildParams, LeafRule};
 use mktree::db::{CreateOptions, Database, check};
 use mktree::geom::Aabb;
 use mktree::store::BlockDevice;

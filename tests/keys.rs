@@ -7,7 +7,7 @@ mod common;
 
 use common::{box_mesh, mem_db};
 use mktree::Error;
-use mktree::build::{BuildParams, LeafRule};
+use mktree::bulk::{BuildParams, LeafRule};
 use mktree::db::{CreateOptions, Reads, check};
 use mktree::geom::{Aabb, Point, Ray, Vector};
 use mktree::query::{Near, QueryOptions, Region};

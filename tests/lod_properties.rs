@@ -27,7 +27,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use common::{arb_scene, box_mesh, forge, grid_scene, triangle};
-use mktree::build::{BuildParams, LeafRule, Method};
+use mktree::bulk::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database, Piece, check};
 use mktree::geom::Point;
 use mktree::lod::{LodParams, Voxels};

@@ -8,8 +8,8 @@ mod common;
 use std::sync::Arc;
 
 use common::{arb_scene, grid_scene};
-use mktree::build::NodeId;
-use mktree::build::{BuildParams, LeafRule, Method};
+use mktree::bulk::NodeId;
+use mktree::bulk::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database, Piece, read_hierarchy};
 use mktree::geom::Aabb;
 use mktree::store::ReadStats;

@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use mktree::build::{BuildParams, LeafRule, Method};
+use mktree::bulk::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database, WriterWait};
 use mktree::geom::Aabb;
 

@@ -5,7 +5,7 @@
 mod common;
 
 use common::{arb_scene, grid_scene, mem_db};
-use mktree::build::{BuildParams, LeafRule, LookAhead, Method};
+use mktree::bulk::{BuildParams, LeafRule, LookAhead, Method};
 use mktree::db::CreateOptions;
 use mktree::geom::Aabb;
 use mktree::query::{QueryOptions, Region, brute_force_region, query_region};

@@ -12,7 +12,7 @@ mod common;
 use std::collections::BTreeSet;
 
 use common::{box_mesh, lod_db, mem_db, triangle};
-use mktree::build::BuildParams;
+use mktree::bulk::BuildParams;
 use mktree::db::{CreateOptions, Database};
 use mktree::geom::{Aabb, Pose, Vector};
 use mktree::lod::LodParams;

@@ -5,7 +5,7 @@
 //! from the edge of the range, nearest distances come out finite (never
 //! NaN, which JSON prints as `null`).
 
-use mktree::build::BuildParams;
+use mktree::bulk::BuildParams;
 use mktree::db::CreateOptions;
 use mktree::geom::{Aabb, Camera, Frustum, Point, Pose, Ray, ShapeError, Sphere, Vector};
 use mktree::query::{CollideOptions, QueryError, Region, Request, answer_request, collide, query_region};

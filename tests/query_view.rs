@@ -13,7 +13,7 @@ mod common;
 use std::collections::BTreeSet;
 
 use common::{arb_scene, lod_db};
-use mktree::build::Hierarchy;
+use mktree::bulk::Hierarchy;
 use mktree::db::read_hierarchy;
 use mktree::geom::{Aabb, Frustum, Point, Vector, distance_point_triangle};
 use mktree::lod::LodParams;

@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicI64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use common::grid_scene;
-use mktree::build::{BuildParams, LeafRule};
+use mktree::bulk::{BuildParams, LeafRule};
 use mktree::db::CreateOptions;
 use mktree::redb::TreeDefinition;
 use mktree::{Aabb, Error, Key, Scene};

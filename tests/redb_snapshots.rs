@@ -11,7 +11,7 @@ mod common;
 use std::collections::BTreeMap;
 
 use common::box_mesh;
-use mktree::build::{BuildParams, LeafRule};
+use mktree::bulk::{BuildParams, LeafRule};
 use mktree::db::CreateOptions;
 use mktree::query::{QueryOptions, Region, query_region};
 use mktree::redb::TreeDefinition;

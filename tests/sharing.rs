@@ -6,7 +6,7 @@
 
 mod common;
 
-use mktree::build::BuildParams;
+use mktree::bulk::BuildParams;
 use mktree::db::{CreateOptions, Database, WriterWait, check};
 use mktree::store::StorageError;
 

@@ -9,7 +9,7 @@ mod common;
 use std::sync::Arc;
 
 use common::forge::Image;
-use mktree::build::{BuildParams, LeafRule, Method};
+use mktree::bulk::{BuildParams, LeafRule, Method};
 use mktree::db::{CreateOptions, Database, StagedScene};
 use mktree::geom::Aabb;
 use mktree::geom::Point;

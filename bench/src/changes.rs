@@ -11,7 +11,7 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
-use mktree::build::BuildParams;
+use mktree::bulk::BuildParams;
 use mktree::db::{CreateOptions, Database};
 use mktree::geom::Vector;
 use mktree::scene::{Key, Mesh, Object, Scene};

@@ -3,7 +3,9 @@
 //! Benchmark scaffolding for mktree, kept out of the engine's public API:
 //! the query workloads of `mktree bench-build` and `mktree bench-queries`
 //! (random boxes, cubes and collision boxes from a seed, and the leaves a
-//! box query reaches in a tree held in memory), and the peer benchmark of
+//! box query reaches in a tree held in memory), every bulk loader compared
+//! on them (`mktree bench-build`), a file's answers against a scan of its
+//! scene (`mktree verify`), and the peer benchmark of
 //! `mktree bench-peers`, the piecewise replacement of `mktree
 //! bench-replace`, the change commits against SQLite of `mktree
 //! bench-changes`, and the view query's sweep of `mktree bench-view`; and
@@ -17,6 +19,7 @@ mod bench_peers;
 mod changes;
 mod error;
 mod levels;
+mod loaders;
 pub mod peers;
 mod query_sets;
 pub mod record;
@@ -24,6 +27,7 @@ pub mod record;
 mod redb_backend;
 mod replace;
 mod rng;
+mod verify;
 mod view;
 mod workload;
 
@@ -33,11 +37,15 @@ pub use bench_peers::{
 pub use changes::{ChangeOptions, ChangeRow, ChangesReport, bench_changes};
 pub use error::BenchError;
 pub use levels::{LevelsQuery, clearance_workload, collision_levels};
+pub use loaders::{
+    FileResult, LoaderBench, LoaderOptions, LoaderScene, MethodResult, SetResult, bench_loaders, leaf_rule,
+};
 pub use query_sets::{
     COLLISION_MARGIN_MM, QueryKind, TreeQueryCount, collision_boxes, count_in_tree, random_cubes,
 };
 #[cfg(feature = "redb")]
 pub use redb_backend::{RedbRow, bench_redb, redb_table};
 pub use replace::{ReplaceOptions, ReplaceReport, ReplaceRow, bench_replace};
+pub use verify::{Verification, verify_tree};
 pub use view::{BudgetRow, TauRow, ViewBench, ViewBenchOptions, bench_view, flight, triangles, views};
 pub use workload::{WorkloadStats, random_boxes, run_boxes};

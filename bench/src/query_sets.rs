@@ -9,7 +9,7 @@
 
 use serde::Serialize;
 
-use mktree::build::{Hierarchy, NodeId};
+use mktree::bulk::{Hierarchy, NodeId};
 use mktree::geom::{Aabb, Vector};
 
 use crate::rng::Rng;
@@ -133,19 +133,8 @@ pub struct TreeQueryCount {
 /// names an object beyond `boxes` counts none of it.
 pub fn count_in_tree(tree: &Hierarchy, boxes: &[Aabb], query: &Aabb) -> TreeQueryCount {
     let mut count = TreeQueryCount::default();
-    let mut stack = match tree.root() {
-        Some(root) if root.aabb.intersects(query) => vec![NodeId::ROOT],
-        _ => return count,
-    };
-    while let Some(id) = stack.pop() {
-        let Some(node) = tree.node(id) else { continue };
-        if let Some(children) = node.children() {
-            for c in children.into_iter().rev() {
-                if tree.node(c).is_some_and(|n| n.aabb.intersects(query)) {
-                    stack.push(c);
-                }
-            }
-        } else if let Some(objects) = node.objects() {
+    for (_, _, node) in tree.subtree_where(NodeId::ROOT, |n| n.aabb.intersects(query)) {
+        if let Some(objects) = node.objects() {
             count.leaves_visited += 1;
             let hits =
                 objects.iter().filter(|o| boxes.get(o.index()).is_some_and(|b| b.intersects(query))).count()

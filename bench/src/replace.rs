@@ -6,7 +6,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use mktree::build::BuildParams;
+use mktree::bulk::BuildParams;
 use mktree::db::{CreateOptions, Database};
 use mktree::scene::{Key, Object, Scene};
 use serde::Serialize;

@@ -6,7 +6,7 @@
 
 use std::sync::Arc;
 
-use mktree::build::{BuildParams, Hierarchy, LeafRule, Method};
+use mktree::bulk::{BuildParams, Hierarchy, LeafRule, Method};
 use mktree::db::{CreateOptions, Database};
 use mktree::geom::Aabb;
 use mktree::query::{Region, brute_force_region};

@@ -3,7 +3,9 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
-use mktree::build::{BuildParams, LeafRule, LookAhead, Method, QueryExtent, TieBreak};
+use mktree::bulk::{BuildParams, LeafRule, LookAhead, Method, QueryExtent, TieBreak};
+use mktree::geom::{Aabb, Point};
+use mktree::{View, ViewOptions};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -401,15 +403,15 @@ pub enum Command {
     /// block reads with --block-size) per query for boxes, cubes and collisions.
     BenchBuild(BenchBuildArgs),
     /// mktree against SQLite's R*Tree with geometry blobs (and rstar): reads per query, file sizes, warm time.
-    BenchPeers(crate::cmd::bench_peers::BenchPeersArgs),
+    BenchPeers(BenchPeersArgs),
     /// A scene replaced by another object by object (deletes and inserts in
     /// write transactions): box-query reads against a fresh bulk load, and compact.
-    BenchReplace(crate::cmd::bench_replace::BenchReplaceArgs),
+    BenchReplace(BenchReplaceArgs),
     /// Change commits (inserts, moves, removals, one at a time and many in
     /// one) on mktree and on SQLite's R*Tree plus blobs, in the same run.
-    BenchChanges(crate::cmd::bench_changes::BenchChangesArgs),
+    BenchChanges(BenchChangesArgs),
     /// The view query along a walk through each file: reads and triangles per frame against tau, error under a block budget, exact frustum reads; a chart and frame strips.
-    BenchView(crate::cmd::bench_view::BenchViewArgs),
+    BenchView(BenchViewArgs),
     /// Import alone, timed: each scene read --repeat times; triangles and megabytes per second of the fastest run.
     BenchImport {
         #[arg(required = true)]
@@ -466,6 +468,36 @@ pub struct ViewArgs {
     /// Read at most this many blocks: the best cut that fits, coarser far away.
     #[arg(long)]
     pub budget: Option<u64>,
+}
+
+impl ViewArgs {
+    /// The camera (default: framing `scene`), its far distance
+    /// defaulting to `scene`'s farthest corner.
+    pub fn view(&self, scene: &Aabb) -> View {
+        let Some(c) = self.camera else {
+            let v = mktree::render::framing(scene, self.width_px, self.height_px, self.fov_deg);
+            let v = View { near_mm: self.near.min(v.near_mm), ..v };
+            return match self.far {
+                Some(far) => View { far_mm: far, ..v },
+                None => v.seeing_all_of(scene),
+            };
+        };
+        let view = View {
+            eye: Point::new(c[0], c[1], c[2]),
+            target: Point::new(c[3], c[4], c[5]),
+            fov_deg: self.fov_deg,
+            width_px: self.width_px,
+            height_px: self.height_px,
+            near_mm: self.near,
+            far_mm: self.far.unwrap_or(0.0),
+        };
+        if self.far.is_some() { view } else { view.seeing_all_of(scene) }
+    }
+
+    /// The view query's options: tolerance and budget.
+    pub fn view_options(&self, shapes: bool) -> ViewOptions {
+        ViewOptions { tolerance_px: self.tolerance, budget: self.budget, shapes }
+    }
 }
 
 /// The level and block budget of a query.
@@ -658,4 +690,118 @@ fn byte_size(s: &str) -> Result<u64, String> {
     n.checked_mul(1 << shift)
         .filter(|&b| b > 0)
         .ok_or_else(|| format!("{s:?} is not a positive size below 2^64 bytes"))
+}
+
+/// `bench-peers`' arguments.
+#[derive(Args, Debug, Clone)]
+pub struct BenchPeersArgs {
+    /// Scene files, or presets: tanker1, tanker2, tanker3, ship, ship:N (N objects).
+    #[arg(required = true)]
+    pub scenes: Vec<String>,
+    /// Queries per generated set (boxes of 1%, 5% and 20% of the extent, collisions).
+    #[arg(long, default_value_t = mktree_bench::DEFAULT_QUERIES)]
+    pub queries: usize,
+    /// Seed of the generated query sets.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// mktree's block size and SQLite's page size, bytes (a power of two, 1024 to 65536).
+    #[arg(long, default_value_t = mktree::db::DEFAULT_BLOCK_SIZE)]
+    pub block_size: u32,
+    /// M, the levels of detail of mktree's file (1: none, to see what the levels save).
+    #[arg(long, default_value_t = mktree::db::DEFAULT_LOD_LEVELS)]
+    pub lods: u8,
+    /// Query boxes instead of the generated sets: one per line, x0,y0,z0,x1,y1,z1[,LABEL] in mm.
+    #[arg(long)]
+    pub query_file: Option<PathBuf>,
+    /// Print the rows as JSON instead of tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Write bench-peers.json, bench-peers.svg and bench-peers.png here, and
+    /// keep the built files (bench-peers-SCENE.mkt and .sqlite, replaced).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    #[command(flatten)]
+    pub import: ImportArgs,
+}
+
+/// `bench-replace`'s arguments.
+#[derive(Args, Debug, Clone)]
+pub struct BenchReplaceArgs {
+    /// Scene A: a file, or a preset (tanker1, tanker2, tanker3, ship, ship:N).
+    pub scene: String,
+    /// Scene B, which replaces A; by default A's preset with seed 1.
+    #[arg(long)]
+    pub revision: Option<String>,
+    /// Objects replaced per write transaction, as a share of the scene.
+    #[arg(long, default_value_t = 0.05)]
+    pub batch: f64,
+    /// Queries per generated set (boxes of 1%, 5% and 20% of the extent, collisions).
+    #[arg(long, default_value_t = 100)]
+    pub queries: usize,
+    /// Seed of the replacement order and the query sets.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Where the files are built (removed afterwards).
+    #[arg(long, default_value = ".")]
+    pub dir: PathBuf,
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub import: ImportArgs,
+}
+
+/// `bench-changes`' arguments.
+#[derive(Args, Debug, Clone)]
+pub struct BenchChangesArgs {
+    /// Scenes: files, or presets (tanker1, tanker2, tanker3, ship, ship:N).
+    #[arg(required = true)]
+    pub scenes: Vec<String>,
+    /// Single-object commits of each kind: insert, move, remove.
+    #[arg(long, default_value_t = 200)]
+    pub singles: usize,
+    /// Changes in the one mixed commit.
+    #[arg(long, default_value_t = 1000)]
+    pub batch: usize,
+    /// Queries per generated set, run on the changed file and a fresh load.
+    #[arg(long, default_value_t = 100)]
+    pub queries: usize,
+    /// Seed of the changes and the query sets.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Where the files are built (removed afterwards).
+    #[arg(long, default_value = ".")]
+    pub dir: PathBuf,
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub import: ImportArgs,
+}
+
+/// `bench-view`'s arguments.
+#[derive(Args, Debug, Clone)]
+pub struct BenchViewArgs {
+    /// .mkt files (each walked through along its scene's x axis).
+    #[arg(required = true)]
+    pub files: Vec<PathBuf>,
+    /// Frames along the walk.
+    #[arg(long, default_value_t = 20)]
+    pub steps: usize,
+    /// Blocks the pool holds.
+    #[arg(long, default_value_t = 256)]
+    pub cache_blocks: usize,
+    /// The tolerances τ to sweep, pixels.
+    #[arg(long, value_delimiter = ',', default_values_t = [0.0, 1.0, 4.0, 16.0, 64.0, 256.0])]
+    pub taus: Vec<f64>,
+    /// The block budgets per frame to sweep (at τ = 1 px).
+    #[arg(long, value_delimiter = ',', default_values_t = [25, 50, 100, 200, 400])]
+    pub budgets: Vec<u64>,
+    /// The viewport's height in pixels (its width is 1.5 times that).
+    #[arg(long, default_value_t = 720)]
+    pub height_px: u32,
+    /// Where bench-view.json, the chart (bench-view.svg, .png) and the frame strips
+    /// (frames-NAME.png: the scene's middle section at each tau, 480 x 320 px) go.
+    #[arg(long, default_value = ".")]
+    pub out: PathBuf,
+    #[arg(long)]
+    pub json: bool,
 }

@@ -15,7 +15,7 @@ use anyhow::{Result, anyhow};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::cmd::bench_build::{Bench, SceneResult};
+use mktree_bench::{LoaderBench, LoaderScene};
 
 /// Pixels per scene panel.
 const PANEL: (u32, u32) = (1100, 380);
@@ -23,7 +23,7 @@ const PANEL: (u32, u32) = (1100, 380);
 /// `bench-build`'s chart: one panel per scene, each method's block reads
 /// (or leaves visited) per query over the best of median, sah and vsah, by
 /// query set, written as `svg` and `png`.
-pub fn bench_build(bench: &Bench, svg: &Path, png: &Path) -> Result<()> {
+pub fn bench_build(bench: &LoaderBench, svg: &Path, png: &Path) -> Result<()> {
     let size = (PANEL.0, PANEL.1 * bench.scenes.len().max(1) as u32);
     svg_and_png!(size, svg, png, draw(bench))
 }
@@ -124,7 +124,7 @@ pub fn failed(e: impl std::fmt::Display) -> anyhow::Error {
     anyhow!("drawing the chart: {e}")
 }
 
-fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, bench: &Bench) -> Result<()> {
+fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, bench: &LoaderBench) -> Result<()> {
     root.fill(&WHITE).map_err(failed)?;
     let panels = root.split_evenly((bench.scenes.len().max(1), 1));
     for (area, scene) in panels.iter().zip(&bench.scenes) {
@@ -134,7 +134,7 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, bench: &Bench) -> Res
 }
 
 /// One scene: a line per method across the query sets.
-fn panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, scene: &SceneResult, reads: bool) -> Result<()> {
+fn panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, scene: &LoaderScene, reads: bool) -> Result<()> {
     let labels: Vec<String> = scene
         .methods
         .first()

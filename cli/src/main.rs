@@ -5,6 +5,8 @@
 mod args;
 mod chart;
 mod cmd;
+mod input;
+mod memory;
 mod output;
 
 use clap::Parser;

@@ -1,7 +1,17 @@
-//! Printing: JSON to stdout, and plain tables.
+//! Printing: JSON to stdout, plain tables, query answers and view cuts
+//! (as JSON or text), PNG pictures, and a build's progress bar.
 
-use anyhow::Result;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use mktree::bulk::{BuildParams, Stage, estimate_work};
+use mktree::query::{QueryAnswer, ViewCut};
+use mktree::render::Image;
 use serde::Serialize;
+use serde_json::{Value, json};
 
 /// Prints `value` as pretty JSON.
 pub fn json<T: Serialize>(value: &T) -> Result<()> {
@@ -30,4 +40,123 @@ pub fn table(header: &[&str], rows: &[Vec<String>]) {
     for r in rows {
         line(r.clone());
     }
+}
+
+/// A progress bar per stage, with the time left (on stderr, hidden when
+/// not a terminal): objects placed while the tree is built, then the units
+/// of each later stage of the bulk load.
+pub fn progress_bar(objects: usize, params: &BuildParams) -> ProgressBar {
+    let pb = ProgressBar::new(objects as u64);
+    pb.set_style(
+        ProgressStyle::with_template(
+            "{spinner} {prefix:>8} [{bar:40}] {pos}/{len} {msg} ({elapsed}, {eta} left)",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    pb.set_prefix(Stage::Tree.name());
+    let work = estimate_work(objects, None, params);
+    pb.set_message(format!("objects placed, ~{work:.2e} object visits estimated"));
+    pb
+}
+
+/// An answer's JSON: the CLI contract's keys, then the traversal's statistics.
+pub fn answer_json(a: &QueryAnswer) -> Value {
+    let s = &a.stats;
+    json!({
+        "objects": a.objects,
+        "keys": a.keys,
+        "maybe": a.maybe,
+        "unexplored_nodes": a.unexplored_nodes,
+        "level": a.level,
+        "level_reached": a.level_reached,
+        "block_reads": {
+            "node": s.reads.node, "geometry": s.reads.geometry, "total": s.reads.total()
+        },
+        "cache_hits": s.reads.cache_hits,
+        "nodes_visited": s.nodes_visited,
+        "leaves_visited": s.leaves_visited,
+        "confirmed_per_level": s.confirmed,
+        "rejected_per_level": s.rejected,
+        "subtrees_pruned": s.pruned,
+        "geometry_tests": s.geometry_tests,
+        "triangles_tested": s.triangles_tested,
+        "decided": a.decided,
+        "seconds": s.seconds,
+    })
+}
+
+/// Prints an answer as JSON or two lines of text.
+pub fn print_answer(a: &QueryAnswer, as_json: bool) -> Result<()> {
+    if as_json {
+        return json(&answer_json(a));
+    }
+    let s = &a.stats;
+    println!(
+        "{} objects at level {}: {:?}",
+        a.objects.len(),
+        a.level,
+        a.objects.iter().map(|o| o.0).collect::<Vec<_>>()
+    );
+    if a.level_reached < a.level || !a.maybe.is_empty() || a.unexplored_nodes > 0 {
+        println!(
+            "budget reached: level {} reached, {} maybe {:?}, {} subtrees unexplored",
+            a.level_reached,
+            a.maybe.len(),
+            a.maybe.iter().map(|o| o.0).collect::<Vec<_>>(),
+            a.unexplored_nodes
+        );
+    }
+    println!(
+        "block reads: {} node + {} geometry = {}; {} nodes, {} leaves; {:.3} ms",
+        s.reads.node,
+        s.reads.geometry,
+        s.reads.total(),
+        s.nodes_visited,
+        s.leaves_visited,
+        s.seconds * 1e3
+    );
+    println!(
+        "decided per level k = 1 ..: confirmed {:?}, rejected {:?}; {} subtrees pruned; geometry read for {}",
+        s.confirmed, s.rejected, s.pruned, s.geometry_tests
+    );
+    Ok(())
+}
+
+/// A cut as JSON.
+pub fn cut_json(cut: &ViewCut) -> Value {
+    let pieces: Vec<Value> = cut
+        .nodes
+        .iter()
+        .map(|n| {
+            json!({
+                "node": n.node.id, "parent": n.node.parent, "child": n.node.child,
+                "level": n.level, "bound": n.bound, "aabb": n.aabb.to_array(),
+                "objects": n.objects, "eps_mm": n.eps_mm, "distance_mm": n.distance_mm, "error_px": n.error_px,
+            })
+        })
+        .collect();
+    let r = &cut.stats.reads;
+    json!({
+        "pieces": pieces,
+        "piece_count": cut.nodes.len(),
+        "exact_objects": cut.exact_objects(),
+        "max_error_px": cut.max_error_px,
+        "tolerance_px": cut.tolerance_px,
+        "budget": cut.budget,
+        "block_reads": { "node": r.node, "geometry": r.geometry, "total": r.total() },
+        "cache_hits": r.cache_hits,
+        "seconds": cut.stats.seconds,
+    })
+}
+
+/// Writes `img` as an 8-bit RGB PNG.
+pub fn write_png(img: &Image, out: &Path) -> Result<()> {
+    let f = File::create(out).with_context(|| format!("creating {}", out.display()))?;
+    let mut enc = png::Encoder::new(BufWriter::new(f), img.width, img.height);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut w = enc.write_header().with_context(|| format!("writing {}", out.display()))?;
+    w.write_image_data(&img.rgb).with_context(|| format!("writing {}", out.display()))?;
+    w.finish().with_context(|| format!("writing {}", out.display()))?;
+    Ok(())
 }

@@ -7,4 +7,4 @@ mod alloc_limit;
 #[global_allocator]
 static ALLOC: alloc_limit::Limited = alloc_limit::Limited;
 
-libfuzzer_sys::fuzz_target!(|data: &[u8]| mktree::fuzzing::decode_block(data));
+libfuzzer_sys::fuzz_target!(|data: &[u8]| mktree_fuzz::decode_block(data));

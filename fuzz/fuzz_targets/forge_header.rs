@@ -7,4 +7,4 @@ mod alloc_limit;
 #[global_allocator]
 static ALLOC: alloc_limit::Limited = alloc_limit::Limited;
 
-libfuzzer_sys::fuzz_target!(init: mktree::fuzzing::one_thread(), |data: &[u8]| mktree::fuzzing::forge_header(data));
+libfuzzer_sys::fuzz_target!(init: mktree_fuzz::one_thread(), |data: &[u8]| mktree_fuzz::forge_header(data));

@@ -1,6 +1,6 @@
 //! The meta block's codes for build options (format-spec/meta.md).
 
-use crate::build::{BuildParams, LeafRule, LookAhead, Method, QueryExtent, TieBreak};
+use crate::bulk::{BuildParams, LeafRule, LookAhead, Method, QueryExtent, TieBreak};
 use crate::store::format::meta::BuildCodes;
 
 // Codes are positions: new methods go at the end (format-spec/meta.md).

@@ -7,7 +7,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use super::{ReadTransaction, Reads, view};
-use crate::build::{Hierarchy, Node, NodeId, NodeKind, Order, Split};
+use crate::bulk::{Hierarchy, Node, NodeId, NodeKind, Order, Split};
 use crate::geom::Aabb;
 use crate::query::{Everything, QueryError, QueryOptions, Visitor, walk};
 use crate::scene::ObjectId;

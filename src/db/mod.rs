@@ -174,7 +174,7 @@ pub(crate) struct Inner {
 ///
 /// ```
 /// use mktree::db::{CreateOptions, Database};
-/// use mktree::build::BuildParams;
+/// use mktree::bulk::BuildParams;
 /// use mktree::geom::Aabb;
 /// use mktree::scene::generate::{GenOptions, Preset, generate_scene};
 ///

@@ -6,7 +6,7 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Weak};
 
 use super::{Inner, Snapshot, codes};
-use crate::build::BuildParams;
+use crate::bulk::BuildParams;
 use crate::geom::Aabb;
 use crate::scene::{Mesh, ObjectId};
 use crate::store::format::frame::BlockType;

@@ -86,6 +86,6 @@ impl ObjectSource for Scene {
 /// coordinates within the format's range.
 pub(crate) fn check_object(id: ObjectId, object: &Object) -> Result<(), crate::Error> {
     object.check_payload(id)?;
-    crate::build::check_object_range(id, &object.mesh, geometry::MAX_COORDINATE)?;
+    crate::bulk::check_object_range(id, &object.mesh, geometry::MAX_COORDINATE)?;
     Ok(())
 }

@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use super::source::ObjectSource;
 
-use crate::build::{Hierarchy, LoadProgress, Order, QueryMix, Split, Stage, StageMeter};
+use crate::bulk::{Hierarchy, LoadProgress, Order, QueryMix, Split, Stage, StageMeter};
 use crate::geom::Aabb;
 use crate::lod::LeafEntry;
 use crate::lod::{StoredBounds, Voxels};
@@ -715,7 +715,6 @@ pub(crate) fn write(
     })
 }
 
-/// The distinct objects of a leaf's entries, in entry order (an object's parts are consecutive).
 /// A node's split as its record stores it.
 pub(crate) fn split_info(s: &Split) -> SplitInfo {
     let order = match s.order {
@@ -726,6 +725,7 @@ pub(crate) fn split_info(s: &Split) -> SplitInfo {
     SplitInfo { axis: s.axis, order, overlap: s.overlap as f32, gap: s.gap as f32 }
 }
 
+/// The distinct objects of a leaf's entries, in entry order (an object's parts are consecutive).
 fn object_ids(entries: &[Entry]) -> impl Iterator<Item = ObjectId> + '_ {
     entries.iter().enumerate().filter(|(j, e)| *j == 0 || entries[j - 1].id != e.id).map(|(_, e)| e.id)
 }
@@ -808,7 +808,7 @@ fn node_blocks_below(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::build::{BuildParams, LeafRule, Method, build};
+    use crate::bulk::{BuildParams, LeafRule, Method, build};
     use proptest::prelude::*;
 
     /// Per block, the queries that read it, walking every node a query meets.

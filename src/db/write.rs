@@ -12,7 +12,7 @@ use super::{
     Inner, Recovery, SeatGuard, Snapshot, WriterLock, codes, free_list_chain, interrupted, key_index, load,
     recover, tree_writer,
 };
-use crate::build::{
+use crate::bulk::{
     BuildParams, BuildProgress, CostModel, Hierarchy, LoadProgress, QueryMix, Stage, StageMeter, build_owned,
     check_range,
 };

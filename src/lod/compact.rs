@@ -5,24 +5,11 @@
 //! bound is two bytes and its cells, as a bitmap or as boxes, whichever is
 //! smaller.
 
-use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
+use zerocopy::{FromBytes, IntoBytes};
 
 use super::{Grid, Lattice, LodError, Voxels};
 use crate::geom::Aabb;
-
-const FORM_BITMAP: u8 = 1;
-const FORM_BOXES8: u8 = 2;
-const FORM_BOXES16: u8 = 3;
-
-#[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
-#[repr(C)]
-pub(crate) struct BlobHead {
-    pub(crate) level: u8,
-    pub(crate) form: u8,
-}
-/// Bytes of a blob's head.
-pub const HEAD_LEN: usize = 2;
-const _: () = assert!(size_of::<BlobHead>() == HEAD_LEN);
+use crate::store::format::blob::{BlobHead, FORM_BITMAP, FORM_BOXES8, FORM_BOXES16, HEAD_LEN};
 
 /// The grid of whole cells of lattice level `level` that covers `b`: from
 /// the last plane at or below `b.min` to the first at or above `b.max`
@@ -176,24 +163,11 @@ pub fn decode(bytes: &[u8], lattice: &Lattice, outer: &Aabb) -> Result<Voxels, L
     Ok(v)
 }
 
-/// True when `blob`'s form says it sets no cell (a bitmap with no bit set,
-/// or no box), read without its grid. A blob too short for its head, or of
-/// an unknown form, is left to [`decode`] to refuse.
-pub(crate) fn sets_no_cell(blob: &[u8]) -> bool {
-    match BlobHead::ref_from_prefix(blob) {
-        Ok((head, payload)) => match head.form {
-            FORM_BITMAP => payload.iter().all(|&b| b == 0),
-            FORM_BOXES8 | FORM_BOXES16 => payload.is_empty(),
-            _ => false,
-        },
-        Err(_) => false,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::geom::Point;
+    use crate::store::format::blob::sets_no_cell;
 
     #[test]
     fn blobs_round_trip_in_both_forms() {

@@ -221,7 +221,7 @@ impl Grid {
 
     /// How far cells are grown before testing against geometry, so rounding in
     /// the tests never loses a touching triangle: 1e-9 of the coordinates' magnitude.
-    pub(crate) fn tolerance(&self) -> f64 {
+    pub fn tolerance(&self) -> f64 {
         let a = self.bounds.to_array();
         let mag = a.iter().fold(0.0f64, |m, c| m.max(c.abs()));
         let ext = self.bounds.extent().max();

@@ -24,9 +24,6 @@ mod voxelize;
 mod voxels;
 
 pub use closed::is_closed;
-#[cfg(test)]
-pub(crate) use compact::BlobHead;
-pub(crate) use compact::sets_no_cell;
 pub use compact::{aligned_grid, decode, encode, encoded_len};
 pub use error::LodError;
 pub use error_measure::{ErrorProbe, measured_error};

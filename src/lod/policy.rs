@@ -33,7 +33,7 @@ use rayon::prelude::*;
 
 use super::compact::{aligned_grid, decode, encode};
 use super::{ErrorProbe, Grid, Lattice, LodError, LodParams, LodPlan, Voxels};
-use crate::build::{Hierarchy, LoadProgress, QueryMix, Stage, StageMeter};
+use crate::bulk::{Hierarchy, LoadProgress, QueryMix, Stage, StageMeter};
 use crate::geom::Aabb;
 use crate::scene::{Mesh, ObjectId};
 use crate::store::format::node::{BOUND_HEAD_LEN, BoundEntry, MAX_BOUND_BYTES, bounds_len, capacity};

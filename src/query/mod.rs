@@ -18,6 +18,8 @@ mod nearest;
 mod range;
 mod rank;
 mod ray;
+#[cfg(feature = "internals")]
+mod records;
 mod region;
 mod select;
 mod tradeoff;
@@ -36,6 +38,8 @@ pub use navigate::{NavigateStep, navigate, navigate_view, parse_path};
 pub use nearest::{Near, Nearest};
 pub use range::MAX_LENGTH;
 pub use ray::{RayHit, RayHits};
+#[cfg(feature = "internals")]
+pub use records::{RecordAt, node_records};
 pub use region::query_region;
 pub use select::{Everything, Region, Selection, Triangles};
 pub use tradeoff::{

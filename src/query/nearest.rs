@@ -53,7 +53,7 @@ impl ReadTransaction {
     ///
     /// ```
     /// # use mktree::db::{CreateOptions, Database};
-    /// # use mktree::build::BuildParams;
+    /// # use mktree::bulk::BuildParams;
     /// # use mktree::geom::Point;
     /// # use mktree::scene::generate::{GenOptions, Preset, generate_scene};
     /// # let dir = tempfile::tempdir()?;

@@ -126,7 +126,7 @@ pub fn level_benefit(txn: &ReadTransaction, per_scale: usize) -> Result<Vec<Leve
     let info = txn.info().ok_or(QueryError::NoTree)?;
     let q = txn.lod_info().map_or([0.0; 3], |l| l.query_extent);
     let scene = crate::geom::Aabb::from_array(info.scene_box);
-    let queries = crate::build::QueryMix::new(&scene, q).sample_centred(&scene, per_scale);
+    let queries = crate::bulk::QueryMix::new(&scene, q).sample_centred(&scene, per_scale);
     let n = queries.len().max(1) as f64;
     (1..m.max(2))
         .map(|k| {

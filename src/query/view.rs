@@ -331,7 +331,7 @@ impl ReadTransaction {
     ///
     /// ```
     /// # use mktree::db::{CreateOptions, Database};
-    /// # use mktree::build::BuildParams;
+    /// # use mktree::bulk::BuildParams;
     /// # use mktree::geom::Point;
     /// # use mktree::query::{View, ViewOptions};
     /// # use mktree::scene::generate::{GenOptions, Preset, generate_scene};

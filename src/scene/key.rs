@@ -103,6 +103,14 @@ impl Key {
             }
         }
     }
+
+    /// Its stored form (format-spec/keys.md), for the fuzz targets' forgeries.
+    #[cfg(feature = "internals")]
+    pub fn stored(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        self.encode(&mut out);
+        out
+    }
 }
 
 /// A stored key in place.

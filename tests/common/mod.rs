@@ -7,7 +7,7 @@ pub mod forge;
 
 use std::sync::Arc;
 
-use mktree::build::BuildParams;
+use mktree::bulk::BuildParams;
 use mktree::db::{CreateOptions, Database};
 use mktree::geom::Aabb;
 use mktree::scene::{Mesh, Object, Scene};
@@ -127,8 +127,8 @@ pub fn lod_db(scene: &Scene, m: u8, block_size: u32, cap: u32, lod: mktree::lod:
     let mut w = db.begin_write().expect("begin_write");
     w.set_lod_params(lod);
     let params = BuildParams {
-        method: mktree::build::Method::Moa,
-        leaf: mktree::build::LeafRule::Objects(cap),
+        method: mktree::bulk::Method::Moa,
+        leaf: mktree::bulk::LeafRule::Objects(cap),
         ..BuildParams::paper()
     };
     w.bulk_load(scene, &params, &|_| {}).expect("bulk_load");

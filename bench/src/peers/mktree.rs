@@ -8,7 +8,7 @@
 
 use std::path::{Path, PathBuf};
 
-use mktree::build::BuildParams;
+use mktree::bulk::BuildParams;
 use mktree::db::{CreateOptions, Database, ReadTransaction};
 use mktree::geom::Aabb;
 use mktree::lod::LodParams;

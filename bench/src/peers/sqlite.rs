@@ -81,7 +81,7 @@ impl SqlitePeer {
         }
         let objects = scene.objects();
         let boxes: Vec<Aabb> = objects.iter().map(|o| o.mesh.aabb()).collect();
-        let object_of_rank = mktree::build::curve_order(&boxes);
+        let object_of_rank = mktree::bulk::curve_order(&boxes);
         let tx = conn.transaction()?;
         {
             let mut add_box = tx.prepare("INSERT INTO boxes VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)")?;

@@ -22,7 +22,7 @@ use mktree::query::{Request, answer_request};
 use serde_json::{Value, json};
 
 pub fn run(file: &Path, queries: Option<&Path>, max_line: u64) -> Result<()> {
-    let db = crate::cmd::open_to_read(file)?;
+    let db = crate::input::open_to_read(file)?;
     let r = db.begin_read()?;
     let mut input: Box<dyn BufRead> = match queries {
         Some(p) => Box::new(BufReader::new(

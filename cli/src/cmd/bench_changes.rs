@@ -2,43 +2,13 @@
 //! plus blobs (WAL and rollback journal, `synchronous = FULL`) in the same
 //! run, through `mktree_bench::bench_changes`.
 
-use std::path::PathBuf;
-
 use anyhow::{Result, bail};
-use clap::Args;
-use mktree::build::BuildParams;
+use mktree::bulk::BuildParams;
 use mktree::db::CreateOptions;
 use mktree_bench::{ChangeOptions, bench_changes, standard_sets};
 
-use crate::args::ImportArgs;
+use crate::args::BenchChangesArgs;
 use crate::output;
-
-/// `bench-changes`' arguments.
-#[derive(Args, Debug, Clone)]
-pub struct BenchChangesArgs {
-    /// Scenes: files, or presets (tanker1, tanker2, tanker3, ship, ship:N).
-    #[arg(required = true)]
-    pub scenes: Vec<String>,
-    /// Single-object commits of each kind: insert, move, remove.
-    #[arg(long, default_value_t = 200)]
-    pub singles: usize,
-    /// Changes in the one mixed commit.
-    #[arg(long, default_value_t = 1000)]
-    pub batch: usize,
-    /// Queries per generated set, run on the changed file and a fresh load.
-    #[arg(long, default_value_t = 100)]
-    pub queries: usize,
-    /// Seed of the changes and the query sets.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Where the files are built (removed afterwards).
-    #[arg(long, default_value = ".")]
-    pub dir: PathBuf,
-    #[arg(long)]
-    pub json: bool,
-    #[command(flatten)]
-    pub import: ImportArgs,
-}
 
 pub fn run(args: &BenchChangesArgs) -> Result<()> {
     if args.singles == 0 && args.batch == 0 {
@@ -49,7 +19,7 @@ pub fn run(args: &BenchChangesArgs) -> Result<()> {
     let params = BuildParams::for_blocks(create.block_size);
     let mut reports = Vec::new();
     for name in &args.scenes {
-        let scene = crate::cmd::scene_or_preset(name, &options)?;
+        let scene = crate::input::scene_or_preset(name, &options)?;
         let sets = standard_sets(&scene.object_boxes(), args.queries, args.seed);
         let opts = ChangeOptions { singles: args.singles, batch: args.batch, seed: args.seed, create };
         let report = bench_changes(&scene, &params, &sets, &opts, &args.dir)?;

@@ -7,47 +7,14 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, anyhow};
-use clap::Args;
 use mktree_bench::{PeerOptions, PeerRow, bench_scene, parse_query_file};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use serde::Serialize;
 
-use crate::args::ImportArgs;
+use crate::args::BenchPeersArgs;
 use crate::chart::{RatioPanel, failed, ratio_panel, svg_and_png};
 use crate::output;
-
-/// `bench-peers`' arguments.
-#[derive(Args, Debug, Clone)]
-pub struct BenchPeersArgs {
-    /// Scene files, or presets: tanker1, tanker2, tanker3, ship, ship:N (N objects).
-    #[arg(required = true)]
-    pub scenes: Vec<String>,
-    /// Queries per generated set (boxes of 1%, 5% and 20% of the extent, collisions).
-    #[arg(long, default_value_t = mktree_bench::DEFAULT_QUERIES)]
-    pub queries: usize,
-    /// Seed of the generated query sets.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// mktree's block size and SQLite's page size, bytes (a power of two, 1024 to 65536).
-    #[arg(long, default_value_t = mktree::db::DEFAULT_BLOCK_SIZE)]
-    pub block_size: u32,
-    /// M, the levels of detail of mktree's file (1: none, to see what the levels save).
-    #[arg(long, default_value_t = mktree::db::DEFAULT_LOD_LEVELS)]
-    pub lods: u8,
-    /// Query boxes instead of the generated sets: one per line, x0,y0,z0,x1,y1,z1[,LABEL] in mm.
-    #[arg(long)]
-    pub query_file: Option<PathBuf>,
-    /// Print the rows as JSON instead of tables.
-    #[arg(long)]
-    pub json: bool,
-    /// Write bench-peers.json, bench-peers.svg and bench-peers.png here, and
-    /// keep the built files (bench-peers-SCENE.mkt and .sqlite, replaced).
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-    #[command(flatten)]
-    pub import: ImportArgs,
-}
 
 /// The whole run, as JSON.
 #[derive(Serialize)]
@@ -86,7 +53,7 @@ pub fn run(o: &BenchPeersArgs) -> Result<()> {
     // A group of rows per scene argument (a scene may be named twice).
     let mut groups = Vec::new();
     for arg in &o.scenes {
-        let scene = crate::cmd::scene_or_preset(arg, &o.import.options())?;
+        let scene = crate::input::scene_or_preset(arg, &o.import.options())?;
         let result = bench_scene(arg, &scene, &options, &progress);
         if tty {
             eprint!("\r{:70}\r", "");
@@ -113,7 +80,7 @@ pub fn run(o: &BenchPeersArgs) -> Result<()> {
     Ok(())
 }
 
-pub(crate) fn print_tables(b: &Bench, groups: &[Vec<PeerRow>]) {
+fn print_tables(b: &Bench, groups: &[Vec<PeerRow>]) {
     let queries =
         b.queries.map_or_else(|| "queries from the query file".into(), |n| format!("{n} queries per set"));
     println!(

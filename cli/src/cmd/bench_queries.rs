@@ -27,7 +27,7 @@ pub fn run(files: &[PathBuf], queries: usize, shares: &[f64], seed: u64, as_json
     let mut dbs = Vec::new();
     let mut scene = Aabb::EMPTY;
     for f in files {
-        let db = crate::cmd::open_to_read(f)?;
+        let db = crate::input::open_to_read(f)?;
         let info = db.begin_read()?.info().with_context(|| format!("{} holds no tree", f.display()))?;
         scene = scene.union(&Aabb::from_array(info.scene_box));
         dbs.push((f, db, info));

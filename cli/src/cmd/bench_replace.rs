@@ -2,55 +2,26 @@
 //! object by object, with box-query reads at 10%, 50% and 100% against a
 //! fresh bulk load of the same objects, through `mktree_bench::bench_replace`.
 
-use std::path::PathBuf;
-
 use anyhow::{Result, bail};
-use clap::Args;
-use mktree::build::BuildParams;
+use mktree::bulk::BuildParams;
 use mktree::db::CreateOptions;
 use mktree_bench::{ReplaceOptions, bench_replace, standard_sets};
 
-use crate::args::ImportArgs;
+use crate::args::BenchReplaceArgs;
 use crate::output;
-
-/// `bench-replace`'s arguments.
-#[derive(Args, Debug, Clone)]
-pub struct BenchReplaceArgs {
-    /// Scene A: a file, or a preset (tanker1, tanker2, tanker3, ship, ship:N).
-    pub scene: String,
-    /// Scene B, which replaces A; by default A's preset with seed 1.
-    #[arg(long)]
-    pub revision: Option<String>,
-    /// Objects replaced per write transaction, as a share of the scene.
-    #[arg(long, default_value_t = 0.05)]
-    pub batch: f64,
-    /// Queries per generated set (boxes of 1%, 5% and 20% of the extent, collisions).
-    #[arg(long, default_value_t = 100)]
-    pub queries: usize,
-    /// Seed of the replacement order and the query sets.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Where the files are built (removed afterwards).
-    #[arg(long, default_value = ".")]
-    pub dir: PathBuf,
-    #[arg(long)]
-    pub json: bool,
-    #[command(flatten)]
-    pub import: ImportArgs,
-}
 
 pub fn run(args: &BenchReplaceArgs) -> Result<()> {
     if !(args.batch > 0.0 && args.batch <= 1.0) {
         bail!("--batch {} is not a share in (0, 1]", args.batch);
     }
     let options = args.import.options();
-    let a = crate::cmd::scene_or_preset(&args.scene, &options)?;
+    let a = crate::input::scene_or_preset(&args.scene, &options)?;
     let b = match &args.revision {
-        Some(r) => crate::cmd::scene_or_preset(r, &options)?,
+        Some(r) => crate::input::scene_or_preset(r, &options)?,
         None if std::path::Path::new(&args.scene).exists() => {
             bail!("{} is a file: name the revision that replaces it with --revision", args.scene)
         }
-        None => crate::cmd::scene_or_seeded_preset(&args.scene, &options, 1)?,
+        None => crate::input::scene_or_seeded_preset(&args.scene, &options, 1)?,
     };
     let create = CreateOptions::default();
     let params = BuildParams::for_blocks(create.block_size);

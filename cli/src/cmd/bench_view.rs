@@ -4,46 +4,15 @@
 //! budget, and the exact frustum query's reads as the yardstick. Writes a
 //! chart and, per file, a strip of one frame drawn at each τ.
 
-use std::path::PathBuf;
-
 use anyhow::{Context, Result, bail};
-use clap::Args;
 use mktree::ViewOptions;
 use mktree::geom::{Aabb, Point};
 use mktree::render::{Image, draw_cut, framing};
 use mktree_bench::{ViewBench, ViewBenchOptions, bench_view, flight, views};
 use serde_json::json;
 
+use crate::args::BenchViewArgs;
 use crate::output;
-
-/// `bench-view`'s arguments.
-#[derive(Args, Debug, Clone)]
-pub struct BenchViewArgs {
-    /// .mkt files (each walked through along its scene's x axis).
-    #[arg(required = true)]
-    pub files: Vec<PathBuf>,
-    /// Frames along the walk.
-    #[arg(long, default_value_t = 20)]
-    pub steps: usize,
-    /// Blocks the pool holds.
-    #[arg(long, default_value_t = 256)]
-    pub cache_blocks: usize,
-    /// The tolerances τ to sweep, pixels.
-    #[arg(long, value_delimiter = ',', default_values_t = [0.0, 1.0, 4.0, 16.0, 64.0, 256.0])]
-    pub taus: Vec<f64>,
-    /// The block budgets per frame to sweep (at τ = 1 px).
-    #[arg(long, value_delimiter = ',', default_values_t = [25, 50, 100, 200, 400])]
-    pub budgets: Vec<u64>,
-    /// The viewport's height in pixels (its width is 1.5 times that).
-    #[arg(long, default_value_t = 720)]
-    pub height_px: u32,
-    /// Where bench-view.json, the chart (bench-view.svg, .png) and the frame strips
-    /// (frames-NAME.png: the scene's middle section at each tau, 480 x 320 px) go.
-    #[arg(long, default_value = ".")]
-    pub out: PathBuf,
-    #[arg(long)]
-    pub json: bool,
-}
 
 pub fn run(args: &BenchViewArgs) -> Result<()> {
     if args.steps == 0 {
@@ -64,7 +33,7 @@ pub fn run(args: &BenchViewArgs) -> Result<()> {
     for file in &args.files {
         let name =
             file.file_stem().map_or_else(|| file.display().to_string(), |s| s.to_string_lossy().into());
-        let db = crate::cmd::open_to_read(file)?;
+        let db = crate::input::open_to_read(file)?;
         let r = db.begin_read()?;
         let scene = r.root().with_context(|| format!("{} holds no tree", file.display()))?.aabb;
         let walk = views(&flight(&scene, args.steps), &scene, &opts);
@@ -79,7 +48,7 @@ pub fn run(args: &BenchViewArgs) -> Result<()> {
             strip.push(draw_cut(&frame, &cut, m)?);
         }
         let strip_path = args.out.join(format!("frames-{name}.png"));
-        crate::cmd::render::write_png(&side_by_side(&strip), &strip_path)?;
+        output::write_png(&side_by_side(&strip), &strip_path)?;
         results.push((name, bench));
     }
     let json_path = args.out.join("bench-view.json");

@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
-use mktree::build::{BuildProgress, Hierarchy, LoadProgress, Report, Stage, build, estimate_work};
+use mktree::bulk::{Hierarchy, LoadProgress, Report, Stage};
 use mktree::db::{CreateOptions, Database, StagedScene, WriterWait};
 use mktree::scene::Scene;
 use mktree::store::StorageError;
@@ -16,23 +16,6 @@ use serde_json::json;
 
 use crate::args::{BuildArgs, LodArgs};
 use crate::output;
-
-/// A progress bar per stage, with the time left (on stderr, hidden when
-/// not a terminal): objects placed while the tree is built, then the units
-/// of each later stage of the bulk load.
-fn progress_bar(objects: usize, build: &BuildArgs) -> ProgressBar {
-    let pb = ProgressBar::new(objects as u64);
-    pb.set_style(
-        ProgressStyle::with_template(
-            "{spinner} {prefix:>8} [{bar:40}] {pos}/{len} {msg} ({elapsed}, {eta} left)",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    pb.set_prefix(Stage::Tree.name());
-    let work = estimate_work(objects, None, &build.params());
-    pb.set_message(format!("objects placed, ~{work:.2e} object visits estimated"));
-    pb
-}
 
 /// Each stage of a build as it ended: its wall seconds, and the process's
 /// peak resident memory by then (Linux; `null` elsewhere). `build --json`
@@ -58,7 +41,7 @@ impl Stages {
         let mut guard = self.0.lock().unwrap_or_else(|e| e.into_inner());
         let (rows, began) = &mut *guard;
         let seconds = began.elapsed().as_secs_f64();
-        rows.push(StageRow { stage, seconds, peak_rss_bytes: crate::cmd::peak_rss_bytes() });
+        rows.push(StageRow { stage, seconds, peak_rss_bytes: crate::memory::peak_rss_bytes() });
         *began = Instant::now();
     }
 
@@ -75,7 +58,7 @@ impl Stages {
 fn show(pb: &ProgressBar, stages: &Stages, p: LoadProgress) {
     if pb.prefix() != p.stage.name() {
         stages.end(stage_name(&pb.prefix()));
-        crate::cmd::release_freed_memory();
+        crate::memory::release_freed_memory();
         pb.set_prefix(p.stage.name());
         pb.set_message("");
         pb.reset();
@@ -108,7 +91,7 @@ fn open_output(out: &Path, args: &BuildArgs, lod: &LodArgs) -> Result<(Database,
         Err(StorageError::NotMktree) => {
             bail!("{} is not an mktree file; not overwriting it (give -o a new .mkt path)", out.display())
         }
-        opened => opened.map_err(|e| crate::cmd::opening(e, out))?,
+        opened => opened.map_err(|e| crate::input::opening(e, out))?,
     };
     if args.block_size.is_some_and(|b| b != db.block_size()) {
         bail!("{} has {}-byte blocks; a new block size needs a new file", out.display(), db.block_size());
@@ -117,17 +100,6 @@ fn open_output(out: &Path, args: &BuildArgs, lod: &LodArgs) -> Result<(Database,
         bail!("{} has {} levels of detail; a new M needs a new file", out.display(), db.lod_levels());
     }
     Ok((db, created))
-}
-
-/// Builds the tree of `scene` in memory, with a progress bar.
-pub fn build_in_memory(scene: &Scene, args: &BuildArgs) -> Result<Hierarchy> {
-    let sizes: Vec<u64> = scene.objects().iter().map(|o| mktree::build::object_bytes(&o.mesh)).collect();
-    let pb = progress_bar(scene.len(), args);
-    let tree = build(&scene.object_boxes(), Some(&sizes), &args.params(), &|p: BuildProgress| {
-        pb.set_position(p.objects_placed)
-    })?;
-    pb.finish_and_clear();
-    Ok(tree)
 }
 
 /// How `build` writes: wait for another writer, key objects by their
@@ -171,20 +143,20 @@ fn read_input(path: &Path, args: &BuildArgs, write: &Write, spill_dir: &Path) ->
     let input = if streams && large {
         reading.set_message(format!("{} (staged in {})", path.display(), spill_dir.display()));
         let (mut staged, degenerate) = StagedScene::import(path, &args.import.options(), spill_dir)?;
-        crate::cmd::warn_degenerate(degenerate);
+        crate::input::warn_degenerate(degenerate);
         if write.key_names {
             staged.key_by_names()?;
         }
         Input::Staged(staged)
     } else {
-        let mut scene = crate::cmd::read_scene(path, &args.import.options())?;
+        let mut scene = crate::input::read_scene(path, &args.import.options())?;
         if write.key_names {
             scene.key_by_names()?;
         }
         Input::Whole(scene)
     };
     reading.finish_and_clear();
-    crate::cmd::release_freed_memory();
+    crate::memory::release_freed_memory();
     Ok(input)
 }
 
@@ -197,11 +169,11 @@ pub fn run(
     as_json: bool,
 ) -> Result<()> {
     let stages = Stages::new();
-    let mut input = read_input(scene_path, args, &write, crate::cmd::folder_of(out))?;
+    let mut input = read_input(scene_path, args, &write, crate::input::folder_of(out))?;
     stages.end("read");
     let started = Instant::now();
     let (db, created) = open_output(out, args, lod)?;
-    let pb = progress_bar(input.len(), args);
+    let pb = output::progress_bar(input.len(), &args.params());
     let written = (|| -> Result<Hierarchy> {
         let mut w = db.begin_write_with(if write.wait { WriterWait::Wait } else { WriterWait::Fail })?;
         w.set_lod_params(lod.params());

@@ -8,7 +8,7 @@ use mktree::db::check;
 use crate::output;
 
 pub fn run(file: &Path, as_json: bool) -> Result<()> {
-    let db = crate::cmd::open_to_read(file)?;
+    let db = crate::input::open_to_read(file)?;
     let report = check(&db)?;
     if as_json {
         output::json(&report)?;

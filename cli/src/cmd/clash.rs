@@ -10,7 +10,7 @@ use serde_json::json;
 use crate::output;
 
 pub fn run(file: &Path, clearance: f64, lod: Option<u8>, as_json: bool) -> Result<()> {
-    let db = crate::cmd::open_to_read(file)?;
+    let db = crate::input::open_to_read(file)?;
     let r = db.begin_read()?;
     let a = clash(&r, &ClashOptions { lod, clearance }, None)?;
     let s = &a.stats;

@@ -9,7 +9,7 @@ use mktree::query::{CollideOptions, QueryOptions, collide, object_mesh};
 use mktree::scene::import::ImportOptions;
 use mktree::scene::{Mesh, ObjectId};
 
-use super::query::print;
+use crate::output::print_answer;
 
 /// The query object and its pose, as the flags give them.
 pub struct Query {
@@ -22,7 +22,7 @@ pub struct Query {
 
 /// All of a scene file's objects as one mesh.
 fn merged(path: &Path, import: &ImportOptions) -> Result<Mesh> {
-    let scene = super::read_scene(path, import)?;
+    let scene = crate::input::read_scene(path, import)?;
     let mut vertices = Vec::new();
     let mut triangles = Vec::new();
     for o in scene.objects() {
@@ -40,7 +40,7 @@ pub fn run(
     import: &ImportOptions,
     as_json: bool,
 ) -> Result<()> {
-    let db = crate::cmd::open_to_read(file)?;
+    let db = crate::input::open_to_read(file)?;
     let r = db.begin_read()?;
     let (mesh, exclude) = match (&q.mesh, q.object) {
         (Some(path), _) => (merged(path, import)?, None),
@@ -49,5 +49,5 @@ pub fn run(
     };
     let pose = Pose::from_degrees(q.translate, q.rotate_deg)?;
     let opts = CollideOptions { query: *level, clearance: q.clearance, exclude };
-    print(&collide(&r, &mesh, &pose, &opts, None)?, as_json)
+    print_answer(&collide(&r, &mesh, &pose, &opts, None)?, as_json)
 }

@@ -8,7 +8,7 @@ use mktree::db::{Database, WriterWait};
 use crate::output;
 
 pub fn run(file: &Path, wait: bool, as_json: bool) -> Result<()> {
-    let db = Database::open(file).map_err(|e| crate::cmd::opening(e, file))?;
+    let db = Database::open(file).map_err(|e| crate::input::opening(e, file))?;
     let c = db.compact_with(if wait { WriterWait::Wait } else { WriterWait::Fail })?;
     if as_json {
         return output::json(&c);

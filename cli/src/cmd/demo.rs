@@ -86,7 +86,7 @@ pub fn run(dir: &Path) -> Result<()> {
     let default_file = dir.join("bench-peers-tanker2.mkt");
     let m5 = dir.join("tanker2-m5.mkt");
     build_levels_file(&scene, &m5)?;
-    let (default_db, m5_db) = (crate::cmd::open_to_read(&default_file)?, crate::cmd::open_to_read(&m5)?);
+    let (default_db, m5_db) = (crate::input::open_to_read(&default_file)?, crate::input::open_to_read(&m5)?);
     let (default_r, m5_r) = (default_db.begin_read()?, m5_db.begin_read()?);
     let queries = collision_levels(&m5_r, QUERIES, SHIFT_MM, CLEARANCE_MM, 0)?;
     let default_queries = collision_levels(&default_r, QUERIES, SHIFT_MM, CLEARANCE_MM, 0)?;
@@ -172,7 +172,7 @@ fn build_levels_file(scene: &Scene, path: &Path) -> Result<()> {
         std::fs::remove_file(path).with_context(|| format!("replacing {}", path.display()))?;
     }
     let db = Database::create(path, CreateOptions { block_size: BLOCK, lod_levels: LEVELS })
-        .map_err(|e| crate::cmd::opening(e, path))?;
+        .map_err(|e| crate::input::opening(e, path))?;
     let mut w = db.begin_write()?;
     w.set_lod_params(LodParams { eps: Some(EPS_MM.to_vec()), ..LodParams::default() });
     w.bulk_load(scene, &BuildParams::default(), &|_| {})?;

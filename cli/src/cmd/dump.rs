@@ -4,8 +4,8 @@ use std::path::Path;
 
 use anyhow::{Result, bail};
 
-use super::tree_of;
 use crate::args::BuildArgs;
+use crate::input::tree_of;
 use crate::output;
 
 pub fn run(input: &Path, build: &BuildArgs, as_json: bool) -> Result<()> {

@@ -7,7 +7,7 @@ use anyhow::{Context, Result};
 use crate::output;
 
 pub fn run(file: &Path, out: &Path, as_json: bool) -> Result<()> {
-    let db = crate::cmd::open_to_read(file)?;
+    let db = crate::input::open_to_read(file)?;
     let r = db.begin_read()?;
     let report = mktree::tiles::export_3d_tiles(&r, out).with_context(|| format!("{}", file.display()))?;
     if as_json {

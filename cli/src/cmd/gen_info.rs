@@ -30,7 +30,7 @@ pub fn generate(preset: &str, objects: Option<u64>, seed: u64, out: &Path) -> Re
 }
 
 pub fn info(path: &Path, options: &ImportOptions, json: bool) -> Result<()> {
-    let scene = crate::cmd::read_scene(path, options)?;
+    let scene = crate::input::read_scene(path, options)?;
     let i = SceneInfo::of(&scene);
     if json {
         return output::json(&i);

@@ -22,7 +22,7 @@ pub fn parse_key(text: &std::ffi::OsStr, bytes: bool) -> Result<Key> {
 }
 
 pub fn run(file: &Path, key: &Key, mesh: bool, as_json: bool) -> Result<()> {
-    let db = crate::cmd::open_to_read(file)?;
+    let db = crate::input::open_to_read(file)?;
     let r = db.begin_read()?;
     let mut reads = Reads::new(None);
     let Some(rec) = r.get_with(key, &mut reads)? else { bail!("no object has the key {key}") };

@@ -42,7 +42,7 @@ pub fn run_insert(file: &Path, scene: &Path, key_names: bool, as_json: bool) -> 
     if key_names {
         scene_objects.key_by_names()?;
     }
-    let db = Database::open(file).map_err(|e| crate::cmd::opening(e, file))?;
+    let db = Database::open(file).map_err(|e| crate::input::opening(e, file))?;
     let mut w = db.begin_write()?;
     let mut keys: Vec<Key> = Vec::new();
     for object in scene_objects.into_objects() {
@@ -65,7 +65,7 @@ pub fn run_move(file: &Path, key: &Key, by: [f64; 3], as_json: bool) -> Result<(
     if !by.iter().all(|x| x.is_finite()) {
         bail!("--by {by:?} is not a finite offset");
     }
-    let db = Database::open(file).map_err(|e| crate::cmd::opening(e, file))?;
+    let db = Database::open(file).map_err(|e| crate::input::opening(e, file))?;
     let mut w = db.begin_write()?;
     if !w.move_by(key, Vector::new(by[0], by[1], by[2]))? {
         bail!("no object has the key {key}");

@@ -14,7 +14,7 @@ use serde_json::json;
 use crate::output;
 
 fn open(file: &Path) -> Result<(Database, ReadTransaction)> {
-    let db = crate::cmd::open_to_read(file)?;
+    let db = crate::input::open_to_read(file)?;
     let r = db.begin_read()?;
     Ok((db, r))
 }

@@ -52,7 +52,7 @@ pub fn run_view(
             far_mm: c.far,
         })
         .collect();
-    let db = crate::cmd::open_to_read(file)?;
+    let db = crate::input::open_to_read(file)?;
     let r = db.begin_read()?;
     let cuts = navigate_view(&r, &views, opts, cache_blocks)?;
     let total: u64 = cuts.iter().map(|c| c.stats.reads.total()).sum();
@@ -62,7 +62,7 @@ pub fn run_view(
             .iter()
             .enumerate()
             .map(|(i, c)| {
-                let mut v = crate::cmd::view::cut_json(c);
+                let mut v = crate::output::cut_json(c);
                 v["step"] = json!(i);
                 v
             })
@@ -108,7 +108,7 @@ pub fn run(
     as_json: bool,
 ) -> Result<()> {
     let cameras = cameras(path, lens)?;
-    let db = crate::cmd::open_to_read(file)?;
+    let db = crate::input::open_to_read(file)?;
     let r = db.begin_read()?;
     let steps = navigate(&r, &cameras, &QueryOptions { lod, ..Default::default() }, cache_blocks)?;
     let total: u64 = steps.iter().map(|s| s.reads.total()).sum();

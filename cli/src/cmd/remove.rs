@@ -10,7 +10,7 @@ use serde_json::json;
 use crate::output;
 
 pub fn run(file: &Path, keys: &[Key], wait: bool, as_json: bool) -> Result<()> {
-    let db = Database::open(file).map_err(|e| crate::cmd::opening(e, file))?;
+    let db = Database::open(file).map_err(|e| crate::input::opening(e, file))?;
     let mut w = db.begin_write_with(if wait { WriterWait::Wait } else { WriterWait::Fail })?;
     for key in keys {
         if w.remove(key)?.is_none() {

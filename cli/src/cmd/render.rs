@@ -1,17 +1,14 @@
 //! `mktree render`: a picture of the view's cut (or of one node's level of
 //! detail) drawn by the library's rasterizer, written as PNG.
 
-use std::fs::File;
-use std::io::BufWriter;
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use mktree::render::{Image, draw_cut, draw_level};
+use mktree::render::{draw_cut, draw_level};
 use mktree::store::ReadStats;
 use serde_json::json;
 
 use crate::args::ViewArgs;
-use crate::cmd::view::{camera, cut_json, options};
 use crate::output;
 
 /// What to draw.
@@ -23,24 +20,25 @@ pub enum What {
 }
 
 pub fn run(file: &Path, args: &ViewArgs, what: What, out: &Path, as_json: bool) -> Result<()> {
-    let db = crate::cmd::open_to_read(file)?;
+    let db = crate::input::open_to_read(file)?;
     let r = db.begin_read()?;
     let m = db.lod_levels();
     let (img, summary) = match what {
         What::Cut => {
             let scene = r.root().map_or(mktree::Aabb::EMPTY, |n| n.aabb);
-            let view = camera(args, &scene);
-            let cut =
-                r.view(&view, &options(args, true), None).with_context(|| format!("{}", file.display()))?;
+            let view = args.view(&scene);
+            let cut = r
+                .view(&view, &args.view_options(true), None)
+                .with_context(|| format!("{}", file.display()))?;
             let img = draw_cut(&view, &cut, m)?;
-            let mut s = cut_json(&cut);
+            let mut s = output::cut_json(&cut);
             // The pieces are in `mktree view`; the picture's summary is enough here.
             s["pieces"] = json!(null);
             (img, s)
         }
         What::Node { node, k, objects } => {
             let (at, _) = r.locate(node)?;
-            let view = camera(args, &at.aabb);
+            let view = args.view(&at.aabb);
             let mut reads = ReadStats::default();
             let level = r.fetch_level(node, k, objects, &mut reads)?;
             let img = draw_level(&view, &level, k, m, !objects)?;
@@ -52,7 +50,7 @@ pub fn run(file: &Path, args: &ViewArgs, what: What, out: &Path, as_json: bool) 
             (img, s)
         }
     };
-    write_png(&img, out)?;
+    output::write_png(&img, out)?;
     let mut s = summary;
     s["output"] = json!(out.display().to_string());
     s["pixels_drawn"] = json!(img.coverage());
@@ -67,17 +65,5 @@ pub fn run(file: &Path, args: &ViewArgs, what: What, out: &Path, as_json: bool) 
         img.coverage(),
         s["block_reads"]["total"]
     );
-    Ok(())
-}
-
-/// Writes `img` as an 8-bit RGB PNG.
-pub(crate) fn write_png(img: &Image, out: &Path) -> Result<()> {
-    let f = File::create(out).with_context(|| format!("creating {}", out.display()))?;
-    let mut enc = png::Encoder::new(BufWriter::new(f), img.width, img.height);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    let mut w = enc.write_header().with_context(|| format!("writing {}", out.display()))?;
-    w.write_image_data(&img.rgb).with_context(|| format!("writing {}", out.display()))?;
-    w.finish().with_context(|| format!("writing {}", out.display()))?;
     Ok(())
 }

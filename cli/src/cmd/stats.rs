@@ -4,22 +4,22 @@
 use std::path::Path;
 
 use anyhow::Result;
-use mktree::build::{BuildParams, Report, TreeShape};
+use mktree::bulk::{BuildParams, Report, TreeShape};
 use serde_json::{Value, json};
 
-use super::{Source, tree_of};
 use crate::args::BuildArgs;
+use crate::input::{Source, tree_of};
 use crate::output::{self, opt};
 
 /// A one-line description of the parameters.
 pub fn describe(p: &BuildParams) -> String {
     let leaf = match p.leaf {
-        mktree::build::LeafRule::Objects(n) => format!("MemPage {n} objects"),
-        mktree::build::LeafRule::Bytes { capacity } => format!("MemPage {capacity} bytes"),
+        mktree::bulk::LeafRule::Objects(n) => format!("MemPage {n} objects"),
+        mktree::bulk::LeafRule::Bytes { capacity } => format!("MemPage {capacity} bytes"),
     };
     let la = match p.method {
-        mktree::build::Method::Laa => format!(", look-ahead {}", p.look_ahead),
-        mktree::build::Method::Refine => format!(", query extent {}", p.query_extent),
+        mktree::bulk::Method::Laa => format!(", look-ahead {}", p.look_ahead),
+        mktree::bulk::Method::Refine => format!(", query extent {}", p.query_extent),
         _ => String::new(),
     };
     format!("method {}, R {}, {leaf}{la}, tie-break {}", p.method, p.rate, p.tie_break)

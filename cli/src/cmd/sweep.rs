@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Instant;
 
 use anyhow::Result;
-use mktree::build::{BuildParams, LeafRule, LookAhead, Method, Report, build};
+use mktree::bulk::{BuildParams, LeafRule, LookAhead, Method, Report, build};
 use mktree::scene::import::ImportOptions;
 use serde::Serialize;
 
@@ -36,7 +36,7 @@ pub fn run(
     look_ahead: LookAhead,
     as_json: bool,
 ) -> Result<()> {
-    let scene = crate::cmd::read_scene(scene_path, options)?;
+    let scene = crate::input::read_scene(scene_path, options)?;
     let pages =
         pages.unwrap_or_else(|| if scene.len() < 1000 { vec![10, 20, 30] } else { vec![100, 200, 500] });
     let boxes = scene.object_boxes();

@@ -13,7 +13,7 @@ use crate::output;
 pub fn run(files: &[PathBuf], queries: usize, seed: u64, out: &Path, as_json: bool) -> Result<()> {
     let mut results: Vec<(String, Vec<TradeoffRow>)> = Vec::new();
     for file in files {
-        let db = crate::cmd::open_to_read(file)?;
+        let db = crate::input::open_to_read(file)?;
         let r = db.begin_read()?;
         // The same seed draws the same objects and moves in files of one scene.
         let workload =

@@ -25,7 +25,7 @@ use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
 use std::sync::Arc;
 
 use super::WriteTransaction;
-use crate::build::{BuildParams, LeafRule};
+use crate::bulk::{BuildParams, LeafRule};
 use crate::db::path::PathStep;
 use crate::db::read::view;
 use crate::db::source::check_object;
@@ -591,8 +591,8 @@ impl WriteTransaction<'_> {
         };
         let params = r.info().and_then(|i| i.params);
         let over = match params.as_ref().map(|p| p.leaf) {
-            Some(crate::build::LeafRule::Objects(n)) => objects_held > 2 * u64::from(n),
-            Some(crate::build::LeafRule::Bytes { capacity }) => *end > 2 * capacity.max(p),
+            Some(crate::bulk::LeafRule::Objects(n)) => objects_held > 2 * u64::from(n),
+            Some(crate::bulk::LeafRule::Bytes { capacity }) => *end > 2 * capacity.max(p),
             None => end.div_ceil(p) > 4,
         };
         let (span, node_blocks) = if (over || draft.encoded_len() > node::capacity(bs)) && objects_held > 1 {
@@ -1155,12 +1155,12 @@ impl WriteTransaction<'_> {
         let sizes: Vec<u64> =
             runs.iter().map(|r| entries[r.clone()].iter().map(|e| e.record.len() as u64).sum()).collect();
         let by_bytes = matches!(split.params.leaf, LeafRule::Bytes { .. });
-        let mut tree = crate::build::build(&boxes, by_bytes.then_some(&sizes[..]), split.params, &|_| {})?;
+        let mut tree = crate::bulk::build(&boxes, by_bytes.then_some(&sizes[..]), split.params, &|_| {})?;
         if tree.nodes.len() == 1 {
             // Within the file's rule, but not within a node block: halves.
             let half = u32::try_from(runs.len().div_ceil(2)).map_err(|_| StorageError::FileTooLarge)?;
             let params = BuildParams { leaf: LeafRule::Objects(half), ..split.params.clone() };
-            tree = crate::build::build(&boxes, None, &params, &|_| {})?;
+            tree = crate::bulk::build(&boxes, None, &params, &|_| {})?;
         }
         for e in &entries {
             for b in &e.bounds {

@@ -2,6 +2,7 @@
 //! Records are zerocopy structs with unaligned little-endian fields; sizes are
 //! checked at compile time and offsets in `tests/format_spec.rs`.
 
+pub mod blob;
 pub mod frame;
 pub mod freelist;
 pub mod geometry;
@@ -24,6 +25,9 @@ pub const FORMAT_VERSION: u32 = 7;
 pub const MIN_BLOCK_SIZE: u32 = 1024;
 /// Largest block size.
 pub const MAX_BLOCK_SIZE: u32 = 4 * 1024 * 1024;
+/// The block size a file is created with unless told otherwise (the
+/// README's measurements), and the one `BuildParams::default` cuts leaves for.
+pub const DEFAULT_BLOCK_SIZE: u32 = 16 * 1024;
 /// Most levels of detail a file can carry.
 pub const MAX_LOD_LEVELS: u8 = 16;
 

@@ -584,7 +584,7 @@ fn validate_bounds(mut area: &[u8], targets: usize, limits: &Limits) -> Result<(
         }
         // A bound is of a surface, which touches some cell: one of no cell
         // would rule its object out of every query.
-        if crate::lod::sets_no_cell(&rest[..n]) {
+        if super::blob::sets_no_cell(&rest[..n]) {
             return Err(format!("the bound of target {t} at level {k} sets no cell"));
         }
         area = &rest[n..];

@@ -123,7 +123,7 @@ fn spec_tables_match_the_records() {
     bound!(target, level_bytes);
 
     let lod = include_str!("../../../format-spec/lod.md");
-    macro_rules! blob { ($($f:ident),*) => { $( field!(lod, Some("## Inline voxel blob"), 0, crate::lod::BlobHead, $f); )* } }
+    macro_rules! blob { ($($f:ident),*) => { $( field!(lod, Some("## Inline voxel blob"), 0, super::blob::BlobHead, $f); )* } }
     blob!(level, form);
 
     let geometry = include_str!("../../../format-spec/geometry.md");

@@ -209,7 +209,7 @@ impl Drop for StageMeter<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::build::{LeafRule, LookAhead};
+    use crate::bulk::{LeafRule, LookAhead};
 
     #[test]
     fn a_stage_reports_its_start_at_most_a_thousand_steps_and_its_end() {
@@ -247,7 +247,7 @@ mod tests {
     /// when it counted all seven options).
     #[test]
     fn the_estimate_is_near_the_work_done() {
-        use crate::build::build;
+        use crate::bulk::build;
         use crate::scene::generate::{GenOptions, Preset, generate_scene};
         let scene =
             generate_scene(&GenOptions { preset: Preset::Ship, objects: Some(20_000), seed: 0 }).unwrap();

@@ -41,7 +41,7 @@ const MAX_OBJECTS: usize = 1 << 31;
 /// them.
 ///
 /// ```
-/// use mktree::build::{BuildParams, LeafRule, Method, build};
+/// use mktree::bulk::{BuildParams, LeafRule, Method, build};
 /// use mktree::geom::Aabb;
 ///
 /// let boxes: Vec<Aabb> = (0..50)

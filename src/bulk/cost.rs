@@ -30,7 +30,7 @@ pub const NODE_READ_WEIGHT: f64 = 1.0 / 3.0;
 /// The Kamel–Faloutsos / Pagel model for one query extent.
 ///
 /// ```
-/// use mktree::build::{CostModel, QueryExtent};
+/// use mktree::bulk::{CostModel, QueryExtent};
 /// use mktree::geom::Aabb;
 ///
 /// let boxes = [Aabb::from_array([0.0, 0.0, 0.0, 100.0, 100.0, 100.0]),

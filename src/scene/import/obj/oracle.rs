@@ -5,10 +5,12 @@
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
 
-use super::super::load::file_stem;
-use super::super::{ImportError, Imported, Location};
-use super::{Grouping, find_newline, scan_f64, scan_index, token_at};
+use super::Grouping;
+use super::number::{scan_f64, scan_index, token_at};
+use super::statement::find_newline;
 use crate::geom::Point;
+use crate::scene::import::load::file_stem;
+use crate::scene::import::{ImportError, Imported, Location};
 use crate::scene::{Object, Scene};
 
 pub(super) fn read_obj<R: BufRead>(reader: R, source: &Path) -> Result<Imported, ImportError> {

@@ -3,13 +3,17 @@
 //! must return normally on any input: errors are fine, panics and hangs are
 //! bugs. No count read from the input is capped here: the decoders must
 //! bound their own work. The structure-aware targets (`structure.rs`)
-//! forge one structure of a valid file past its checksums, and a file
-//! `check` passes must also answer right; `api.rs` runs API calls and
-//! crashes against a model of the committed scene.
+//! forge one structure of a valid file (`base.rs`) past its checksums
+//! (`forge.rs` reads and re-seals the bytes, `edit.rs` and `forgeries.rs`
+//! change them), and a file `check` passes must also answer right;
+//! `api.rs` runs API calls and crashes against a model of the committed
+//! scene. They reach the format through mktree's `internals` feature.
 
 mod api;
+mod base;
 mod edit;
 pub mod forge;
+mod forgeries;
 mod structure;
 
 use std::sync::Arc;
@@ -17,16 +21,16 @@ use std::sync::Arc;
 pub use api::api_sequence;
 pub use structure::{Structure, forged};
 
-use crate::db::{Database, check, read_hierarchy};
-use crate::geom::Aabb;
-use crate::query::{QueryOptions, Region, query_region};
-use crate::store::BlockDevice;
-use crate::store::device::MemDevice;
-use crate::store::format::freelist::FreeListBlock;
-use crate::store::format::meta::Meta;
-use crate::store::format::node::{self, Limits};
-use crate::store::format::quant::QuantBox;
-use crate::store::format::{frame, geometry, keys};
+use mktree::db::{Database, check, read_hierarchy};
+use mktree::geom::Aabb;
+use mktree::query::{QueryOptions, Region, query_region};
+use mktree::store::BlockDevice;
+use mktree::store::device::MemDevice;
+use mktree::store::format::freelist::FreeListBlock;
+use mktree::store::format::meta::Meta;
+use mktree::store::format::node::{self, Limits};
+use mktree::store::format::quant::QuantBox;
+use mktree::store::format::{frame, geometry, keys};
 
 /// Makes the calling thread rayon's one worker, for a fuzz target's
 /// process (its `init`): the bodies' parallel work (a write's layout and
@@ -46,7 +50,7 @@ pub fn decode_block(data: &[u8]) {
     let mut block = rest.to_vec();
     block.resize(1024, 0);
     let _ = frame::open(7, &block);
-    let lattice = crate::lod::Lattice { origin: crate::geom::Point::origin(), cell: 1.0 };
+    let lattice = mktree::lod::Lattice { origin: mktree::geom::Point::origin(), cell: 1.0 };
     // A lone block has no meta block to bound its object ids: every id passes.
     let limits = Limits { block_size: 1024, lod_levels: m, object_count: u32::MAX };
     if let Ok(offsets) = node::validate_block(7, &block, &limits) {
@@ -83,7 +87,7 @@ pub fn decode_block(data: &[u8]) {
                     }
                     for b in l.bounds() {
                         if let Some(Some((outer, _))) = boxes.get(usize::from(b.target)) {
-                            let _ = crate::lod::decode(b.blob, &lattice, outer);
+                            let _ = mktree::lod::decode(b.blob, &lattice, outer);
                         }
                     }
                 }
@@ -108,7 +112,7 @@ pub fn decode_block(data: &[u8]) {
         }
     }
     let _ = FreeListBlock::decode(7, &block);
-    let _ = crate::lod::decode(rest, &lattice, &Aabb::from_array([0.0, 0.0, 0.0, 40.0, 30.0, 20.0]));
+    let _ = mktree::lod::decode(rest, &lattice, &Aabb::from_array([0.0, 0.0, 0.0, 40.0, 30.0, 20.0]));
     let _ = geometry::decode_object(7, rest);
 }
 

@@ -4,7 +4,7 @@
 //! copied from one place of a structure to another. Deterministic: the same
 //! input makes the same edits.
 
-use super::forge::Image;
+use crate::forge::Image;
 
 /// The input as choices; past its end every choice is 0.
 #[derive(Debug, Clone)]

@@ -12,15 +12,15 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use super::edit::Choices;
-use crate::build::{BuildParams, LeafRule, Method};
-use crate::db::{CreateOptions, Database, ReadTransaction, check};
-use crate::geom::{Aabb, Point};
-use crate::lod::LodParams;
-use crate::query::{QueryOptions, Region, brute_force_region, query_region};
-use crate::scene::{Key, KeyError, Mesh, Object, Scene};
-use crate::store::BlockDevice;
-use crate::store::device::{CrashDevice, CrashImage, MemDevice};
+use crate::edit::Choices;
+use mktree::bulk::{BuildParams, LeafRule, Method};
+use mktree::db::{CreateOptions, Database, ReadTransaction, check};
+use mktree::geom::{Aabb, Point};
+use mktree::lod::LodParams;
+use mktree::query::{QueryOptions, Region, brute_force_region, query_region};
+use mktree::scene::{Key, KeyError, Mesh, Object, Scene};
+use mktree::store::BlockDevice;
+use mktree::store::device::{CrashDevice, CrashImage, MemDevice};
 
 /// The committed objects by key (empty: no tree).
 type Committed = Arc<BTreeMap<Key, Object>>;
@@ -213,7 +213,7 @@ impl Life {
         let lods = self.lods(c);
         let finish = c.u8() % 4;
         let mut in_commit = false;
-        let result = (|| -> Result<bool, crate::Error> {
+        let result = (|| -> Result<bool, mktree::Error> {
             let mut w = self.db.begin_write()?;
             w.set_lod_params(lods);
             w.bulk_load(&s, &params, &|_| {})?;
@@ -250,7 +250,7 @@ impl Life {
         let finish = c.u8() % 4;
         let mut next = (**model).clone();
         let mut in_commit = false;
-        let result = (|| -> Result<bool, crate::Error> {
+        let result = (|| -> Result<bool, mktree::Error> {
             let mut w = self.db.begin_write()?;
             w.set_lod_params(lods);
             for change in changes {
@@ -260,7 +260,7 @@ impl Life {
                             assert!(o.key.as_ref().is_none_or(|want| *want == k), "insert gave key {k}");
                             assert!(next.insert(k.clone(), o).is_none(), "insert took key {k} twice");
                         }
-                        Err(crate::Error::Key(KeyError::Exists { key })) => {
+                        Err(mktree::Error::Key(KeyError::Exists { key })) => {
                             assert!(next.contains_key(&key), "insert refused key {key}, which is free")
                         }
                         Err(e) => return Err(e),
@@ -273,7 +273,7 @@ impl Life {
                         let k = o.key.clone().unwrap_or(Key::Int(1));
                         match w.update(o.clone()) {
                             Ok(_) => assert!(next.insert(k.clone(), o).is_some(), "update of absent key {k}"),
-                            Err(crate::Error::Key(KeyError::NotFound { key })) => {
+                            Err(mktree::Error::Key(KeyError::NotFound { key })) => {
                                 assert!(!next.contains_key(&key), "update missed key {key}")
                             }
                             Err(e) => return Err(e),
@@ -311,7 +311,7 @@ impl Life {
 
     /// Cheap levels of detail (all stored, or only those that pay).
     fn lods(&self, c: &mut Choices) -> LodParams {
-        LodParams { store_all: c.u8() & 1 == 1, ..super::structure::cheap_lods(self.db.lod_levels()) }
+        LodParams { store_all: c.u8() & 1 == 1, ..crate::base::cheap_lods(self.db.lod_levels()) }
     }
 
     /// Every held reader still answers its snapshot's scene.
@@ -335,10 +335,10 @@ impl Life {
 
 /// Commits (`finish` 0 or 1), aborts (2) or drops (3) `w`; true when committed.
 fn finish_write(
-    w: crate::db::WriteTransaction<'_>,
+    w: mktree::db::WriteTransaction<'_>,
     finish: u8,
     in_commit: &mut bool,
-) -> Result<bool, crate::Error> {
+) -> Result<bool, mktree::Error> {
     match finish {
         0 | 1 => {
             *in_commit = true;

@@ -70,7 +70,7 @@ const TRIANGLE_BYTES: u64 = 12;
 /// # use mktree::scene::Mesh;
 /// let p = [Point::new(0.0, 0.0, 0.0), Point::new(1.0, 0.0, 0.0), Point::new(0.0, 1.0, 0.0)];
 /// let mesh = Mesh::from_world(&p, vec![[0, 1, 2]])?;
-/// assert_eq!(mktree::build::object_bytes(&mesh), 40 + 3 * 12 + 12);
+/// assert_eq!(mktree::bulk::object_bytes(&mesh), 40 + 3 * 12 + 12);
 /// # Ok::<(), mktree::scene::MeshError>(())
 /// ```
 pub fn object_bytes(mesh: &Mesh) -> u64 {

@@ -37,7 +37,7 @@ pub struct BuildParams {
 /// 16 KiB blocks; a file of other blocks wants `for_blocks(its size)`.
 impl Default for BuildParams {
     fn default() -> BuildParams {
-        BuildParams::for_blocks(crate::db::DEFAULT_BLOCK_SIZE)
+        BuildParams::for_blocks(crate::store::format::DEFAULT_BLOCK_SIZE)
     }
 }
 

@@ -32,7 +32,7 @@ pub use cost::{CostModel, MIX_SHARES, QueryMix};
 pub use driver::build;
 pub(crate) use driver::build_owned;
 pub use error::BuildError;
-pub use hierarchy::{Hierarchy, Node, NodeId, NodeKind, Order, Split};
+pub use hierarchy::{Hierarchy, Node, NodeId, NodeKind, Order, Preorder, Split};
 pub use hilbert::curve_order;
 pub use leaf::{LeafRule, object_bytes};
 pub use params::{BuildParams, LookAhead, Method, ParseParamError, QueryExtent, TieBreak};

@@ -78,7 +78,7 @@ impl Split {
         let i = self.axis.index();
         match self.order {
             Order::Min | Order::Max => left.max[i] - right.min[i],
-            Order::Center => crate::build::driver::signed_intersection(left, right, self.axis),
+            Order::Center => crate::bulk::driver::signed_intersection(left, right, self.axis),
         }
     }
 }
@@ -165,6 +165,51 @@ impl Hierarchy {
     pub fn depth(&self) -> u32 {
         self.nodes.iter().map(|n| n.level + 1).max().unwrap_or(0)
     }
+
+    /// The subtree of `top` in preorder, following the children it records
+    /// (a node, its left subtree, then its right one): each node with its
+    /// id and its depth below `top`.
+    pub fn subtree(&self, top: NodeId) -> Preorder<'_, fn(&Node) -> bool> {
+        self.subtree_where(top, |_| true)
+    }
+
+    /// [`Hierarchy::subtree`] entering only the nodes `enter` accepts: a
+    /// node it refuses is not yielded and its subtree is skipped (a box
+    /// query enters the nodes whose box meets it).
+    pub fn subtree_where<F: FnMut(&Node) -> bool>(&self, top: NodeId, enter: F) -> Preorder<'_, F> {
+        Preorder { tree: self, stack: vec![(top, 0)], enter }
+    }
+}
+
+/// The preorder walk of [`Hierarchy::subtree_where`]. It follows the ids a
+/// node records and skips ids with no node; it ends when children ids lead
+/// down to larger ids, as in every hierarchy `validate` passes (which checks
+/// that with this walk, stopping at the first id out of order).
+#[derive(Debug, Clone)]
+pub struct Preorder<'a, F> {
+    tree: &'a Hierarchy,
+    /// Nodes to visit, the next on top, with their depth below the top.
+    stack: Vec<(NodeId, u32)>,
+    enter: F,
+}
+
+impl<'a, F: FnMut(&Node) -> bool> Iterator for Preorder<'a, F> {
+    type Item = (NodeId, u32, &'a Node);
+
+    fn next(&mut self) -> Option<Self::Item> {
+        while let Some((id, depth)) = self.stack.pop() {
+            let Some(node) = self.tree.node(id) else { continue };
+            if !(self.enter)(node) {
+                continue;
+            }
+            if let Some([left, right]) = node.children() {
+                self.stack.push((right, depth + 1));
+                self.stack.push((left, depth + 1));
+            }
+            return Some((id, depth, node));
+        }
+        None
+    }
 }
 
 /// The id of the node at `index`. A build takes at most 2^31 objects, so
@@ -206,5 +251,55 @@ impl Serialize for Hierarchy {
         let mut s = serializer.serialize_struct("Hierarchy", 1)?;
         s.serialize_field("nodes", &Records(&self.nodes))?;
         s.end()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::Axis;
+
+    fn leaf(level: u32, x: f64, object: u32) -> Node {
+        let aabb = Aabb::from_array([x, 0.0, 0.0, x + 1.0, 1.0, 1.0]);
+        Node { aabb, level, kind: NodeKind::Leaf { objects: vec![ObjectId(object)] } }
+    }
+
+    fn internal(level: u32, x: [f64; 2], children: [u32; 2]) -> Node {
+        let split = Split { axis: Axis::X, order: Order::Min, overlap: 0.0, gap: -1.0 };
+        let aabb = Aabb::from_array([x[0], 0.0, 0.0, x[1], 1.0, 1.0]);
+        Node { aabb, level, kind: NodeKind::Internal { children: children.map(NodeId), split } }
+    }
+
+    /// 0 over (1 over leaves 2, 3) and leaf 4, in preorder.
+    fn tree() -> Hierarchy {
+        Hierarchy {
+            nodes: vec![
+                internal(0, [0.0, 5.0], [1, 4]),
+                internal(1, [0.0, 3.0], [2, 3]),
+                leaf(2, 0.0, 0),
+                leaf(2, 2.0, 1),
+                leaf(1, 4.0, 2),
+            ],
+        }
+    }
+
+    #[test]
+    fn a_subtree_is_walked_in_preorder_with_depths_below_its_top() {
+        let t = tree();
+        let walk = |top| t.subtree(NodeId(top)).map(|(id, depth, _)| (id.0, depth)).collect::<Vec<_>>();
+        assert_eq!(walk(0), [(0, 0), (1, 1), (2, 2), (3, 2), (4, 1)]);
+        assert_eq!(walk(1), [(1, 0), (2, 1), (3, 1)]);
+        assert_eq!(walk(4), [(4, 0)]);
+        assert!(walk(9).is_empty());
+    }
+
+    #[test]
+    fn a_refused_node_is_skipped_with_its_subtree() {
+        let t = tree();
+        let query = Aabb::from_array([2.5, 0.0, 0.0, 4.5, 1.0, 1.0]);
+        let met: Vec<u32> =
+            t.subtree_where(NodeId::ROOT, |n| n.aabb.intersects(&query)).map(|(id, _, _)| id.0).collect();
+        assert_eq!(met, [0, 1, 3, 4]);
+        assert_eq!(t.subtree_where(NodeId::ROOT, |n| n.level == 0).count(), 1);
     }
 }

@@ -206,24 +206,19 @@ impl Hierarchy {
             return Err(HierarchyError::Empty);
         }
         // (node, its level): preorder visits exactly ids 0, 1, 2, ...
-        let mut stack = vec![(NodeId::ROOT, 0u32)];
         let mut next = 0usize;
-        while let Some((id, level)) = stack.pop() {
+        for (id, level, node) in self.subtree(NodeId::ROOT) {
             let expected = NodeId(next as u32);
             if id != expected {
                 return Err(HierarchyError::NotPreorder { node: id, expected });
             }
-            let node = &self.nodes[next];
             if node.level != level {
                 return Err(HierarchyError::WrongLevel { node: id, found: node.level, expected: level });
             }
             next += 1;
-            if let Some(children) = node.children() {
-                if let Some(&child) = children.iter().find(|c| c.index() >= self.nodes.len()) {
-                    return Err(HierarchyError::MissingChild { node: id, child });
-                }
-                stack.push((children[1], level + 1));
-                stack.push((children[0], level + 1));
+            // Checked before the walk goes on, which would skip a missing child.
+            if let Some(&child) = node.children().iter().flatten().find(|c| c.index() >= self.nodes.len()) {
+                return Err(HierarchyError::MissingChild { node: id, child });
             }
         }
         if next < self.nodes.len() {

@@ -8,8 +8,8 @@
 //! reference that leaves it is skipped, and a chain that loops is sealed
 //! once (its stale link is for the reader to catch).
 
-use crate::store::format::frame::block_checksum;
-use crate::store::format::header::{SLOT_LEN, SlotRead, decode_slots, slot_offset};
+use mktree::store::format::frame::block_checksum;
+use mktree::store::format::header::{SLOT_LEN, SlotRead, decode_slots, slot_offset};
 
 /// How a block is read, as its referrer expects it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -239,10 +239,10 @@ impl Walk for Trial<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::build::TieBreak;
-    use crate::build::leaf::Leaf;
-    use crate::build::progress::Meter;
-    use crate::build::walk::PAR_MIN;
+    use crate::bulk::TieBreak;
+    use crate::bulk::leaf::Leaf;
+    use crate::bulk::progress::Meter;
+    use crate::bulk::walk::PAR_MIN;
 
     #[test]
     fn what_a_trial_learns_of_a_node_is_its_vsah_score_bit_for_bit() {
@@ -267,7 +267,7 @@ mod tests {
             meter: Meter::new(&|_| {}, n, 0.0),
         };
         let keys = Keys::new(&boxes, &ids);
-        let refine = Refine::new(&ctx, &keys, CostModel::of_boxes(&boxes, crate::build::QueryExtent::Auto));
+        let refine = Refine::new(&ctx, &keys, CostModel::of_boxes(&boxes, crate::bulk::QueryExtent::Auto));
         let fresh = |set: &[u32], aabb: &Aabb| {
             let h = refine.vsah.halves(set.to_vec(), aabb);
             let [l, r] = h.boxes;
