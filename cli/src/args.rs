@@ -379,6 +379,17 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Lay a changed tree out anew as a bulk load of its objects would (change
+    /// commits leave loose boxes, split subtrees and moved leaves); levels of
+    /// detail are computed again.
+    Optimize {
+        file: PathBuf,
+        /// If another process is writing the file, wait for it instead of failing.
+        #[arg(long)]
+        wait: bool,
+        #[arg(long)]
+        json: bool,
+    },
     /// Verify every checksum and structural rule; exit 1 on any fault.
     Check {
         file: PathBuf,

@@ -124,3 +124,23 @@ fn remove_and_compact_beside_check_succeed_and_wait_waits_for_a_writer() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(json(&run(&["check", mkt, "--json"]))["faults"].as_array().unwrap().is_empty());
 }
+
+#[test]
+fn optimize_lays_a_changed_tree_out_again_and_keeps_every_object() {
+    let dir = tempfile::tempdir().unwrap();
+    let (obj, mkt) = tanker1_in(dir.path());
+    let (obj, mkt) = (obj.to_str().unwrap(), mkt.to_str().unwrap());
+    // The scene again, under new keys: its leaves overflow and split.
+    let inserted = json(&run(&["insert", mkt, obj, "--json"]));
+    assert_eq!(inserted["commit"]["in_place"], true, "{inserted}");
+    let objects = file_stats(mkt)["objects"].as_u64().unwrap();
+    let o = json(&run(&["optimize", mkt, "--json"]));
+    // Leaves filled to twice their capacity in place go back to a bulk load's.
+    assert!(o["after"]["leaves"].as_u64() > o["before"]["leaves"].as_u64(), "{o}");
+    assert_eq!(file_stats(mkt)["objects"].as_u64(), Some(objects));
+    let check = run(&["check", mkt]);
+    assert!(check.status.success(), "{}", String::from_utf8_lossy(&check.stdout));
+    let out = run(&["optimize", &format!("{mkt}.missing")]);
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(String::from_utf8_lossy(&out.stderr).lines().count(), 1);
+}

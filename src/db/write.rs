@@ -407,7 +407,7 @@ impl<'db> WriteTransaction<'db> {
     /// and node ids are preorder numbers again. Geometry is copied as
     /// stored; levels of detail are computed again. This transaction's
     /// changes so far are applied first; it takes no more after this.
-    /// `mktree optimize` runs it; `mktree stats --drift` says what it gains.
+    /// `mktree optimize` runs it.
     pub fn optimize(&mut self) -> Result<(), crate::Error> {
         if self.meta.is_some() {
             return Err(StorageError::Invalid(

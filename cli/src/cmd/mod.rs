@@ -23,6 +23,7 @@ mod get;
 mod insert;
 mod lods;
 mod navigate;
+mod optimize;
 mod query;
 mod remove;
 mod render;
@@ -106,6 +107,7 @@ pub fn run(cli: Cli) -> Result<()> {
         }
         Command::Check { file, json } => check::run(&file, json),
         Command::Compact { file, wait, json } => compact::run(&file, wait, json),
+        Command::Optimize { file, wait, json } => optimize::run(&file, wait, json),
         Command::Insert { file, scene, key_names, json } => {
             insert::run_insert(&file, &scene, key_names, json)
         }
