@@ -62,7 +62,7 @@ def main() -> None:
         for _ in range(args.repeats):
             for a, b in pairs:
                 r.box(a, b).keys
-        return (time.perf_counter() - started) / (args.repeats * len(pairs))
+        return float((time.perf_counter() - started) / (args.repeats * len(pairs)))
 
     py, rust = [], []
     for _ in range(args.rounds):

@@ -240,7 +240,7 @@ fn raw_mesh(vertices: &Bound<'_, PyAny>, triangles: &Bound<'_, PyAny>) -> PyResu
 }
 
 /// A mesh from Python: a `(vertices, triangles)` pair (`mktree.Mesh`), or
-/// anything with `vertices` and `triangles` (or `faces`, as trimesh has).
+/// anything with `vertices` and `faces` (a trimesh) or `triangles`.
 pub fn mesh_from_py(obj: &Bound<'_, PyAny>) -> PyResult<RawMesh> {
     if let Ok(t) = obj.cast::<PyTuple>() {
         if t.len() != 2 {
@@ -253,10 +253,11 @@ pub fn mesh_from_py(obj: &Bound<'_, PyAny>) -> PyResult<RawMesh> {
     }
     let py = obj.py();
     if obj.hasattr(pyo3::intern!(py, "vertices"))? {
-        let triangles = if obj.hasattr(pyo3::intern!(py, "triangles"))? {
-            obj.getattr(pyo3::intern!(py, "triangles"))?
-        } else if obj.hasattr(pyo3::intern!(py, "faces"))? {
+        // `faces` first: a trimesh's `triangles` are its corners' coordinates.
+        let triangles = if obj.hasattr(pyo3::intern!(py, "faces"))? {
             obj.getattr(pyo3::intern!(py, "faces"))?
+        } else if obj.hasattr(pyo3::intern!(py, "triangles"))? {
+            obj.getattr(pyo3::intern!(py, "triangles"))?
         } else {
             return Err(type_error("a mesh has triangles (or faces)"));
         };
@@ -305,8 +306,8 @@ pub fn object_from_py<'py>(obj: &Bound<'py, PyAny>) -> PyResult<RawObject> {
         let opt = |name: &Bound<'py, PyString>| -> PyResult<Option<Bound<'py, PyAny>>> {
             if obj.hasattr(name)? { obj.getattr(name).map(Some) } else { Ok(None) }
         };
-        let triangles = opt(pyo3::intern!(py, "triangles"))?
-            .or(opt(pyo3::intern!(py, "faces"))?)
+        let triangles = opt(pyo3::intern!(py, "faces"))?
+            .or(opt(pyo3::intern!(py, "triangles"))?)
             .ok_or_else(|| type_error("an object has triangles"))?;
         let key = opt(pyo3::intern!(py, "key"))?.unwrap_or_else(|| py.None().into_bound(py));
         (

@@ -14,6 +14,8 @@ use crate::errors::{Failure, Kind, py_err};
 use crate::read::ReadTransaction;
 use crate::write::WriteTransaction;
 
+const _: () = assert!(mktree::db::DEFAULT_BLOCK_SIZE == 16384 && mktree::db::DEFAULT_LOD_LEVELS == 4);
+
 /// An MKtree file. Any number of processes and threads may read it; one
 /// write transaction runs at a time.
 #[pyclass(frozen, module = "mktree")]
@@ -39,7 +41,9 @@ impl Database {
 impl Database {
     /// Creates a new file at `path` (it must not exist) with an empty tree.
     #[classmethod]
-    #[pyo3(signature = (path, block_size = mktree::db::DEFAULT_BLOCK_SIZE, lod_levels = mktree::db::DEFAULT_LOD_LEVELS))]
+    // The defaults are the engine's, written as numbers so that `help()` and
+    // the stub show them (checked below).
+    #[pyo3(signature = (path, block_size = 16384, lod_levels = 4))]
     fn create(
         _cls: &Bound<'_, PyType>,
         py: Python<'_>,
