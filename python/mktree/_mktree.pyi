@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import builtins
 import os
+import pathlib
 from types import TracebackType
 from typing import Any, Iterable, Iterator, List, Literal, Optional, Sequence, Tuple, Type, Union
 
@@ -78,7 +79,9 @@ class Database:
         commits do not change."""
     def write(self, wait: bool = False) -> WriteTransaction:
         """The write transaction. One runs at a time: another thread's makes
-        this wait; another process's raises ``LockedError`` unless ``wait=True``."""
+        this wait; another process's raises ``LockedError`` unless ``wait=True``.
+        A second one begun by the thread whose transaction is open would wait
+        for ever: it raises ``mktree.Error`` instead."""
     def stats(self) -> Optional[Info]:
         """The committed tree's counts, blocks and fill; None with no tree yet."""
     def check(self) -> CheckReport:
@@ -87,7 +90,7 @@ class Database:
     def compact(self, wait: bool = False) -> Compaction:
         """Gives the file's free blocks back to the file system."""
     @property
-    def path(self) -> str:
+    def path(self) -> pathlib.Path:
         """The file's path."""
     @property
     def block_size(self) -> int:

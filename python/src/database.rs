@@ -21,6 +21,8 @@ const _: () = assert!(mktree::db::DEFAULT_BLOCK_SIZE == 16384 && mktree::db::DEF
 #[pyclass(frozen, module = "mktree")]
 pub struct Database {
     db: Mutex<Option<Arc<mktree::Database>>>,
+    /// The thread that began the open write transaction, if one is open.
+    writer: crate::write::Writer,
     path: PathBuf,
     read_only: bool,
 }
@@ -33,7 +35,7 @@ impl Database {
     }
 
     fn new(db: mktree::Database, path: PathBuf, read_only: bool) -> Database {
-        Database { db: Mutex::new(Some(Arc::new(db))), path, read_only }
+        Database { db: Mutex::new(Some(Arc::new(db))), writer: Default::default(), path, read_only }
     }
 }
 
@@ -88,11 +90,17 @@ impl Database {
 
     /// The write transaction. One runs at a time: another thread's waits
     /// for it; another process's makes this raise `LockedError`, unless
-    /// `wait=True` waits for it to end.
+    /// `wait=True` waits for it to end. The thread whose transaction is
+    /// open gets `mktree.Error`: it would wait for itself.
     #[pyo3(signature = (wait = false))]
     fn write(&self, py: Python<'_>, wait: bool) -> PyResult<WriteTransaction> {
         let db = self.get(py)?;
-        WriteTransaction::begin(py, db, if wait { WriterWait::Wait } else { WriterWait::Fail })
+        WriteTransaction::begin(
+            py,
+            db,
+            self.writer.clone(),
+            if wait { WriterWait::Wait } else { WriterWait::Fail },
+        )
     }
 
     /// The committed tree's counts, blocks and fill; None for a file with no tree yet.

@@ -11,6 +11,7 @@
 //! step needs to return.
 
 use std::sync::{Arc, Mutex, MutexGuard};
+use std::thread::ThreadId;
 
 use mktree::build::BuildParams;
 use mktree::db::WriterWait;
@@ -25,6 +26,11 @@ use crate::errors::{Failure, Kind, py_err};
 
 type Txn = mktree::WriteTransaction<'static>;
 
+/// Which thread began a database's open write transaction. The engine
+/// makes a second writer of the process wait for the first; begun on the
+/// thread that holds the first, it would wait for ever, so that is refused.
+pub type Writer = Arc<Mutex<Option<ThreadId>>>;
+
 /// The write transaction. Use it as a context manager (`with db.write() as
 /// w:`), or end it with `commit` or `abort`; dropped unended, it aborts.
 #[pyclass(frozen, module = "mktree")]
@@ -32,11 +38,39 @@ pub struct WriteTransaction {
     // Declared (so dropped) before `db`, which it borrows.
     txn: Mutex<Option<Txn>>,
     db: Arc<mktree::Database>,
+    writer: Writer,
+}
+
+impl Drop for WriteTransaction {
+    fn drop(&mut self) {
+        // Dropped unended: the engine's transaction aborts as it drops.
+        if self.txn.get_mut().unwrap_or_else(|e| e.into_inner()).take().is_some() {
+            seat(&self.writer).take();
+        }
+    }
+}
+
+fn seat(writer: &Writer) -> MutexGuard<'_, Option<ThreadId>> {
+    writer.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 impl WriteTransaction {
-    pub fn begin(py: Python<'_>, db: Arc<mktree::Database>, wait: WriterWait) -> PyResult<WriteTransaction> {
+    pub fn begin(
+        py: Python<'_>,
+        db: Arc<mktree::Database>,
+        writer: Writer,
+        wait: WriterWait,
+    ) -> PyResult<WriteTransaction> {
+        let me = std::thread::current().id();
+        if *seat(&writer) == Some(me) {
+            return Err(Failure::new(
+                Kind::Engine,
+                "this thread's write transaction is still open: commit or abort it before beginning another",
+            )
+            .into_py(py));
+        }
         let txn = py.detach(|| db.begin_write_with(wait)).map_err(py_err(py))?;
+        *seat(&writer) = Some(me);
         // SAFETY: `txn` borrows the `Database` inside the `Arc` allocation
         // of `db`, which never moves and lives as long as this object holds
         // `db`. The transaction is stored in `self.txn`, declared before
@@ -44,7 +78,7 @@ impl WriteTransaction {
         // object but to be committed, aborted or dropped within a method of
         // it, while `self.db` lives.
         let txn: Txn = unsafe { std::mem::transmute::<mktree::WriteTransaction<'_>, Txn>(txn) };
-        Ok(WriteTransaction { txn: Mutex::new(Some(txn)), db })
+        Ok(WriteTransaction { txn: Mutex::new(Some(txn)), db, writer })
     }
 
     fn lock(&self) -> MutexGuard<'_, Option<Txn>> {
@@ -68,6 +102,7 @@ impl WriteTransaction {
     fn end(&self, py: Python<'_>, commit: bool) -> PyResult<Option<ChangeStats>> {
         py.detach(|| {
             let txn = self.lock().take().ok_or_else(closed)?;
+            seat(&self.writer).take();
             if commit {
                 let s = txn.commit_with_stats()?;
                 Ok(Some(ChangeStats {

@@ -148,6 +148,21 @@ def test_changes_commit_together_and_an_exception_aborts(make_db) -> None:
         assert 3 in r and 0 not in r
 
 
+def test_a_thread_with_an_open_write_transaction_cannot_begin_another(make_db) -> None:
+    db = make_db(grid(2))
+    w = db.write()
+    with pytest.raises(mktree.Error, match="this thread's write transaction is still open"):
+        db.write()
+    w.abort()
+    with db.write() as w2:
+        w2.remove(0)
+    w3 = db.write()
+    del w3  # dropped unended: aborted, and the thread may write again
+    with db.write() as w4:
+        w4.remove(1)
+    assert len(db.read()) == 6
+
+
 def test_a_snapshot_does_not_see_later_commits(make_db) -> None:
     db = make_db(grid(2))
     r = db.read()
