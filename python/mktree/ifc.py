@@ -85,19 +85,28 @@ def load(
 
     if isinstance(model, (str, os.PathLike)):
         model = ifcopenshell.open(os.fspath(model))
+    created: Optional[str] = None
     if isinstance(out, Database):
         db = out
-        close = False
     else:
         path = os.fspath(out)
-        db = Database.open(path) if os.path.exists(path) else Database.create(path, block_size=block_size)
-        close = True
+        if os.path.exists(path):
+            db = Database.open(path)
+        else:
+            db = Database.create(path, block_size=block_size)
+            created = path
     try:
         objects: List[Object] = list(shapes(model, threads=threads, exclude=exclude))
         with db.write() as w:
             return w.bulk_load(objects)
+    except BaseException:
+        if created is not None:
+            # A refused model leaves no file behind that looks like an index (as `mktree build`).
+            db.close()
+            os.remove(created)
+        raise
     finally:
-        if close:
+        if not isinstance(out, Database):
             db.close()
 
 

@@ -73,3 +73,12 @@ def test_a_model_without_shapes_loads_nothing(tmp_path: Path) -> None:
     model = ifcopenshell.file(schema="IFC4")
     model.createIfcProject(ifcopenshell.guid.new(), Name="Empty")
     assert list(mktree.ifc.shapes(model)) == []
+
+
+def test_a_refused_model_leaves_no_file(tmp_path: Path) -> None:
+    model = make_plant(1)
+    model.by_type("IfcWall")[0].Name = "W" * 2000  # its payload would pass 1 KiB
+    out = tmp_path / "refused.mkt"
+    with pytest.raises(ValueError, match="a payload of"):
+        mktree.ifc.load(model, out)
+    assert not out.exists()
