@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """The README's two first commands share one build of the dependencies only if
 `cargo run --release -- demo` (the mktree-cli package) and `cargo test --release`
-(the workspace with its dev-dependencies) ask for the same features of every crate
-they share; cargo builds a crate again for any other set. This compares the two
+(the workspace's default members with their dev-dependencies; the Python package,
+python/, is a member built by maturin only) ask for the same features of every
+crate they share; cargo builds a crate again for any other set. This compares the two
 feature resolutions (`cargo tree -e features`) and names each crate that differs."""
 import subprocess, sys
 
@@ -18,7 +19,8 @@ def features(*selection):
     return crates
 
 run = features("-p", "mktree-cli", "-e", "normal,build")
-test = features("--workspace", "-e", "normal,build,dev")
+# No package named: the default members, what `cargo test --release` builds.
+test = features("-e", "normal,build,dev")
 differ = [f"{c}: demo [{run[c]}], tests [{test[c]}]" for c in sorted(run) if c in test and run[c] != test[c]]
 for d in differ:
     print(d)
