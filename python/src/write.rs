@@ -13,7 +13,7 @@
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::ThreadId;
 
-use mktree::build::BuildParams;
+use mktree::BuildParams;
 use mktree::db::WriterWait;
 use mktree::scene::{Object, Scene};
 use pyo3::prelude::*;
