@@ -1,7 +1,8 @@
 //! What piecewise change does to a tree: scene A bulk-loaded, then replaced
 //! by scene B object by object in write transactions (delete a_i, insert
 //! b_i), with box-query reads measured at stops against a fresh bulk load
-//! of the same objects, and the file's size before and after `compact`.
+//! of the same objects, then after `optimize`, and the file's size before
+//! and after `compact`.
 
 use std::path::Path;
 use std::time::Instant;
@@ -51,7 +52,10 @@ pub struct ReplaceRow {
 pub struct ReplaceReport {
     /// One row per stop, the first at 0 (the bulk load of A itself).
     pub rows: Vec<ReplaceRow>,
-    /// The changed file's blocks before and after `compact`.
+    /// After the last stop and `optimize`: per query set, (label, reads),
+    /// to set against the last row's fresh load.
+    pub optimized: Vec<(String, WorkloadStats)>,
+    /// The changed file's blocks before and after `compact` (after `optimize`).
     pub compact: (u32, u32),
 }
 
@@ -125,10 +129,21 @@ pub fn bench_replace(
         drop((changed, clean, fresh));
         let _ = std::fs::remove_file(&fresh_path);
     }
+    let mut w = db.begin_write()?;
+    w.optimize()?;
+    w.commit()?;
+    let optimized = {
+        let r = db.begin_read()?;
+        let mut reads = Vec::new();
+        for set in sets {
+            reads.push((set.label.clone(), run_boxes(&r, &set.boxes)?));
+        }
+        reads
+    };
     let c = db.compact()?;
     drop(db);
     let _ = std::fs::remove_file(&path);
-    Ok(ReplaceReport { rows, compact: (c.blocks_before, c.blocks_after) })
+    Ok(ReplaceReport { rows, optimized, compact: (c.blocks_before, c.blocks_after) })
 }
 
 /// B's object i keeps a key apart from A's.

@@ -66,6 +66,18 @@ pub fn run(args: &BenchReplaceArgs) -> Result<()> {
             cells.join(" | ")
         );
     }
+    if let Some(last) = report.rows.last() {
+        let cells: Vec<String> = report
+            .optimized
+            .iter()
+            .zip(&last.reads)
+            .map(|((label, now), (_, _, fresh))| {
+                let ratio = now.mean_total_reads / fresh.mean_total_reads.max(f64::MIN_POSITIVE);
+                format!("{label} {:.2} / {:.2} ({ratio:.2}x)", now.mean_total_reads, fresh.mean_total_reads)
+            })
+            .collect();
+        println!("after optimize, / fresh bulk load: {}", cells.join(", "));
+    }
     println!("compact: {} -> {} blocks", report.compact.0, report.compact.1);
     Ok(())
 }
