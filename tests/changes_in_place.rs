@@ -326,3 +326,42 @@ fn optimize_lays_a_changed_tree_out_as_a_bulk_load_does() {
     let mut stats = mktree::store::ReadStats::default();
     assert!(r.fetch_level(a.nodes - 1, 1, true, &mut stats).is_ok());
 }
+
+#[test]
+fn a_stream_of_single_changes_keeps_every_rule_after_each_commit() {
+    // Inserts around one place (leaves split), moves and removals (a key
+    // leaf empties at commit 296), one per commit, checked after each.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("changed.mkt");
+    let db = Database::create(&path, CreateOptions { block_size: 4096, lod_levels: 2 }).unwrap();
+    let mut w = db.begin_write().unwrap();
+    let params = BuildParams {
+        method: mktree::bulk::Method::Moa,
+        leaf: mktree::bulk::LeafRule::Objects(4),
+        ..BuildParams::paper()
+    };
+    w.bulk_load(&common::grid_scene(200), &params, &|_| {}).unwrap();
+    w.commit().unwrap();
+    for i in 0..300u64 {
+        let mut w = db.begin_write().unwrap();
+        match i % 3 {
+            0 => {
+                let x = (i / 3) as f64 * 0.7;
+                let mesh = common::box_mesh([x, 1.0, 1.0], [x + 0.5, 1.5, 1.5]);
+                w.insert(mktree::scene::Object::new("n", mesh).with_key(10_000 + i)).unwrap();
+            }
+            1 => {
+                w.move_by(&mktree::scene::Key::Int(i % 150), mktree::geom::Vector::new(3.0, 0.0, 0.0))
+                    .unwrap();
+            }
+            _ => {
+                w.remove(&mktree::scene::Key::Int(199 - i / 3)).unwrap();
+            }
+        }
+        if let Err(e) = w.commit_with_stats() {
+            panic!("commit {i}: {e}");
+        }
+        let r = mktree::db::check(&db).unwrap();
+        assert!(r.ok(), "after {i}: {:?}", r.faults);
+    }
+}

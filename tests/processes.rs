@@ -1,6 +1,8 @@
 //! Claim (issue 12, many processes): readers in other processes keep working
 //! while writers commit, each read seeing one whole committed tree, never an
-//! error; writers in two processes take turns when asked to wait. The
+//! error, through bulk loads and through a stream of single-object change
+//! commits written in place (issue 33: splits and merges among them);
+//! writers in two processes take turns when asked to wait. The
 //! children are this test binary run again on one ignored test, `child`,
 //! with the role in the environment.
 
@@ -47,6 +49,28 @@ fn read_once(db: &Database) -> Result<usize, String> {
     Ok(n)
 }
 
+/// One read of a tree that change commits reshape: every object once, as
+/// many as the snapshot counts, and each key answered found by key in it.
+fn read_changed(db: &Database) -> Result<usize, String> {
+    let r = db.begin_read().map_err(|e| e.to_string())?;
+    let n = r.info().ok_or("no tree")?.objects as usize;
+    let answer = r.query_box(&everything()).map_err(|e| e.to_string())?;
+    let mut ids: Vec<u32> = answer.objects.iter().map(|o| o.0).collect();
+    ids.sort_unstable();
+    ids.dedup();
+    if ids.len() != n || answer.keys.len() != n {
+        return Err(format!(
+            "a mixed answer: {} objects, {} keys from a tree of {n}",
+            ids.len(),
+            answer.keys.len()
+        ));
+    }
+    for key in answer.keys.iter().step_by(17) {
+        r.get(key).map_err(|e| e.to_string())?.ok_or_else(|| format!("key {key} answered, not found"))?;
+    }
+    Ok(n)
+}
+
 /// A child's work, by role: `reader` (one open, many reads), `reopener` (an
 /// open per read, read-only) or `writer` (five commits, waiting its turn).
 #[test]
@@ -65,7 +89,8 @@ fn child() {
                 commit(&db, SIZES[1]);
             }
         }
-        "reader" | "reopener" => {
+        "reader" | "reopener" | "change-reader" | "change-reopener" => {
+            let read = if role.starts_with("change-") { read_changed } else { read_once };
             let db = Database::open_read_only(path).expect("open");
             std::fs::write(path.with_extension(&role), b"").unwrap();
             // Until the parent has made its commits, and at least QUERIES reads.
@@ -73,10 +98,10 @@ fn child() {
             while reads < QUERIES || !stop.exists() {
                 reads += 1;
                 assert!(Instant::now() < deadline, "the reads took over two minutes");
-                let result = if role == "reader" {
-                    read_once(&db)
+                let result = if role.ends_with("reader") {
+                    read(&db)
                 } else {
-                    Database::open_read_only(path).map_err(|e| e.to_string()).and_then(|db| read_once(&db))
+                    Database::open_read_only(path).map_err(|e| e.to_string()).and_then(|db| read(&db))
                 };
                 match result {
                     Ok(n) => {
@@ -136,5 +161,55 @@ fn readers_in_other_processes_never_fail_during_commits() {
     }
     // The readers saw more than one tree: the reads really overlapped the commits.
     assert!(reads_saw.iter().any(|l| l.matches(',').count() >= 1), "no reader saw two trees: {reads_saw:?}");
+    assert!(mktree::db::check(&db).unwrap().ok());
+}
+
+#[test]
+fn readers_in_other_processes_never_fail_during_single_change_commits() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("changed.mkt");
+    let db = Database::create(&path, CreateOptions { block_size: 4096, lod_levels: 2 }).unwrap();
+    let mut w = db.begin_write().unwrap();
+    let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(4), ..BuildParams::paper() };
+    w.bulk_load(&common::grid_scene(200), &params, &|_| {}).unwrap();
+    w.commit().unwrap();
+    let readers = [spawn("change-reader", &path), spawn("change-reopener", &path)];
+    let started = Instant::now();
+    while !["change-reader", "change-reopener"].iter().all(|r| path.with_extension(r).exists()) {
+        assert!(started.elapsed() < Duration::from_secs(60), "the readers did not start");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    // Inserts around one place (its leaves split), moves and removals, one per commit.
+    let mut in_place = 0;
+    for i in 0..300u64 {
+        let mut w = db.begin_write_with(WriterWait::Wait).unwrap();
+        match i % 3 {
+            0 => {
+                let x = (i / 3) as f64 * 0.7;
+                let mesh = common::box_mesh([x, 1.0, 1.0], [x + 0.5, 1.5, 1.5]);
+                w.insert(mktree::scene::Object::new("n", mesh).with_key(10_000 + i)).unwrap();
+            }
+            1 => {
+                w.move_by(&mktree::scene::Key::Int(i % 150), mktree::geom::Vector::new(3.0, 0.0, 0.0))
+                    .unwrap();
+            }
+            _ => {
+                w.remove(&mktree::scene::Key::Int(199 - i / 3)).unwrap();
+            }
+        }
+        in_place += usize::from(w.commit_with_stats().unwrap().in_place);
+    }
+    // The rest emptied a leaf beside a subtree, which writes the tree whole.
+    assert!(in_place >= 270, "{in_place} of 300 commits in place");
+    std::fs::write(path.with_extension("stop"), b"").unwrap();
+    for child in readers {
+        let out = child.wait_with_output().unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "a child failed: {text}");
+        let line =
+            text.lines().find(|l| l.starts_with("RESULT")).unwrap_or_else(|| panic!("no result in {text}"));
+        assert!(line.contains("failures=0 "), "{line}");
+        eprintln!("{line}");
+    }
     assert!(mktree::db::check(&db).unwrap().ok());
 }

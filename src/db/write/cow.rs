@@ -1439,6 +1439,10 @@ impl WriteTransaction<'_> {
                     }
                 }
                 let entries: Vec<KeyEntry> = map.into_values().collect();
+                if entries.is_empty() {
+                    // A leaf its removals empty goes; its branch drops it.
+                    return Ok(Vec::new());
+                }
                 let sizes: Vec<usize> =
                     entries.iter().map(|e| keys::entry_len(&e.key, e.payload.len(), e.name.len())).collect();
                 if let Some(i) = sizes.iter().position(|&s| s > capacity) {
@@ -1457,9 +1461,6 @@ impl WriteTransaction<'_> {
                     let checksum = pager.write(id, &mut block, BlockType::KeyLeaf, self.txn)?;
                     *blocks += 1;
                     out.push(ChildRef { first_key: part[0].key.clone(), block: id, checksum });
-                }
-                if entries.is_empty() {
-                    out.clear();
                 }
                 Ok(out)
             }
