@@ -114,6 +114,17 @@ fn child() {
                 }
             }
         }
+        "holder" => {
+            // One snapshot held until the parent says stop.
+            let db = Database::open_read_only(path).expect("open");
+            let r = db.begin_read().expect("begin_read");
+            std::fs::write(path.with_extension(&role), b"").unwrap();
+            while !path.with_extension("stop").exists() {
+                assert!(Instant::now() < deadline, "held for over two minutes");
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            reads = r.query_box(&everything()).expect("query").objects.len();
+        }
         r => panic!("unknown role {r}"),
     }
     println!("\nRESULT failures={failures} reads={reads} sizes={sizes:?}");
@@ -211,5 +222,40 @@ fn readers_in_other_processes_never_fail_during_single_change_commits() {
         assert!(line.contains("failures=0 "), "{line}");
         eprintln!("{line}");
     }
+    assert!(mktree::db::check(&db).unwrap().ok());
+}
+
+#[test]
+fn a_reader_in_another_process_keeps_only_the_blocks_it_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("held.mkt");
+    let db = Database::create(&path, CreateOptions { block_size: 4096, lod_levels: 2 }).unwrap();
+    let mut w = db.begin_write().unwrap();
+    let params = BuildParams { method: Method::Moa, leaf: LeafRule::Objects(8), ..BuildParams::paper() };
+    w.bulk_load(&common::grid_scene(400), &params, &|_| {}).unwrap();
+    w.commit().unwrap();
+    let blocks = |db: &Database| db.begin_read().unwrap().info().unwrap().file_blocks;
+    let start = blocks(&db);
+    let holder = spawn("holder", &path);
+    let started = Instant::now();
+    while !path.with_extension("holder").exists() {
+        assert!(started.elapsed() < Duration::from_secs(60), "the holder did not start");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    for i in 0..20u64 {
+        let mut w = db.begin_write().unwrap();
+        let by = if i % 2 == 0 { 5.0 } else { -5.0 };
+        w.move_by(&mktree::scene::Key::Int(7), mktree::geom::Vector::new(by, 0.0, 0.0)).unwrap();
+        w.commit().unwrap();
+    }
+    let grown = blocks(&db);
+    // The holder's state keeps what the first commit freed; the rest is reused.
+    assert!(u64::from(grown) * 10 <= u64::from(start) * 12, "{start} -> {grown} blocks under a reader");
+    let c = db.compact().unwrap();
+    assert!(c.held_by_reader.is_some() && c.blocks_after <= c.blocks_before, "{c:?}");
+    std::fs::write(path.with_extension("stop"), b"").unwrap();
+    let out = holder.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && text.contains("reads=400"), "{text}");
     assert!(mktree::db::check(&db).unwrap().ok());
 }

@@ -17,7 +17,7 @@ mod stored;
 mod tree_writer;
 mod write;
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::fs::OpenOptions;
 use std::path::Path;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
@@ -133,6 +133,11 @@ pub struct Compaction {
     pub free_after: u32,
     /// Times the tree was moved (copied into new blocks as it is).
     pub rewrites: u32,
+    /// The state a reader (here or in another process) was reading, which
+    /// kept the tree from moving: a move would have grown the file by the
+    /// tree, since the reader's blocks stay until it ends. Only the free end
+    /// was cut off then.
+    pub held_by_reader: Option<u64>,
 }
 
 /// A committed state as read from the file.
@@ -155,6 +160,10 @@ struct State {
     snapshot: Arc<Snapshot>,
     /// Live readers in this process by snapshot transaction.
     readers: BTreeMap<u64, usize>,
+    /// Free blocks freed after the oldest reader's state: block -> (the
+    /// commit that freed it, the transaction that wrote it, from its frame),
+    /// so that each is read once while it stays free.
+    born: HashMap<u32, (u64, Option<u64>)>,
 }
 
 pub(crate) struct Inner {
@@ -322,6 +331,7 @@ impl Database {
             free: loaded.free,
             snapshot: Arc::new(Snapshot::of(&loaded.committed, loaded.meta)),
             readers: BTreeMap::new(),
+            born: HashMap::new(),
         };
         Ok(Database::assemble(pager, state, locks, None, read_only, warnings))
     }
@@ -387,7 +397,9 @@ impl Database {
     /// Gives the file's free blocks back to the file system. The tree is
     /// moved once past the file's end, so that every block below it is
     /// free, then again into the lowest blocks, and the free end is cut off
-    /// (VACUUM-like: the file briefly holds the tree three times). A move
+    /// (VACUUM-like: the file briefly holds the tree three times). While a
+    /// reader holds a state, the tree is not moved (the file would only
+    /// grow): the free end is cut off, and `held_by_reader` says why. A move
     /// copies the tree's blocks as they are, pointing only their references
     /// at the new places: nothing is laid out or computed again. Blocks a
     /// reader of an older snapshot may still read are kept.
@@ -413,7 +425,15 @@ impl Database {
         }
         let mut rewrites = 0;
         self.trim_end(wait)?;
-        if space(self)?.1 > 0 {
+        // A reader of any state keeps the blocks a move frees: moving the
+        // tree would leave the file larger than it began (issue 24).
+        let held_by_reader = {
+            let w = self.begin_write_with(wait)?;
+            let txn = w.base_txn();
+            w.abort()?;
+            self.inner.oldest_reader(txn + 1)?
+        };
+        if held_by_reader.is_none() && space(self)?.1 > 0 {
             for at_end in [true, false] {
                 let mut w = self.begin_write_with(wait)?;
                 w.relocate(at_end)?;
@@ -423,7 +443,7 @@ impl Database {
             }
         }
         let (blocks_after, free_after) = space(self)?;
-        Ok(Compaction { blocks_before, blocks_after, free_after, rewrites })
+        Ok(Compaction { blocks_before, blocks_after, free_after, rewrites, held_by_reader })
     }
 
     /// Commits without changes until the file stops shrinking: each commit
@@ -755,6 +775,62 @@ impl Inner {
             None => None,
         };
         Ok(here.into_iter().chain(there).min())
+    }
+
+    /// Whether a reader, here or in another process, reads the state of a
+    /// transaction in `lo .. hi`.
+    fn pinned_between(&self, lo: u64, hi: u64) -> Result<bool, StorageError> {
+        if hi <= lo {
+            return Ok(false);
+        }
+        if self.lock_state().readers.range(lo..hi).next().is_some() {
+            return Ok(true);
+        }
+        match &self.locks {
+            Some(l) => Ok(l.pinned_between(lo, hi)?),
+            None => Ok(false),
+        }
+    }
+
+    /// The free blocks of `free` a writer may overwrite (format-spec/commit.md,
+    /// "Many processes"): every range freed at or before `oldest`, the oldest
+    /// state a reader reads; and of those freed since, each block written
+    /// (its frame's transaction) after every state a reader reads before
+    /// the block was freed. A reader's state reaches a block only if the
+    /// block was written at or before it and freed after it.
+    fn reusable(&self, free: &[FreeRange], oldest: Option<u64>) -> Result<Vec<(u32, u32)>, StorageError> {
+        let mut out: Vec<(u32, u32)> = Vec::new();
+        let mut born = std::mem::take(&mut self.lock_state().born);
+        let mut kept = HashMap::new();
+        for r in free {
+            let Some(oldest) = oldest.filter(|&o| r.freed > o) else {
+                out.push((r.first, r.count));
+                continue;
+            };
+            for b in r.first..r.first.saturating_add(r.count) {
+                let written = match born.remove(&b) {
+                    Some((freed, written)) if freed == r.freed => written,
+                    // A block that fails its checksum is left alone: what wrote it is unknown.
+                    _ => self
+                        .pager
+                        .read_raw(b)
+                        .ok()
+                        .and_then(|raw| frame::open(b, &raw).ok())
+                        .map(|(f, _)| f.txn.get()),
+                };
+                kept.insert(b, (r.freed, written));
+                let Some(written) = written else { continue };
+                if !self.pinned_between(written.max(oldest), r.freed)? {
+                    match out.last_mut() {
+                        Some((first, count)) if *first + *count == b => *count += 1,
+                        _ => out.push((b, 1)),
+                    }
+                }
+            }
+        }
+        self.lock_state().born = kept;
+        out.sort_unstable();
+        Ok(out)
     }
 
     /// Catches up with commits made by other processes (files only).

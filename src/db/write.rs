@@ -109,8 +109,7 @@ impl<'db> WriteTransaction<'db> {
         // Blocks freed by a commit are reusable once no reader, here or in
         // another process, reads a state older than that commit.
         let oldest = inner.oldest_reader(base.txn)?;
-        let reusable = base_free.iter().filter(|r| oldest.is_none_or(|o| r.freed <= o));
-        let avail = FreeSpace::new(base.block_count, reusable.map(|r| (r.first, r.count)));
+        let avail = FreeSpace::new(base.block_count, inner.reusable(&base_free, oldest)?);
         let txn = base.txn + 1;
         // Step 1: one copy saying pending outranks the other (its
         // transaction is newer) and tells the next writer to clean up after
@@ -152,6 +151,11 @@ impl<'db> WriteTransaction<'db> {
             append_only: false,
             done: false,
         }
+    }
+
+    /// The transaction id of the state this transaction began on.
+    pub(crate) fn base_txn(&self) -> u64 {
+        self.base.txn
     }
 
     /// What this transaction repaired before it began (a crash's leftovers).

@@ -21,5 +21,10 @@ pub fn run(file: &Path, wait: bool, as_json: bool) -> Result<()> {
         c.free_after,
         c.rewrites
     );
+    if let Some(txn) = c.held_by_reader {
+        println!(
+            "the tree was not moved: a reader holds transaction {txn}'s state (compact again once it ends)"
+        );
+    }
     Ok(())
 }

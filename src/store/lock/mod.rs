@@ -99,6 +99,12 @@ impl FileLocks {
         self.set(Kind::Unlock, READERS + txn, false).map(drop)
     }
 
+    /// Whether another owner reads the state of a transaction in `lo .. hi`.
+    pub fn pinned_between(&self, lo: u64, hi: u64) -> io::Result<bool> {
+        let (lo, hi) = (lo.min(MAX_TXN), hi.min(MAX_TXN));
+        Ok(hi > lo && self.taken(READERS + lo, hi - lo)?)
+    }
+
     /// The oldest transaction below `below` whose state another owner reads.
     pub fn oldest_pin(&self, below: u64) -> io::Result<Option<u64>> {
         let below = below.min(MAX_TXN);
