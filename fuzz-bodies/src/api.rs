@@ -1,6 +1,7 @@
 //! The API-sequence target: the input is a sequence of operations on one
 //! file on a device that can crash (`CrashDevice`): bulk loads of small
-//! scenes and inserts, updates and removals by key, each committed, aborted
+//! scenes and inserts, updates and removals by key (now and then ending in
+//! `optimize`), each committed, aborted
 //! or dropped, compactions, readers begun, held and dropped,
 //! reopens that arm a crash at the N-th write or sync, and crashes whose
 //! unsynced writes are dropped, kept, torn or mixed. A model says which
@@ -248,6 +249,8 @@ impl Life {
             .collect();
         let lods = self.lods(c);
         let finish = c.u8() % 4;
+        // Now and then the changes end with `optimize`: the same objects, laid out anew.
+        let optimize = c.u8() % 8 == 0;
         let mut next = (**model).clone();
         let mut in_commit = false;
         let result = (|| -> Result<bool, mktree::Error> {
@@ -280,6 +283,9 @@ impl Life {
                         }
                     }
                 }
+            }
+            if optimize {
+                w.optimize()?;
             }
             finish_write(w, finish, &mut in_commit)
         })();
