@@ -250,7 +250,7 @@ impl Life {
         let lods = self.lods(c);
         let finish = c.u8() % 4;
         // Now and then the changes end with `optimize`: the same objects, laid out anew.
-        let optimize = c.u8() % 8 == 0;
+        let optimize = c.u8().is_multiple_of(8);
         let mut next = (**model).clone();
         let mut in_commit = false;
         let result = (|| -> Result<bool, mktree::Error> {

@@ -139,31 +139,29 @@ impl ReadTransaction {
         keys::decode(id, &b.bytes, leaf)
     }
 
-    /// The entries of the key leaf whose range holds `key`, descending the
-    /// key index (its height in reads); none without a tree.
-    fn key_leaf(&self, key: &Key, reads: &mut Reads) -> Result<Option<Vec<KeyEntry>>, StorageError> {
+    /// The key leaf whose range holds `key`, read, descending the key index
+    /// (its height in reads); none without a tree.
+    fn key_leaf(&self, key: &Key, reads: &mut Reads) -> Result<Option<Arc<Block>>, StorageError> {
         let Some(m) = self.snapshot.meta.as_ref() else { return Ok(None) };
         let (mut block, mut checksum) = (m.keys_block, m.keys_checksum);
-        for level in (1..=m.keys_height).rev() {
-            match self.key_block(block, checksum, level == 1, reads)? {
-                KeyBlock::Leaf(entries) => return Ok(Some(entries)),
-                KeyBlock::Branch(children) => {
-                    let c = keys::child_for(&children, key)
-                        .ok_or_else(|| StorageError::corrupt(block, "children", "a branch of no children"))?;
-                    (block, checksum) = (c.block, c.checksum);
-                }
-            }
+        for level in (2..=m.keys_height).rev() {
+            let KeyBlock::Branch(children) = self.key_block(block, checksum, false, reads)? else {
+                return Err(StorageError::corrupt(block, "keys_height", format!("a leaf at level {level}")));
+            };
+            let c = keys::child_for(&children, key)
+                .ok_or_else(|| StorageError::corrupt(block, "children", "a branch of no children"))?;
+            (block, checksum) = (c.block, c.checksum);
         }
-        Err(StorageError::corrupt(
-            m.keys_block,
-            "keys_height",
-            "the index is deeper than the meta block says",
-        ))
+        Ok(Some(self.block(block, BlockType::KeyLeaf, checksum, reads)?))
     }
 
-    /// The entry of `key`, descending the key index (its height in reads at most).
+    /// The entry of `key`, descending the key index (its height in reads at
+    /// most); only that entry of its leaf is copied out.
     pub(crate) fn key_entry(&self, key: &Key, reads: &mut Reads) -> Result<Option<KeyEntry>, StorageError> {
-        Ok(self.key_leaf(key, reads)?.and_then(|entries| entries.into_iter().find(|e| e.key == *key)))
+        match self.key_leaf(key, reads)? {
+            Some(leaf) => keys::find_in_leaf(leaf.id(), &leaf.bytes, key),
+            None => Ok(None),
+        }
     }
 
     /// Every entry of the key index, in key order: each block read once.
@@ -269,12 +267,13 @@ impl ReadTransaction {
     /// (integers order before byte strings), in the leaf whose range holds
     /// the largest integer there can be; one path of the index.
     pub(crate) fn largest_int_key(&self) -> Result<Option<u64>, StorageError> {
-        let leaf = self.key_leaf(&Key::Int(u64::MAX), &mut Reads::new(Some(self.cache())))?;
-        Ok(leaf
-            .into_iter()
-            .flatten()
-            .rev()
-            .find_map(|e| if let Key::Int(i) = e.key { Some(i) } else { None }))
+        let Some(leaf) = self.key_leaf(&Key::Int(u64::MAX), &mut Reads::new(Some(self.cache())))? else {
+            return Ok(None);
+        };
+        let KeyBlock::Leaf(entries) = keys::decode(leaf.id(), &leaf.bytes, true)? else {
+            return Err(StorageError::corrupt(leaf.id(), "keys_height", "a branch at level 1"));
+        };
+        Ok(entries.into_iter().rev().find_map(|e| if let Key::Int(i) = e.key { Some(i) } else { None }))
     }
 
     /// The exact mesh of the object with key `key` (see [`ReadTransaction::mesh_with`]).

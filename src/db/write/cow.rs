@@ -1335,11 +1335,7 @@ fn parent_record(
 
 /// Bytes of the records of node block `block`.
 fn old_used(block: &Block) -> i64 {
-    block
-        .records
-        .iter()
-        .map(|&o| view(block, o).map(|v| v.to_draft().encoded_len()).unwrap_or(0))
-        .sum::<usize>() as i64
+    node::used_bytes(&block.bytes) as i64
 }
 
 /// Gives a drafted record the frame `frame` as its own.

@@ -193,10 +193,32 @@ fn key_of<'a>(at: &mut &'a [u8]) -> Option<KeyRef<'a>> {
     Some(k)
 }
 
-/// Decodes and validates key block `id` (its checksum verified): a leaf
-/// when `leaf`, else a branch. Entries fill `used` bytes exactly, keys
-/// strictly increase, boxes are boxes, the rest is zero.
-pub fn decode(id: u32, block: &[u8], leaf: bool) -> Result<KeyBlock, StorageError> {
+/// A key leaf's entry in place.
+struct EntryRef<'a> {
+    key: KeyRef<'a>,
+    payload: &'a [u8],
+    name: &'a str,
+    object_id: u32,
+    path: TreePath,
+    aabb: Aabb,
+}
+
+impl EntryRef<'_> {
+    fn to_entry(&self) -> KeyEntry {
+        KeyEntry {
+            key: self.key.to_key(),
+            payload: self.payload.to_vec(),
+            name: self.name.to_string(),
+            object_id: self.object_id,
+            path: self.path,
+            aabb: self.aabb,
+        }
+    }
+}
+
+/// The entries area of key block `id` and its entry count, its head, zero
+/// tail and count bounded by its bytes checked.
+fn entries_area(id: u32, block: &[u8]) -> Result<(&[u8], usize), StorageError> {
     let bad = |field, detail: String| StorageError::corrupt(id, field, detail);
     let head = block.get(FRAME_LEN..ENTRIES_START).ok_or_else(|| bad("key_block", "too small".into()))?;
     let count = usize::from(u16::from_le_bytes([head[0], head[1]]));
@@ -213,7 +235,83 @@ pub fn decode(id: u32, block: &[u8], leaf: bool) -> Result<KeyBlock, StorageErro
     if count == 0 {
         return Err(bad("entry_count", format!("{count} entries")));
     }
-    let mut at = area;
+    // Every entry takes at least 9 bytes, so `count` entries are bounded by
+    // the block before anything is allocated for them.
+    if count > area.len() / 9 + 1 {
+        return Err(bad("entry_count", format!("{count} entries in {used} bytes")));
+    }
+    Ok((area, count))
+}
+
+/// Validates every entry of key leaf `id`, in order, handing each to `f`
+/// in place: nothing is allocated per entry.
+fn walk_leaf<'a>(id: u32, block: &'a [u8], mut f: impl FnMut(EntryRef<'a>)) -> Result<(), StorageError> {
+    let bad = |field, detail: String| StorageError::corrupt(id, field, detail);
+    let (mut at, count) = entries_area(id, block)?;
+    let short = || bad("entries", "an entry overruns the used bytes".into());
+    let mut last: Option<KeyRef> = None;
+    for _ in 0..count {
+        let key = key_of(&mut at).ok_or_else(short)?;
+        if last.is_some_and(|l| l.cmp(&key).is_ge()) {
+            return Err(bad("key", format!("key {} does not follow the one before", key.to_key())));
+        }
+        last = Some(key);
+        let n = usize::from(u16_of(&mut at).ok_or_else(short)?);
+        if n > Object::MAX_PAYLOAD {
+            return Err(bad("payload", format!("{n} bytes (at most {})", Object::MAX_PAYLOAD)));
+        }
+        let payload = take(&mut at, n).ok_or_else(short)?;
+        let n = usize::from(u16_of(&mut at).ok_or_else(short)?);
+        let name = std::str::from_utf8(take(&mut at, n).ok_or_else(short)?)
+            .map_err(|_| bad("name", "a name is not UTF-8".into()))?;
+        let object_id = u32_of(&mut at).ok_or_else(short)?;
+        let bits = u64_of(&mut at).ok_or_else(short)?;
+        let tail = take(&mut at, 4).ok_or_else(short)?;
+        let len = tail[0];
+        if len > TreePath::MAX_LEN || (len < 64 && bits >> len != 0) {
+            return Err(bad("path", format!("{len} levels with bits {bits:#x}")));
+        }
+        if tail[1..] != [0, 0, 0] {
+            return Err(bad("reserved", "an entry's reserved bytes are not zero".into()));
+        }
+        let mut b = [0f64; 6];
+        for x in &mut b {
+            *x = f64::from_le_bytes(take(&mut at, 8).ok_or_else(short)?.try_into().map_err(|_| short())?);
+        }
+        if b.iter().any(|x| !x.is_finite()) || (0..3).any(|i| b[i] > b[i + 3]) {
+            return Err(bad("box", format!("{b:?} is not a box")));
+        }
+        f(EntryRef { key, payload, name, object_id, path: TreePath { bits, len }, aabb: Aabb::from_array(b) });
+    }
+    if !at.is_empty() {
+        return Err(bad("used_bytes", format!("{} bytes after the last entry", at.len())));
+    }
+    Ok(())
+}
+
+/// The entry of `key` in key leaf `id` (validated whole, as [`decode`]
+/// does), copying out that entry only.
+pub fn find_in_leaf(id: u32, block: &[u8], key: &Key) -> Result<Option<KeyEntry>, StorageError> {
+    let mut found = None;
+    walk_leaf(id, block, |e| {
+        if found.is_none() && e.key == key.as_ref() {
+            found = Some(e.to_entry());
+        }
+    })?;
+    Ok(found)
+}
+
+/// Decodes and validates key block `id` (its checksum verified): a leaf
+/// when `leaf`, else a branch. Entries fill `used` bytes exactly, keys
+/// strictly increase, boxes are boxes, the rest is zero.
+pub fn decode(id: u32, block: &[u8], leaf: bool) -> Result<KeyBlock, StorageError> {
+    let bad = |field, detail: String| StorageError::corrupt(id, field, detail);
+    if leaf {
+        let mut entries = Vec::new();
+        walk_leaf(id, block, |e| entries.push(e.to_entry()))?;
+        return Ok(KeyBlock::Leaf(entries));
+    }
+    let (mut at, count) = entries_area(id, block)?;
     let short = || bad("entries", "an entry overruns the used bytes".into());
     let mut last: Option<KeyRef> = None;
     let increasing = |k: KeyRef<'_>, last: &mut Option<KeyRef<'_>>| -> Result<(), StorageError> {
@@ -222,54 +320,7 @@ pub fn decode(id: u32, block: &[u8], leaf: bool) -> Result<KeyBlock, StorageErro
         }
         Ok(())
     };
-    // Every entry takes at least 9 bytes, so `count` entries are bounded by
-    // the block before anything is allocated for them.
-    if count > area.len() / 9 + 1 {
-        return Err(bad("entry_count", format!("{count} entries in {used} bytes")));
-    }
-    let result = if leaf {
-        let mut entries = Vec::with_capacity(count);
-        for _ in 0..count {
-            let key = key_of(&mut at).ok_or_else(short)?;
-            increasing(key, &mut last)?;
-            last = Some(key);
-            let n = usize::from(u16_of(&mut at).ok_or_else(short)?);
-            if n > Object::MAX_PAYLOAD {
-                return Err(bad("payload", format!("{n} bytes (at most {})", Object::MAX_PAYLOAD)));
-            }
-            let payload = take(&mut at, n).ok_or_else(short)?.to_vec();
-            let n = usize::from(u16_of(&mut at).ok_or_else(short)?);
-            let name = std::str::from_utf8(take(&mut at, n).ok_or_else(short)?)
-                .map_err(|_| bad("name", "a name is not UTF-8".into()))?
-                .to_string();
-            let object_id = u32_of(&mut at).ok_or_else(short)?;
-            let bits = u64_of(&mut at).ok_or_else(short)?;
-            let tail = take(&mut at, 4).ok_or_else(short)?;
-            let len = tail[0];
-            if len > TreePath::MAX_LEN || (len < 64 && bits >> len != 0) {
-                return Err(bad("path", format!("{len} levels with bits {bits:#x}")));
-            }
-            if tail[1..] != [0, 0, 0] {
-                return Err(bad("reserved", "an entry's reserved bytes are not zero".into()));
-            }
-            let mut b = [0f64; 6];
-            for x in &mut b {
-                *x = f64::from_le_bytes(take(&mut at, 8).ok_or_else(short)?.try_into().map_err(|_| short())?);
-            }
-            if b.iter().any(|x| !x.is_finite()) || (0..3).any(|i| b[i] > b[i + 3]) {
-                return Err(bad("box", format!("{b:?} is not a box")));
-            }
-            entries.push(KeyEntry {
-                key: key.to_key(),
-                payload,
-                name,
-                object_id,
-                path: TreePath { bits, len },
-                aabb: Aabb::from_array(b),
-            });
-        }
-        KeyBlock::Leaf(entries)
-    } else {
+    let result = {
         let mut children = Vec::with_capacity(count);
         for i in 0..count {
             let first_key = if i == 0 {

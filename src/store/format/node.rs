@@ -357,6 +357,12 @@ pub struct Limits {
     pub object_count: u32,
 }
 
+/// Bytes of the records of a node block [`validate_block`] accepted: its
+/// head's `used_bytes` (records fill them exactly).
+pub fn used_bytes(block: &[u8]) -> usize {
+    block.get(FRAME_LEN..RECORDS_START).and_then(|b| BlockHead::read_from_bytes(b).ok()).map_or(0, |h| h.used_bytes.get() as usize)
+}
+
 /// Checks every rule of format-spec/node.md on node block `id` (its checksum
 /// already verified), so that [`NodeView`]s of it never fail on structure.
 /// Returns the record offsets.
