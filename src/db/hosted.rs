@@ -60,6 +60,7 @@ mod open {
                 free,
                 snapshot: Arc::new(Snapshot::of(&committed, meta)),
                 readers: BTreeMap::new(),
+                born: std::collections::HashMap::new(),
             };
             Ok(Database::assemble(pager, state, None, host, read_only, Vec::new()))
         }
