@@ -3,8 +3,11 @@
 //! in a tree of thousands of objects writes at most 2 x (the node blocks of
 //! its path) + 8 blocks besides the commit slots; the first change of a
 //! transaction reads at most its path, the key index's and 2 blocks more;
-//! the file does not grow with the number of commits; and after each commit
-//! `check` passes and box queries answer as brute force does.
+//! the file does not grow with the number of commits, nor much under a
+//! reader held through them; a leaf past its capacity splits and an emptied
+//! one merges in place ("Splits", "Merges"), and `optimize` lays the result
+//! out as a bulk load does; and after each commit `check` passes and box
+//! queries answer as brute force does.
 
 mod common;
 
