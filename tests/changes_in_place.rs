@@ -347,20 +347,7 @@ fn a_stream_of_single_changes_keeps_every_rule_after_each_commit() {
     w.commit().unwrap();
     for i in 0..300u64 {
         let mut w = db.begin_write().unwrap();
-        match i % 3 {
-            0 => {
-                let x = (i / 3) as f64 * 0.7;
-                let mesh = common::box_mesh([x, 1.0, 1.0], [x + 0.5, 1.5, 1.5]);
-                w.insert(mktree::scene::Object::new("n", mesh).with_key(10_000 + i)).unwrap();
-            }
-            1 => {
-                w.move_by(&mktree::scene::Key::Int(i % 150), mktree::geom::Vector::new(3.0, 0.0, 0.0))
-                    .unwrap();
-            }
-            _ => {
-                w.remove(&mktree::scene::Key::Int(199 - i / 3)).unwrap();
-            }
-        }
+        common::stream_change(&mut w, i);
         if let Err(e) = w.commit_with_stats() {
             panic!("commit {i}: {e}");
         }

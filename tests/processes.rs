@@ -140,6 +140,31 @@ fn spawn(role: &str, file: &Path) -> std::process::Child {
         .unwrap()
 }
 
+/// Waits until each child of `roles` has marked itself started beside `path`.
+fn started(path: &Path, roles: &[&str]) {
+    let t = Instant::now();
+    while !roles.iter().all(|r| path.with_extension(r).exists()) {
+        assert!(t.elapsed() < Duration::from_secs(60), "{roles:?} did not start");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// Each child's RESULT line, once it succeeded with no failed read.
+fn results(children: impl IntoIterator<Item = std::process::Child>) -> Vec<String> {
+    let mut lines = Vec::new();
+    for child in children {
+        let out = child.wait_with_output().unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "a child failed: {text}");
+        let line =
+            text.lines().find(|l| l.starts_with("RESULT")).unwrap_or_else(|| panic!("no result in {text}"));
+        assert!(line.contains("failures=0 "), "{line}");
+        eprintln!("{line}");
+        lines.push(line.to_string());
+    }
+    lines
+}
+
 #[test]
 fn readers_in_other_processes_never_fail_during_commits() {
     let dir = tempfile::tempdir().unwrap();
@@ -147,29 +172,14 @@ fn readers_in_other_processes_never_fail_during_commits() {
     let db = Database::create(&path, CreateOptions { block_size: 4096, lod_levels: 2 }).unwrap();
     commit(&db, SIZES[0]);
     let readers = [spawn("reader", &path), spawn("reopener", &path)];
-    let started = Instant::now();
     // The readers are reading before the first commit.
-    while !["reader", "reopener"].iter().all(|r| path.with_extension(r).exists()) {
-        assert!(started.elapsed() < Duration::from_secs(60), "the readers did not start");
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    started(&path, &["reader", "reopener"]);
     let writer = spawn("writer", &path);
     for commits in 0..COMMITS {
         commit(&db, SIZES[commits % 2 * 2]);
     }
     std::fs::write(path.with_extension("stop"), b"").unwrap();
-    let outputs: Vec<_> =
-        readers.into_iter().chain([writer]).map(|c| c.wait_with_output().unwrap()).collect();
-    let mut reads_saw = BTreeSet::new();
-    for out in &outputs {
-        let text = String::from_utf8_lossy(&out.stdout);
-        assert!(out.status.success(), "a child failed: {text}");
-        let line =
-            text.lines().find(|l| l.starts_with("RESULT")).unwrap_or_else(|| panic!("no result in {text}"));
-        assert!(line.contains("failures=0 "), "{line}");
-        eprintln!("{line}");
-        reads_saw.insert(line.to_string());
-    }
+    let reads_saw: BTreeSet<String> = results(readers.into_iter().chain([writer])).into_iter().collect();
     // The readers saw more than one tree: the reads really overlapped the commits.
     assert!(reads_saw.iter().any(|l| l.matches(',').count() >= 1), "no reader saw two trees: {reads_saw:?}");
     assert!(mktree::db::check(&db).unwrap().ok());
@@ -185,43 +195,18 @@ fn readers_in_other_processes_never_fail_during_single_change_commits() {
     w.bulk_load(&common::grid_scene(200), &params, &|_| {}).unwrap();
     w.commit().unwrap();
     let readers = [spawn("change-reader", &path), spawn("change-reopener", &path)];
-    let started = Instant::now();
-    while !["change-reader", "change-reopener"].iter().all(|r| path.with_extension(r).exists()) {
-        assert!(started.elapsed() < Duration::from_secs(60), "the readers did not start");
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    started(&path, &["change-reader", "change-reopener"]);
     // Inserts around one place (its leaves split), moves and removals, one per commit.
     let mut in_place = 0;
     for i in 0..300u64 {
         let mut w = db.begin_write_with(WriterWait::Wait).unwrap();
-        match i % 3 {
-            0 => {
-                let x = (i / 3) as f64 * 0.7;
-                let mesh = common::box_mesh([x, 1.0, 1.0], [x + 0.5, 1.5, 1.5]);
-                w.insert(mktree::scene::Object::new("n", mesh).with_key(10_000 + i)).unwrap();
-            }
-            1 => {
-                w.move_by(&mktree::scene::Key::Int(i % 150), mktree::geom::Vector::new(3.0, 0.0, 0.0))
-                    .unwrap();
-            }
-            _ => {
-                w.remove(&mktree::scene::Key::Int(199 - i / 3)).unwrap();
-            }
-        }
+        common::stream_change(&mut w, i);
         in_place += usize::from(w.commit_with_stats().unwrap().in_place);
     }
     // The rest emptied a leaf beside a subtree, which writes the tree whole.
     assert!(in_place >= 270, "{in_place} of 300 commits in place");
     std::fs::write(path.with_extension("stop"), b"").unwrap();
-    for child in readers {
-        let out = child.wait_with_output().unwrap();
-        let text = String::from_utf8_lossy(&out.stdout);
-        assert!(out.status.success(), "a child failed: {text}");
-        let line =
-            text.lines().find(|l| l.starts_with("RESULT")).unwrap_or_else(|| panic!("no result in {text}"));
-        assert!(line.contains("failures=0 "), "{line}");
-        eprintln!("{line}");
-    }
+    results(readers);
     assert!(mktree::db::check(&db).unwrap().ok());
 }
 
@@ -237,11 +222,7 @@ fn a_reader_in_another_process_keeps_only_the_blocks_it_reads() {
     let blocks = |db: &Database| db.begin_read().unwrap().info().unwrap().file_blocks;
     let start = blocks(&db);
     let holder = spawn("holder", &path);
-    let started = Instant::now();
-    while !path.with_extension("holder").exists() {
-        assert!(started.elapsed() < Duration::from_secs(60), "the holder did not start");
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    started(&path, &["holder"]);
     for i in 0..20u64 {
         let mut w = db.begin_write().unwrap();
         let by = if i % 2 == 0 { 5.0 } else { -5.0 };

@@ -427,12 +427,7 @@ impl Database {
         self.trim_end(wait)?;
         // A reader of any state keeps the blocks a move frees: moving the
         // tree would leave the file larger than it began (issue 24).
-        let held_by_reader = {
-            let w = self.begin_write_with(wait)?;
-            let txn = w.base_txn();
-            w.abort()?;
-            self.inner.oldest_reader(txn + 1)?
-        };
+        let held_by_reader = self.inner.oldest_reader(u64::MAX)?;
         if held_by_reader.is_none() && space(self)?.1 > 0 {
             for at_end in [true, false] {
                 let mut w = self.begin_write_with(wait)?;
@@ -802,6 +797,8 @@ impl Inner {
         let mut out: Vec<(u32, u32)> = Vec::new();
         let mut born = std::mem::take(&mut self.lock_state().born);
         let mut kept = HashMap::new();
+        // Blocks of one commit share (written, freed): one probe each.
+        let mut pinned: HashMap<(u64, u64), bool> = HashMap::new();
         for r in free {
             let Some(oldest) = oldest.filter(|&o| r.freed > o) else {
                 out.push((r.first, r.count));
@@ -820,7 +817,16 @@ impl Inner {
                 };
                 kept.insert(b, (r.freed, written));
                 let Some(written) = written else { continue };
-                if !self.pinned_between(written.max(oldest), r.freed)? {
+                let span = (written.max(oldest), r.freed);
+                let held = match pinned.get(&span) {
+                    Some(&h) => h,
+                    None => {
+                        let h = self.pinned_between(span.0, span.1)?;
+                        pinned.insert(span, h);
+                        h
+                    }
+                };
+                if !held {
                     match out.last_mut() {
                         Some((first, count)) if *first + *count == b => *count += 1,
                         _ => out.push((b, 1)),

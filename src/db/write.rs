@@ -153,11 +153,6 @@ impl<'db> WriteTransaction<'db> {
         }
     }
 
-    /// The transaction id of the state this transaction began on.
-    pub(crate) fn base_txn(&self) -> u64 {
-        self.base.txn
-    }
-
     /// What this transaction repaired before it began (a crash's leftovers).
     pub fn recovery(&self) -> Recovery {
         self.recovery

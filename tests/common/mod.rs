@@ -135,3 +135,22 @@ pub fn lod_db(scene: &Scene, m: u8, block_size: u32, cap: u32, lod: mktree::lod:
     w.commit().expect("commit");
     db
 }
+
+/// Change `i` of a stream over `grid_scene(200)`, one per commit: inserts
+/// around one place (their leaves split), moves of keys below 150 and
+/// removals from key 199 down (leaves, and at the end a key leaf, empty).
+pub fn stream_change(w: &mut mktree::db::WriteTransaction, i: u64) {
+    match i % 3 {
+        0 => {
+            let x = (i / 3) as f64 * 0.7;
+            let mesh = box_mesh([x, 1.0, 1.0], [x + 0.5, 1.5, 1.5]);
+            w.insert(Object::new("n", mesh).with_key(10_000 + i)).unwrap();
+        }
+        1 => {
+            w.move_by(&mktree::scene::Key::Int(i % 150), mktree::geom::Vector::new(3.0, 0.0, 0.0)).unwrap();
+        }
+        _ => {
+            w.remove(&mktree::scene::Key::Int(199 - i / 3)).unwrap();
+        }
+    }
+}

@@ -1162,11 +1162,6 @@ impl WriteTransaction<'_> {
             let params = BuildParams { leaf: LeafRule::Objects(half), ..split.params.clone() };
             tree = crate::bulk::build(&boxes, None, &params, &|_| {})?;
         }
-        for e in &entries {
-            for b in &e.bounds {
-                deltas.drop_bound(b.level, b.blob.len());
-            }
-        }
         let n = tree.nodes.len();
         let kids = |i: usize| tree.nodes[i].children().map(|c| c.map(|c| c.index()));
         // Frames, parents before children (preorder): each child's box
@@ -1201,7 +1196,10 @@ impl WriteTransaction<'_> {
                 sub.extend(entries[run.clone()].iter().cloned());
                 sub_keys.push(keys[o.index()].clone());
             }
-            let (mut d, _) = leaf_draft(&sub, sub_keys, ids[i], None, &frames[i], true, bs)?;
+            let (mut d, dropped) = leaf_draft(&sub, sub_keys, ids[i], None, &frames[i], true, bs)?;
+            for (level, len) in dropped {
+                deltas.drop_bound(level, len);
+            }
             if d.encoded_len() > capacity {
                 return Ok(Err(Structural));
             }
