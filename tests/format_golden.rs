@@ -1,6 +1,6 @@
 //! Claim: the writer produces the spec's example file byte for byte
-//! (`tests/golden/tiny-v7.mkt`, whose dump `format-spec/example.md` shows),
-//! and a reader opens it; the golden files of versions 1 to 6 are refused
+//! (`tests/golden/tiny-v8.mkt`, whose dump `format-spec/example.md` shows),
+//! and a reader opens it; the golden files of versions 1 to 7 are refused
 //! with `UnsupportedVersion`, not misread. Set MKTREE_BLESS=1 to rewrite the
 //! golden file and the example's dump after a deliberate format change
 //! (with a new version: format-spec/versions.md).
@@ -12,12 +12,15 @@ use std::sync::Arc;
 use common::{box_mesh, triangle};
 use mktree::bulk::{BuildParams, LeafRule, Method, build};
 use mktree::db::{CreateOptions, Database, check};
+use mktree::geom::Vector;
 use mktree::lod::LodParams;
-use mktree::scene::{Object, Scene};
+use mktree::scene::{Key, Object, Scene};
 use mktree::store::device::MemDevice;
 use mktree::store::{BlockDevice, StorageError};
 
-const GOLDEN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v7.mkt");
+const GOLDEN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v8.mkt");
+const GOLDEN_MOVED: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v8-moved.mkt");
+const GOLDEN_V7: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v7.mkt");
 const GOLDEN_V6: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v6.mkt");
 const GOLDEN_V5: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v5.mkt");
 const GOLDEN_V1: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v1.mkt");
@@ -49,6 +52,19 @@ fn tiny() -> Vec<u8> {
     w.set_lod_params(LodParams { store_all: true, ..LodParams::default() });
     w.write_tree(&scene, &tree, &params, 0.0).unwrap();
     w.commit().unwrap();
+    assert!(check(&db).unwrap().ok());
+    drop(db);
+    dev.to_bytes()
+}
+
+/// The tiny file after one change commit: `far` moved 10 mm along x.
+fn moved() -> Vec<u8> {
+    let dev = Arc::new(MemDevice::from_bytes(tiny()));
+    let db = Database::open_on(dev.clone() as Arc<dyn BlockDevice>).unwrap();
+    let mut w = db.begin_write().unwrap();
+    assert!(w.move_by(&Key::Int(2), Vector::new(10.0, 0.0, 0.0)).unwrap());
+    let stats = w.commit_with_stats().unwrap();
+    assert!(stats.in_place && stats.syncs == 1, "{stats:?}");
     assert!(check(&db).unwrap().ok());
     drop(db);
     dev.to_bytes()
@@ -92,7 +108,7 @@ fn the_writer_reproduces_the_golden_file_and_the_spec_shows_it() {
         let end = start + md[start..].find("```").expect("its end");
         std::fs::write(EXAMPLE, format!("{}{}{}", &md[..start], hexdump(&bytes), &md[end..])).unwrap();
     }
-    let golden = std::fs::read(GOLDEN).expect("tests/golden/tiny-v7.mkt");
+    let golden = std::fs::read(GOLDEN).expect("tests/golden/tiny-v8.mkt");
     assert!(bytes == golden, "the writer no longer produces the golden file byte for byte");
     let md = std::fs::read_to_string(EXAMPLE).unwrap();
     assert_eq!(
@@ -107,30 +123,57 @@ fn the_writer_reproduces_the_golden_file_and_the_spec_shows_it() {
 }
 
 #[test]
-fn an_unknown_version_is_refused_not_guessed() {
-    let mut bytes = std::fs::read(GOLDEN).unwrap();
-    bytes[8] = 8;
-    let err = Database::open_on(Arc::new(MemDevice::from_bytes(bytes)) as Arc<dyn BlockDevice>).unwrap_err();
-    assert!(matches!(err, StorageError::UnsupportedVersion { found: 8, supported: 7 }), "{err}");
-    assert!(err.to_string().contains("unsupported format version 8"), "{err}");
+fn a_change_commit_synced_once_is_written_as_the_spec_says() {
+    let bytes = moved();
+    if std::env::var_os("MKTREE_BLESS").is_some() {
+        std::fs::write(GOLDEN_MOVED, &bytes).unwrap();
+    }
+    let golden = std::fs::read(GOLDEN_MOVED).expect("tests/golden/tiny-v8-moved.mkt");
+    assert!(bytes == golden, "the writer no longer produces the moved golden file byte for byte");
+    // Transaction 3 went to slot 0 (offsets 0x200 and 0x300), state 3:
+    // committed with one sync, its meta block listing what it wrote.
+    for copy in [0x200, 0x300] {
+        assert_eq!(golden[copy], 3, "txn");
+        assert_eq!(golden[copy + 8], 3, "state");
+    }
+    let db = Database::open_on(Arc::new(MemDevice::from_bytes(golden)) as Arc<dyn BlockDevice>).unwrap();
+    assert!(db.warnings().is_empty(), "{:?}", db.warnings());
+    let r = db.begin_read().unwrap();
+    let far = r.get(&Key::Int(2)).unwrap().unwrap();
+    assert_eq!(far.aabb.min.x, 510.0);
 }
 
 #[test]
-fn version_1_to_6_files_are_refused_with_their_version() {
-    for (path, found) in
-        [(GOLDEN_V1, 1), (GOLDEN_V2, 2), (GOLDEN_V3, 3), (GOLDEN_V4, 4), (GOLDEN_V5, 5), (GOLDEN_V6, 6)]
-    {
+fn an_unknown_version_is_refused_not_guessed() {
+    let mut bytes = std::fs::read(GOLDEN).unwrap();
+    bytes[8] = 9;
+    let err = Database::open_on(Arc::new(MemDevice::from_bytes(bytes)) as Arc<dyn BlockDevice>).unwrap_err();
+    assert!(matches!(err, StorageError::UnsupportedVersion { found: 9, supported: 8 }), "{err}");
+    assert!(err.to_string().contains("unsupported format version 9"), "{err}");
+}
+
+#[test]
+fn version_1_to_7_files_are_refused_with_their_version() {
+    for (path, found) in [
+        (GOLDEN_V1, 1),
+        (GOLDEN_V2, 2),
+        (GOLDEN_V3, 3),
+        (GOLDEN_V4, 4),
+        (GOLDEN_V5, 5),
+        (GOLDEN_V6, 6),
+        (GOLDEN_V7, 7),
+    ] {
         let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{path}: {e}"));
         assert_eq!(bytes[8], found as u8, "{path} is a version {found} file");
         let err =
             Database::open_on(Arc::new(MemDevice::from_bytes(bytes)) as Arc<dyn BlockDevice>).unwrap_err();
         assert!(
-            matches!(err, StorageError::UnsupportedVersion { found: f, supported: 7 } if f == found),
+            matches!(err, StorageError::UnsupportedVersion { found: f, supported: 8 } if f == found),
             "{err}"
         );
         assert!(
             err.to_string()
-                .contains(&format!("unsupported format version {found} (this build reads version 7)")),
+                .contains(&format!("unsupported format version {found} (this build reads version 8)")),
             "{err}"
         );
     }

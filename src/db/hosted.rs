@@ -58,6 +58,8 @@ mod open {
                 committed,
                 committed_slot: 0,
                 free,
+                chain: Vec::new(),
+                unfinished: None,
                 snapshot: Arc::new(Snapshot::of(&committed, meta)),
                 readers: BTreeMap::new(),
                 born: std::collections::HashMap::new(),

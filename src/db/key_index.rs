@@ -136,21 +136,18 @@ impl ReadTransaction {
     ) -> Result<KeyBlock, StorageError> {
         let t = if leaf { BlockType::KeyLeaf } else { BlockType::KeyBranch };
         let b = self.block(id, t, checksum, reads)?;
-        keys::decode(id, &b.bytes, leaf)
+        keys::decode_validated(id, &b.bytes, &b.records, leaf)
     }
 
     /// The key leaf whose range holds `key`, read, descending the key index
-    /// (its height in reads); none without a tree.
+    /// (its height in reads); none without a tree. Each block is validated
+    /// once, when it is read, and searched in place.
     fn key_leaf(&self, key: &Key, reads: &mut Reads) -> Result<Option<Arc<Block>>, StorageError> {
         let Some(m) = self.snapshot.meta.as_ref() else { return Ok(None) };
         let (mut block, mut checksum) = (m.keys_block, m.keys_checksum);
-        for level in (2..=m.keys_height).rev() {
-            let KeyBlock::Branch(children) = self.key_block(block, checksum, false, reads)? else {
-                return Err(StorageError::corrupt(block, "keys_height", format!("a leaf at level {level}")));
-            };
-            let c = keys::child_for(&children, key)
-                .ok_or_else(|| StorageError::corrupt(block, "children", "a branch of no children"))?;
-            (block, checksum) = (c.block, c.checksum);
+        for _ in 2..=m.keys_height {
+            let b = self.block(block, BlockType::KeyBranch, checksum, reads)?;
+            (block, checksum) = keys::search_branch(b.id(), &b.bytes, &b.records, key)?;
         }
         Ok(Some(self.block(block, BlockType::KeyLeaf, checksum, reads)?))
     }
@@ -159,7 +156,7 @@ impl ReadTransaction {
     /// most); only that entry of its leaf is copied out.
     pub(crate) fn key_entry(&self, key: &Key, reads: &mut Reads) -> Result<Option<KeyEntry>, StorageError> {
         match self.key_leaf(key, reads)? {
-            Some(leaf) => keys::find_in_leaf(leaf.id(), &leaf.bytes, key),
+            Some(leaf) => keys::search_leaf(leaf.id(), &leaf.bytes, &leaf.records, key),
             None => Ok(None),
         }
     }

@@ -87,6 +87,10 @@ pub enum Warning {
     /// A write transaction was interrupted (crash or abort); the next write
     /// transaction cleans up after it.
     Interrupted,
+    /// Commit `txn`, synced once, did not reach the disk whole (a crash
+    /// before its sync returned, so it never reported success): the state
+    /// before it is read, and the next write transaction clears its slot.
+    UnfinishedCommit { txn: u64 },
 }
 
 impl std::fmt::Display for Warning {
@@ -100,6 +104,11 @@ impl std::fmt::Display for Warning {
             Warning::Interrupted => {
                 write!(f, "a write transaction was interrupted; the next write cleans up after it")
             }
+            Warning::UnfinishedCommit { txn } => write!(
+                f,
+                "commit {txn} did not reach the disk whole (a crash before its sync): \
+                 the state before it is read, and the next write clears it"
+            ),
         }
     }
 }
@@ -147,7 +156,12 @@ struct Loaded {
     committed: Commit,
     committed_slot: usize,
     free: Vec<FreeRange>,
+    /// The free list's blocks, head first.
+    chain: Vec<u32>,
     meta: Option<Meta>,
+    /// A newer commit, committed with one sync, whose blocks did not all
+    /// reach the disk (a crash before its sync): `committed` is the one before.
+    unfinished: Option<u64>,
 }
 
 #[derive(Debug)]
@@ -157,6 +171,10 @@ struct State {
     committed_slot: usize,
     /// Free ranges of the committed state (what its free list holds).
     free: Vec<FreeRange>,
+    /// The committed free list's blocks, head first.
+    chain: Vec<u32>,
+    /// A newer commit that did not reach the disk whole ([`Loaded::unfinished`]).
+    unfinished: Option<u64>,
     snapshot: Arc<Snapshot>,
     /// Live readers in this process by snapshot transaction.
     readers: BTreeMap<u64, usize>,
@@ -329,6 +347,8 @@ impl Database {
             committed: loaded.committed,
             committed_slot: loaded.committed_slot,
             free: loaded.free,
+            chain: loaded.chain,
+            unfinished: loaded.unfinished,
             snapshot: Arc::new(Snapshot::of(&loaded.committed, loaded.meta)),
             readers: BTreeMap::new(),
             born: HashMap::new(),
@@ -511,7 +531,9 @@ impl Database {
             committed: s.committed,
             committed_slot: s.committed_slot,
             free: s.free.clone(),
+            chain: s.chain.clone(),
             meta: None,
+            unfinished: s.unfinished,
         };
         let w = warnings(&self.inner.pager, &loaded)?;
         Ok((s.committed, s.free.clone(), w))
@@ -667,7 +689,11 @@ fn newest(slots: &[SlotPair; 2]) -> Result<(usize, Commit), StorageError> {
 /// writer in another process may reuse them in between (no pin holds them
 /// yet): when a read fails and the slots have moved on, read again.
 fn load(pager: &Pager) -> Result<Loaded, StorageError> {
-    let mut slots = read_slots(pager)?;
+    load_from(pager, read_slots(pager)?)
+}
+
+/// [`load`] with the slots already read.
+fn load_from(pager: &Pager, mut slots: [SlotPair; 2]) -> Result<Loaded, StorageError> {
     loop {
         let result = load_state(pager, &slots);
         let Err(e) = result else { return result };
@@ -681,6 +707,29 @@ fn load(pager: &Pager) -> Result<Loaded, StorageError> {
 
 fn load_state(pager: &Pager, slots: &[SlotPair; 2]) -> Result<Loaded, StorageError> {
     let (committed_slot, committed) = newest(slots)?;
+    match load_commit(pager, slots, committed_slot, committed) {
+        // A commit synced once whose blocks are not all there was never
+        // durable (its sync did not return): the one before it stands.
+        Err(e) if committed.listed && e.is_corruption() => {
+            let other = 1 - committed_slot;
+            let SlotRead::Committed(before) = slots[other].value() else { return Err(e) };
+            let mut l = load_commit(pager, slots, other, before)?;
+            l.unfinished = Some(committed.txn);
+            Ok(l)
+        }
+        loaded => loaded,
+    }
+}
+
+/// The state commit `committed` (in slot `committed_slot`) made: its free
+/// list and meta block, and for a commit synced once, the blocks it lists
+/// verified against their checksums.
+fn load_commit(
+    pager: &Pager,
+    slots: &[SlotPair; 2],
+    committed_slot: usize,
+    committed: Commit,
+) -> Result<Loaded, StorageError> {
     // Block 0 is the header, so every committed state holds it.
     if committed.block_count == 0 {
         return Err(StorageError::corrupt(0, "block_count", "a commit of no blocks, not even the header"));
@@ -691,9 +740,41 @@ fn load_state(pager: &Pager, slots: &[SlotPair; 2]) -> Result<Loaded, StorageErr
             detail: format!("the commit holds {} blocks, the file {blocks_on_disk}", committed.block_count),
         });
     }
-    let free = read_free_list(pager, &committed)?;
+    let (free, chain) = free_list_chain(pager, &committed)?;
     let meta = read_meta(pager, &committed)?;
-    Ok(Loaded { slots: *slots, committed, committed_slot, free, meta })
+    if committed.listed {
+        verify_written(pager, &committed, meta.as_ref())?;
+    }
+    Ok(Loaded { slots: *slots, committed, committed_slot, free, chain, meta, unfinished: None })
+}
+
+/// Checks that every block a commit synced once lists carries the checksum
+/// listed: then the commit reached the disk whole (format-spec/commit.md).
+fn verify_written(pager: &Pager, c: &Commit, meta: Option<&Meta>) -> Result<(), StorageError> {
+    let Some(meta) = meta else {
+        return Err(StorageError::corrupt(0, "state", "a commit synced once names no meta block"));
+    };
+    for &(block, sum) in &meta.written {
+        if block == 0 || block >= c.block_count {
+            return Err(StorageError::corrupt(
+                c.meta_block,
+                "written",
+                format!("block {block} is not in the file"),
+            ));
+        }
+        let bytes = pager.read_raw(block)?;
+        let carried = frame::open(block, &bytes).map(|(f, _)| f.checksum.get());
+        if carried.as_ref().ok() != Some(&sum) {
+            return Err(StorageError::corrupt(
+                block,
+                "written",
+                format!(
+                    "the block does not carry the checksum {sum:#010x} its commit lists: the commit did not reach the disk whole"
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// True when a write transaction was interrupted: the other slot pending,
@@ -702,6 +783,7 @@ fn interrupted(pager: &Pager, l: &Loaded) -> Result<bool, StorageError> {
     let len = pager.device().len()?;
     let bs = u64::from(pager.block_size());
     Ok(matches!(l.slots[1 - l.committed_slot].value(), SlotRead::Pending { .. })
+        || l.unfinished.is_some()
         || len > u64::from(l.committed.block_count) * bs)
 }
 
@@ -713,6 +795,9 @@ fn warnings(pager: &Pager, l: &Loaded) -> Result<Vec<Warning>, StorageError> {
                 .map(move |copy| Warning::DamagedSlotCopy { slot: slot as u8, copy: copy as u8 })
         })
         .collect();
+    if let Some(txn) = l.unfinished {
+        w.push(Warning::UnfinishedCommit { txn });
+    }
     if interrupted(pager, l)? {
         w.push(Warning::Interrupted);
     }
@@ -862,13 +947,38 @@ impl Inner {
             return;
         }
         s.slots = l.slots;
+        s.unfinished = l.unfinished;
         if l.committed.txn == s.committed.txn {
             return;
         }
         s.committed = l.committed;
         s.committed_slot = l.committed_slot;
         s.free = l.free;
+        s.chain = l.chain;
+        s.unfinished = l.unfinished;
         s.snapshot = Arc::new(Snapshot::of(&l.committed, l.meta));
+    }
+
+    /// The newest committed state, for a writer: the installed one, when
+    /// the slots still name it, without reading its free list and meta
+    /// block again; else as read.
+    fn load_newest(&self) -> Result<Loaded, StorageError> {
+        let slots = read_slots(&self.pager)?;
+        if let Ok((i, c)) = newest(&slots) {
+            let s = self.lock_state();
+            if i == s.committed_slot && c == s.committed {
+                return Ok(Loaded {
+                    slots,
+                    committed: c,
+                    committed_slot: i,
+                    free: s.free.clone(),
+                    chain: s.chain.clone(),
+                    meta: s.snapshot.meta.clone(),
+                    unfinished: s.unfinished,
+                });
+            }
+        }
+        load_from(&self.pager, slots)
     }
 
     pub(crate) fn pager(&self) -> &Pager {
@@ -878,11 +988,6 @@ impl Inner {
     pub(crate) fn cache(&self) -> &BlockCache {
         &self.cache
     }
-}
-
-/// The free ranges the commit's free-list chain holds, checked against the spec.
-pub(crate) fn read_free_list(pager: &Pager, c: &Commit) -> Result<Vec<FreeRange>, StorageError> {
-    Ok(free_list_chain(pager, c)?.0)
 }
 
 /// The free ranges of the commit's free-list chain, and the chain's blocks.

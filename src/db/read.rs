@@ -11,6 +11,7 @@ use crate::geom::Aabb;
 use crate::scene::{Mesh, ObjectId};
 use crate::store::format::frame::BlockType;
 use crate::store::format::geometry;
+use crate::store::format::keys;
 use crate::store::format::node::{self, LeafView, Limits, NodeView, RecordRef};
 use crate::store::{Block, BlockCache, Pager, ReadStats, StorageError};
 
@@ -274,6 +275,8 @@ impl ReadTransaction {
                 let (bytes, sum) = self.pager().read(id, t, Some(checksum), &mut reads.stats)?;
                 let records = match t {
                     BlockType::Node => node::validate_block(id, &bytes, &self.limits())?,
+                    BlockType::KeyLeaf => keys::validate(id, &bytes, true)?,
+                    BlockType::KeyBranch => keys::validate(id, &bytes, false)?,
                     _ => Vec::new(),
                 };
                 let b = Arc::new(Block { id, checksum: sum, bytes, records });

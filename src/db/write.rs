@@ -9,7 +9,7 @@ use super::StagedScene;
 use super::source::{self, ObjectSource};
 use super::tree_writer::Sink;
 use super::{
-    Inner, Recovery, SeatGuard, Snapshot, WriterLock, codes, free_list_chain, interrupted, key_index, load,
+    Inner, ReadTransaction, Recovery, SeatGuard, Snapshot, WriterLock, codes, interrupted, key_index,
     recover, tree_writer,
 };
 use crate::bulk::{
@@ -24,7 +24,7 @@ use crate::store::format::frame::BlockType;
 use crate::store::format::freelist::{FreeListBlock, FreeRange, ranges_per_block};
 use crate::store::format::geometry;
 use crate::store::format::header::{self, Commit, Slot, SlotState};
-use crate::store::format::meta::{LOD_TABLE_LEN, LodCodes, Meta};
+use crate::store::format::meta::{LOD_TABLE_LEN, LodCodes, Meta, written_capacity};
 
 mod cow;
 mod hosted;
@@ -43,7 +43,13 @@ pub struct WriteTransaction<'db> {
     base: Commit,
     /// The base state's free ranges, labelled with the commits that freed them.
     base_free: Vec<FreeRange>,
+    /// The base state's free-list blocks.
+    base_chain: Vec<u32>,
+    /// A reader of the base state, held for the transaction's lookups.
+    base_reader: Option<Arc<ReadTransaction>>,
     slot: usize,
+    /// The order slot `slot`'s copies are written in: the pending mark's first.
+    slot_order: [usize; 2],
     recovery: Recovery,
     /// Blocks this transaction may allocate.
     avail: FreeSpace,
@@ -51,6 +57,12 @@ pub struct WriteTransaction<'db> {
     written: FreeSpace,
     /// The new meta block (block, checksum), once a tree is loaded.
     meta: Option<(u32, u32, Meta)>,
+    /// A change commit's meta block (block, fields), written at commit
+    /// after the free list, so that it can list what the commit wrote.
+    change_meta: Option<(u32, Meta)>,
+    /// The checksum of each block this transaction's changes wrote, for
+    /// the meta block's list (the last write of a block counts).
+    sums: BTreeMap<u32, u32>,
     /// How the levels of detail below M are built.
     lod_params: LodParams,
     /// Objects inserted, updated and deleted, by key, once the first change began.
@@ -64,12 +76,23 @@ pub struct WriteTransaction<'db> {
     done: bool,
 }
 
+/// What a commit installs besides its slot: the tree (or none), the free
+/// ranges, and the free list's blocks (head first).
+struct NewState {
+    meta: Option<Meta>,
+    free: Vec<FreeRange>,
+    chain: Vec<u32>,
+}
+
 /// The state a write transaction begins on, as its commit protocol gives it.
 struct Begun {
     txn: u64,
     base: Commit,
     base_free: Vec<FreeRange>,
+    base_chain: Vec<u32>,
     slot: usize,
+    /// The order slot `slot`'s copies are written in: the pending mark's first.
+    slot_order: [usize; 2],
     recovery: Recovery,
     avail: FreeSpace,
     oldest_reader: Option<u64>,
@@ -86,13 +109,22 @@ impl<'db> WriteTransaction<'db> {
         }
         let pager = inner.pager().clone();
         // Another process may have committed since this one last looked.
-        let loaded = load(&pager)?;
+        let mut loaded = inner.load_newest()?;
         let mut recovery = Recovery::default();
+        let (base, c_slot) = (loaded.committed, loaded.committed_slot);
         if interrupted(&pager, &loaded)? {
             recovery.interrupted = true;
             recover(&pager, &loaded.committed, &loaded.free, &mut recovery)?;
         }
-        let (base, c_slot) = (loaded.committed, loaded.committed_slot);
+        if loaded.unfinished.take().is_some() {
+            // The slot of a commit that did not reach the disk whole is
+            // cleared, a copy at a time, before this transaction reuses its
+            // blocks (format-spec/commit.md, "Recovery").
+            for copy in 0..2 {
+                write_slot_copy(&pager, 1 - c_slot, copy, SlotState::Empty, &Commit::default())?;
+            }
+            loaded.slots[1 - c_slot] = header::SlotPair { copies: [header::SlotRead::Empty; 2] };
+        }
         if base.txn >= header::MAX_TXN {
             return Err(StorageError::Invalid(format!("transaction ids are exhausted at {}", base.txn)));
         }
@@ -104,7 +136,7 @@ impl<'db> WriteTransaction<'db> {
         }
         let slot = 1 - c_slot;
         let order = loaded.slots[slot].write_order();
-        let base_free = loaded.free.clone();
+        let (base_free, base_chain) = (loaded.free.clone(), loaded.chain.clone());
         inner.install(loaded);
         // Blocks freed by a commit are reusable once no reader, here or in
         // another process, reads a state older than that commit.
@@ -121,7 +153,17 @@ impl<'db> WriteTransaction<'db> {
             header::slot_offset(slot, order[0]) as u64,
             &Slot::encode(slot, order[0], SlotState::Pending, &Commit { txn, ..Commit::default() }),
         )?;
-        let begun = Begun { txn, base, base_free, slot, recovery, avail, oldest_reader: oldest };
+        let begun = Begun {
+            txn,
+            base,
+            base_free,
+            base_chain,
+            slot,
+            slot_order: order,
+            recovery,
+            avail,
+            oldest_reader: oldest,
+        };
         Ok(WriteTransaction::new(inner, guard, file_lock, begun))
     }
 
@@ -139,11 +181,16 @@ impl<'db> WriteTransaction<'db> {
             txn: b.txn,
             base: b.base,
             base_free: b.base_free,
+            base_chain: b.base_chain,
+            base_reader: None,
             slot: b.slot,
+            slot_order: b.slot_order,
             recovery: b.recovery,
             avail: b.avail,
             written: FreeSpace::new(end, []),
             meta: None,
+            change_meta: None,
+            sums: BTreeMap::new(),
             lod_params: LodParams::default(),
             edits: None,
             change_stats: ChangeStats::default(),
@@ -167,6 +214,25 @@ impl<'db> WriteTransaction<'db> {
     /// This transaction's id.
     pub fn id(&self) -> u64 {
         self.txn
+    }
+
+    /// The committed state this transaction began on, as a reader: one pin
+    /// for all of the transaction's lookups.
+    fn base_reader(&mut self) -> Result<Arc<ReadTransaction>, StorageError> {
+        if let Some(r) = &self.base_reader {
+            return Ok(r.clone());
+        }
+        let r = Arc::new(self.inner.read_installed()?);
+        self.base_reader = Some(r.clone());
+        Ok(r)
+    }
+
+    /// Writes block `id` of a change commit, noting its checksum for the
+    /// meta block's list of written blocks.
+    fn put(&mut self, id: u32, block: &mut [u8], t: BlockType) -> Result<u32, StorageError> {
+        let sum = self.inner.pager().write(id, block, t, self.txn)?;
+        self.sums.insert(id, sum);
+        Ok(sum)
     }
 
     fn allocate(&mut self, count: u32) -> Result<u32, StorageError> {
@@ -283,7 +349,7 @@ impl<'db> WriteTransaction<'db> {
 
     /// The largest integer key, as the transaction has the tree.
     fn largest_int_key(&mut self) -> Result<Option<u64>, crate::Error> {
-        let committed = self.inner.read_installed()?.largest_int_key()?;
+        let committed = self.base_reader()?.largest_int_key()?;
         let edited =
             self.edits()?.ops.keys().filter_map(|k| if let Key::Int(i) = k { Some(*i) } else { None }).max();
         Ok(committed.max(edited))
@@ -371,7 +437,7 @@ impl<'db> WriteTransaction<'db> {
                 Change::Remove => None,
             });
         }
-        Ok(self.inner.read_installed()?.object(key)?)
+        Ok(self.base_reader()?.object(key)?)
     }
 
     /// What the last commit of changes wrote (zero before one).
@@ -393,7 +459,10 @@ impl<'db> WriteTransaction<'db> {
                     self.change_stats = stats;
                     return Ok(false);
                 }
-                None => (self.avail, self.written) = (avail, written),
+                None => {
+                    (self.avail, self.written) = (avail, written);
+                    (self.change_meta, self.sums) = (None, BTreeMap::new());
+                }
             }
         }
         self.rewrite_whole(edits)
@@ -427,7 +496,7 @@ impl<'db> WriteTransaction<'db> {
     /// The tree written whole: the committed objects with `edits` applied,
     /// bulk-loaded with the file's build parameters. `true`: no object is left.
     fn rewrite_whole(&mut self, edits: Edits) -> Result<bool, crate::Error> {
-        let snapshot = self.inner.read_installed()?;
+        let snapshot = self.base_reader()?;
         let params = snapshot
             .info()
             .and_then(|i| i.params)
@@ -577,6 +646,7 @@ impl<'db> WriteTransaction<'db> {
             keys_checksum: keys.checksum,
             keys_height: keys.height,
             keys_blocks: keys.blocks,
+            written: Vec::new(),
         };
         let meta_block = self.allocate(1)?;
         let mut block = vec![0u8; bs as usize];
@@ -612,11 +682,14 @@ impl<'db> WriteTransaction<'db> {
             let stats = self.change_stats;
             return self.commit_hosted(host.as_ref(), cleared).map(|()| stats);
         }
-        let (meta_block, meta_checksum, meta) = match self.meta.take() {
-            Some((block, sum, meta)) => (block, sum, Some(meta)),
-            None if cleared => (0, 0, None),
-            None => {
-                let (_, chain) = free_list_chain(&pager, &self.base)?;
+        // The meta block: written with the tree, or (a change commit) to
+        // be written after the free list.
+        let (meta_block, mut meta_checksum, mut meta) = match (self.meta.take(), self.change_meta.take()) {
+            (Some((block, sum, meta)), _) => (block, sum, Some(meta)),
+            (None, Some((block, meta))) => (block, 0, Some(meta)),
+            (None, None) if cleared => (0, 0, None),
+            (None, None) => {
+                let chain = self.base_chain.clone();
                 let mut free = self.base_free.clone();
                 let shorter = self.trim_tail(&mut free, self.base.block_count, &[]) < self.base.block_count;
                 // A list block above a reusable hole moves down, so that a
@@ -635,6 +708,7 @@ impl<'db> WriteTransaction<'db> {
                 (self.base.meta_block, self.base.meta_checksum, meta)
             }
         };
+        let unwritten_meta = meta_checksum == 0 && meta_block != 0;
         // The new free list: everything this transaction did not write (or
         // keep). Its own blocks come from `avail` (never from the blocks it frees).
         let per = ranges_per_block(pager.block_size());
@@ -661,8 +735,20 @@ impl<'db> WriteTransaction<'db> {
             };
             let mut block = vec![0u8; pager.block_size() as usize];
             fl.encode(&mut block);
-            next_sum = pager.write(id, &mut block, BlockType::FreeList, self.txn)?;
+            next_sum = self.put(id, &mut block, BlockType::FreeList)?;
             next = id;
+        }
+        // A change commit small enough for its meta block to list what it
+        // wrote commits with one sync (format-spec/commit.md).
+        let mut listed = false;
+        if unwritten_meta && let Some(m) = meta.as_mut() {
+            listed = self.sums.len() <= written_capacity(pager.block_size());
+            if listed {
+                m.written = self.sums.iter().map(|(&b, &s)| (b, s)).collect();
+            }
+            let mut block = vec![0u8; pager.block_size() as usize];
+            m.encode(&mut block);
+            meta_checksum = pager.write(meta_block, &mut block, BlockType::Meta, self.txn)?;
         }
         let c = Commit {
             txn: self.txn,
@@ -672,8 +758,9 @@ impl<'db> WriteTransaction<'db> {
             freelist_block: next,
             freelist_checksum: next_sum,
             free_blocks: free.iter().map(|r| r.count).sum(),
+            listed,
         };
-        self.finish(c, Some((meta, free)))?;
+        self.finish(c, Some(NewState { meta, free, chain: list_blocks }))?;
         if end < self.avail.end() {
             // After the commit: a crash before this leaves a longer file, which the next writer truncates.
             pager.device().set_len(u64::from(end) * u64::from(pager.block_size()))?;
@@ -714,32 +801,41 @@ impl<'db> WriteTransaction<'db> {
         self.written.remove_all(&chain);
     }
 
-    fn finish(
-        &mut self,
-        c: Commit,
-        loaded: Option<(Option<Meta>, Vec<FreeRange>)>,
-    ) -> Result<(), StorageError> {
+    fn finish(&mut self, c: Commit, new: Option<NewState>) -> Result<(), StorageError> {
         let pager = self.inner.pager();
-        pager.sync()?;
+        // A listed commit's blocks need not be durable before its slot: a
+        // reader verifies them against the list, and takes the commit
+        // before it if one fails (format-spec/commit.md).
+        self.change_stats.syncs = 1;
+        if !c.listed {
+            pager.sync()?;
+            self.change_stats.syncs = 2;
+        }
         // Durable once the first copy is: a crash before the second leaves
         // one valid committed copy, which wins (format-spec/commit.md). The
-        // second copy needs no sync of its own: this slot is written again
-        // only two commits on, after their syncs have flushed it.
-        write_slot_copy(pager, self.slot, 0, SlotState::Committed, &c)?;
+        // first is the copy that holds the pending mark, so that one copy
+        // of the slot is in flight at a time; the second needs no sync of
+        // its own: this slot is written again only two commits on, after
+        // their syncs have flushed it.
+        let [first, second] = self.slot_order;
+        write_slot_copy(pager, self.slot, first, SlotState::Committed, &c)?;
         pager.write_header_bytes(
-            header::slot_offset(self.slot, 1) as u64,
-            &Slot::encode(self.slot, 1, SlotState::Committed, &c),
+            header::slot_offset(self.slot, second) as u64,
+            &Slot::encode(self.slot, second, SlotState::Committed, &c),
         )?;
-        self.install(c, loaded);
+        self.install(c, new);
         Ok(())
     }
 
     /// Makes `c` (with its meta and free ranges, or the base's) the state readers begin on.
-    fn install(&mut self, c: Commit, loaded: Option<(Option<Meta>, Vec<FreeRange>)>) {
+    fn install(&mut self, c: Commit, new: Option<NewState>) {
         self.done = true;
         let mut s = self.inner.lock_state();
-        let (meta, free) = match loaded {
-            Some((meta, free)) => (meta, free),
+        let (meta, free) = match new {
+            Some(n) => {
+                s.chain = n.chain;
+                (n.meta, n.free)
+            }
             None => (s.snapshot.meta.clone(), s.free.clone()),
         };
         let value = header::SlotRead::Committed(c);

@@ -17,7 +17,8 @@ pub struct Block {
     pub(crate) id: u32,
     pub(crate) checksum: u32,
     pub(crate) bytes: Box<[u8]>,
-    /// Node blocks: the offsets of their records, validated.
+    /// Node blocks: the offsets of their records; key blocks: of their
+    /// entries (format-spec/keys.md). Validated when the block was read.
     pub(crate) records: Vec<u32>,
 }
 

@@ -30,7 +30,7 @@ use crate::db::path::PathStep;
 use crate::db::read::view;
 use crate::db::source::check_object;
 use crate::db::tree_writer::split_info;
-use crate::db::{ReadTransaction, Reads, free_list_chain};
+use crate::db::{ReadTransaction, Reads};
 use crate::geom::Aabb;
 use crate::scene::{Key, KeyError, Object, ObjectId};
 use crate::store::format::frame::{BlockType, FRAME_LEN};
@@ -74,6 +74,10 @@ pub struct ChangeStats {
     /// Whether the changes were written in place (copy on write); `false`:
     /// the tree was written whole.
     pub in_place: bool,
+    /// Syncs the commit made: 1 when its meta block lists every block it
+    /// wrote, else 2 (format-spec/commit.md); 0 for a tree in redb, whose
+    /// commit syncs as redb does.
+    pub syncs: u64,
 }
 
 /// A record on a changed path, and what it becomes.
@@ -177,9 +181,10 @@ impl WriteTransaction<'_> {
     /// Writes `edits` copy on write. `Ok(None)`: a change needs the tree
     /// written whole, and nothing was written.
     pub(super) fn commit_in_place(&mut self, edits: &Edits) -> Result<Option<ChangeStats>, crate::Error> {
-        let r = self.inner.read_installed()?;
+        let r = self.base_reader()?;
         let Some(meta) = r.snapshot.meta.clone() else { return Ok(None) };
-        let mut reads = Reads::new(None);
+        // Through the shared cache: the lookups of the changes read the same paths.
+        let mut reads = Reads::new(Some(r.cache()));
         let mut stats =
             ChangeStats { changes: edits.ops.len() as u64, in_place: true, ..ChangeStats::default() };
         let plan = match plan_leaves(&r, &meta, edits, &mut reads)? {
@@ -190,15 +195,13 @@ impl WriteTransaction<'_> {
         let outcome = self.write_changes(&r, &meta, plan, &mut reads)?;
         // The caller takes back the blocks of an attempt that stops short.
         let Ok((new_meta, freed)) = outcome else { return Ok(None) };
-        let pager = self.inner.pager().clone();
+        // The meta block is written last, after the free list, so that it
+        // can list every other block the commit wrote.
         let meta_block = self.allocate(1)?;
-        let mut block = vec![0u8; pager.block_size() as usize];
-        new_meta.encode(&mut block);
-        let sum = pager.write(meta_block, &mut block, BlockType::Meta, self.txn)?;
-        self.meta = Some((meta_block, sum, new_meta));
+        self.change_meta = Some((meta_block, new_meta));
         stats.blocks_written = written_count(&self.written) - written_before;
         // The committed tree stays but for what this commit replaced.
-        let (_, chain) = free_list_chain(&pager, &self.base)?;
+        let chain = self.base_chain.clone();
         self.keep_base(&chain);
         let mut gone: Vec<(u32, u32)> = freed.iter().map(|&b| (b, 1)).collect();
         gone.push((self.base.meta_block, 1));
@@ -734,7 +737,7 @@ impl WriteTransaction<'_> {
                 let b = at / p;
                 while checksums.len() as u64 != b {
                     let id = first + checksums.len() as u32;
-                    checksums.push(pager.write(id, &mut blockbuf, BlockType::Geometry, self.txn)?);
+                    checksums.push(self.put(id, &mut blockbuf, BlockType::Geometry)?);
                     blockbuf.fill(0);
                 }
                 let off = (at % p) as usize;
@@ -746,7 +749,7 @@ impl WriteTransaction<'_> {
         }
         while (checksums.len() as u64) < span {
             let id = first + checksums.len() as u32;
-            checksums.push(pager.write(id, &mut blockbuf, BlockType::Geometry, self.txn)?);
+            checksums.push(self.put(id, &mut blockbuf, BlockType::Geometry)?);
             blockbuf.fill(0);
         }
         *first_block = first;
@@ -879,7 +882,6 @@ impl WriteTransaction<'_> {
         deltas: &mut Deltas,
         freed: &mut Vec<u32>,
     ) -> Step<RecordRef> {
-        let pager = self.inner.pager().clone();
         let capacity = node::capacity(bs);
         // Each changed block, its parent block, and its old bytes.
         let mut blocks: HashMap<u32, Arc<Block>> = HashMap::new();
@@ -984,7 +986,7 @@ impl WriteTransaction<'_> {
                 let mut bytes = vec![0u8; bs as usize];
                 let offsets =
                     node::encode_block(std::slice::from_ref(d), &mut bytes).map_err(StorageError::Invalid)?;
-                let checksum = pager.write(id, &mut bytes, BlockType::Node, self.txn)?;
+                let checksum = self.put(id, &mut bytes, BlockType::Node)?;
                 deltas.node_bytes += d.encoded_len() as i64;
                 relocated.insert((b, o), RecordRef { block: id, checksum, offset: offsets[0] });
             }
@@ -1028,7 +1030,7 @@ impl WriteTransaction<'_> {
             let id = self.allocate(1)?;
             let mut bytes = vec![0u8; bs as usize];
             node::encode_block(&records, &mut bytes).map_err(StorageError::Invalid)?;
-            let checksum = pager.write(id, &mut bytes, BlockType::Node, self.txn)?;
+            let checksum = self.put(id, &mut bytes, BlockType::Node)?;
             let used = records.iter().map(RecordDraft::encoded_len).sum::<usize>() as i64;
             deltas.node_bytes += used - old_used(&old);
             for (o, _) in &drafts {
@@ -1285,7 +1287,7 @@ impl WriteTransaction<'_> {
             let id = self.allocate(1)?;
             let mut bytes = vec![0u8; bs as usize];
             node::encode_block(&records, &mut bytes).map_err(StorageError::Invalid)?;
-            let checksum = pager.write(id, &mut bytes, BlockType::Node, self.txn)?;
+            let checksum = self.put(id, &mut bytes, BlockType::Node)?;
             for &i in &nodes {
                 refs[i] = Some(RecordRef { block: id, checksum, offset: offset[&i] });
             }
@@ -1414,49 +1416,14 @@ impl WriteTransaction<'_> {
         freed: &mut Vec<u32>,
         blocks: &mut i64,
     ) -> Result<Replacement, crate::Error> {
-        let pager = self.inner.pager().clone();
-        let capacity = keys::capacity(pager.block_size());
         freed.push(at.block);
         *blocks -= 1;
-        match r.key_block(at.block, at.checksum, height == 1, reads)? {
-            KeyBlock::Leaf(entries) => {
-                let mut map: BTreeMap<Key, KeyEntry> =
-                    entries.into_iter().map(|e| (e.key.clone(), e)).collect();
-                for (k, e) in changes {
-                    match e {
-                        Some(e) => {
-                            map.insert(k.clone(), e.clone());
-                        }
-                        None => {
-                            map.remove(k);
-                        }
-                    }
-                }
-                let entries: Vec<KeyEntry> = map.into_values().collect();
-                if entries.is_empty() {
-                    // A leaf its removals empty goes; its branch drops it.
-                    return Ok(Vec::new());
-                }
-                let sizes: Vec<usize> =
-                    entries.iter().map(|e| keys::entry_len(&e.key, e.payload.len(), e.name.len())).collect();
-                if let Some(i) = sizes.iter().position(|&s| s > capacity) {
-                    return Err(KeyError::PayloadTooLong {
-                        object: ObjectId(entries[i].object_id),
-                        len: sizes[i],
-                    }
-                    .into());
-                }
-                let mut out = Vec::new();
-                for group in crate::db::key_index::pack(&sizes, capacity) {
-                    let part = &entries[group];
-                    let mut block = vec![0u8; pager.block_size() as usize];
-                    keys::encode_leaf(part, &mut block).map_err(StorageError::Invalid)?;
-                    let id = self.allocate(1)?;
-                    let checksum = pager.write(id, &mut block, BlockType::KeyLeaf, self.txn)?;
-                    *blocks += 1;
-                    out.push(ChildRef { first_key: part[0].key.clone(), block: id, checksum });
-                }
-                Ok(out)
+        if height == 1 {
+            return self.update_key_leaf(r, at, changes, reads, blocks);
+        }
+        match r.key_block(at.block, at.checksum, false, reads)? {
+            KeyBlock::Leaf(_) => {
+                Err(StorageError::corrupt(at.block, "keys_height", "a leaf above the leaves' level").into())
             }
             KeyBlock::Branch(children) => {
                 // Each child's share of the changes, in key order.
@@ -1493,6 +1460,73 @@ impl WriteTransaction<'_> {
         }
     }
 
+    /// The replacement of key leaf `at` with `changes` applied: the entries
+    /// it keeps are copied as they lie, and only the changed ones encoded.
+    fn update_key_leaf(
+        &mut self,
+        r: &ReadTransaction,
+        at: &ChildRef,
+        changes: &[(Key, Option<KeyEntry>)],
+        reads: &mut Reads,
+        blocks: &mut i64,
+    ) -> Result<Replacement, crate::Error> {
+        let pager = self.inner.pager().clone();
+        let capacity = keys::capacity(pager.block_size());
+        let leaf = r.block(at.block, BlockType::KeyLeaf, at.checksum, reads)?;
+        let old = keys::leaf_entries(leaf.id(), &leaf.bytes, &leaf.records)?;
+        // Both in key order: merge, the change winning on an equal key.
+        let mut encoded: Vec<(Vec<u8>, u32, &Key)> = Vec::new();
+        let mut order: Vec<(Option<usize>, usize)> = Vec::with_capacity(old.len() + changes.len());
+        let (mut i, mut j) = (0, 0);
+        while i < old.len() || j < changes.len() {
+            let next_old = old.get(i).map(|(k, _)| *k);
+            let next_change = changes.get(j);
+            let take_old = match (next_old, next_change) {
+                (Some(k), Some((c, _))) => k.cmp(&c.as_ref()),
+                (Some(_), None) => std::cmp::Ordering::Less,
+                (None, _) => std::cmp::Ordering::Greater,
+            };
+            if take_old.is_lt() {
+                order.push((None, i));
+                i += 1;
+                continue;
+            }
+            if take_old.is_eq() {
+                i += 1;
+            }
+            if let Some((key, Some(e))) = next_change {
+                let bytes = keys::encode_entry(e).map_err(StorageError::Invalid)?;
+                order.push((Some(encoded.len()), 0));
+                encoded.push((bytes, e.object_id, key));
+            }
+            j += 1;
+        }
+        if order.is_empty() {
+            // A leaf its removals empty goes; its branch drops it.
+            return Ok(Vec::new());
+        }
+        let parts: Vec<&[u8]> =
+            order.iter().map(|&(new, at)| new.map_or(old[at].1, |n| encoded[n].0.as_slice())).collect();
+        if let Some((bytes, object, _)) = encoded.iter().find(|(b, ..)| b.len() > capacity) {
+            return Err(KeyError::PayloadTooLong { object: ObjectId(*object), len: bytes.len() }.into());
+        }
+        let sizes: Vec<usize> = parts.iter().map(|p| p.len()).collect();
+        let mut out = Vec::new();
+        for group in crate::db::key_index::pack(&sizes, capacity) {
+            let first_key = match order[group.start] {
+                (None, at) => old[at].0.to_key(),
+                (Some(n), _) => encoded[n].2.clone(),
+            };
+            let mut block = vec![0u8; pager.block_size() as usize];
+            keys::encode_leaf_bytes(&parts[group], &mut block).map_err(StorageError::Invalid)?;
+            let id = self.allocate(1)?;
+            let checksum = self.put(id, &mut block, BlockType::KeyLeaf)?;
+            *blocks += 1;
+            out.push(ChildRef { first_key, block: id, checksum });
+        }
+        Ok(out)
+    }
+
     /// Branch blocks over `children` (in key order), packed as a bulk load
     /// packs them.
     fn write_branches(
@@ -1510,7 +1544,7 @@ impl WriteTransaction<'_> {
             let mut block = vec![0u8; pager.block_size() as usize];
             keys::encode_branch(part, &mut block).map_err(StorageError::Invalid)?;
             let id = self.allocate(1)?;
-            let checksum = pager.write(id, &mut block, BlockType::KeyBranch, self.txn)?;
+            let checksum = self.put(id, &mut block, BlockType::KeyBranch)?;
             *blocks += 1;
             out.push(ChildRef { first_key: part[0].first_key.clone(), block: id, checksum });
         }

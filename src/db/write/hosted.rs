@@ -7,7 +7,7 @@
 
 use std::sync::Arc;
 
-use super::{Begun, WriteTransaction};
+use super::{Begun, NewState, WriteTransaction};
 use crate::db::{Host, Inner, Recovery};
 use crate::store::StorageError;
 use crate::store::alloc::FreeSpace;
@@ -29,7 +29,9 @@ pub(super) fn begin(inner: &Arc<Inner>) -> Result<Begun, StorageError> {
         txn: base.txn + 1,
         base,
         base_free: s.free.clone(),
+        base_chain: Vec::new(),
         slot: s.committed_slot,
+        slot_order: [0, 1],
         recovery: Recovery::default(),
         avail,
         oldest_reader: None,
@@ -73,7 +75,7 @@ impl WriteTransaction<'_> {
         host.commit(&c, &free, &replaced)?;
         let labelled =
             free.iter().map(|&(first, count)| FreeRange { first, count, freed: self.txn }).collect();
-        self.install(c, Some((meta, labelled)));
+        self.install(c, Some(NewState { meta, free: labelled, chain: Vec::new() }));
         Ok(())
     }
 }

@@ -10,7 +10,6 @@
 use std::collections::{BTreeMap, HashMap};
 
 use super::WriteTransaction;
-use crate::db::free_list_chain;
 use crate::store::alloc::FreeSpace;
 use crate::store::format::frame::BlockType;
 use crate::store::format::keys::{self, KeyBlock};
@@ -63,7 +62,7 @@ impl WriteTransaction<'_> {
         let Some(meta) = self.inner.lock_state().snapshot.meta.clone() else { return Ok(()) };
         let pager = self.inner.pager().clone();
         let tree = TreeBlocks::walk(&pager, &meta)?;
-        let (_, chain) = free_list_chain(&pager, &self.base)?;
+        let chain = &self.base_chain;
         let free = FreeSpace::new(self.base.block_count, self.base_free.iter().map(|r| (r.first, r.count)));
         let keys = tree.keys.iter().flatten().map(|&(b, _)| b);
         let blocks = tree.nodes.order.iter().copied().chain(tree.nodes.geometry.keys().copied());

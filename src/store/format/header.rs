@@ -45,6 +45,10 @@ pub enum SlotState {
     Committed = 2,
 }
 
+/// The state byte of a slot committed with one sync, whose meta block
+/// lists the blocks it wrote.
+const LISTED: u8 = 3;
+
 /// One copy of a commit slot (128 bytes).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
@@ -73,6 +77,10 @@ pub struct Commit {
     pub freelist_block: u32,
     pub freelist_checksum: u32,
     pub free_blocks: u32,
+    /// Committed with one sync (state 3): the meta block lists every other
+    /// block the commit wrote, which a reader verifies before it takes the
+    /// commit as whole (format-spec/commit.md).
+    pub listed: bool,
 }
 
 /// A slot copy as read: empty, pending, committed, or failing its checksum
@@ -154,7 +162,7 @@ impl Slot {
         let mut s = Slot::new_zeroed();
         if state != SlotState::Empty {
             s.txn = commit.txn.into();
-            s.state = state as u8;
+            s.state = if state == SlotState::Committed && commit.listed { LISTED } else { state as u8 };
             s.meta_block = commit.meta_block.into();
             s.meta_checksum = commit.meta_checksum.into();
             s.block_count = commit.block_count.into();
@@ -184,7 +192,7 @@ impl Slot {
         }
         match s.state {
             1 => SlotRead::Pending { txn: s.txn.get() },
-            2 => SlotRead::Committed(Commit {
+            2 | LISTED => SlotRead::Committed(Commit {
                 txn: s.txn.get(),
                 meta_block: s.meta_block.get(),
                 meta_checksum: s.meta_checksum.get(),
@@ -192,6 +200,7 @@ impl Slot {
                 freelist_block: s.freelist_block.get(),
                 freelist_checksum: s.freelist_checksum.get(),
                 free_blocks: s.free_blocks.get(),
+                listed: s.state == LISTED,
             }),
             _ => SlotRead::Invalid,
         }

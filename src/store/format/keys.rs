@@ -243,110 +243,203 @@ fn entries_area(id: u32, block: &[u8]) -> Result<(&[u8], usize), StorageError> {
     Ok((area, count))
 }
 
-/// Validates every entry of key leaf `id`, in order, handing each to `f`
-/// in place: nothing is allocated per entry.
-fn walk_leaf<'a>(id: u32, block: &'a [u8], mut f: impl FnMut(EntryRef<'a>)) -> Result<(), StorageError> {
+/// Parses the key leaf entry at the front of `at` (of block `id`),
+/// checking its fields but not its order among the others.
+fn entry_of<'a>(id: u32, at: &mut &'a [u8]) -> Result<EntryRef<'a>, StorageError> {
     let bad = |field, detail: String| StorageError::corrupt(id, field, detail);
-    let (mut at, count) = entries_area(id, block)?;
     let short = || bad("entries", "an entry overruns the used bytes".into());
+    let key = key_of(at).ok_or_else(short)?;
+    let n = usize::from(u16_of(at).ok_or_else(short)?);
+    if n > Object::MAX_PAYLOAD {
+        return Err(bad("payload", format!("{n} bytes (at most {})", Object::MAX_PAYLOAD)));
+    }
+    let payload = take(at, n).ok_or_else(short)?;
+    let n = usize::from(u16_of(at).ok_or_else(short)?);
+    let name = std::str::from_utf8(take(at, n).ok_or_else(short)?)
+        .map_err(|_| bad("name", "a name is not UTF-8".into()))?;
+    let object_id = u32_of(at).ok_or_else(short)?;
+    let bits = u64_of(at).ok_or_else(short)?;
+    let tail = take(at, 4).ok_or_else(short)?;
+    let len = tail[0];
+    if len > TreePath::MAX_LEN || (len < 64 && bits >> len != 0) {
+        return Err(bad("path", format!("{len} levels with bits {bits:#x}")));
+    }
+    if tail[1..] != [0, 0, 0] {
+        return Err(bad("reserved", "an entry's reserved bytes are not zero".into()));
+    }
+    let mut b = [0f64; 6];
+    for x in &mut b {
+        *x = f64::from_le_bytes(take(at, 8).ok_or_else(short)?.try_into().map_err(|_| short())?);
+    }
+    if b.iter().any(|x| !x.is_finite()) || (0..3).any(|i| b[i] > b[i + 3]) {
+        return Err(bad("box", format!("{b:?} is not a box")));
+    }
+    Ok(EntryRef { key, payload, name, object_id, path: TreePath { bits, len }, aabb: Aabb::from_array(b) })
+}
+
+/// A branch's child reference at the front of `at`: its least key (none
+/// for the first child), block and checksum.
+fn child_of<'a>(id: u32, at: &mut &'a [u8], first: bool) -> Result<(Option<KeyRef<'a>>, u32, u32), StorageError> {
+    let short = || StorageError::corrupt(id, "entries", "an entry overruns the used bytes");
+    let key = if first { None } else { Some(key_of(at).ok_or_else(short)?) };
+    let block = u32_of(at).ok_or_else(short)?;
+    let checksum = u32_of(at).ok_or_else(short)?;
+    Ok((key, block, checksum))
+}
+
+/// Validates key block `id` whole (a leaf when `leaf`, else a branch):
+/// entries fill its used bytes exactly, keys strictly increase, and each
+/// entry's fields are in range. Returns where each entry starts, so that
+/// lookups search it in place afterwards ([`search_leaf`], [`search_branch`]).
+pub fn validate(id: u32, block: &[u8], leaf: bool) -> Result<Vec<u32>, StorageError> {
+    let bad = |field, detail: String| StorageError::corrupt(id, field, detail);
+    let (area, count) = entries_area(id, block)?;
+    let mut at = area;
+    let mut offsets = Vec::with_capacity(count);
     let mut last: Option<KeyRef> = None;
-    for _ in 0..count {
-        let key = key_of(&mut at).ok_or_else(short)?;
-        if last.is_some_and(|l| l.cmp(&key).is_ge()) {
-            return Err(bad("key", format!("key {} does not follow the one before", key.to_key())));
+    for i in 0..count {
+        offsets.push((ENTRIES_START + area.len() - at.len()) as u32);
+        let key = if leaf { Some(entry_of(id, &mut at)?.key) } else { child_of(id, &mut at, i == 0)?.0 };
+        if let Some(k) = key {
+            if last.is_some_and(|l| l.cmp(&k).is_ge()) {
+                return Err(bad("key", format!("key {} does not follow the one before", k.to_key())));
+            }
+            last = Some(k);
         }
-        last = Some(key);
-        let n = usize::from(u16_of(&mut at).ok_or_else(short)?);
-        if n > Object::MAX_PAYLOAD {
-            return Err(bad("payload", format!("{n} bytes (at most {})", Object::MAX_PAYLOAD)));
-        }
-        let payload = take(&mut at, n).ok_or_else(short)?;
-        let n = usize::from(u16_of(&mut at).ok_or_else(short)?);
-        let name = std::str::from_utf8(take(&mut at, n).ok_or_else(short)?)
-            .map_err(|_| bad("name", "a name is not UTF-8".into()))?;
-        let object_id = u32_of(&mut at).ok_or_else(short)?;
-        let bits = u64_of(&mut at).ok_or_else(short)?;
-        let tail = take(&mut at, 4).ok_or_else(short)?;
-        let len = tail[0];
-        if len > TreePath::MAX_LEN || (len < 64 && bits >> len != 0) {
-            return Err(bad("path", format!("{len} levels with bits {bits:#x}")));
-        }
-        if tail[1..] != [0, 0, 0] {
-            return Err(bad("reserved", "an entry's reserved bytes are not zero".into()));
-        }
-        let mut b = [0f64; 6];
-        for x in &mut b {
-            *x = f64::from_le_bytes(take(&mut at, 8).ok_or_else(short)?.try_into().map_err(|_| short())?);
-        }
-        if b.iter().any(|x| !x.is_finite()) || (0..3).any(|i| b[i] > b[i + 3]) {
-            return Err(bad("box", format!("{b:?} is not a box")));
-        }
-        f(EntryRef { key, payload, name, object_id, path: TreePath { bits, len }, aabb: Aabb::from_array(b) });
     }
     if !at.is_empty() {
         return Err(bad("used_bytes", format!("{} bytes after the last entry", at.len())));
     }
-    Ok(())
+    Ok(offsets)
 }
 
-/// The entry of `key` in key leaf `id` (validated whole, as [`decode`]
-/// does), copying out that entry only.
-pub fn find_in_leaf(id: u32, block: &[u8], key: &Key) -> Result<Option<KeyEntry>, StorageError> {
-    let mut found = None;
-    walk_leaf(id, block, |e| {
-        if found.is_none() && e.key == key.as_ref() {
-            found = Some(e.to_entry());
+/// The end of the entries of key block `id`, from its head alone.
+fn entries_end(id: u32, block: &[u8]) -> Result<usize, StorageError> {
+    let used = block
+        .get(FRAME_LEN + 4..ENTRIES_START)
+        .and_then(|b| b.try_into().ok())
+        .map(u32::from_le_bytes)
+        .ok_or_else(|| StorageError::corrupt(id, "key_block", "too small"))?;
+    Ok(ENTRIES_START.saturating_add(used as usize))
+}
+
+/// The bytes from `offset` to the end of the entries of a key block that
+/// [`validate`] checked whole (so the head alone bounds them here).
+fn from_offset(id: u32, block: &[u8], offset: u32) -> Result<&[u8], StorageError> {
+    let end = entries_end(id, block)?;
+    block
+        .get(offset as usize..end)
+        .filter(|_| offset as usize >= ENTRIES_START)
+        .ok_or_else(|| StorageError::corrupt(id, "entries", "an entry offset past the used bytes"))
+}
+
+/// The entry of `key` in key leaf `id`, validated by [`validate`] into
+/// `offsets`: a binary search in place, copying out that entry only.
+pub fn search_leaf(id: u32, block: &[u8], offsets: &[u32], key: &Key) -> Result<Option<KeyEntry>, StorageError> {
+    let want = key.as_ref();
+    let (mut lo, mut hi) = (0, offsets.len());
+    while lo < hi {
+        let mid = (lo + hi) / 2;
+        let mut at = from_offset(id, block, offsets[mid])?;
+        let e = entry_of(id, &mut at)?;
+        match e.key.cmp(&want) {
+            std::cmp::Ordering::Less => lo = mid + 1,
+            std::cmp::Ordering::Greater => hi = mid,
+            std::cmp::Ordering::Equal => return Ok(Some(e.to_entry())),
         }
-    })?;
-    Ok(found)
+    }
+    Ok(None)
+}
+
+/// The child (block, checksum) of key branch `id`, validated by
+/// [`validate`] into `offsets`, whose key range holds `key`.
+pub fn search_branch(id: u32, block: &[u8], offsets: &[u32], key: &Key) -> Result<(u32, u32), StorageError> {
+    if offsets.is_empty() {
+        return Err(StorageError::corrupt(id, "children", "a branch of no children"));
+    }
+    let want = key.as_ref();
+    // Children 1.. hold keys from their least key on; the first holds the rest.
+    let (mut lo, mut hi) = (1, offsets.len());
+    while lo < hi {
+        let mid = (lo + hi) / 2;
+        let mut at = from_offset(id, block, offsets[mid])?;
+        match child_of(id, &mut at, false)?.0 {
+            Some(k) if k.cmp(&want).is_le() => lo = mid + 1,
+            _ => hi = mid,
+        }
+    }
+    let child = lo - 1;
+    let mut at = from_offset(id, block, offsets[child])?;
+    let (_, block, checksum) = child_of(id, &mut at, child == 0)?;
+    Ok((block, checksum))
+}
+
+/// The entries of key leaf `id` (validated into `offsets`) as they lie in
+/// the block, each with its key: a change commit copies the ones it does
+/// not change into the new leaf as they are.
+pub(crate) fn leaf_entries<'a>(
+    id: u32,
+    block: &'a [u8],
+    offsets: &[u32],
+) -> Result<Vec<(KeyRef<'a>, &'a [u8])>, StorageError> {
+    let end = entries_end(id, block)?;
+    let mut out = Vec::with_capacity(offsets.len());
+    for (i, &o) in offsets.iter().enumerate() {
+        let next = offsets.get(i + 1).map_or(end, |&n| n as usize);
+        let bytes = block
+            .get(o as usize..next)
+            .ok_or_else(|| StorageError::corrupt(id, "entries", "entry offsets out of order"))?;
+        let (key, _) = KeyRef::decode(bytes).ok_or_else(|| StorageError::corrupt(id, "key", "a key overruns"))?;
+        out.push((key, bytes));
+    }
+    Ok(out)
+}
+
+/// Writes a leaf of `entries`, each already encoded (in key order), into
+/// `block`'s payload.
+pub fn encode_leaf_bytes(entries: &[&[u8]], block: &mut [u8]) -> Result<(), String> {
+    let mut bytes = Vec::with_capacity(capacity(block.len() as u32));
+    for e in entries {
+        bytes.extend_from_slice(e);
+    }
+    put(block, entries.len(), &bytes)
+}
+
+/// `entry` encoded as a leaf holds it.
+pub fn encode_entry(entry: &KeyEntry) -> Result<Vec<u8>, String> {
+    if entry.payload.len() > Object::MAX_PAYLOAD {
+        return Err(format!("a payload of {} bytes (at most {})", entry.payload.len(), Object::MAX_PAYLOAD));
+    }
+    if entry.name.len() > MAX_NAME {
+        return Err(format!("a name of {} bytes (at most {MAX_NAME})", entry.name.len()));
+    }
+    let mut out = Vec::new();
+    entry.encode(&mut out);
+    Ok(out)
 }
 
 /// Decodes and validates key block `id` (its checksum verified): a leaf
 /// when `leaf`, else a branch. Entries fill `used` bytes exactly, keys
 /// strictly increase, boxes are boxes, the rest is zero.
 pub fn decode(id: u32, block: &[u8], leaf: bool) -> Result<KeyBlock, StorageError> {
-    let bad = |field, detail: String| StorageError::corrupt(id, field, detail);
-    if leaf {
-        let mut entries = Vec::new();
-        walk_leaf(id, block, |e| entries.push(e.to_entry()))?;
-        return Ok(KeyBlock::Leaf(entries));
-    }
-    let (mut at, count) = entries_area(id, block)?;
-    let short = || bad("entries", "an entry overruns the used bytes".into());
-    let mut last: Option<KeyRef> = None;
-    let increasing = |k: KeyRef<'_>, last: &mut Option<KeyRef<'_>>| -> Result<(), StorageError> {
-        if last.is_some_and(|l| l.cmp(&k).is_ge()) {
-            return Err(bad("key", format!("key {} does not follow the one before", k.to_key())));
-        }
-        Ok(())
-    };
-    let result = {
-        let mut children = Vec::with_capacity(count);
-        for i in 0..count {
-            let first_key = if i == 0 {
-                Key::Int(0)
-            } else {
-                let k = key_of(&mut at).ok_or_else(short)?;
-                increasing(k, &mut last)?;
-                last = Some(k);
-                k.to_key()
-            };
-            let block = u32_of(&mut at).ok_or_else(short)?;
-            let checksum = u32_of(&mut at).ok_or_else(short)?;
-            children.push(ChildRef { first_key, block, checksum });
-        }
-        KeyBlock::Branch(children)
-    };
-    if !at.is_empty() {
-        return Err(bad("used_bytes", format!("{} bytes after the last entry", at.len())));
-    }
-    Ok(result)
+    decode_validated(id, block, &validate(id, block, leaf)?, leaf)
 }
 
-/// The child of a branch whose key range holds `key`.
-pub fn child_for<'a>(children: &'a [ChildRef], key: &Key) -> Option<&'a ChildRef> {
-    let i = children[1..].partition_point(|c| c.first_key <= *key);
-    children.get(i)
+/// Decodes key block `id`, validated by [`validate`] into `offsets`.
+pub fn decode_validated(id: u32, block: &[u8], offsets: &[u32], leaf: bool) -> Result<KeyBlock, StorageError> {
+    if leaf {
+        let mut entries = Vec::with_capacity(offsets.len());
+        for &o in offsets {
+            entries.push(entry_of(id, &mut from_offset(id, block, o)?)?.to_entry());
+        }
+        return Ok(KeyBlock::Leaf(entries));
+    }
+    let mut children = Vec::with_capacity(offsets.len());
+    for (i, &o) in offsets.iter().enumerate() {
+        let (k, block, checksum) = child_of(id, &mut from_offset(id, block, o)?, i == 0)?;
+        children.push(ChildRef { first_key: k.map_or(Key::Int(0), KeyRef::to_key), block, checksum });
+    }
+    Ok(KeyBlock::Branch(children))
 }
 
 /// Bytes of an entry of key `key`, a payload of `payload_len` bytes and a
@@ -383,10 +476,34 @@ mod tests {
         let mut block = vec![0u8; 1024];
         encode_branch(&children, &mut block).unwrap();
         assert_eq!(decode(5, &block, false).unwrap(), KeyBlock::Branch(children.clone()));
-        assert_eq!(child_for(&children, &Key::Int(u64::MAX)).unwrap().block, 4);
-        assert_eq!(child_for(&children, &Key::bytes("a").unwrap()).unwrap().block, 4);
-        assert_eq!(child_for(&children, &Key::bytes("m").unwrap()).unwrap().block, 6);
-        assert_eq!(child_for(&children, &Key::bytes("z").unwrap()).unwrap().block, 6);
+        let offsets = validate(5, &block, false).unwrap();
+        let child = |k: &Key| search_branch(5, &block, &offsets, k).unwrap();
+        assert_eq!(child(&Key::Int(u64::MAX)), (4, 9));
+        assert_eq!(child(&Key::bytes("a").unwrap()), (4, 9));
+        assert_eq!(child(&Key::bytes("m").unwrap()), (6, 10));
+        assert_eq!(child(&Key::bytes("z").unwrap()), (6, 10));
+    }
+
+    #[test]
+    fn a_leaf_is_searched_and_spliced_in_place() {
+        let entries: Vec<KeyEntry> = (0..40).map(|i| entry(Key::Int(i * 10), i as u32)).collect();
+        let mut block = vec![0u8; 16384];
+        encode_leaf(&entries, &mut block).unwrap();
+        let offsets = validate(5, &block, true).unwrap();
+        for e in &entries {
+            assert_eq!(search_leaf(5, &block, &offsets, &e.key).unwrap().as_ref(), Some(e));
+            let next = Key::Int(e.key.as_int().unwrap() + 1);
+            assert_eq!(search_leaf(5, &block, &offsets, &next).unwrap(), None);
+        }
+        // Copying the entries as they lie, one re-encoded, gives the leaf encoded anew.
+        let mut changed = entries.clone();
+        changed[7].name = "moved".into();
+        let again = encode_entry(&changed[7]).unwrap();
+        let mut parts: Vec<&[u8]> = leaf_entries(5, &block, &offsets).unwrap().into_iter().map(|(_, b)| b).collect();
+        parts[7] = &again;
+        let mut spliced = vec![0u8; 16384];
+        encode_leaf_bytes(&parts, &mut spliced).unwrap();
+        assert_eq!(decode(5, &spliced, true).unwrap(), KeyBlock::Leaf(changed));
     }
 
     #[test]

@@ -130,6 +130,20 @@ pub struct Meta {
     pub keys_checksum: u32,
     pub keys_height: u32,
     pub keys_blocks: u32,
+    /// Every other block the commit that wrote this meta block wrote, with
+    /// the checksum it carries, when that commit synced once (its slot's
+    /// state 3, format-spec/commit.md): a reader verifies them before it
+    /// takes the commit as whole. Empty otherwise.
+    pub written: Vec<(u32, u32)>,
+}
+
+/// Where the list of written blocks starts: its count, then (block,
+/// checksum) pairs.
+const WRITTEN_AT: usize = FRAME_LEN + size_of::<MetaRecord>();
+
+/// Blocks a meta block of `block_size` bytes can list as written.
+pub fn written_capacity(block_size: u32) -> usize {
+    (block_size as usize).saturating_sub(WRITTEN_AT + 4) / 8
 }
 
 /// Largest valid method, tie-break and leaf-rule codes.
@@ -182,19 +196,41 @@ impl Meta {
             keys_height: self.keys_height.into(),
             keys_blocks: self.keys_blocks.into(),
         };
-        let end = FRAME_LEN + size_of::<MetaRecord>();
-        block[FRAME_LEN..end].copy_from_slice(r.as_bytes());
+        block[FRAME_LEN..WRITTEN_AT].copy_from_slice(r.as_bytes());
+        // The caller keeps the list within `written_capacity`.
+        let mut at = WRITTEN_AT;
+        block[at..at + 4].copy_from_slice(&(self.written.len() as u32).to_le_bytes());
+        for &(b, sum) in &self.written {
+            at += 4;
+            block[at..at + 4].copy_from_slice(&b.to_le_bytes());
+            at += 4;
+            block[at..at + 4].copy_from_slice(&sum.to_le_bytes());
+        }
+        block[at + 4..].fill(0);
     }
 
     /// Reads the payload of meta block `id` (checksum already verified).
     pub fn decode(id: u32, block: &[u8]) -> Result<Meta, StorageError> {
-        let end = FRAME_LEN + size_of::<MetaRecord>();
-        let r = MetaRecord::read_from_bytes(&block[FRAME_LEN..end])
-            .map_err(|_| StorageError::corrupt(id, "meta", "block too small"))?;
-        if r.reserved1 != 0 || r.reserved2 != [0; 4] || !all_zero(&block[end..]) {
+        let r = block
+            .get(FRAME_LEN..WRITTEN_AT)
+            .and_then(|b| MetaRecord::read_from_bytes(b).ok())
+            .ok_or_else(|| StorageError::corrupt(id, "meta", "block too small"))?;
+        let bad = |field, detail: String| Err(StorageError::corrupt(id, field, detail));
+        let count = block
+            .get(WRITTEN_AT..WRITTEN_AT + 4)
+            .and_then(|b| b.try_into().ok())
+            .map_or(0, |b| u32::from_le_bytes(b) as usize);
+        if count > written_capacity(block.len() as u32) {
+            return bad("written", format!("{count} blocks listed, a block holds {}", written_capacity(block.len() as u32)));
+        }
+        let list_end = WRITTEN_AT + 4 + 8 * count;
+        let written: Vec<(u32, u32)> = block[WRITTEN_AT + 4..list_end]
+            .chunks_exact(8)
+            .map(|p| (u32::from_le_bytes([p[0], p[1], p[2], p[3]]), u32::from_le_bytes([p[4], p[5], p[6], p[7]])))
+            .collect();
+        if r.reserved1 != 0 || r.reserved2 != [0; 4] || !all_zero(block.get(list_end..).unwrap_or(&[])) {
             return Err(StorageError::corrupt(id, "reserved", "reserved bytes are not zero"));
         }
-        let bad = |field, detail: String| Err(StorageError::corrupt(id, field, detail));
         if r.method > MAX_METHOD {
             return bad("method", format!("unknown code {}", r.method));
         }
@@ -301,6 +337,7 @@ impl Meta {
             keys_checksum: r.keys_checksum.get(),
             keys_height,
             keys_blocks,
+            written,
         })
     }
 }

@@ -20,7 +20,7 @@ mod spec_tests;
 compile_error!("geometry arrays are cast with bytemuck and assume a little-endian target");
 
 /// The format version this build writes and reads (format-spec/versions.md).
-pub const FORMAT_VERSION: u32 = 7;
+pub const FORMAT_VERSION: u32 = 8;
 /// Smallest block size (format-spec/README.md).
 pub const MIN_BLOCK_SIZE: u32 = 1024;
 /// Largest block size.
