@@ -2,7 +2,8 @@
 //! within 5% of Table 1 on objects, triangles and every extent for any
 //! seed; output is byte-identical for a preset and seed and differs across
 //! seeds; every object is a valid, closed mesh of 12 to hundreds of
-//! triangles; `ship` makes exactly the objects asked for; bad counts are
+//! triangles; `ship` and `plant` make exactly the objects asked for, the
+//! plant with runs across many bays beside small parts; bad counts are
 //! typed errors.
 
 use std::collections::BTreeMap;
@@ -75,7 +76,7 @@ fn presets_match_table_1_within_five_percent_for_every_seed() {
 
 #[test]
 fn the_obj_writer_gives_identical_bytes_for_a_seed_and_different_ones_across_seeds() {
-    for preset in [Preset::Tanker1, Preset::Ship] {
+    for preset in [Preset::Tanker1, Preset::Ship, Preset::Plant] {
         let write = |seed| {
             let mut bytes = Vec::new();
             write_scene_obj(
@@ -155,6 +156,7 @@ fn every_object_is_a_valid_closed_mesh_of_12_to_hundreds_of_triangles() {
         .map(|p| options(p, None, 11))
         .collect();
     runs.push(options(Preset::Ship, Some(5_000), 11));
+    runs.push(options(Preset::Plant, Some(5_000), 11));
     for o in runs {
         let mut per_kind: BTreeMap<String, (usize, usize, usize)> = BTreeMap::new();
         let (_, min, max) = stream(&o, |obj| {
@@ -190,6 +192,30 @@ fn ship_makes_exactly_the_objects_asked_for_in_a_growing_hull() {
         last = Some(s);
     }
     assert!(last.unwrap().aabb.extent().x > 300_000.0, "10^5 objects make a hull over 300 m long");
+}
+
+#[test]
+fn plant_makes_exactly_the_objects_asked_for_with_long_runs_beside_small_parts() {
+    for n in [100, 1_000, 20_000, 100_000] {
+        let (mut long, mut small) = (0u64, 0u64);
+        let (s, _, _) = stream(&options(Preset::Plant, Some(n), 0), |o| {
+            let e = o.aabb().extent();
+            let longest = e.x.max(e.y).max(e.z);
+            // Three bays of rack and more, against a shoe's or a flange's size.
+            long += u64::from(longest >= 18_000.0);
+            small += u64::from(longest <= 500.0);
+        });
+        let e = s.aabb.extent();
+        println!(
+            "plant {n}: {} triangles, extent {} x {} x {}, {long} long, {small} small",
+            s.triangles, e.x, e.y, e.z
+        );
+        assert_eq!(s.objects, n);
+        if n >= 1_000 {
+            assert!(long * 100 >= n, "plant {n}: {long} objects span three bays or more");
+            assert!(small * 10 >= n, "plant {n}: {small} objects are at most 500 mm");
+        }
+    }
 }
 
 #[test]

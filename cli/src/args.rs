@@ -20,7 +20,7 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
-    /// Generate a ship-outfitting scene as OBJ (tanker1, tanker2, tanker3, ship).
+    /// Generate a scene as OBJ: a ship-outfitting preset (tanker1, tanker2, tanker3, ship) or a process plant (plant).
     Gen {
         preset: String,
         /// Number of objects (ship: 100 to 10,000,000).

@@ -26,6 +26,7 @@
 mod emit;
 mod outfit;
 mod parts;
+mod plant;
 mod presets;
 mod ship;
 mod spans;
@@ -67,7 +68,7 @@ pub struct GenSummary {
 pub enum GenError {
     #[error("preset {preset} takes {} to {} objects, not {objects}", range.start(), range.end())]
     InvalidObjectCount { preset: Preset, objects: u64, range: std::ops::RangeInclusive<u64> },
-    #[error("unknown preset {name:?}: expected tanker1, tanker2, tanker3 or ship")]
+    #[error("unknown preset {name:?}: expected tanker1, tanker2, tanker3, ship or plant")]
     UnknownPreset { name: String },
     #[error("could not write the generated scene")]
     Io(#[from] io::Error),
@@ -121,8 +122,13 @@ fn run(options: &GenOptions, sink: &mut emit::PartSink<'_>) -> Result<GenSummary
     if !range.contains(&objects) {
         return Err(GenError::InvalidObjectCount { preset, objects, range });
     }
-    let layout = preset.layout();
-    let mut em = Emitter::new(sink, objects, layout.triangles_per_object);
-    ship::generate(&layout, objects, options.seed, &mut em)?;
+    // The emitter steers towards the preset's triangles per object; the
+    // plant has no target of the paper's to meet.
+    let per_object = preset.layout().map_or(60.0, |l| l.triangles_per_object);
+    let mut em = Emitter::new(sink, objects, per_object);
+    match preset.layout() {
+        Some(layout) => ship::generate(&layout, objects, options.seed, &mut em)?,
+        None => plant::generate(objects, options.seed, &mut em)?,
+    }
     Ok(GenSummary { objects: em.objects, triangles: em.triangles, vertices: em.vertices, aabb: em.aabb })
 }

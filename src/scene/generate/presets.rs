@@ -13,6 +13,7 @@
 //! | tanker2 | 3,900   | 106,703   | 17294 x 12924 x 27351  | 2 x 2 x 5      |
 //! | tanker3 | 4,096   | 132,557   | 22087 x 7965 x 10301   | 3 x 1 x 2      |
 //! | ship    | 10,000  | 30 / obj. | 10 m per 3,000 objects | n x 2 x 3      |
+//! | plant   | 20,000  | about 60 / obj. | 6 m of rack per 120 objects | bays, 50 a row |
 //!
 //! Tanker 1 is "an equipment element" (Figure 5): one skid, a pump unit and
 //! its piping in a steel frame. Tankers 2 and 3 are engine- and pump-room
@@ -33,11 +34,16 @@ pub enum Preset {
     Tanker3,
     /// A hull of compartments along x, 100 to 10^7 objects (10,000 unless asked).
     Ship,
+    /// A process plant's pipe racks and equipment, 100 to 10^7 objects
+    /// (20,000 unless asked): not one of the paper's scenes, and not one the
+    /// project tunes on (`plant.rs`).
+    Plant,
 }
 
 impl Preset {
     /// Every preset, in table order.
-    pub const ALL: [Preset; 4] = [Preset::Tanker1, Preset::Tanker2, Preset::Tanker3, Preset::Ship];
+    pub const ALL: [Preset; 5] =
+        [Preset::Tanker1, Preset::Tanker2, Preset::Tanker3, Preset::Ship, Preset::Plant];
 
     /// The name used on the command line and in file headers.
     pub fn name(self) -> &'static str {
@@ -46,14 +52,16 @@ impl Preset {
             Preset::Tanker2 => "tanker2",
             Preset::Tanker3 => "tanker3",
             Preset::Ship => "ship",
+            Preset::Plant => "plant",
         }
     }
 
     /// The object count when none is asked for (Table 1's for the tankers).
     pub fn default_objects(self) -> u64 {
-        match self {
-            Preset::Ship => 10_000,
-            _ => self.layout().objects,
+        match self.layout() {
+            Some(l) if self != Preset::Ship => l.objects,
+            Some(_) => 10_000,
+            None => 20_000,
         }
     }
 
@@ -62,9 +70,11 @@ impl Preset {
         100..=10_000_000
     }
 
-    /// The compartment grid and targets behind the preset.
-    pub(crate) fn layout(self) -> Layout {
+    /// The compartment grid and targets behind a hull or skid preset; none
+    /// for the plant, which is laid out by bays (`plant.rs`).
+    pub(crate) fn layout(self) -> Option<Layout> {
         let (structure, extent, grid, objects, triangles) = match self {
+            Preset::Plant => return None,
             Preset::Tanker1 => (Structure::Skid, [3920.0, 1935.0, 1308.0], [1, 1, 1], 222, 3_989),
             Preset::Tanker2 => (Structure::Hull, [17294.0, 12924.0, 27351.0], [2, 2, 5], 3_900, 106_703),
             Preset::Tanker3 => (Structure::Hull, [22087.0, 7965.0, 10301.0], [3, 1, 2], 4_096, 132_557),
@@ -72,7 +82,7 @@ impl Preset {
             Preset::Ship => (Structure::Hull, [10000.0, 16000.0, 15000.0], [1, 2, 3], 3_000, 90_000),
         };
         let cell_mm = std::array::from_fn(|i| extent[i] / grid[i] as f64);
-        Layout {
+        Some(Layout {
             structure,
             cell_mm,
             across: grid[1],
@@ -80,7 +90,7 @@ impl Preset {
             objects,
             compartments: grid.iter().product(),
             triangles_per_object: triangles as f64 / objects as f64,
-        }
+        })
     }
 }
 
@@ -151,11 +161,12 @@ mod tests {
     #[test]
     fn reference_counts_fill_the_reference_grid() {
         for p in Preset::ALL {
-            let l = p.layout();
+            let Some(l) = p.layout() else { continue };
             assert_eq!(l.compartments_for(l.objects), l.compartments, "{p}");
             assert_eq!(l.compartments % (l.across * l.decks), 0, "{p}: whole slices");
         }
-        assert_eq!(Preset::Ship.layout().compartments_for(100), 1);
-        assert_eq!(Preset::Ship.layout().compartments_for(10_000_000), 20_000);
+        let ship = Preset::Ship.layout().unwrap();
+        assert_eq!(ship.compartments_for(100), 1);
+        assert_eq!(ship.compartments_for(10_000_000), 20_000);
     }
 }

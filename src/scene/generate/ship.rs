@@ -236,7 +236,7 @@ mod tests {
 
     #[test]
     fn neighbours_are_found_in_a_partial_slice() {
-        let layout = super::super::Preset::Tanker2.layout(); // 2 across, 5 decks
+        let layout = super::super::Preset::Tanker2.layout().unwrap(); // 2 across, 5 decks
         let last = Cell::new(&layout, 4, 5); // (x 0, y 0, z 2), the fifth of five
         assert_eq!(last.neighbour, [false, false, false]);
         let first = Cell::new(&layout, 0, 5);
