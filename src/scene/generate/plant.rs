@@ -77,7 +77,7 @@ pub(crate) fn generate(objects: u64, seed: u64, em: &mut Emitter) -> io::Result<
         // Equipment takes the rest of the bay's budget.
         let mut side = 0;
         while !em.full() {
-            equipment(at, side % 2 == 0, &mut rng, em)?;
+            equipment(at, side.is_multiple_of(2), &mut rng, em)?;
             side += 1;
         }
     }
@@ -115,7 +115,7 @@ fn rack_bay(bay: u64, at: Point, em: &mut Emitter) -> io::Result<()> {
         em.emit("beam", prism(&beam, start, Vector::y(), Vector::z(), RACK_WIDTH_MM))?;
     }
     let left = BAYS_PER_ROW - bay % BAYS_PER_ROW;
-    if bay % 3 == 0 {
+    if bay.is_multiple_of(3) {
         let span = left.min(3) as f64 * BAY_MM;
         for &z in &LEVELS_MM {
             for y in [0.0, RACK_WIDTH_MM] {
