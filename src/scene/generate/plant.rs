@@ -75,7 +75,7 @@ pub(crate) fn generate(objects: u64, seed: u64, em: &mut Emitter) -> io::Result<
             }
         }
         // Equipment takes the rest of the bay's budget.
-        let mut side = 0;
+        let mut side = 0u64;
         while !em.full() {
             equipment(at, side.is_multiple_of(2), &mut rng, em)?;
             side += 1;
