@@ -37,6 +37,8 @@ pub struct ReplaceRow {
     pub commits: usize,
     /// Mean seconds per commit so far.
     pub mean_commit_seconds: f64,
+    /// Commits so far that wrote the tree whole instead of in place.
+    pub whole: usize,
     /// The changed file's blocks, and how many of them are free.
     pub file_blocks: u32,
     /// Free blocks of the changed file.
@@ -82,7 +84,7 @@ pub fn bench_replace(
     let mut order: Vec<usize> = (0..n).collect();
     Rng::new(opts.seed, 0x5245_504c).shuffle(&mut order);
     let per_commit = ((opts.batch * n as f64).ceil() as usize).max(1);
-    let (mut done, mut commits, mut seconds) = (0usize, 0usize, 0.0f64);
+    let (mut done, mut commits, mut seconds, mut whole) = (0usize, 0usize, 0.0f64, 0usize);
     let mut rows = Vec::new();
     for stop in std::iter::once(0.0).chain(opts.stops.iter().copied()) {
         let until = ((stop * n as f64).round() as usize).min(n);
@@ -97,7 +99,7 @@ pub fn bench_replace(
                     w.insert(o.clone().with_key(b_key(i)))?;
                 }
             }
-            w.commit()?;
+            whole += usize::from(!w.commit_with_stats()?.in_place);
             seconds += started.elapsed().as_secs_f64();
             commits += 1;
             done = until.min(done + per_commit);
@@ -121,6 +123,7 @@ pub fn bench_replace(
             replaced: stop,
             commits,
             mean_commit_seconds: if commits == 0 { 0.0 } else { seconds / commits as f64 },
+            whole,
             file_blocks: info.file_blocks,
             free_blocks: info.free_blocks,
             fresh_blocks,

@@ -40,7 +40,10 @@ pub fn run(args: &BenchReplaceArgs) -> Result<()> {
         100.0 * args.batch
     );
     let labels: Vec<&str> = report.rows[0].reads.iter().map(|r| r.0.as_str()).collect();
-    println!("| replaced | commits | ms/commit | blocks (free) | fresh blocks | {} |", labels.join(" | "));
+    println!(
+        "| replaced | commits (written whole) | ms/commit | blocks (free) | fresh blocks | {} |",
+        labels.join(" | ")
+    );
     println!("|---|---|---|---|---|{}", "---|".repeat(labels.len()));
     for row in &report.rows {
         let cells: Vec<String> = row
@@ -56,9 +59,10 @@ pub fn run(args: &BenchReplaceArgs) -> Result<()> {
             })
             .collect();
         println!(
-            "| {:.0}% | {} | {:.2} | {} ({}) | {} | {} |",
+            "| {:.0}% | {} ({}) | {:.2} | {} ({}) | {} | {} |",
             100.0 * row.replaced,
             row.commits,
+            row.whole,
             1e3 * row.mean_commit_seconds,
             row.file_blocks,
             row.free_blocks,
