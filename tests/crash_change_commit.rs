@@ -3,7 +3,7 @@
 //! unsynced writes dropped, kept, torn or mixed, reopens at the committed
 //! tree or at the new one, never a mix, and `check` passes after reopening:
 //! for a commit of a move, a removal and an insert, for one that splits a
-//! leaf, and for one that merges two; synced twice (1 KiB blocks, whose
+//! leaf, and for ones that merge a leaf with a leaf or a subtree; synced twice (1 KiB blocks, whose
 //! meta block cannot list what the first two write) and once.
 
 mod common;
@@ -52,6 +52,14 @@ fn merge(db: &Database) -> Result<ChangeStats, mktree::Error> {
     let mut w = db.begin_write()?;
     w.remove(&Key::Int(0))?;
     w.remove(&Key::Int(1))?;
+    Ok(w.commit_with_stats()?)
+}
+
+/// The lone object at the row's start removed: its leaf merges with the
+/// subtree of the others beside it.
+fn merge_beside_subtree(db: &Database) -> Result<ChangeStats, mktree::Error> {
+    let mut w = db.begin_write()?;
+    w.remove(&Key::Int(0))?;
     Ok(w.commit_with_stats()?)
 }
 
@@ -123,6 +131,10 @@ fn a_crash_anywhere_in_a_merge_reopens_at_one_side_of_it() {
         })
         .collect();
     // A merge writes few blocks: even a 1 KiB meta block lists them.
+    let lone = Object::new("lone", box_mesh([-5000.0, 0.0, 0.0], [-4950.0, 50.0, 50.0]));
+    let beside = std::iter::once(lone).chain(row.iter().skip(1).cloned()).collect();
+    let scene = mktree::scene::Scene::new(beside);
+    crash_loop(&scene, moa(1), merge_beside_subtree, 1024, 1);
     crash_loop(&mktree::scene::Scene::new(row.clone()), moa(2), merge, 1024, 1);
     crash_loop(&mktree::scene::Scene::new(row), moa(2), merge, 4096, 1);
 }

@@ -203,7 +203,7 @@ fn readers_in_other_processes_never_fail_during_single_change_commits() {
         common::stream_change(&mut w, i);
         in_place += usize::from(w.commit_with_stats().unwrap().in_place);
     }
-    // The rest emptied a leaf beside a subtree, which writes the tree whole.
+    // The rest emptied a leaf beside a subtree of more than 64 objects, which writes the tree whole.
     assert!(in_place >= 270, "{in_place} of 300 commits in place");
     std::fs::write(path.with_extension("stop"), b"").unwrap();
     results(readers);

@@ -103,6 +103,43 @@ struct Mod {
     gone: bool,
 }
 
+/// The most objects below a sibling an emptied leaf merges with: each one's
+/// key entry is rewritten, so a larger subtree costs more than it saves.
+const MERGE_SUBTREE_OBJECTS: u32 = 64;
+
+/// The keys of the objects below record `offset` of `block`, walking its
+/// subtree; a walk that visits more records than a binary tree of
+/// [`MERGE_SUBTREE_OBJECTS`] leaves holds is a damaged tree.
+fn subtree_keys(
+    r: &ReadTransaction,
+    block: &Arc<Block>,
+    offset: u32,
+    reads: &mut Reads,
+) -> Result<Vec<Key>, StorageError> {
+    let mut stack = vec![(block.clone(), offset)];
+    let (mut keys, mut visited) = (Vec::new(), 0u32);
+    while let Some((b, o)) = stack.pop() {
+        visited += 1;
+        if visited > 2 * MERGE_SUBTREE_OBJECTS {
+            return Err(StorageError::corrupt(
+                b.id(),
+                "children",
+                "a subtree with more records than its objects allow",
+            ));
+        }
+        match view(&b, o)? {
+            NodeView::Leaf(l) => keys.extend(l.keys().map(|(_, k)| k.to_key())),
+            NodeView::Internal(n) => {
+                for i in 0..2 {
+                    let at = n.child_ref(i);
+                    stack.push((r.node_block(&b, at, reads)?, at.offset));
+                }
+            }
+        }
+    }
+    Ok(keys)
+}
+
 /// What an emptied leaf took from its parent's subtree.
 struct Gone {
     objects: i64,
@@ -628,11 +665,12 @@ impl WriteTransaction<'_> {
         Ok(Ok(()))
     }
 
-    /// Merges emptied leaf `at` with its sibling, when the sibling is an
-    /// unchanged leaf (format-spec/commit.md, "Merges"): the parent's record
-    /// becomes the sibling's, with the sibling's frame as its own, and the
-    /// sibling's objects' key entries lead to the parent. Any other empty
-    /// leaf needs the tree written whole.
+    /// Merges emptied leaf `at` with its sibling, when the sibling is a
+    /// record the commit does not otherwise change, a leaf or a subtree of
+    /// at most [`MERGE_SUBTREE_OBJECTS`] objects (format-spec/commit.md,
+    /// "Merges"): the parent's record becomes the sibling's, with the
+    /// sibling's frame as its own, and the sibling's objects' key entries
+    /// lead to the parent. Any other empty leaf needs the tree written whole.
     #[allow(clippy::too_many_arguments)]
     fn merge_with_sibling(
         &mut self,
@@ -660,14 +698,15 @@ impl WriteTransaction<'_> {
         }
         let sib_block = r.node_block(&parent_block, sib, reads)?;
         let record = view(&sib_block, sib.offset)?;
-        let NodeView::Leaf(leaf) = record else { return Ok(Err(Structural)) };
+        if matches!(record, NodeView::Internal(_)) && record.object_count() > MERGE_SUBTREE_OBJECTS {
+            return Ok(Err(Structural));
+        }
         let q = n
             .child_box(1 - c, &parent_frame)
             .ok_or_else(|| StorageError::corrupt(parent_block.id(), "child_box", "backwards"))?;
         let sib_frame = record.frame(q.outer);
         // The sibling's objects' paths ran through it: they end at the parent now.
-        for (_, k) in leaf.keys() {
-            let key = k.to_key();
+        for key in subtree_keys(r, &sib_block, sib.offset, reads)? {
             let Some(mut e) = r.key_entry(&key, reads)? else {
                 return Err(StorageError::corrupt(
                     sib_block.id(),
@@ -682,8 +721,22 @@ impl WriteTransaction<'_> {
             }
         }
         let mut draft = record.to_draft();
-        if let RecordDraft::Leaf { node_id: id, frame, .. } = &mut draft {
-            (*id, *frame) = (node_id, Some(sib_frame));
+        match &mut draft {
+            RecordDraft::Leaf { node_id: id, frame, .. } => (*id, *frame) = (node_id, Some(sib_frame)),
+            RecordDraft::Internal { node_id: id, frame, children, .. } => {
+                (*id, *frame) = (node_id, Some(sib_frame));
+                // Its children in its own block are named from the parent's
+                // block now: by that block, which is written anew below.
+                if sib_block.id() != parent_block.id() {
+                    for ch in children.iter_mut().filter(|ch| ch.at.block == 0) {
+                        ch.at = RecordRef {
+                            block: sib_block.id(),
+                            checksum: sib_block.checksum,
+                            offset: ch.at.offset,
+                        };
+                    }
+                }
+            }
         }
         for (place, parent_entry) in [(at, (parent_at, c)), (sib_at, (parent_at, 1 - c))] {
             let md = mods.entry(place).or_insert_with(|| Mod {
