@@ -782,6 +782,10 @@ pub struct BenchChangesArgs {
     /// Where the files are built (removed afterwards).
     #[arg(long, default_value = ".")]
     pub dir: PathBuf,
+    /// Also draw the median time per single-object commit against the
+    /// scenes' objects, a line per engine and kind, as PATH.svg and PATH.png.
+    #[arg(long, value_name = "PATH")]
+    pub chart: Option<PathBuf>,
     #[arg(long)]
     pub json: bool,
     #[command(flatten)]

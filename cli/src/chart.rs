@@ -1,7 +1,8 @@
 //! Charts (plotters), as SVG and PNG, each with a title, axis labels and a
 //! legend: `bench-build`'s reads per query by method and query set,
 //! `bench-peers`' ratios to SQLite, `tradeoff`'s block reads against
-//! precision, `bench-view`'s reads, triangles and errors per frame.
+//! precision, `bench-view`'s reads, triangles and errors per frame,
+//! `bench-changes`' time per commit against the objects.
 //!
 //! The SVG names its font and leaves the glyphs to the viewer; the PNG's
 //! glyphs are drawn by plotters through ab_glyph from DejaVu Sans, embedded
@@ -104,6 +105,60 @@ fn draw_tradeoff<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, series: &[Tr
             .map_err(failed)?;
     }
     legend(&mut chart, SeriesLabelPosition::LowerRight)
+}
+
+/// One line of `bench-changes`' chart: an engine's kind of commit, its
+/// (objects, median ms per commit) per scene.
+pub struct CommitSeries {
+    pub name: String,
+    pub points: Vec<(f64, f64)>,
+}
+
+/// `bench-changes`' chart: the median time of a single-object commit (y,
+/// log) against the scene's objects (x, log), a line per engine and kind.
+pub fn commit_times(series: &[CommitSeries], svg: &Path, png: &Path) -> Result<()> {
+    svg_and_png!((900, 600), svg, png, draw_commit_times(series))
+}
+
+fn draw_commit_times<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    series: &[CommitSeries],
+) -> Result<()> {
+    root.fill(&WHITE).map_err(failed)?;
+    let points = || series.iter().flat_map(|s| s.points.iter().copied());
+    let (x_lo, x_hi) = points().fold((f64::MAX, f64::MIN_POSITIVE), |(lo, hi), p| (lo.min(p.0), hi.max(p.0)));
+    let (y_lo, y_hi) = points().fold((f64::MAX, f64::MIN_POSITIVE), |(lo, hi), p| (lo.min(p.1), hi.max(p.1)));
+    if !(x_lo.is_finite() && x_lo > 0.0 && y_lo.is_finite() && y_lo > 0.0) {
+        return Err(anyhow!("no commit times to draw"));
+    }
+    let mut builder = ChartBuilder::on(root);
+    builder
+        .margin(16)
+        .caption("time per single-object commit against the scene's objects", (FAMILY, 18))
+        .x_label_area_size(40)
+        .y_label_area_size(56);
+    let mut chart = builder
+        .build_cartesian_2d((x_lo / 1.5..x_hi * 1.5).log_scale(), (y_lo / 1.5..y_hi * 1.5).log_scale())
+        .map_err(failed)?;
+    chart
+        .configure_mesh()
+        .x_desc("objects")
+        .y_desc("median ms per commit")
+        .x_labels(6)
+        .x_label_formatter(&|x| format!("{x:.0}"))
+        .y_label_formatter(&|y| format!("{y:.2}"))
+        .draw()
+        .map_err(failed)?;
+    for (i, s) in series.iter().enumerate() {
+        let colour = Palette99::pick(i).to_rgba();
+        chart
+            .draw_series(LineSeries::new(s.points.iter().copied(), colour.stroke_width(2)))
+            .map_err(failed)?
+            .label(s.name.clone())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
+        chart.draw_series(s.points.iter().map(|&p| Circle::new(p, 4, colour.filled()))).map_err(failed)?;
+    }
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)
 }
 
 /// The chart's legend of labelled series, boxed at `position`.

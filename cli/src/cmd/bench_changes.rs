@@ -28,12 +28,33 @@ pub fn run(args: &BenchChangesArgs) -> Result<()> {
         }
         reports.push((name.clone(), report));
     }
+    if let Some(path) = &args.chart {
+        let (svg, png) = (path.with_extension("svg"), path.with_extension("png"));
+        crate::chart::commit_times(&commit_series(&reports), &svg, &png)?;
+        eprintln!("wrote {} and {}", svg.display(), png.display());
+    }
     if args.json {
         let rows: Vec<_> =
             reports.iter().map(|(name, r)| serde_json::json!({ "scene": name, "report": r })).collect();
         return output::json(&serde_json::json!({ "scenes": rows }));
     }
     Ok(())
+}
+
+/// Per engine and kind of single-object commit, (objects, median ms) over the scenes.
+fn commit_series(reports: &[(String, mktree_bench::ChangesReport)]) -> Vec<crate::chart::CommitSeries> {
+    let mut series: Vec<crate::chart::CommitSeries> = Vec::new();
+    for (_, r) in reports {
+        for row in r.rows.iter().filter(|row| ["insert", "move", "remove"].contains(&row.phase.as_str())) {
+            let name = format!("{} {}", row.engine, row.phase);
+            let point = (r.objects as f64, row.median_ms);
+            match series.iter_mut().find(|s| s.name == name) {
+                Some(s) => s.points.push(point),
+                None => series.push(crate::chart::CommitSeries { name, points: vec![point] }),
+            }
+        }
+    }
+    series
 }
 
 fn print(name: &str, r: &mktree_bench::ChangesReport) {
