@@ -74,10 +74,6 @@
 // The one exception is the byte-range locks of src/store/lock.rs (fcntl).
 #![deny(unsafe_code)]
 
-// `db` names the default block size for its callers, `store` for the layers
-// below db (`BuildParams::default`): one size.
-const _: () = assert!(db::DEFAULT_BLOCK_SIZE == store::format::DEFAULT_BLOCK_SIZE);
-
 pub use bulk::{BuildParams, LeafRule, Method};
 pub use db::{
     ChangeStats, CheckReport, Compaction, CreateOptions, Database, ReadTransaction, TreeInfo,

@@ -42,8 +42,8 @@ use crate::store::format::{validate_block_size, validate_lod_levels};
 use crate::store::lock::{FileLocks, Holder};
 use crate::store::{BlockCache, BlockDevice, Pager, ReadStats, StorageError};
 
-/// Default block size, bytes. See the README's measurements.
-pub const DEFAULT_BLOCK_SIZE: u32 = 16 * 1024;
+/// Default block size, bytes (the format's; see the README's measurements).
+pub const DEFAULT_BLOCK_SIZE: u32 = crate::store::format::DEFAULT_BLOCK_SIZE;
 /// Default number of levels of detail M.
 pub const DEFAULT_LOD_LEVELS: u8 = 4;
 /// Blocks the shared read cache holds by default (16 MiB of 16 KiB blocks).
