@@ -880,6 +880,9 @@ pub struct ClashArgs {
     /// The status store (default FILE.clash beside the file).
     #[arg(long)]
     pub store: Option<PathBuf>,
+    /// Also write the clashes as BCF 3.0 (a topic per group, with a viewpoint and snapshot) to this file.
+    #[arg(long)]
+    pub bcf: Option<PathBuf>,
 }
 
 impl ClashArgs {
@@ -893,5 +896,6 @@ impl ClashArgs {
             || self.touch
             || self.group.is_some()
             || self.test.is_some()
+            || self.bcf.is_some()
     }
 }

@@ -10,6 +10,7 @@ use std::str::FromStr;
 use serde::Serialize;
 
 use super::ClashError;
+use super::key_json::key_text;
 use super::test::Clash;
 use crate::geom::{Aabb, Point};
 
@@ -89,8 +90,8 @@ fn point_array<S: serde::Serializer>(p: &Point, s: S) -> Result<S::Ok, S::Error>
 pub fn group(clashes: &[Clash], by: GroupBy) -> Vec<Group> {
     let label: Vec<usize> = match by {
         GroupBy::None => (0..clashes.len()).collect(),
-        GroupBy::ObjectA => first_of(clashes.iter().map(|c| c.a.to_string())),
-        GroupBy::KeyPrefix(n) => first_of(clashes.iter().map(|c| c.a.to_string().chars().take(n).collect())),
+        GroupBy::ObjectA => first_of(clashes.iter().map(|c| key_text(&c.a))),
+        GroupBy::KeyPrefix(n) => first_of(clashes.iter().map(|c| key_text(&c.a).chars().take(n).collect())),
         GroupBy::Proximity(g) => proximity(clashes, g),
     };
     let mut groups: Vec<Group> = Vec::new();
@@ -115,9 +116,9 @@ pub fn group(clashes: &[Clash], by: GroupBy) -> Vec<Group> {
         g.point = Point::from(sum / g.members.len() as f64);
         let first = &clashes[g.members[0]];
         g.name = match by {
-            GroupBy::ObjectA => first.a.to_string(),
-            GroupBy::KeyPrefix(n) => format!("{}*", first.a.to_string().chars().take(n).collect::<String>()),
-            GroupBy::None => format!("{} / {}", first.a, first.b),
+            GroupBy::ObjectA => key_text(&first.a),
+            GroupBy::KeyPrefix(n) => format!("{}*", key_text(&first.a).chars().take(n).collect::<String>()),
+            GroupBy::None => format!("{} / {}", key_text(&first.a), key_text(&first.b)),
             GroupBy::Proximity(_) => {
                 format!("{} clashes near ({:.0}, {:.0}, {:.0})", g.members.len(), g.point.x, g.point.y, g.point.z)
             }

@@ -23,7 +23,8 @@ use serde::Serialize;
 use super::ClashError;
 use super::run::{ClashRun, run_on, sort};
 use super::status::{Status, Tracked, update};
-use super::store::{ClashStore, Fingerprint, RecordedRun};
+use super::group::GroupBy;
+use super::store::{ClashStore, Fingerprint, RecordedRun, SavedTest};
 use super::test::ClashTest;
 use crate::db::ReadTransaction;
 use crate::scene::Key;
@@ -179,7 +180,11 @@ pub fn run_recorded(
         return Err(ClashError::Test(format!("a test name of {} bytes (1 ..= 255)", name.len())));
     }
     let test = match test {
-        Some(t) => t.clone(),
+        Some(t) => {
+            let group = store.tests.get(name).map_or(GroupBy::None, |s| s.group);
+            store.tests.insert(name.to_string(), SavedTest { test: t.clone(), group });
+            t.clone()
+        }
         None => store
             .tests
             .get(name)

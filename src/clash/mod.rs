@@ -13,6 +13,8 @@
 //! - `store.rs`: saved tests and recorded runs in a sidecar file
 //!   (format-spec/clash-store.md).
 //! - `incremental.rs`: a re-run measures only pairs with a changed object.
+//! - `bcf.rs` and `zip.rs` (feature `bcf`): BCF 3.0 export, a topic per
+//!   group with a viewpoint, components and a snapshot.
 //! - `key_json.rs`: how keys are written in JSON.
 //!
 //! ```
@@ -44,6 +46,8 @@
 //! # }
 //! ```
 
+#[cfg(feature = "bcf")]
+mod bcf;
 mod error;
 mod group;
 mod incremental;
@@ -53,11 +57,15 @@ mod select;
 mod status;
 mod store;
 mod test;
+#[cfg(feature = "bcf")]
+mod zip;
 
+#[cfg(feature = "bcf")]
+pub use bcf::{BcfOptions, COLOUR_A, COLOUR_B, MAX_TOPICS, export_bcf};
 pub use error::ClashError;
 pub use group::{Group, GroupBy, group};
 pub use incremental::{Recorded, RunMode, rerun, run_recorded};
-pub use run::{ClashRun, RunStats, measure, run_test};
+pub use run::{AT_D, ClashRun, RunStats, measure, run_test};
 pub use select::{Candidate, MAX_SELECTOR, Selector, glob, in_set};
 pub use test::{Clash, ClashKind, ClashTest, DEFAULT_TOLERANCE, MAX_DISTANCE, MAX_NAME, TestKind};
 pub use status::{Status, Tracked, set_status, update};

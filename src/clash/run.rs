@@ -184,6 +184,11 @@ pub(crate) fn sort(clashes: &mut [Clash]) {
     clashes.sort_by(|x, y| (&x.a, &x.b, x.kind).cmp(&(&y.a, &y.b, y.kind)));
 }
 
+/// Distances within this share of the pair's largest coordinate of a
+/// clearance test's d are taken as d (not below it): parry's distances
+/// carry rounding of a few ulps of the coordinates.
+pub const AT_D: f64 = 1e-12;
+
 /// The clash test `test` finds between a and b (key, exact box, triangles), if any.
 pub fn measure(
     test: &ClashTest,
@@ -219,7 +224,10 @@ pub fn measure(
         return Some(clash(kind, depth, 0.0, o.region.center(), None, Some(o.region)));
     }
     if test.kind == TestKind::Clearance {
-        let (d, p, q) = closest(ta, tb, test.distance)?;
+        // Distances are floating point: a gap of exactly d measures within
+        // a few ulps of the coordinates either side of it, and counts as d.
+        let scale = ba.to_array().iter().chain(&bb.to_array()).fold(1.0f64, |m, x| m.max(x.abs()));
+        let (d, p, q) = closest(ta, tb, test.distance - AT_D * scale)?;
         return Some(clash(ClashKind::Clearance, 0.0, d, nalgebra::center(&p, &q), Some([p, q]), None));
     }
     None

@@ -20,7 +20,8 @@ pub const MAX_SELECTOR: usize = 1024;
 pub enum Selector {
     /// Every object (`all`).
     All,
-    /// Objects whose key, as shown (`Key`'s `Display`), matches (`key:GLOB`).
+    /// Objects whose key matches (`key:GLOB`): an integer in decimal, a
+    /// text key as is, other bytes in hex as `Key`'s `Display` shows them.
     Key(String),
     /// Objects whose name matches (`name:GLOB`).
     Name(String),
@@ -46,7 +47,7 @@ impl Selector {
     pub fn matches(&self, c: &Candidate) -> bool {
         match self {
             Selector::All => true,
-            Selector::Key(p) => glob(p, &c.key.to_string()),
+            Selector::Key(p) => glob(p, &super::key_json::key_text(c.key)),
             Selector::Name(p) => glob(p, c.name),
             Selector::Payload { field, pattern } => {
                 let Some(mut v) = c.payload else { return false };

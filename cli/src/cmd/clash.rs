@@ -8,9 +8,10 @@ use std::path::Path;
 
 use anyhow::{Result, bail};
 use mktree::clash::{
-    Clash, ClashKind, ClashRun, ClashStore, ClashTest, DEFAULT_TOLERANCE, GroupBy, RunMode, SavedTest, Selector,
-    Status, TestKind, group, run_recorded, run_test, store_path,
+    BcfOptions, Clash, ClashKind, ClashRun, ClashStore, ClashTest, DEFAULT_TOLERANCE, GroupBy, RunMode, SavedTest,
+    Selector, Status, TestKind, export_bcf, group, run_recorded, run_test, store_path,
 };
+use mktree::clash::key_json::key_text;
 use mktree::query::{ClashOptions, clash};
 use serde_json::json;
 
@@ -92,28 +93,49 @@ fn test_of(args: &ClashArgs) -> Result<Option<ClashTest>> {
 /// --test, run as the named test and recorded with statuses.
 pub fn typed(file: &Path, args: &ClashArgs, as_json: bool) -> Result<()> {
     let test = test_of(args)?;
-    let mut group = args.group.as_deref().map(str::parse::<GroupBy>).transpose()?;
+    let mut group_by = args.group.as_deref().map(str::parse::<GroupBy>).transpose()?;
     let db = crate::input::open_to_read(file)?;
     let r = db.begin_read()?;
     let Some(name) = &args.test else {
-        let Some(test) = test else { bail!("a typed clash test needs --a, --b, --type or --test") };
+        // No set or type stated (only --group or --bcf): the whole file, hard clashes.
+        let test = test.unwrap_or_default();
         let run = run_test(&r, &test)?;
-        return print(&run.clashes, None, &run, None, group.unwrap_or_default(), as_json);
+        let groups = group(&run.clashes, group_by.unwrap_or_default());
+        bcf(&r, args, &run.clashes, None, &groups, None)?;
+        return print(&run.clashes, None, &run, None, &groups, as_json);
     };
     let path = args.store.clone().unwrap_or_else(|| store_path(file));
     let mut store = ClashStore::load(&path)?;
     if let Some(t) = &test {
-        let saved = SavedTest { test: t.clone(), group: group.unwrap_or_default() };
+        let saved = SavedTest { test: t.clone(), group: group_by.unwrap_or_default() };
         store.tests.insert(name.clone(), saved);
     }
-    if group.is_none() {
-        group = store.tests.get(name).map(|s| s.group);
+    if group_by.is_none() {
+        group_by = store.tests.get(name).map(|s| s.group);
     }
     let rec = run_recorded(&r, &mut store, name, None, !args.full)?;
     store.save(&path)?;
     let clashes: Vec<Clash> = rec.tracked.iter().map(|t| t.clash.clone()).collect();
     let statuses: Vec<Status> = rec.tracked.iter().map(|t| t.status).collect();
-    print(&clashes, Some(&statuses), &rec.run, Some(&rec.mode), group.unwrap_or_default(), as_json)
+    let groups = group(&clashes, group_by.unwrap_or_default());
+    bcf(&r, args, &clashes, Some(&statuses), &groups, Some(name))?;
+    print(&clashes, Some(&statuses), &rec.run, Some(&rec.mode), &groups, as_json)
+}
+
+/// Writes the BCF export --bcf asks for.
+fn bcf(
+    r: &mktree::ReadTransaction,
+    args: &ClashArgs,
+    clashes: &[Clash],
+    statuses: Option<&[Status]>,
+    groups: &[mktree::clash::Group],
+    label: Option<&str>,
+) -> Result<()> {
+    let Some(out) = &args.bcf else { return Ok(()) };
+    let opts = BcfOptions { label: label.map(str::to_string), ..Default::default() };
+    let bytes = export_bcf(r, clashes, statuses, groups, &opts)?;
+    std::fs::write(out, bytes).map_err(|e| anyhow::anyhow!("{}: {e}", out.display()))?;
+    Ok(())
 }
 
 /// Prints clashes (with their statuses, when recorded) grouped by `by`:
@@ -123,12 +145,11 @@ fn print(
     statuses: Option<&[Status]>,
     run: &ClashRun,
     mode: Option<&RunMode>,
-    by: GroupBy,
+    groups: &[mktree::clash::Group],
     as_json: bool,
 ) -> Result<()> {
-    let groups = group(clashes, by);
     let mut group_of = vec![0; clashes.len()];
-    for g in &groups {
+    for g in groups {
         for &m in &g.members {
             group_of[m] = g.id;
         }
@@ -175,8 +196,8 @@ fn print(
                 group_of[i].to_string(),
                 status(i).unwrap_or("-").to_string(),
                 c.kind.name().to_string(),
-                c.a.to_string(),
-                c.b.to_string(),
+                key_text(&c.a),
+                key_text(&c.b),
                 measure,
                 format!("{:.0} {:.0} {:.0}", c.point.x, c.point.y, c.point.z),
             ]

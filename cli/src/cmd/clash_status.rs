@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use anyhow::{Result, bail};
+use mktree::clash::key_json::key_text;
 use mktree::clash::{ClashKind, ClashStore, Status, set_status, store_path};
 use serde_json::json;
 
@@ -69,8 +70,8 @@ pub fn run(file: &Path, test: &str, pair: &Pair, store: Option<&Path>, as_json: 
             vec![
                 t.status.name().to_string(),
                 t.clash.kind.name().to_string(),
-                t.clash.a.to_string(),
-                t.clash.b.to_string(),
+                key_text(&t.clash.a),
+                key_text(&t.clash.b),
                 t.first_txn.to_string(),
                 t.last_txn.to_string(),
             ]
