@@ -19,8 +19,11 @@ use proptest::prelude::*;
 fn cell(name: u64, at: [u8; 3], size: [u8; 3]) -> Object {
     let lo = at.map(|x| f64::from(x) * 50.0);
     let hi = [0, 1, 2].map(|i| lo[i] + f64::from(size[i]) * 50.0 + 10.0);
-    Object::new(if name % 2 == 0 { format!("PIPE-{name}") } else { format!("WALL-{name}") }, box_mesh(lo, hi))
-        .with_key(Key::Int(name))
+    Object::new(
+        if name.is_multiple_of(2) { format!("PIPE-{name}") } else { format!("WALL-{name}") },
+        box_mesh(lo, hi),
+    )
+    .with_key(Key::Int(name))
 }
 
 #[derive(Debug, Clone)]
@@ -47,7 +50,14 @@ fn tests() -> Vec<ClashTest> {
     let walls = Some(vec!["name:WALL*".parse().unwrap()]);
     vec![
         ClashTest { kind: TestKind::Clearance, distance: 30.0, touch: true, ..Default::default() },
-        ClashTest { a: pipes, b: walls, kind: TestKind::Hard, tolerance: 5.0, touch: true, ..Default::default() },
+        ClashTest {
+            a: pipes,
+            b: walls,
+            kind: TestKind::Hard,
+            tolerance: 5.0,
+            touch: true,
+            ..Default::default()
+        },
     ]
 }
 

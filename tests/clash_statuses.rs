@@ -7,7 +7,8 @@ mod common;
 
 use common::box_mesh;
 use mktree::clash::{
-    ClashKind, ClashStore, ClashTest, RunMode, Status, TestKind, run_recorded, run_test, set_status, store_path,
+    ClashKind, ClashStore, ClashTest, RunMode, Status, TestKind, run_recorded, run_test, set_status,
+    store_path,
 };
 use mktree::geom::Vector;
 use mktree::scene::{Key, Object, Scene};
@@ -22,7 +23,12 @@ fn obj(name: &str, lo: [f64; 3], hi: [f64; 3]) -> Object {
 }
 
 fn status_of(store: &ClashStore, a: &str) -> Vec<(ClashKind, Status)> {
-    store.runs["pipes"].tracked.iter().filter(|t| t.clash.a == key(a)).map(|t| (t.clash.kind, t.status)).collect()
+    store.runs["pipes"]
+        .tracked
+        .iter()
+        .filter(|t| t.clash.a == key(a))
+        .map(|t| (t.clash.kind, t.status))
+        .collect()
 }
 
 #[test]

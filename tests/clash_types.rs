@@ -125,7 +125,10 @@ fn duplicates_and_payload_selectors() {
     let run = run_test(&r, &walls).unwrap();
     assert_eq!(run.clashes.len(), 1);
     let c = &run.clashes[0];
-    assert_eq!((c.a.to_string(), c.b.to_string(), c.kind), ("COPY-WALL-1".into(), "WALL-1".into(), ClashKind::Duplicate));
+    assert_eq!(
+        (c.a.to_string(), c.b.to_string(), c.kind),
+        ("COPY-WALL-1".into(), "WALL-1".into(), ClashKind::Duplicate)
+    );
     let tight = run_test(&r, &ClashTest { tolerance: 0.001, ..walls.clone() }).unwrap();
     assert!(tight.clashes.is_empty(), "0.004 mm apart is past 0.001");
     // A against itself by payload: walls against walls are a hard clash too.
@@ -140,7 +143,8 @@ fn the_whole_file_against_itself_finds_each_pair_once_and_groups_cover_every_cla
     let r = db.begin_read().unwrap();
     let all = ClashTest { kind: TestKind::Clearance, distance: 50.0, touch: true, ..Default::default() };
     let run = run_test(&r, &all).unwrap();
-    let mut pairs: Vec<(String, String)> = run.clashes.iter().map(|c| (c.a.to_string(), c.b.to_string())).collect();
+    let mut pairs: Vec<(String, String)> =
+        run.clashes.iter().map(|c| (c.a.to_string(), c.b.to_string())).collect();
     assert!(run.clashes.iter().all(|c| c.a < c.b), "both in both sets: the smaller key first");
     pairs.dedup();
     assert_eq!(pairs.len(), run.clashes.len());

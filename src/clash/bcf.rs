@@ -60,7 +60,10 @@ pub fn export_bcf(
     opts: &BcfOptions,
 ) -> Result<Vec<u8>, ClashError> {
     if groups.len() > MAX_TOPICS {
-        return Err(ClashError::Test(format!("{} groups: a BCF export holds at most {MAX_TOPICS} topics", groups.len())));
+        return Err(ClashError::Test(format!(
+            "{} groups: a BCF export holds at most {MAX_TOPICS} topics",
+            groups.len()
+        )));
     }
     if statuses.is_some_and(|s| s.len() != clashes.len()) {
         return Err(ClashError::Test("one status per clash".into()));
@@ -75,7 +78,8 @@ pub fn export_bcf(
     zip.add("extensions.xml", extensions(opts.label.as_deref()).as_bytes()).map_err(bad)?;
     // Ids of the objects by key, from the key index.
     let entries = txn.key_entries(&mut crate::db::Reads::new(Some(txn.cache())))?;
-    let id_of = |k: &Key| entries.binary_search_by(|e| e.key.cmp(k)).ok().map(|i| ObjectId(entries[i].object_id));
+    let id_of =
+        |k: &Key| entries.binary_search_by(|e| e.key.cmp(k)).ok().map(|i| ObjectId(entries[i].object_id));
     for g in groups {
         let members: Vec<&Clash> = g.members.iter().filter_map(|&i| clashes.get(i)).collect();
         let Some(first) = members.first() else { continue };
@@ -85,9 +89,9 @@ pub fn export_bcf(
         let topic = guid(&("topic", &g.name, g.id, &a_keys, &b_keys));
         let viewpoint = guid(&("viewpoint", &topic));
         // The camera frames the contact points and a margin around them.
-        let focus = members
-            .iter()
-            .fold(Aabb::EMPTY, |b, c| b.union(&c.overlap.unwrap_or(Aabb::new(c.point, c.point))).including(&c.point));
+        let focus = members.iter().fold(Aabb::EMPTY, |b, c| {
+            b.union(&c.overlap.unwrap_or(Aabb::new(c.point, c.point))).including(&c.point)
+        });
         let margin = (focus.extent().norm() * 0.5).max(1000.0);
         let view = framing(&focus.grown(margin), opts.width_px, opts.height_px, 60.0);
         // The snapshot: the group's objects, A red and B blue.
@@ -129,7 +133,8 @@ pub fn export_bcf(
         let forward = (view.target - view.eye).normalize();
         let right = forward.cross(&Vector::z()).try_normalize(1e-12).unwrap_or(Vector::x());
         let up = right.cross(&forward);
-        let components: Vec<&Key> = a_keys.iter().chain(&b_keys).copied().collect::<BTreeSet<_>>().into_iter().collect();
+        let components: Vec<&Key> =
+            a_keys.iter().chain(&b_keys).copied().collect::<BTreeSet<_>>().into_iter().collect();
         let vis = visinfo(&viewpoint, &components, view.eye.coords / 1000.0, forward, up, 60.0, opts);
         zip.add(&format!("{topic}/markup.bcf"), markup.as_bytes()).map_err(bad)?;
         zip.add(&format!("{topic}/viewpoint.bcfv"), vis.as_bytes()).map_err(bad)?;
@@ -141,7 +146,8 @@ pub fn export_bcf(
 const VERSION_XML: &str = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<Version VersionId=\"3.0\" />\n";
 
 /// The statuses a topic may carry.
-const STATUSES: [Status; 5] = [Status::New, Status::Active, Status::Reviewed, Status::Approved, Status::Resolved];
+const STATUSES: [Status; 5] =
+    [Status::New, Status::Active, Status::Reviewed, Status::Approved, Status::Resolved];
 
 fn status_name(s: Status) -> &'static str {
     match s {
@@ -154,12 +160,18 @@ fn status_name(s: Status) -> &'static str {
 }
 
 fn extensions(label: Option<&str>) -> String {
-    let mut s = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<Extensions>\n  <TopicTypes>\n    <TopicType>Clash</TopicType>\n  </TopicTypes>\n  <TopicStatuses>\n");
+    let mut s = String::from(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<Extensions>\n  <TopicTypes>\n    <TopicType>Clash</TopicType>\n  </TopicTypes>\n  <TopicStatuses>\n",
+    );
     for st in STATUSES {
         s.push_str(&format!("    <TopicStatus>{}</TopicStatus>\n", status_name(st)));
     }
     s.push_str("  </TopicStatuses>\n  <TopicLabels>\n");
-    for l in ["hard", "clearance", "touch", "duplicate"].iter().map(|s| s.to_string()).chain(label.map(str::to_string)) {
+    for l in ["hard", "clearance", "touch", "duplicate"]
+        .iter()
+        .map(|s| s.to_string())
+        .chain(label.map(str::to_string))
+    {
         s.push_str(&format!("    <TopicLabel>{}</TopicLabel>\n", escape(&l)));
     }
     s.push_str("  </TopicLabels>\n</Extensions>\n");
@@ -193,7 +205,9 @@ fn markup(
 /// An IFC GlobalId: 22 characters of IFC's base-64 alphabet.
 fn is_global_id(k: &Key) -> bool {
     match k {
-        Key::Bytes(b) => b.len() == 22 && b.iter().all(|&c| c.is_ascii_alphanumeric() || c == b'_' || c == b'$'),
+        Key::Bytes(b) => {
+            b.len() == 22 && b.iter().all(|&c| c.is_ascii_alphanumeric() || c == b'_' || c == b'$')
+        }
         Key::Int(_) => false,
     }
 }
@@ -208,7 +222,10 @@ fn visinfo(
     opts: &BcfOptions,
 ) -> String {
     let xyz = |name: &str, v: Vector| {
-        format!("      <{name}>\n        <X>{}</X>\n        <Y>{}</Y>\n        <Z>{}</Z>\n      </{name}>\n", v.x, v.y, v.z)
+        format!(
+            "      <{name}>\n        <X>{}</X>\n        <Y>{}</Y>\n        <Z>{}</Z>\n      </{name}>\n",
+            v.x, v.y, v.z
+        )
     };
     let mut s = format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<VisualizationInfo Guid=\"{guid}\">\n  <Components>\n    <Selection>\n"

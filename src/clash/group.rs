@@ -120,7 +120,13 @@ pub fn group(clashes: &[Clash], by: GroupBy) -> Vec<Group> {
             GroupBy::KeyPrefix(n) => format!("{}*", key_text(&first.a).chars().take(n).collect::<String>()),
             GroupBy::None => format!("{} / {}", key_text(&first.a), key_text(&first.b)),
             GroupBy::Proximity(_) => {
-                format!("{} clashes near ({:.0}, {:.0}, {:.0})", g.members.len(), g.point.x, g.point.y, g.point.z)
+                format!(
+                    "{} clashes near ({:.0}, {:.0}, {:.0})",
+                    g.members.len(),
+                    g.point.x,
+                    g.point.y,
+                    g.point.z
+                )
             }
         };
     }
@@ -202,7 +208,10 @@ mod tests {
         let g = group(&cs, GroupBy::Proximity(50.0));
         assert_eq!(g.iter().map(|g| g.members.clone()).collect::<Vec<_>>(), vec![vec![0, 1, 2], vec![3, 4]]);
         let g = group(&cs, GroupBy::ObjectA);
-        assert_eq!(g.iter().map(|g| g.members.clone()).collect::<Vec<_>>(), vec![vec![0, 4], vec![1], vec![2], vec![3]]);
+        assert_eq!(
+            g.iter().map(|g| g.members.clone()).collect::<Vec<_>>(),
+            vec![vec![0, 4], vec![1], vec![2], vec![3]]
+        );
         assert_eq!(group(&cs, GroupBy::None).len(), 5);
         assert_eq!("proximity:50".parse::<GroupBy>().unwrap(), GroupBy::Proximity(50.0));
         assert!("proximity:-1".parse::<GroupBy>().is_err() && "near".parse::<GroupBy>().is_err());

@@ -21,9 +21,9 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::ClashError;
+use super::group::GroupBy;
 use super::run::{ClashRun, run_on, sort};
 use super::status::{Status, Tracked, update};
-use super::group::GroupBy;
 use super::store::{ClashStore, Fingerprint, RecordedRun, SavedTest};
 use super::test::ClashTest;
 use crate::db::ReadTransaction;
@@ -62,7 +62,10 @@ pub struct Recorded {
 }
 
 fn fingerprints(entries: &[KeyEntry]) -> Vec<Fingerprint> {
-    entries.iter().map(|e| Fingerprint { key: e.key.clone(), id: e.object_id, aabb: e.aabb.to_array() }).collect()
+    entries
+        .iter()
+        .map(|e| Fingerprint { key: e.key.clone(), id: e.object_id, aabb: e.aabb.to_array() })
+        .collect()
 }
 
 /// Why `previous` cannot seed an incremental run on `txn`, if it cannot.

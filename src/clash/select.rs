@@ -172,7 +172,8 @@ mod tests {
     #[test]
     fn selectors_parse_show_and_match() {
         let key = Key::bytes("2O2Fr$t4X7Zf8NOew3FLOH").unwrap();
-        let payload = serde_json::json!({"class": "IfcPipeSegment", "name": "Pipe 1", "dn": 100, "sys": {"id": "CW"}});
+        let payload =
+            serde_json::json!({"class": "IfcPipeSegment", "name": "Pipe 1", "dn": 100, "sys": {"id": "CW"}});
         let c = Candidate { key: &key, name: "Pipe 1", payload: Some(&payload) };
         for (text, hit) in [
             ("all", true),

@@ -82,7 +82,8 @@ pub struct Tracked {
 /// The statuses after a run on commit `txn` found `clashes` (sorted), given
 /// those recorded before (`previous`). Resolved clashes stay listed.
 pub fn update(previous: &[Tracked], clashes: &[Clash], txn: u64) -> Vec<Tracked> {
-    let before: HashMap<(Key, Key, ClashKind), &Tracked> = previous.iter().map(|t| (t.clash.id(), t)).collect();
+    let before: HashMap<(Key, Key, ClashKind), &Tracked> =
+        previous.iter().map(|t| (t.clash.id(), t)).collect();
     let mut out: Vec<Tracked> = clashes
         .iter()
         .map(|c| {
@@ -111,7 +112,13 @@ pub fn update(previous: &[Tracked], clashes: &[Clash], txn: u64) -> Vec<Tracked>
 /// `kind`, or any kind) to `status`, which a person sets (Reviewed,
 /// Approved, or Active to take either back). Returns how many changed;
 /// a resolved clash is not set.
-pub fn set_status(tracked: &mut [Tracked], a: &Key, b: &Key, kind: Option<ClashKind>, status: Status) -> usize {
+pub fn set_status(
+    tracked: &mut [Tracked],
+    a: &Key,
+    b: &Key,
+    kind: Option<ClashKind>,
+    status: Status,
+) -> usize {
     let mut n = 0;
     for t in tracked.iter_mut() {
         let hit = (&t.clash.a == a && &t.clash.b == b) || (&t.clash.a == b && &t.clash.b == a);
@@ -152,9 +159,15 @@ mod tests {
         assert_eq!(set_status(&mut r1, &Key::Int(4), &Key::Int(3), None, Status::Approved), 1);
         let r2 = update(&r1, &[c(1, 2), c(3, 4), c(5, 6)], 11);
         let st = |r: &[Tracked], a: u64| r.iter().find(|t| t.clash.a == Key::Int(a)).map(|t| t.status);
-        assert_eq!((st(&r2, 1), st(&r2, 3), st(&r2, 5)), (Some(Status::Active), Some(Status::Approved), Some(Status::New)));
+        assert_eq!(
+            (st(&r2, 1), st(&r2, 3), st(&r2, 5)),
+            (Some(Status::Active), Some(Status::Approved), Some(Status::New))
+        );
         let r3 = update(&r2, &[c(3, 4)], 12);
-        assert_eq!((st(&r3, 1), st(&r3, 3), st(&r3, 5)), (Some(Status::Resolved), Some(Status::Approved), Some(Status::Resolved)));
+        assert_eq!(
+            (st(&r3, 1), st(&r3, 3), st(&r3, 5)),
+            (Some(Status::Resolved), Some(Status::Approved), Some(Status::Resolved))
+        );
         let r4 = update(&r3, &[c(1, 2)], 13);
         assert_eq!((st(&r4, 1), st(&r4, 3)), (Some(Status::New), Some(Status::Resolved)));
         assert_eq!(r4.iter().find(|t| t.clash.a == Key::Int(1)).map(|t| t.first_txn), Some(13));

@@ -128,7 +128,10 @@ impl ClashStore {
         len.copy_from_slice(&bytes[16..24]);
         let len = u64::from_le_bytes(len);
         if len != (bytes.len() - HEADER_LEN) as u64 {
-            return Err(format!("the header says {len} body bytes, the file has {}", bytes.len() - HEADER_LEN));
+            return Err(format!(
+                "the header says {len} body bytes, the file has {}",
+                bytes.len() - HEADER_LEN
+            ));
         }
         let body = &bytes[HEADER_LEN..];
         if crc32fast::hash(body) != u32_at(24) {
@@ -172,7 +175,8 @@ impl ClashStore {
             });
         }
         let bytes = std::fs::read(path).map_err(|e| ClashError::io(path, e))?;
-        ClashStore::from_bytes(&bytes).map_err(|why| ClashError::Store { path: path.display().to_string(), why })
+        ClashStore::from_bytes(&bytes)
+            .map_err(|why| ClashError::Store { path: path.display().to_string(), why })
     }
 
     /// Writes the store to `path`: a new file beside it, synced, renamed

@@ -86,7 +86,8 @@ mod tests {
     /// does) and checks every entry's name, size, offset and checksum.
     #[test]
     fn entries_read_back_through_the_central_directory() {
-        let files = [("bcf.version", b"<Version/>".to_vec()), ("a/b.png", vec![7u8; 1000]), ("empty", vec![])];
+        let files =
+            [("bcf.version", b"<Version/>".to_vec()), ("a/b.png", vec![7u8; 1000]), ("empty", vec![])];
         let mut z = ZipWriter::default();
         for (n, d) in &files {
             z.add(n, d).unwrap();

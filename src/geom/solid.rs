@@ -150,9 +150,8 @@ fn segment_crossing_2d(along: usize, p: &Point, q: &Point, r: &Point, s: &Point,
         return; // parallel, apart
     }
     // On one line: the ends of each that lie on the other.
-    let on = |a: &Point, b: &Point, x: &Point| {
-        (0..3).all(|k| a[k].min(b[k]) <= x[k] && x[k] <= a[k].max(b[k]))
-    };
+    let on =
+        |a: &Point, b: &Point, x: &Point| (0..3).all(|k| a[k].min(b[k]) <= x[k] && x[k] <= a[k].max(b[k]));
     for (x, (a, b)) in [(p, (r, s)), (q, (r, s)), (r, (p, q)), (s, (p, q))] {
         if on(a, b, x) {
             *out = out.including(x);
@@ -247,7 +246,8 @@ pub fn same_within(a: &[[Point; 3]], b: &[[Point; 3]], tolerance: f64) -> bool {
     if ba.is_empty() || bb.is_empty() {
         return false;
     }
-    if (0..3).any(|i| (ba.min[i] - bb.min[i]).abs() > tolerance || (ba.max[i] - bb.max[i]).abs() > tolerance) {
+    if (0..3).any(|i| (ba.min[i] - bb.min[i]).abs() > tolerance || (ba.max[i] - bb.max[i]).abs() > tolerance)
+    {
         return false;
     }
     let covered = |from: &[[Point; 3]], to: &[[Point; 3]]| {

@@ -32,8 +32,8 @@ pub use brute_force::{
     brute_force_region,
 };
 pub use clash::{ClashAnswer, ClashOptions, clash};
-pub use collide::{CollideOptions, collide, object_mesh, object_meshes};
 pub(crate) use collide::fetch_meshes;
+pub use collide::{CollideOptions, collide, object_mesh, object_meshes};
 pub use error::QueryError;
 pub use navigate::{NavigateStep, navigate, navigate_view, parse_path};
 pub use nearest::{Near, Nearest};

@@ -7,11 +7,11 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::{Result, bail};
-use mktree::clash::{
-    BcfOptions, Clash, ClashKind, ClashRun, ClashStore, ClashTest, DEFAULT_TOLERANCE, GroupBy, RunMode, SavedTest,
-    Selector, Status, TestKind, export_bcf, group, run_recorded, run_test, store_path,
-};
 use mktree::clash::key_json::key_text;
+use mktree::clash::{
+    BcfOptions, Clash, ClashKind, ClashRun, ClashStore, ClashTest, DEFAULT_TOLERANCE, GroupBy, RunMode,
+    SavedTest, Selector, Status, TestKind, export_bcf, group, run_recorded, run_test, store_path,
+};
 use mktree::query::{ClashOptions, clash};
 use serde_json::json;
 

@@ -24,7 +24,9 @@ pub fn run(file: &Path, test: &str, pair: &Pair, store: Option<&Path>, as_json: 
     drop(crate::input::open_to_read(file)?);
     let path = store.map_or_else(|| store_path(file), Path::to_path_buf);
     let mut s = ClashStore::load(&path)?;
-    let Some(run) = s.runs.get_mut(test) else { bail!("no recorded run of the test {test:?} in {}", path.display()) };
+    let Some(run) = s.runs.get_mut(test) else {
+        bail!("no recorded run of the test {test:?} in {}", path.display())
+    };
     if let Some(set) = &pair.set {
         let status: Status = set.parse()?;
         if !status.is_set_by_person() {

@@ -67,7 +67,9 @@ pub fn run(cli: Cli) -> Result<()> {
         }
         Command::Clash { file, clearance, lod, json, typed } if typed.any() => {
             if clearance != 0.0 || lod.is_some() {
-                anyhow::bail!("--clearance and --lod belong to the untyped run: a typed test takes --distance");
+                anyhow::bail!(
+                    "--clearance and --lod belong to the untyped run: a typed test takes --distance"
+                );
             }
             clash::typed(&file, &typed, json)
         }
