@@ -82,8 +82,9 @@ impl Visitor for Fetch<'_, '_> {
 /// walked and the geometry of the wanted objects read.
 pub fn object_meshes(txn: &ReadTransaction, ids: &[ObjectId]) -> Result<Vec<Mesh>, QueryError> {
     let objects = txn.info().map_or(0, |i| i.objects);
-    let mut found = fetch_meshes(txn, ids.iter().copied().collect())?;
-    ids.iter().map(|id| found.remove(id).ok_or(QueryError::NoObject { id: id.0, objects })).collect()
+    let found = fetch_meshes(txn, ids.iter().copied().collect())?;
+    // An id may be asked for more than once.
+    ids.iter().map(|id| found.get(id).cloned().ok_or(QueryError::NoObject { id: id.0, objects })).collect()
 }
 
 /// The exact meshes of the `wanted` objects the tree holds (an id it does
