@@ -67,7 +67,8 @@
 //! loaders), over [`store`] (blocks, pager, format records), over [`scene`]
 //! (objects, import, generator), over [`geom`] (boxes and exact tests).
 //! [`render`] and [`tiles`] draw and export what the view query cuts, over
-//! db and query. The storage format is specified in the repository's
+//! db and query; [`clash`] runs typed clash tests between chosen sets over
+//! db and query too. The storage format is specified in the repository's
 //! `format-spec/`; its internals are public only with the `internals`
 //! feature.
 
@@ -75,6 +76,7 @@
 #![deny(unsafe_code)]
 
 pub use bulk::{BuildParams, LeafRule, Method};
+pub use clash::{Clash, ClashError, ClashKind, ClashRun, ClashTest, GroupBy, Selector, TestKind};
 pub use db::{
     ChangeStats, CheckReport, Compaction, CreateOptions, Database, ReadTransaction, TreeInfo,
     WriteTransaction, check,
@@ -94,6 +96,7 @@ pub use store::StorageError;
 struct ReadmeDoctests;
 
 pub mod bulk;
+pub mod clash;
 pub mod db;
 mod error;
 pub mod geom;

@@ -194,15 +194,45 @@ pub enum Command {
         #[command(flatten)]
         import: ImportArgs,
     },
-    /// Every pair of objects that intersect or come within --clearance, by the tree against itself.
+    /// Every pair of objects that intersect or come within --clearance, by the tree against itself;
+    /// with --a, --b, --type or --test, a typed clash test between chosen sets (docs/clash.md).
     Clash {
         file: PathBuf,
-        /// d in mm.
+        /// d in mm (the untyped run).
         #[arg(long, default_value_t = 0.0)]
         clearance: f64,
-        /// Level k, 1 ..= M (default M: exact).
+        /// Level k, 1 ..= M (default M: exact; the untyped run).
         #[arg(long)]
         lod: Option<u8>,
+        /// JSON: one line per clash, then a summary line (the untyped run: one JSON answer).
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        typed: ClashArgs,
+    },
+    /// Statuses of a recorded clash test: list them, or set Reviewed, Approved or Active on a pair.
+    ClashStatus {
+        file: PathBuf,
+        /// The recorded test's name.
+        #[arg(long)]
+        test: String,
+        /// The pair's keys (with --set).
+        #[arg(long)]
+        a: Option<String>,
+        #[arg(long)]
+        b: Option<String>,
+        /// Only clashes of this type (hard, clearance, touch, duplicate).
+        #[arg(long = "type")]
+        kind: Option<String>,
+        /// The status to set: reviewed, approved, or active.
+        #[arg(long)]
+        set: Option<String>,
+        /// Keys are text, even when they look like integers.
+        #[arg(long)]
+        text: bool,
+        /// The status store (default FILE.clash beside the file).
+        #[arg(long)]
+        store: Option<PathBuf>,
         #[arg(long)]
         json: bool,
     },
@@ -819,4 +849,57 @@ pub struct BenchViewArgs {
     pub out: PathBuf,
     #[arg(long)]
     pub json: bool,
+}
+
+/// A typed clash test's flags (`mktree clash`).
+#[derive(Args, Debug, Default)]
+pub struct ClashArgs {
+    /// Set A: a selector (all, key:GLOB, name:GLOB, class:GLOB, payload.FIELD:GLOB); repeat for a union.
+    #[arg(long = "a")]
+    pub a: Vec<String>,
+    /// Set B, as --a (default: A against itself).
+    #[arg(long = "b")]
+    pub b: Vec<String>,
+    /// hard, clearance or duplicate.
+    #[arg(long = "type")]
+    pub kind: Option<String>,
+    /// Clearance distance, mm: pairs closer than this.
+    #[arg(long)]
+    pub distance: Option<f64>,
+    /// mm: hard clashes penetrate more than this; duplicates differ by at most this (default 0.01).
+    #[arg(long)]
+    pub tolerance: Option<f64>,
+    /// Report touches (contact without penetration) too.
+    #[arg(long)]
+    pub touch: bool,
+    /// Grouping: none, a, proximity:MM, prefix:N (default none).
+    #[arg(long)]
+    pub group: Option<String>,
+    /// Run (and record, with statuses) the test of this name: the flags given save it under the name.
+    #[arg(long)]
+    pub test: Option<String>,
+    /// With --test: measure every pair, not only those a change touched.
+    #[arg(long)]
+    pub full: bool,
+    /// The status store (default FILE.clash beside the file).
+    #[arg(long)]
+    pub store: Option<PathBuf>,
+    /// Also write the clashes as BCF 3.0 (a topic per group, with a viewpoint and snapshot) to this file.
+    #[arg(long)]
+    pub bcf: Option<PathBuf>,
+}
+
+impl ClashArgs {
+    /// Whether any typed flag is given.
+    pub fn any(&self) -> bool {
+        !self.a.is_empty()
+            || !self.b.is_empty()
+            || self.kind.is_some()
+            || self.distance.is_some()
+            || self.tolerance.is_some()
+            || self.touch
+            || self.group.is_some()
+            || self.test.is_some()
+            || self.bcf.is_some()
+    }
 }

@@ -184,3 +184,30 @@ pub fn forge_free_list(data: &[u8]) {
 pub fn forge_keys(data: &[u8]) {
     structure::forge(structure::Structure::Keys, data)
 }
+
+/// A clash status store (format-spec/clash-store.md) from arbitrary bytes.
+/// The first byte chooses: even, the bytes after it are the whole file;
+/// odd, they are the JSON body in a valid envelope (right length and
+/// checksum), so mutations reach the body's parser and checks. A store
+/// that reads must write back to bytes that read as the same store.
+pub fn clash_store(data: &[u8]) {
+    use mktree::clash::{ClashStore, HEADER_LEN, MAGIC, VERSION};
+    let Some((&mode, rest)) = data.split_first() else { return };
+    let bytes = if mode % 2 == 0 {
+        rest.to_vec()
+    } else {
+        let mut b = Vec::with_capacity(HEADER_LEN + rest.len());
+        b.extend_from_slice(&MAGIC);
+        b.extend_from_slice(&VERSION.to_le_bytes());
+        b.extend_from_slice(&0u32.to_le_bytes());
+        b.extend_from_slice(&(rest.len() as u64).to_le_bytes());
+        b.extend_from_slice(&crc32fast::hash(rest).to_le_bytes());
+        b.extend_from_slice(&0u32.to_le_bytes());
+        b.extend_from_slice(rest);
+        b
+    };
+    if let Ok(store) = ClashStore::from_bytes(&bytes) {
+        let again = store.to_bytes().expect("a store that reads writes");
+        assert_eq!(ClashStore::from_bytes(&again).as_ref(), Ok(&store), "a store reads back as itself");
+    }
+}

@@ -219,6 +219,19 @@ impl ReadTransaction {
         })
     }
 
+    /// The commit this snapshot reads: the transaction id of the last
+    /// commit before it began (0 for a file never committed to).
+    pub fn txn(&self) -> u64 {
+        self.snapshot.txn
+    }
+
+    /// The meta block's `object_ids`: every id below it used at most once
+    /// (0 without a tree). A change commit only grows it; a bulk load
+    /// numbers its objects from 0 again (format-spec/meta.md).
+    pub(crate) fn object_ids(&self) -> u32 {
+        self.snapshot.meta.as_ref().map_or(0, |m| m.object_ids)
+    }
+
     /// The root record, or `None` for an empty database.
     pub fn root(&self) -> Option<NodeRef> {
         let m = self.snapshot.meta.as_ref()?;

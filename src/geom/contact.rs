@@ -62,7 +62,7 @@ fn edges(t: &[Point; 3]) -> [(&Point, &Point); 3] {
 
 /// The axis along which `t` projects to a triangle with area (`None` when
 /// its corners are collinear: a segment or a point).
-fn flat_axis(t: &[Point; 3]) -> Option<usize> {
+pub(crate) fn flat_axis(t: &[Point; 3]) -> Option<usize> {
     (0..3).find(|&a| side2(a, &t[0], &t[1], &t[2]) != 0.0)
 }
 
@@ -90,13 +90,13 @@ fn segments_meet(p: &Point, q: &Point, r: &Point, s: &Point) -> bool {
 
 /// `x` lies in the closed triangle `t`, all seen along axis `along` (along
 /// which `t` has area).
-fn inside_2d(along: usize, t: &[Point; 3], x: &Point) -> bool {
+pub(crate) fn inside_2d(along: usize, t: &[Point; 3], x: &Point) -> bool {
     !on_both_sides(&edges(t).map(|(a, b)| side2(along, a, b, x)))
 }
 
 /// Closed segment `pq` meets the closed triangle `t`, which has area;
 /// `sp`, `sq` are `side3` of `p` and `q` against `t`'s plane.
-fn segment_meets_triangle(p: &Point, q: &Point, t: &[Point; 3], sp: f64, sq: f64) -> bool {
+pub(crate) fn segment_meets_triangle(p: &Point, q: &Point, t: &[Point; 3], sp: f64, sq: f64) -> bool {
     if strictly_one_side(&[sp, sq]) {
         return false;
     }

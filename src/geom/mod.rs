@@ -15,6 +15,7 @@ mod pose;
 mod ray;
 mod round;
 mod shape_error;
+mod solid;
 mod sphere;
 mod triangle_box;
 
@@ -22,11 +23,14 @@ pub use aabb::Aabb;
 pub use axis::Axis;
 pub use contact::{intersects_triangle_triangle, triangles_within};
 pub use frustum::{Camera, Frustum};
-pub use parry::{SurfaceDistance, distance_point_triangle, distance_triangle_triangle};
+pub use parry::{
+    SurfaceDistance, closest_points_triangle_triangle, distance_point_triangle, distance_triangle_triangle,
+};
 pub use pose::Pose;
 pub use ray::Ray;
 pub use round::{round_down_f32, round_up_f32};
 pub use shape_error::ShapeError;
+pub use solid::{Overlap, closest, overlap, same_within, winding_number};
 pub use sphere::Sphere;
 pub(crate) use triangle_box::TriangleBoxTest;
 pub use triangle_box::intersects_triangle_box;

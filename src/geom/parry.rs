@@ -6,7 +6,7 @@
 
 use super::Point;
 use parry3d_f64::math::Isometry;
-use parry3d_f64::query::PointQuery;
+use parry3d_f64::query::{ClosestPoints, PointQuery};
 use parry3d_f64::shape::{Polyline, Segment, Shape, TriMesh, Triangle};
 
 /// A triangle as parry sees it: parry's triangle routines assume area, so a
@@ -60,6 +60,32 @@ pub fn distance_triangle_triangle(a: &[Point; 3], b: &[Point; 3]) -> f64 {
     let id = Isometry::identity();
     // Triangles and segments are support maps: parry supports every pair of them.
     parry3d_f64::query::distance(&id, Simplex::of(a).shape(), &id, Simplex::of(b).shape()).unwrap_or(0.0)
+}
+
+/// The distance between two closed triangles with the closest point of
+/// each (`a`'s first), the pair handed to parry in one order as
+/// [`distance_triangle_triangle`] does. Triangles parry calls intersecting
+/// give distance 0 and a corner of `a` twice.
+pub fn closest_points_triangle_triangle(a: &[Point; 3], b: &[Point; 3]) -> (f64, Point, Point) {
+    let first =
+        a.iter().flat_map(|p| p.iter()).zip(b.iter().flat_map(|p| p.iter())).map(|(x, y)| x.total_cmp(y));
+    let swapped = first.into_iter().find(|o| o.is_ne()) == Some(std::cmp::Ordering::Greater);
+    let (x, y) = if swapped { (b, a) } else { (a, b) };
+    let id = Isometry::identity();
+    let found = parry3d_f64::query::closest_points(
+        &id,
+        Simplex::of(x).shape(),
+        &id,
+        Simplex::of(y).shape(),
+        f64::MAX,
+    );
+    match found {
+        Ok(ClosestPoints::WithinMargin(p, q)) => {
+            let (p, q) = if swapped { (q, p) } else { (p, q) };
+            ((p - q).norm(), p, q)
+        }
+        _ => (0.0, a[0], a[0]),
+    }
 }
 
 /// The distance from `p` to the closed triangle `t`.

@@ -81,28 +81,31 @@ impl Visitor for Fetch<'_, '_> {
 /// The exact meshes of `ids`, in their order: the tree's node blocks are
 /// walked and the geometry of the wanted objects read.
 pub fn object_meshes(txn: &ReadTransaction, ids: &[ObjectId]) -> Result<Vec<Mesh>, QueryError> {
-    // A file with no tree holds no objects: asking for one is asking for
-    // an object it does not hold, as `query` and `clash` see it.
-    let (Some(info), Some(root)) = (txn.info(), txn.root()) else {
-        return match ids.first() {
-            Some(id) => Err(QueryError::NoObject { id: id.0, objects: 0 }),
-            None => Ok(Vec::new()),
-        };
-    };
-    if let Some(bad) = ids.iter().find(|id| id.0 >= info.objects) {
-        return Err(QueryError::NoObject { id: bad.0, objects: info.objects });
+    let objects = txn.info().map_or(0, |i| i.objects);
+    let found = fetch_meshes(txn, ids.iter().copied().collect())?;
+    // An id may be asked for more than once.
+    ids.iter().map(|id| found.get(id).cloned().ok_or(QueryError::NoObject { id: id.0, objects })).collect()
+}
+
+/// The exact meshes of the `wanted` objects the tree holds (an id it does
+/// not hold is left out): one walk of the node blocks, and the geometry of
+/// the wanted objects read once each. A file with no tree holds none.
+pub(crate) fn fetch_meshes(
+    txn: &ReadTransaction,
+    wanted: HashSet<ObjectId>,
+) -> Result<HashMap<ObjectId, Mesh>, QueryError> {
+    let Some(root) = txn.root() else { return Ok(HashMap::new()) };
+    if wanted.is_empty() {
+        return Ok(HashMap::new());
     }
-    let mut fetch =
-        Fetch { txn, wanted: ids.iter().copied().collect(), reads: Reads::new(None), found: HashMap::new() };
+    let mut fetch = Fetch { txn, wanted, reads: Reads::new(None), found: HashMap::new() };
     let all = QueryOptions { lod: Some(1), budget: None, ..Default::default() };
     walk(txn, root, &Everything, &all, &mut Reads::new(None), &mut fetch)?;
-    ids.iter()
-        .map(|id| {
-            fetch
-                .found
-                .get(id)
-                .and_then(|parts| geometry::join(parts))
-                .ok_or(QueryError::NoObject { id: id.0, objects: info.objects })
-        })
-        .collect()
+    let mut joined = HashMap::with_capacity(fetch.found.len());
+    for (id, parts) in fetch.found {
+        let mesh = geometry::join(&parts)
+            .ok_or_else(|| StorageError::Invalid(format!("object {id}: its parts do not join")))?;
+        joined.insert(id, mesh);
+    }
+    Ok(joined)
 }

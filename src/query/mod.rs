@@ -32,6 +32,7 @@ pub use brute_force::{
     brute_force_region,
 };
 pub use clash::{ClashAnswer, ClashOptions, clash};
+pub(crate) use collide::fetch_meshes;
 pub use collide::{CollideOptions, collide, object_mesh, object_meshes};
 pub use error::QueryError;
 pub use navigate::{NavigateStep, navigate, navigate_view, parse_path};

@@ -5,7 +5,9 @@
 //! embedder's build.
 
 mod draw;
+mod meshes;
 mod raster;
 
 pub use draw::{draw_cut, draw_level, framing, group_bound, level_colour};
+pub use meshes::draw_meshes;
 pub use raster::{BACKGROUND, Image};

@@ -1,12 +1,21 @@
 //! `mktree clash`: every pair of objects within a clearance, with the reads
-//! set against the file's blocks.
+//! set against the file's blocks; with the typed flags, a clash test between
+//! chosen sets (docs/clash.md), grouped, as a table or JSON lines.
 
+use std::collections::BTreeMap;
+use std::io::Write;
 use std::path::Path;
 
-use anyhow::Result;
+use anyhow::{Result, bail};
+use mktree::clash::key_json::key_text;
+use mktree::clash::{
+    BcfOptions, Clash, ClashKind, ClashRun, ClashStore, ClashTest, DEFAULT_TOLERANCE, GroupBy, RunMode,
+    SavedTest, Selector, Status, TestKind, export_bcf, group, run_recorded, run_test, store_path,
+};
 use mktree::query::{ClashOptions, clash};
 use serde_json::json;
 
+use crate::args::ClashArgs;
 use crate::output;
 
 pub fn run(file: &Path, clearance: f64, lod: Option<u8>, as_json: bool) -> Result<()> {
@@ -45,6 +54,184 @@ pub fn run(file: &Path, clearance: f64, lod: Option<u8>, as_json: bool) -> Resul
         a.file_blocks,
         s.geometry_tests,
         s.seconds * 1e3
+    );
+    Ok(())
+}
+
+/// The test the flags state, or `None` when they state none (only --test).
+fn test_of(args: &ClashArgs) -> Result<Option<ClashTest>> {
+    let stated = !args.a.is_empty()
+        || !args.b.is_empty()
+        || args.kind.is_some()
+        || args.distance.is_some()
+        || args.tolerance.is_some()
+        || args.touch;
+    if !stated {
+        return Ok(None);
+    }
+    let set = |v: &[String]| v.iter().map(|s| s.parse::<Selector>()).collect::<Result<Vec<_>, _>>();
+    let kind = match args.kind.as_deref() {
+        None if args.distance.is_some() => TestKind::Clearance,
+        None | Some("hard") => TestKind::Hard,
+        Some("clearance") => TestKind::Clearance,
+        Some("duplicate") => TestKind::Duplicate,
+        Some(other) => bail!("--type {other}: expected hard, clearance or duplicate"),
+    };
+    let test = ClashTest {
+        a: set(&args.a)?,
+        b: if args.b.is_empty() { None } else { Some(set(&args.b)?) },
+        kind,
+        tolerance: args.tolerance.unwrap_or(DEFAULT_TOLERANCE),
+        distance: args.distance.unwrap_or(0.0),
+        touch: args.touch,
+    };
+    test.validate()?;
+    Ok(Some(test))
+}
+
+/// `mktree clash FILE --a .. --b .. --type ..`: a typed clash test; with
+/// --test, run as the named test and recorded with statuses.
+pub fn typed(file: &Path, args: &ClashArgs, as_json: bool) -> Result<()> {
+    let test = test_of(args)?;
+    let mut group_by = args.group.as_deref().map(str::parse::<GroupBy>).transpose()?;
+    let db = crate::input::open_to_read(file)?;
+    let r = db.begin_read()?;
+    let Some(name) = &args.test else {
+        // No set or type stated (only --group or --bcf): the whole file, hard clashes.
+        let test = test.unwrap_or_default();
+        let run = run_test(&r, &test)?;
+        let groups = group(&run.clashes, group_by.unwrap_or_default());
+        bcf(&r, args, &run.clashes, None, &groups, None)?;
+        return print(&run.clashes, None, &run, None, &groups, as_json);
+    };
+    let path = args.store.clone().unwrap_or_else(|| store_path(file));
+    let mut store = ClashStore::load(&path)?;
+    if let Some(t) = &test {
+        let saved = SavedTest { test: t.clone(), group: group_by.unwrap_or_default() };
+        store.tests.insert(name.clone(), saved);
+    }
+    if group_by.is_none() {
+        group_by = store.tests.get(name).map(|s| s.group);
+    }
+    let rec = run_recorded(&r, &mut store, name, None, !args.full)?;
+    store.save(&path)?;
+    let clashes: Vec<Clash> = rec.tracked.iter().map(|t| t.clash.clone()).collect();
+    let statuses: Vec<Status> = rec.tracked.iter().map(|t| t.status).collect();
+    let groups = group(&clashes, group_by.unwrap_or_default());
+    bcf(&r, args, &clashes, Some(&statuses), &groups, Some(name))?;
+    print(&clashes, Some(&statuses), &rec.run, Some(&rec.mode), &groups, as_json)
+}
+
+/// Writes the BCF export --bcf asks for.
+fn bcf(
+    r: &mktree::ReadTransaction,
+    args: &ClashArgs,
+    clashes: &[Clash],
+    statuses: Option<&[Status]>,
+    groups: &[mktree::clash::Group],
+    label: Option<&str>,
+) -> Result<()> {
+    let Some(out) = &args.bcf else { return Ok(()) };
+    let opts = BcfOptions { label: label.map(str::to_string), ..Default::default() };
+    let bytes = export_bcf(r, clashes, statuses, groups, &opts)?;
+    std::fs::write(out, bytes).map_err(|e| anyhow::anyhow!("{}: {e}", out.display()))?;
+    Ok(())
+}
+
+/// Prints clashes (with their statuses, when recorded) grouped by `by`:
+/// JSON lines then a summary line, or a table then counts by type and status.
+fn print(
+    clashes: &[Clash],
+    statuses: Option<&[Status]>,
+    run: &ClashRun,
+    mode: Option<&RunMode>,
+    groups: &[mktree::clash::Group],
+    as_json: bool,
+) -> Result<()> {
+    let mut group_of = vec![0; clashes.len()];
+    for g in groups {
+        for &m in &g.members {
+            group_of[m] = g.id;
+        }
+    }
+    let status = |i: usize| statuses.map(|s| s[i].name());
+    let mut counts: BTreeMap<(&str, &str), usize> = BTreeMap::new();
+    for (i, c) in clashes.iter().enumerate() {
+        *counts.entry((c.kind.name(), status(i).unwrap_or("-"))).or_default() += 1;
+    }
+    let out = std::io::stdout();
+    let mut out = std::io::BufWriter::new(out.lock());
+    if as_json {
+        for (i, c) in clashes.iter().enumerate() {
+            let mut v = serde_json::to_value(c)?;
+            if let Some(o) = v.as_object_mut() {
+                o.insert("group".into(), json!(group_of[i]));
+                o.insert("status".into(), json!(status(i)));
+            }
+            writeln!(out, "{v}")?;
+        }
+        let by_type_status: Vec<_> =
+            counts.iter().map(|((t, s), n)| json!({"type": t, "status": s, "clashes": n})).collect();
+        let summary = json!({"summary": {
+            "txn": run.txn,
+            "clashes": clashes.len(),
+            "groups": groups.iter().map(|g| json!({"id": g.id, "name": g.name, "clashes": g.members.len(),
+                "point": [g.point.x, g.point.y, g.point.z]})).collect::<Vec<_>>(),
+            "by_type_status": by_type_status,
+            "mode": mode,
+            "stats": run.stats,
+        }});
+        writeln!(out, "{summary}")?;
+        return Ok(out.flush()?);
+    }
+    let rows: Vec<Vec<String>> = clashes
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let measure = match c.kind {
+                ClashKind::Clearance => format!("{:.3}", c.distance),
+                _ => format!("{:.3}", c.depth),
+            };
+            vec![
+                group_of[i].to_string(),
+                status(i).unwrap_or("-").to_string(),
+                c.kind.name().to_string(),
+                key_text(&c.a),
+                key_text(&c.b),
+                measure,
+                format!("{:.0} {:.0} {:.0}", c.point.x, c.point.y, c.point.z),
+            ]
+        })
+        .collect();
+    drop(out);
+    output::table(&["group", "status", "type", "a", "b", "depth/distance mm", "point"], &rows);
+    println!();
+    let rows: Vec<Vec<String>> =
+        counts.iter().map(|((t, s), n)| vec![t.to_string(), s.to_string(), n.to_string()]).collect();
+    output::table(&["type", "status", "clashes"], &rows);
+    let s = &run.stats;
+    let how = match mode {
+        Some(RunMode::Incremental { changed, removed, kept }) => {
+            format!("; incremental: {changed} changed, {removed} removed, {kept} clashes kept")
+        }
+        Some(RunMode::Full { why }) => format!("; full ({why})"),
+        None => String::new(),
+    };
+    println!(
+        "{} clashes in {} groups on commit {}; A {} and B {} of {} objects, {} candidate pairs, {} meshes read; \
+         {:.1} ms (list {:.1}, read {:.1}, measure {:.1}){how}",
+        clashes.len(),
+        groups.len(),
+        run.txn,
+        s.in_a,
+        s.in_b,
+        s.objects,
+        s.candidates,
+        s.meshes_read,
+        s.seconds * 1e3,
+        s.list_seconds * 1e3,
+        s.read_seconds * 1e3,
+        s.measure_seconds * 1e3
     );
     Ok(())
 }

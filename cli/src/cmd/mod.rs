@@ -13,6 +13,7 @@ mod bench_view;
 mod build;
 mod check;
 mod clash;
+mod clash_status;
 mod collide;
 mod compact;
 mod demo;
@@ -64,7 +65,19 @@ pub fn run(cli: Cli) -> Result<()> {
             let query = collide::Query { mesh, object, translate, rotate_deg, clearance };
             collide::run(&file, &query, &level.options(), &import.options(), json)
         }
-        Command::Clash { file, clearance, lod, json } => clash::run(&file, clearance, lod, json),
+        Command::Clash { file, clearance, lod, json, typed } if typed.any() => {
+            if clearance != 0.0 || lod.is_some() {
+                anyhow::bail!(
+                    "--clearance and --lod belong to the untyped run: a typed test takes --distance"
+                );
+            }
+            clash::typed(&file, &typed, json)
+        }
+        Command::Clash { file, clearance, lod, json, .. } => clash::run(&file, clearance, lod, json),
+        Command::ClashStatus { file, test, a, b, kind, set, text, store, json } => {
+            let pair = clash_status::Pair { a, b, kind, set, text };
+            clash_status::run(&file, &test, &pair, store.as_deref(), json)
+        }
         Command::Batch { file, queries, max_line } => batch::run(&file, queries.as_deref(), max_line),
         Command::View { file, view } => view::run(&file, &view),
         Command::Export3dTiles { file, out, json } => export_tiles::run(&file, &out, json),

@@ -1,0 +1,200 @@
+//! Re-running a recorded test after later commits (docs/clash.md,
+//! "Re-runs"): only pairs with a changed object are measured; the
+//! recorded clashes between unchanged objects are kept. The answer equals
+//! a full run's, because a clash is a function of its pair's meshes and
+//! the test (`run.rs`), and set membership of an unchanged object is
+//! unchanged (its key, name and payload are).
+//!
+//! What changed is, until the file carries a change log (format version
+//! 8), found by comparing the recorded run's fingerprints with the key
+//! index: every insert and update gives its object a new id (meta
+//! `object_ids` only grows under change commits), so a key with the same
+//! id and box holds the same object. A bulk load numbers ids from 0 again
+//! and writes a new build time; when the file's `object_ids` shrank or its
+//! build time differs, the run is a full one. Listing the key index still
+//! reads every key block (O(N) small reads, no geometry); the measuring
+//! grows with the changed objects.
+
+use std::collections::HashSet;
+use std::time::Instant;
+
+use serde::Serialize;
+
+use super::ClashError;
+use super::group::GroupBy;
+use super::run::{ClashRun, run_on, sort};
+use super::status::{Status, Tracked, update};
+use super::store::{ClashStore, Fingerprint, RecordedRun, SavedTest};
+use super::test::ClashTest;
+use crate::db::ReadTransaction;
+use crate::scene::Key;
+use crate::store::format::keys::KeyEntry;
+
+/// How a run was made.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "mode", rename_all = "lowercase")]
+pub enum RunMode {
+    /// Every pair measured; why.
+    Full {
+        /// Why the run was full.
+        why: String,
+    },
+    /// Only pairs with a changed object measured.
+    Incremental {
+        /// Objects inserted or changed since the recorded run.
+        changed: usize,
+        /// Objects removed since.
+        removed: usize,
+        /// Recorded clashes kept as they were.
+        kept: usize,
+    },
+}
+
+/// A run, recorded: its clashes, their statuses and how it was made.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Recorded {
+    /// The run.
+    pub run: ClashRun,
+    /// Every clash recorded so far with its status, resolved ones too.
+    pub tracked: Vec<Tracked>,
+    /// Full or incremental.
+    pub mode: RunMode,
+}
+
+fn fingerprints(entries: &[KeyEntry]) -> Vec<Fingerprint> {
+    entries
+        .iter()
+        .map(|e| Fingerprint { key: e.key.clone(), id: e.object_id, aabb: e.aabb.to_array() })
+        .collect()
+}
+
+/// Why `previous` cannot seed an incremental run on `txn`, if it cannot.
+fn why_full(txn: &ReadTransaction, test: &ClashTest, previous: Option<&RecordedRun>) -> Option<String> {
+    let Some(p) = previous else { return Some("no recorded run".into()) };
+    if &p.test != test {
+        return Some("the test changed since the recorded run".into());
+    }
+    if txn.txn() < p.txn {
+        return Some(format!("the file's commit {} is older than the recorded run's {}", txn.txn(), p.txn));
+    }
+    if txn.object_ids() < p.object_ids {
+        return Some("object ids were numbered anew (a bulk load, or optimize)".into());
+    }
+    let build = txn.info().map_or(0, |i| i.build_seconds.to_bits());
+    if build != p.build {
+        return Some("the tree was built anew (a bulk load)".into());
+    }
+    None
+}
+
+/// Runs `test` on `txn` against `previous` (the recorded run of the same
+/// test): incrementally when it can (see the module's notes), else in
+/// full. With `incremental` false, always in full. Statuses are updated.
+pub fn rerun(
+    txn: &ReadTransaction,
+    test: &ClashTest,
+    previous: Option<&RecordedRun>,
+    incremental: bool,
+) -> Result<(Recorded, RecordedRun), ClashError> {
+    let started = Instant::now();
+    test.validate()?;
+    let entries = txn.key_entries(&mut crate::db::Reads::new(Some(txn.cache())))?;
+    let why = if incremental { why_full(txn, test, previous) } else { Some("asked for a full run".into()) };
+    let (clashes, mut stats, mode) = match (why, previous) {
+        (None, Some(p)) => {
+            // Keys whose (id, box) differ, are new, or are gone.
+            let mut changed = vec![false; entries.len()];
+            let mut touched: HashSet<&Key> = HashSet::new();
+            let (mut i, mut j) = (0, 0);
+            while i < entries.len() || j < p.objects.len() {
+                let e = entries.get(i);
+                let f = p.objects.get(j);
+                match (e, f) {
+                    (Some(e), Some(f)) if e.key == f.key => {
+                        if e.object_id != f.id || e.aabb.to_array() != f.aabb {
+                            changed[i] = true;
+                            touched.insert(&e.key);
+                        }
+                        i += 1;
+                        j += 1;
+                    }
+                    (Some(e), Some(f)) if e.key < f.key => {
+                        changed[i] = true;
+                        touched.insert(&e.key);
+                        i += 1;
+                    }
+                    (Some(e), None) => {
+                        changed[i] = true;
+                        touched.insert(&e.key);
+                        i += 1;
+                    }
+                    (_, Some(f)) => {
+                        touched.insert(&f.key);
+                        j += 1;
+                    }
+                    (None, None) => break,
+                }
+            }
+            let n_changed = changed.iter().filter(|&&c| c).count();
+            let removed = touched.len() - n_changed;
+            let (mut fresh, stats) = run_on(txn, test, &entries, Some(&changed), started)?;
+            let before = fresh.len();
+            fresh.extend(
+                p.tracked
+                    .iter()
+                    .filter(|t| t.status != Status::Resolved && t.last_txn == p.txn)
+                    .filter(|t| !touched.contains(&t.clash.a) && !touched.contains(&t.clash.b))
+                    .map(|t| t.clash.clone()),
+            );
+            let kept = fresh.len() - before;
+            sort(&mut fresh);
+            (fresh, stats, RunMode::Incremental { changed: n_changed, removed, kept })
+        }
+        (why, _) => {
+            let (c, s) = run_on(txn, test, &entries, None, started)?;
+            (c, s, RunMode::Full { why: why.unwrap_or_default() })
+        }
+    };
+    stats.seconds = started.elapsed().as_secs_f64();
+    let tracked = update(previous.map_or(&[][..], |p| &p.tracked), &clashes, txn.txn());
+    let record = RecordedRun {
+        txn: txn.txn(),
+        test: test.clone(),
+        tracked: tracked.clone(),
+        object_ids: txn.object_ids(),
+        build: txn.info().map_or(0, |i| i.build_seconds.to_bits()),
+        objects: fingerprints(&entries),
+    };
+    let run = ClashRun { txn: txn.txn(), clashes, stats };
+    Ok((Recorded { run, tracked, mode }, record))
+}
+
+/// Runs the test `name` of `store` (saved, or `test` when given: it is
+/// saved under `name` then) on `txn`, incrementally when it can, and
+/// records the run and its statuses in `store` (the caller saves it).
+pub fn run_recorded(
+    txn: &ReadTransaction,
+    store: &mut ClashStore,
+    name: &str,
+    test: Option<&ClashTest>,
+    incremental: bool,
+) -> Result<Recorded, ClashError> {
+    if name.is_empty() || name.len() > super::test::MAX_NAME {
+        return Err(ClashError::Test(format!("a test name of {} bytes (1 ..= 255)", name.len())));
+    }
+    let test = match test {
+        Some(t) => {
+            let group = store.tests.get(name).map_or(GroupBy::None, |s| s.group);
+            store.tests.insert(name.to_string(), SavedTest { test: t.clone(), group });
+            t.clone()
+        }
+        None => store
+            .tests
+            .get(name)
+            .map(|s| s.test.clone())
+            .ok_or_else(|| ClashError::NotFound(format!("no saved test named {name:?}")))?,
+    };
+    let (recorded, record) = rerun(txn, &test, store.runs.get(name), incremental)?;
+    store.runs.insert(name.to_string(), record);
+    Ok(recorded)
+}

@@ -1,0 +1,175 @@
+//! Clash statuses across revisions (docs/clash.md, "Statuses"), as
+//! Navisworks' Clash Detective keeps them: a run is recorded against the
+//! commit it read; the next run marks each clash, by its keys and type,
+//! New (not in the last run), Active (in it, and in this one) or Resolved
+//! (in the last run, gone from this one). Reviewed and Approved, which a
+//! person sets, persist while the clash does; a clash that comes back
+//! after being resolved is New again.
+
+use std::collections::HashMap;
+
+use serde::{Deserialize, Serialize};
+
+use super::test::{Clash, ClashKind};
+use crate::scene::Key;
+
+/// A clash's status.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Status {
+    /// Found in this run and not in the last.
+    New,
+    /// Found in the last run and in this one.
+    Active,
+    /// A person looked at it; kept while the clash persists.
+    Reviewed,
+    /// A person accepted it; kept while the clash persists.
+    Approved,
+    /// Found in an earlier run, gone from the last one.
+    Resolved,
+}
+
+impl Status {
+    /// The lowercase name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Status::New => "new",
+            Status::Active => "active",
+            Status::Reviewed => "reviewed",
+            Status::Approved => "approved",
+            Status::Resolved => "resolved",
+        }
+    }
+
+    /// Whether a person sets this status (`mktree clash-status`).
+    pub fn is_set_by_person(self) -> bool {
+        matches!(self, Status::Reviewed | Status::Approved | Status::Active)
+    }
+}
+
+impl std::str::FromStr for Status {
+    type Err = super::ClashError;
+
+    fn from_str(s: &str) -> Result<Status, super::ClashError> {
+        Ok(match s {
+            "new" => Status::New,
+            "active" => Status::Active,
+            "reviewed" => Status::Reviewed,
+            "approved" => Status::Approved,
+            "resolved" => Status::Resolved,
+            _ => {
+                return Err(super::ClashError::Test(format!(
+                    "status {s:?}: expected new, active, reviewed, approved or resolved"
+                )));
+            }
+        })
+    }
+}
+
+/// A clash with its status and the commits that saw it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Tracked {
+    /// The clash as last measured.
+    pub clash: Clash,
+    /// Its status.
+    pub status: Status,
+    /// The commit of the run that first found it.
+    pub first_txn: u64,
+    /// The commit of the last run that found it.
+    pub last_txn: u64,
+}
+
+/// The statuses after a run on commit `txn` found `clashes` (sorted), given
+/// those recorded before (`previous`). Resolved clashes stay listed.
+pub fn update(previous: &[Tracked], clashes: &[Clash], txn: u64) -> Vec<Tracked> {
+    let before: HashMap<(Key, Key, ClashKind), &Tracked> =
+        previous.iter().map(|t| (t.clash.id(), t)).collect();
+    let mut out: Vec<Tracked> = clashes
+        .iter()
+        .map(|c| {
+            let (status, first_txn) = match before.get(&c.id()) {
+                None => (Status::New, txn),
+                Some(t) => match t.status {
+                    Status::Resolved => (Status::New, txn),
+                    Status::Reviewed | Status::Approved => (t.status, t.first_txn),
+                    Status::New | Status::Active => (Status::Active, t.first_txn),
+                },
+            };
+            Tracked { clash: c.clone(), status, first_txn, last_txn: txn }
+        })
+        .collect();
+    let now: std::collections::HashSet<(Key, Key, ClashKind)> = clashes.iter().map(Clash::id).collect();
+    for t in previous {
+        if !now.contains(&t.clash.id()) {
+            out.push(Tracked { status: Status::Resolved, ..t.clone() });
+        }
+    }
+    out.sort_by(|x, y| (&x.clash.a, &x.clash.b, x.clash.kind).cmp(&(&y.clash.a, &y.clash.b, y.clash.kind)));
+    out
+}
+
+/// Sets the status of the clashes of `tracked` between `a` and `b` (of
+/// `kind`, or any kind) to `status`, which a person sets (Reviewed,
+/// Approved, or Active to take either back). Returns how many changed;
+/// a resolved clash is not set.
+pub fn set_status(
+    tracked: &mut [Tracked],
+    a: &Key,
+    b: &Key,
+    kind: Option<ClashKind>,
+    status: Status,
+) -> usize {
+    let mut n = 0;
+    for t in tracked.iter_mut() {
+        let hit = (&t.clash.a == a && &t.clash.b == b) || (&t.clash.a == b && &t.clash.b == a);
+        if hit && kind.is_none_or(|k| k == t.clash.kind) && t.status != Status::Resolved {
+            t.status = status;
+            n += 1;
+        }
+    }
+    n
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::{Aabb, Point};
+
+    fn c(a: u64, b: u64) -> Clash {
+        let p = Point::origin();
+        Clash {
+            a: Key::Int(a),
+            b: Key::Int(b),
+            kind: ClashKind::Hard,
+            depth: 1.0,
+            distance: 0.0,
+            point: p,
+            closest: None,
+            overlap: None,
+            a_box: Aabb::new(p, p),
+            b_box: Aabb::new(p, p),
+        }
+    }
+
+    #[test]
+    fn new_active_resolved_and_a_persisting_approval() {
+        let r1 = update(&[], &[c(1, 2), c(3, 4)], 10);
+        assert!(r1.iter().all(|t| t.status == Status::New));
+        let mut r1 = r1;
+        assert_eq!(set_status(&mut r1, &Key::Int(4), &Key::Int(3), None, Status::Approved), 1);
+        let r2 = update(&r1, &[c(1, 2), c(3, 4), c(5, 6)], 11);
+        let st = |r: &[Tracked], a: u64| r.iter().find(|t| t.clash.a == Key::Int(a)).map(|t| t.status);
+        assert_eq!(
+            (st(&r2, 1), st(&r2, 3), st(&r2, 5)),
+            (Some(Status::Active), Some(Status::Approved), Some(Status::New))
+        );
+        let r3 = update(&r2, &[c(3, 4)], 12);
+        assert_eq!(
+            (st(&r3, 1), st(&r3, 3), st(&r3, 5)),
+            (Some(Status::Resolved), Some(Status::Approved), Some(Status::Resolved))
+        );
+        let r4 = update(&r3, &[c(1, 2)], 13);
+        assert_eq!((st(&r4, 1), st(&r4, 3)), (Some(Status::New), Some(Status::Resolved)));
+        assert_eq!(r4.iter().find(|t| t.clash.a == Key::Int(1)).map(|t| t.first_txn), Some(13));
+    }
+}

@@ -1,0 +1,261 @@
+//! The clash store (format-spec/clash-store.md): saved tests and the last
+//! recorded run of each, with statuses and each object's fingerprint, in a
+//! sidecar file beside the .mkt file (`FILE.mkt.clash`). A versioned,
+//! checksummed envelope around a JSON body; written whole to a new file,
+//! synced and renamed over the old one, so a crash leaves the old store
+//! or the new one. Reading bounds the size before it allocates, checks
+//! the envelope, the checksum and every field.
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use super::ClashError;
+use super::group::GroupBy;
+use super::status::Tracked;
+use super::test::{ClashTest, MAX_NAME};
+use crate::geom::Aabb;
+use crate::scene::Key;
+
+/// The envelope's first 8 bytes.
+pub const MAGIC: [u8; 8] = *b"MKTCLASH";
+/// The store version this build reads and writes.
+pub const VERSION: u32 = 1;
+/// The envelope's length, bytes.
+pub const HEADER_LEN: usize = 32;
+/// The largest store read, bytes (1 GiB): larger is refused before any allocation.
+pub const MAX_STORE_BYTES: u64 = 1 << 30;
+
+/// A saved test: its settings and how its clashes are grouped.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SavedTest {
+    /// The test.
+    pub test: ClashTest,
+    /// Its grouping (`none`, `a`, `proximity:G`, `prefix:N`).
+    #[serde(with = "group_text")]
+    pub group: GroupBy,
+}
+
+/// What an object was when a run read it: an update or insert gives an
+/// object a new id (format-spec/meta.md, `object_ids`), so a key whose id
+/// and box are unchanged holds the same object (docs/clash.md, "Re-runs").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Fingerprint {
+    /// The object's key.
+    #[serde(with = "super::key_json")]
+    pub key: Key,
+    /// Its object id.
+    pub id: u32,
+    /// Its exact box.
+    pub aabb: [f64; 6],
+}
+
+impl Fingerprint {
+    /// The box.
+    pub fn aabb(&self) -> Aabb {
+        Aabb::from_array(self.aabb)
+    }
+}
+
+/// The last recorded run of a test.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordedRun {
+    /// The commit it read.
+    pub txn: u64,
+    /// The test as it ran.
+    pub test: ClashTest,
+    /// Every clash found so far, with its status (resolved ones too).
+    pub tracked: Vec<Tracked>,
+    /// The file's `object_ids` then.
+    pub object_ids: u32,
+    /// The bits of the file's build time then (a bulk load changes it).
+    pub build: u64,
+    /// Every object of the file then, in key order.
+    pub objects: Vec<Fingerprint>,
+}
+
+/// Saved tests and recorded runs, by test name.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClashStore {
+    /// Saved tests by name.
+    pub tests: BTreeMap<String, SavedTest>,
+    /// The last recorded run of each test, by name.
+    pub runs: BTreeMap<String, RecordedRun>,
+}
+
+/// The sidecar store's path for the .mkt file `file`: `FILE.mkt.clash`.
+pub fn store_path(file: &Path) -> PathBuf {
+    let mut s = file.as_os_str().to_owned();
+    s.push(".clash");
+    PathBuf::from(s)
+}
+
+impl ClashStore {
+    /// The store's bytes: the envelope, then the JSON body.
+    pub fn to_bytes(&self) -> Result<Vec<u8>, ClashError> {
+        let body = serde_json::to_vec(self).map_err(|e| ClashError::Test(format!("the store: {e}")))?;
+        let mut out = Vec::with_capacity(HEADER_LEN + body.len());
+        out.extend_from_slice(&MAGIC);
+        out.extend_from_slice(&VERSION.to_le_bytes());
+        out.extend_from_slice(&0u32.to_le_bytes());
+        out.extend_from_slice(&(body.len() as u64).to_le_bytes());
+        out.extend_from_slice(&crc32fast::hash(&body).to_le_bytes());
+        out.extend_from_slice(&0u32.to_le_bytes());
+        out.extend_from_slice(&body);
+        Ok(out)
+    }
+
+    /// A store from its bytes; any damage or forgery is an error naming it.
+    pub fn from_bytes(bytes: &[u8]) -> Result<ClashStore, String> {
+        if bytes.len() < HEADER_LEN {
+            return Err(format!("{} bytes: shorter than the {HEADER_LEN}-byte header", bytes.len()));
+        }
+        if bytes[..8] != MAGIC {
+            return Err("not a clash store (magic)".into());
+        }
+        let u32_at = |i: usize| u32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
+        let version = u32_at(8);
+        if version != VERSION {
+            return Err(format!("version {version}; this build reads version {VERSION}"));
+        }
+        if u32_at(12) != 0 || u32_at(28) != 0 {
+            return Err("reserved header bytes are not zero".into());
+        }
+        let mut len = [0u8; 8];
+        len.copy_from_slice(&bytes[16..24]);
+        let len = u64::from_le_bytes(len);
+        if len != (bytes.len() - HEADER_LEN) as u64 {
+            return Err(format!(
+                "the header says {len} body bytes, the file has {}",
+                bytes.len() - HEADER_LEN
+            ));
+        }
+        let body = &bytes[HEADER_LEN..];
+        if crc32fast::hash(body) != u32_at(24) {
+            return Err("checksum mismatch: the body is damaged".into());
+        }
+        let store: ClashStore = serde_json::from_slice(body).map_err(|e| format!("body: {e}"))?;
+        store.validate()?;
+        Ok(store)
+    }
+
+    /// Checks what JSON cannot: names, test numbers, keys in order.
+    fn validate(&self) -> Result<(), String> {
+        for name in self.tests.keys().chain(self.runs.keys()) {
+            if name.is_empty() || name.len() > MAX_NAME {
+                return Err(format!("a test name of {} bytes (1 ..= {MAX_NAME})", name.len()));
+            }
+        }
+        for (name, t) in &self.tests {
+            t.test.validate().map_err(|e| format!("test {name:?}: {e}"))?;
+        }
+        for (name, r) in &self.runs {
+            r.test.validate().map_err(|e| format!("run {name:?}: {e}"))?;
+            if !r.objects.windows(2).all(|w| w[0].key < w[1].key) {
+                return Err(format!("run {name:?}: objects are not in strictly increasing key order"));
+            }
+        }
+        Ok(())
+    }
+
+    /// The store at `path`; an empty store when there is no file.
+    pub fn load(path: &Path) -> Result<ClashStore, ClashError> {
+        let size = match std::fs::metadata(path) {
+            Ok(m) => m.len(),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(ClashStore::default()),
+            Err(e) => return Err(ClashError::io(path, e)),
+        };
+        if size > MAX_STORE_BYTES {
+            return Err(ClashError::Store {
+                path: path.display().to_string(),
+                why: format!("{size} bytes, past the {MAX_STORE_BYTES}-byte limit"),
+            });
+        }
+        let bytes = std::fs::read(path).map_err(|e| ClashError::io(path, e))?;
+        ClashStore::from_bytes(&bytes)
+            .map_err(|why| ClashError::Store { path: path.display().to_string(), why })
+    }
+
+    /// Writes the store to `path`: a new file beside it, synced, renamed
+    /// over it, and the folder synced (a crash leaves the old store or this one).
+    pub fn save(&self, path: &Path) -> Result<(), ClashError> {
+        let bytes = self.to_bytes()?;
+        let mut tmp = path.as_os_str().to_owned();
+        tmp.push(".new");
+        let tmp = PathBuf::from(tmp);
+        let mut f = std::fs::File::create(&tmp).map_err(|e| ClashError::io(&tmp, e))?;
+        f.write_all(&bytes).map_err(|e| ClashError::io(&tmp, e))?;
+        f.sync_all().map_err(|e| ClashError::io(&tmp, e))?;
+        drop(f);
+        std::fs::rename(&tmp, path).map_err(|e| ClashError::io(path, e))?;
+        #[cfg(unix)]
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()).or(Some(Path::new("."))) {
+            std::fs::File::open(dir).and_then(|d| d.sync_all()).map_err(|e| ClashError::io(dir, e))?;
+        }
+        Ok(())
+    }
+}
+
+/// A grouping as its text.
+mod group_text {
+    use super::GroupBy;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(g: &GroupBy, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(g)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<GroupBy, D::Error> {
+        String::deserialize(d)?.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::clash::test::TestKind;
+
+    fn sample() -> ClashStore {
+        let mut s = ClashStore::default();
+        let test = ClashTest {
+            a: vec!["name:PIPE*".parse().unwrap()],
+            b: Some(vec!["class:IfcWall".parse().unwrap()]),
+            kind: TestKind::Clearance,
+            distance: 50.0,
+            ..Default::default()
+        };
+        s.tests.insert("pipes-walls".into(), SavedTest { test, group: GroupBy::Proximity(500.0) });
+        s
+    }
+
+    #[test]
+    fn a_store_reads_back_and_every_damage_is_refused() {
+        let s = sample();
+        let bytes = s.to_bytes().unwrap();
+        assert_eq!(ClashStore::from_bytes(&bytes).unwrap(), s);
+        for i in [0, 8, 12, 16, 24, 28, HEADER_LEN, bytes.len() - 1] {
+            let mut b = bytes.clone();
+            b[i] ^= 0x40;
+            assert!(ClashStore::from_bytes(&b).is_err(), "byte {i} flipped");
+        }
+        assert!(ClashStore::from_bytes(&bytes[..bytes.len() - 1]).is_err());
+        assert!(ClashStore::from_bytes(&bytes[..10]).is_err());
+    }
+
+    #[test]
+    fn save_replaces_the_file_whole() {
+        let dir = std::env::temp_dir().join(format!("mktree-clash-store-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = store_path(&dir.join("m.mkt"));
+        assert_eq!(ClashStore::load(&path).unwrap(), ClashStore::default(), "no file: an empty store");
+        let s = sample();
+        s.save(&path).unwrap();
+        assert_eq!(ClashStore::load(&path).unwrap(), s);
+        ClashStore::default().save(&path).unwrap();
+        assert_eq!(ClashStore::load(&path).unwrap(), ClashStore::default());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
