@@ -726,7 +726,8 @@ impl WriteTransaction<'_> {
             RecordDraft::Internal { node_id: id, frame, children, .. } => {
                 (*id, *frame) = (node_id, Some(sib_frame));
                 // Its children in its own block are named from the parent's
-                // block now: by that block, which is written anew below.
+                // block now: by that block, which is written anew below, and
+                // which reaching them now reads.
                 if sib_block.id() != parent_block.id() {
                     for ch in children.iter_mut().filter(|ch| ch.at.block == 0) {
                         ch.at = RecordRef {
@@ -734,6 +735,7 @@ impl WriteTransaction<'_> {
                             checksum: sib_block.checksum,
                             offset: ch.at.offset,
                         };
+                        ch.node_blocks = ch.node_blocks.saturating_add(1);
                     }
                 }
             }
