@@ -11,6 +11,7 @@ use crate::geom::Aabb;
 use crate::scene::{Mesh, ObjectId};
 use crate::store::format::frame::BlockType;
 use crate::store::format::geometry;
+use crate::store::format::group;
 use crate::store::format::node::{self, LeafView, Limits, NodeView, RecordRef};
 use crate::store::{Block, BlockCache, Pager, ReadStats, StorageError};
 
@@ -276,7 +277,11 @@ impl ReadTransaction {
                     BlockType::Node => node::validate_block(id, &bytes, &self.limits())?,
                     _ => Vec::new(),
                 };
-                let b = Arc::new(Block { id, checksum: sum, bytes, records });
+                let groups = match t {
+                    BlockType::Group => group::validate(id, &bytes, self.pager().lod_levels())?,
+                    _ => Vec::new(),
+                };
+                let b = Arc::new(Block { id, checksum: sum, bytes, records, groups });
                 if let Some(c) = reads.shared {
                     c.put(b.clone());
                 }

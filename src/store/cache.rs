@@ -19,6 +19,8 @@ pub struct Block {
     pub(crate) bytes: Box<[u8]>,
     /// Node blocks: the offsets of their records, validated.
     pub(crate) records: Vec<u32>,
+    /// Group blocks: their entries (record, level, blob bytes), validated.
+    pub(crate) groups: Vec<(u32, u8, std::ops::Range<usize>)>,
 }
 
 impl Block {
@@ -131,7 +133,7 @@ mod tests {
     use super::*;
 
     fn block(id: u32, checksum: u32) -> Arc<Block> {
-        Arc::new(Block { id, checksum, bytes: vec![0; 4].into(), records: Vec::new() })
+        Arc::new(Block { id, checksum, bytes: vec![0; 4].into(), records: Vec::new(), groups: Vec::new() })
     }
 
     #[test]

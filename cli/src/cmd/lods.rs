@@ -180,6 +180,9 @@ fn write_obj(path: &Path, node: u32, k: u8, pieces: &[Piece]) -> Result<()> {
                     put(format!("object{id}"), Some(mesh.clone()))?;
                 }
             }
+            Piece::Group { node, level, voxels } => {
+                put(format!("node{node}_group_k{level}"), Some(voxels.boundary_mesh()))?
+            }
         }
     }
     w.finish()?.flush()?;
