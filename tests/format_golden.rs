@@ -1,6 +1,6 @@
 //! Claim: the writer produces the spec's example file byte for byte
-//! (`tests/golden/tiny-v7.mkt`, whose dump `format-spec/example.md` shows),
-//! and a reader opens it; the golden files of versions 1 to 6 are refused
+//! (`tests/golden/tiny-v9.mkt`, whose dump `format-spec/example.md` shows),
+//! and a reader opens it; the golden files of versions 1 to 7 are refused
 //! with `UnsupportedVersion`, not misread. Set MKTREE_BLESS=1 to rewrite the
 //! golden file and the example's dump after a deliberate format change
 //! (with a new version: format-spec/versions.md).
@@ -17,7 +17,8 @@ use mktree::scene::{Object, Scene};
 use mktree::store::device::MemDevice;
 use mktree::store::{BlockDevice, StorageError};
 
-const GOLDEN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v7.mkt");
+const GOLDEN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v9.mkt");
+const GOLDEN_V7: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v7.mkt");
 const GOLDEN_V6: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v6.mkt");
 const GOLDEN_V5: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v5.mkt");
 const GOLDEN_V1: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v1.mkt");
@@ -92,7 +93,7 @@ fn the_writer_reproduces_the_golden_file_and_the_spec_shows_it() {
         let end = start + md[start..].find("```").expect("its end");
         std::fs::write(EXAMPLE, format!("{}{}{}", &md[..start], hexdump(&bytes), &md[end..])).unwrap();
     }
-    let golden = std::fs::read(GOLDEN).expect("tests/golden/tiny-v7.mkt");
+    let golden = std::fs::read(GOLDEN).expect("tests/golden/tiny-v9.mkt");
     assert!(bytes == golden, "the writer no longer produces the golden file byte for byte");
     let md = std::fs::read_to_string(EXAMPLE).unwrap();
     assert_eq!(
@@ -109,28 +110,34 @@ fn the_writer_reproduces_the_golden_file_and_the_spec_shows_it() {
 #[test]
 fn an_unknown_version_is_refused_not_guessed() {
     let mut bytes = std::fs::read(GOLDEN).unwrap();
-    bytes[8] = 8;
+    bytes[8] = 10;
     let err = Database::open_on(Arc::new(MemDevice::from_bytes(bytes)) as Arc<dyn BlockDevice>).unwrap_err();
-    assert!(matches!(err, StorageError::UnsupportedVersion { found: 8, supported: 7 }), "{err}");
-    assert!(err.to_string().contains("unsupported format version 8"), "{err}");
+    assert!(matches!(err, StorageError::UnsupportedVersion { found: 10, supported: 9 }), "{err}");
+    assert!(err.to_string().contains("unsupported format version 10"), "{err}");
 }
 
 #[test]
-fn version_1_to_6_files_are_refused_with_their_version() {
-    for (path, found) in
-        [(GOLDEN_V1, 1), (GOLDEN_V2, 2), (GOLDEN_V3, 3), (GOLDEN_V4, 4), (GOLDEN_V5, 5), (GOLDEN_V6, 6)]
-    {
+fn version_1_to_7_files_are_refused_with_their_version() {
+    for (path, found) in [
+        (GOLDEN_V1, 1),
+        (GOLDEN_V2, 2),
+        (GOLDEN_V3, 3),
+        (GOLDEN_V4, 4),
+        (GOLDEN_V5, 5),
+        (GOLDEN_V6, 6),
+        (GOLDEN_V7, 7),
+    ] {
         let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{path}: {e}"));
         assert_eq!(bytes[8], found as u8, "{path} is a version {found} file");
         let err =
             Database::open_on(Arc::new(MemDevice::from_bytes(bytes)) as Arc<dyn BlockDevice>).unwrap_err();
         assert!(
-            matches!(err, StorageError::UnsupportedVersion { found: f, supported: 7 } if f == found),
+            matches!(err, StorageError::UnsupportedVersion { found: f, supported: 9 } if f == found),
             "{err}"
         );
         assert!(
             err.to_string()
-                .contains(&format!("unsupported format version {found} (this build reads version 7)")),
+                .contains(&format!("unsupported format version {found} (this build reads version 9)")),
             "{err}"
         );
     }

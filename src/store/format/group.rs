@@ -193,7 +193,7 @@ mod tests {
             (ENTRIES_START + 8, 0),                  // a blob offset moved
             (ENTRIES_START + 5, 1),                  // reserved
             (FRAME_LEN + 4, 200),                    // entry count
-            (FRAME_LEN, 255),                        // used bytes
+            (FRAME_LEN + 1, 255),                    // used bytes
             (1000, 1),                               // bytes after the used ones
         ] {
             let mut b = good.clone();

@@ -1038,13 +1038,13 @@ mod tests {
             children: [
                 ChildEntry {
                     qbox: [0, 0, 0, 9, 9, 9],
-                    at: RecordRef { block: 0, checksum: 0, offset: 24 + 84 },
+                    at: RecordRef { block: 0, checksum: 0, offset: RECORDS_START as u32 + 84 },
                     node_blocks: 0,
                     geometry_blocks: 1,
                 },
                 ChildEntry {
                     qbox: [9, 9, 9, 99, 99, 99],
-                    at: RecordRef { block: 5, checksum: 1234, offset: 24 },
+                    at: RecordRef { block: 5, checksum: 1234, offset: RECORDS_START as u32 },
                     node_blocks: 1,
                     geometry_blocks: 1,
                 },
@@ -1060,7 +1060,7 @@ mod tests {
         let offsets = encode_block(&drafts(), &mut block).unwrap();
         assert_eq!(validate_block(3, &block, &limits()).unwrap(), offsets);
         let NodeView::Internal(n) = NodeView::at(&block, offsets[0]).unwrap() else { panic!() };
-        assert_eq!(n.child_ref(1), RecordRef { block: 5, checksum: 1234, offset: 24 });
+        assert_eq!(n.child_ref(1), RecordRef { block: 5, checksum: 1234, offset: RECORDS_START as u32 });
         assert_eq!(n.split().axis, Axis::Y);
         let NodeView::Leaf(l) = NodeView::at(&block, offsets[1]).unwrap() else { panic!() };
         assert_eq!(l.len(), 3);
@@ -1140,8 +1140,8 @@ mod tests {
         assert_eq!(children, [(5, 1234)], "the child in this block is not a reference");
         assert_eq!(validate_block(3, &block, &limits()).unwrap(), offsets);
         let NodeView::Internal(n) = NodeView::at(&block, offsets[0]).unwrap() else { panic!() };
-        assert_eq!(n.child_ref(0), RecordRef { block: 0, checksum: 0, offset: 24 + 84 });
-        assert_eq!(n.child_ref(1), RecordRef { block: 105, checksum: 1234 ^ 0xffff, offset: 24 });
+        assert_eq!(n.child_ref(0), RecordRef { block: 0, checksum: 0, offset: RECORDS_START as u32 + 84 });
+        assert_eq!(n.child_ref(1), RecordRef { block: 105, checksum: 1234 ^ 0xffff, offset: RECORDS_START as u32 });
         let NodeView::Leaf(l) = NodeView::at(&block, offsets[1]).unwrap() else { panic!() };
         let (first, sums) = l.geometry();
         assert_eq!((first, sums.collect::<Vec<_>>()), (1009, vec![78]));
@@ -1154,6 +1154,27 @@ mod tests {
         for (i, (a, b)) in before.iter().zip(&block).enumerate() {
             assert!(a == b || moved.contains(&i), "byte {i} changed");
         }
+    }
+
+    #[test]
+    fn group_levels_and_the_group_block_round_trip_and_move() {
+        let mut block = vec![0u8; 1024];
+        let group = GroupRef { block: 9, checksum: 77, levels: vec![0b110, 0b010] };
+        let offsets = encode_block_with_groups(&drafts(), Some(&group), &mut block).unwrap();
+        assert_eq!(validate_block(3, &block, &limits()).unwrap(), offsets);
+        assert_eq!(group_ref(&block), Some((9, 77)));
+        let levels = |o: u32| NodeView::at(&block, o).unwrap().group_levels().collect::<Vec<u8>>();
+        assert_eq!((levels(offsets[0]), levels(offsets[1])), (vec![2, 3], vec![2]));
+        // The frame flag is kept apart from the group levels.
+        assert!(NodeView::at(&block, offsets[1]).unwrap().own_frame().is_none());
+        let child = &mut |b: u32, sum: u32| Ok((b + 100, sum + 1));
+        let span = &mut |first: u32, sums: &[u32]| Ok((first, sums.to_vec()));
+        relocate_block(3, &mut block, &offsets, child, span).unwrap();
+        assert_eq!(group_ref(&block), Some((109, 78)), "the group block moves as a child block");
+        assert!(encode_block_with_groups(&drafts(), Some(&GroupRef { levels: vec![1], ..group }), &mut block).is_err());
+        let mut none = vec![0u8; 1024];
+        encode_block(&drafts(), &mut none).unwrap();
+        assert_eq!(group_ref(&none), None);
     }
 
     #[test]
@@ -1173,9 +1194,14 @@ mod tests {
             (keys, 5),
             (keys + 10, 9),
             (keys + 15, 1),
-            (24, 7),
+            (RECORDS_START, 7),
             (16, 1),
-            (24 + 20 + 16, 1),
+            (RECORDS_START + 20 + 16, 1),
+            // A group level with no group block, a group block no record names.
+            (RECORDS_START + 2, 1 << 1),
+            (FRAME_LEN + 8, 9),
+            // A group level at M (level 4 of a file of M = 4).
+            (RECORDS_START + 2, 1 << 3),
             (1000, 1),
             (offsets[1] as usize + 20 + 4, 99),
             (third, 3),
