@@ -102,6 +102,14 @@ fn node_block_with_bounds(file: &[u8], m: u8) -> &[u8] {
         .expect("a node block with inline bounds")
 }
 
+/// The first group-bound block of `file` (format-spec/group.md).
+fn group_block(file: &[u8]) -> &[u8] {
+    (1..file.len() / BS)
+        .map(|i| &file[i * BS..(i + 1) * BS])
+        .find(|b| b[4] == BlockType::Group as u8)
+        .expect("a group-bound block")
+}
+
 /// Inline bounds in the records of a node block that validates (only leaf
 /// records hold bounds).
 fn bound_count(block: &[u8], m: u8) -> usize {
@@ -153,6 +161,7 @@ fn v9_seeds() -> Vec<(&'static str, &'static str, Vec<u8>)> {
     vec![
         ("decode_block", "v9-node-block-store-all", with_m(4, node_block_with_bounds(&all, 4))),
         ("decode_block", "v9-node-block-golden", with_m(3, node_block_with_bounds(&golden, 3))),
+        ("decode_block", "v9-group-block", with_m(4, group_block(&all))),
         ("decode_block", "v9-blob-bitmap", with_m(1, &blob(true))),
         ("decode_block", "v9-blob-boxes", with_m(1, &blob(false))),
         ("open_and_query", "tiny-v9", golden),
@@ -185,6 +194,11 @@ fn the_v9_seeds_are_current_files_blocks_and_blobs() {
                     assert!(img.blocks_of(BlockType::Node).len() > 1, "{name} has several node blocks");
                     assert!(info.stored[1] > 0 && info.stored[2] > 0, "{name} has bounds of levels 2 and 3");
                 }
+            }
+            (_, "v9-group-block") => {
+                let entries = mktree::store::format::group::validate(7, &seed[1..], seed[0] % 16 + 1)
+                    .unwrap_or_else(|e| panic!("{name}: {e}"));
+                assert!(entries.len() > 1, "{name} holds several group bounds");
             }
             (_, n) if n.starts_with("v9-node-block") => {
                 let m = seed[0] % 16 + 1;
