@@ -19,7 +19,7 @@ use crate::store::{Block, StorageError};
 pub struct GroupLevel {
     /// k.
     pub level: u8,
-    /// Nodes whose b(S_n,k) is stored (the paper's bFits[k] true).
+    /// Nodes whose b(S_n,k) is stored (the paper's `bFits[k]` true).
     pub stored: u64,
     /// Their blobs' bytes.
     pub bytes: u64,

@@ -1,11 +1,11 @@
 //! A node's levels of detail as the paper's queries ask for them (§1.4):
 //! b(S_n,k) or B(S_n,k) fetched with the number of block reads the records
 //! predict. A node's group bound b(S_n,k), where its record's flags say its
-//! block's group block holds it (bFits[k]), is that one block (bPage[k],
+//! block's group block holds it (`bFits[k]`), is that one block (`bPage[k]`,
 //! format-spec/group.md). Otherwise a level is gathered from the node's
 //! subtree, whose objects' bounds lie inline in the leaf records: its node
 //! blocks (level < M) and its geometry blocks too (level M), counts its
-//! parent's entry holds (format-spec/node.md): the paper's BPage[k].
+//! parent's entry holds (format-spec/node.md): the paper's `BPage[k]`.
 
 use std::sync::Arc;
 

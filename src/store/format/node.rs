@@ -762,7 +762,7 @@ impl<'a> NodeView<'a> {
     }
 
     /// The levels k whose group bound b(S_n,k) the block's group block
-    /// holds for this record (the paper's bFits[k]), coarse to fine.
+    /// holds for this record (the paper's `bFits[k]`), coarse to fine.
     pub fn group_levels(&self) -> impl Iterator<Item = u8> + use<> {
         let flags = match self {
             NodeView::Internal(n) => n.raw.flags,
