@@ -2,11 +2,14 @@
 //! streams, refining a tile when its geometric error, projected to the
 //! screen, passes its pixel threshold, the same test the view query makes.
 //!
-//! One tile per node, REPLACE refinement: an internal node shows its box
-//! b(S_n,1) (error: the box's diagonal); a leaf shows its objects' stand-ins,
-//! each object by its finest stored bound below M or its box, whichever is
-//! closer (error: the largest over the objects), and has one child tile
-//! with the exact objects (error 0). Errors are in metres, as 3D Tiles has
+//! One tile per node, REPLACE refinement (hierarchical levels of detail):
+//! an internal node shows its finest stored group bound b(S_n,k)
+//! (format-spec/group.md; error: its largest cell's diagonal), or its box
+//! b(S_n,1) where it stores none (error: the box's diagonal); a leaf shows
+//! its group bound, or its objects' stand-ins (each object by its finest
+//! stored bound below M or its box, whichever is closer), whichever is
+//! within less (error: the group bound's, or the largest over the
+//! objects), and has one child tile with the exact objects (error 0). Errors are in metres, as 3D Tiles has
 //! them. Coordinates stay in millimetres relative to an anchor (the scene
 //! box's lower corner), so f32 positions keep the file's precision; the root
 //! tile's transform scales them to metres and moves them to the anchor.
@@ -128,11 +131,20 @@ impl Writer<'_> {
                 for k in kids {
                     tiles.push(self.tile(k.index())?);
                 }
-                let box_mesh = Shape::Box(node.aabb).mesh();
-                (vec![(box_mesh, level_colour(Bound::NodeBox, 1, self.m))], node.aabb.extent().norm(), tiles)
+                match self.group(id as u32)? {
+                    Some((content, error)) => (content, error, tiles),
+                    None => {
+                        let box_mesh = Shape::Box(node.aabb).mesh();
+                        let colour = level_colour(Bound::NodeBox, 1, self.m);
+                        (vec![(box_mesh, colour)], node.aabb.extent().norm(), tiles)
+                    }
+                }
             }
             None => {
-                let (stand_ins, error) = self.stand_ins(id as u32)?;
+                let (stand_ins, error) = match (self.stand_ins(id as u32)?, self.group(id as u32)?) {
+                    ((_, e), Some((g, ge))) if ge <= e => (g, ge),
+                    (objects, _) => objects,
+                };
                 let exact = self.exact(id as u32)?;
                 let name = format!("n{id}-exact.glb");
                 let written = self.write_glb(&name, &exact)?;
@@ -150,6 +162,28 @@ impl Writer<'_> {
         self.report.tiles += 1;
         let uri = own.is_some().then_some(name.as_str());
         Ok((tile_json(&bounds, error_mm * 1e-3, uri, kids), bounds))
+    }
+
+    /// Node `id`'s finest stored group bound as a mesh, and its error (mm).
+    fn group(&mut self, id: u32) -> Result<Option<(Content, f64)>, TilesError> {
+        // The record's flags say which levels are stored: a level that is
+        // not would be gathered from the whole subtree.
+        let (at, _) = self.txn.locate(id)?;
+        let block = self.txn.block(
+            at.block,
+            crate::store::format::frame::BlockType::Node,
+            at.checksum,
+            &mut crate::db::Reads::new(None),
+        )?;
+        let finest = crate::db::view(&block, at.offset)?.group_levels().max();
+        if let Some(k) = finest {
+            let level = self.txn.fetch_level(id, k, false, &mut self.report.reads)?;
+            if let Some(Piece::Group { voxels, level, .. }) = level.pieces.first() {
+                let colour = level_colour(Bound::GroupBound, *level, self.m);
+                return Ok(Some((vec![(voxels.boundary_mesh(), colour)], voxels.grid().max_cell_diagonal())));
+            }
+        }
+        Ok(None)
     }
 
     /// `b` in the tiles' coordinates (mm from the anchor).

@@ -1,5 +1,7 @@
 //! Claim: the 3D Tiles export is a tileset a viewer can stream: one tile
-//! per node (and an exact child per leaf), REPLACE refinement, geometric
+//! per node (and an exact child per leaf), REPLACE refinement, internal
+//! tiles drawn from their nodes' group bounds (hierarchical levels of
+//! detail: more than a box, with the bound's error), geometric
 //! errors in metres that never grow from a tile to its children, each
 //! tile's box holding its children's and its content's, millimetres and the
 //! anchor in the root's transform, and .glb files that parse as glTF and
@@ -32,6 +34,9 @@ fn holds(outer: &[[f64; 2]; 3], inner: &[[f64; 2]; 3], slack: f64) -> bool {
 struct Walk {
     tiles: u64,
     exact_triangles: u64,
+    /// Internal tiles whose content has more than a box's 12 triangles.
+    shaped: u64,
+    internal: u64,
     dir: std::path::PathBuf,
 }
 
@@ -42,6 +47,8 @@ impl Walk {
         let error = t["geometricError"].as_f64().unwrap();
         assert!(error >= 0.0 && error <= parent_error, "error {error} m under a parent of {parent_error} m");
         let b = tile_box(t);
+        let internal = t["children"].as_array().is_some_and(|c| c.len() == 2);
+        self.internal += u64::from(internal);
         if let Some(uri) = t["content"]["uri"].as_str() {
             let bytes = std::fs::read(self.dir.join(uri)).unwrap();
             let g = gltf::Gltf::from_slice(&bytes).unwrap_or_else(|e| panic!("{uri}: {e}"));
@@ -53,8 +60,12 @@ impl Walk {
                     // glTF's (x, z, -y) back to the tiles' (x, y, z).
                     let content = [[f(&lo, 0), f(&hi, 0)], [-f(&hi, 2), -f(&lo, 2)], [f(&lo, 1), f(&hi, 1)]];
                     assert!(holds(&b, &content, 1e-3), "{uri}: content {content:?} outside its tile {b:?}");
+                    let triangles = p.indices().unwrap().count() as u64 / 3;
                     if uri.ends_with("-exact.glb") {
-                        self.exact_triangles += p.indices().unwrap().count() as u64 / 3;
+                        self.exact_triangles += triangles;
+                    }
+                    if internal && triangles > 12 {
+                        self.shaped += 1;
                     }
                 }
             }
@@ -89,13 +100,18 @@ fn tanker1_exports_as_a_tileset_of_one_tile_per_node() {
     for (i, c) in [a.x, a.y, a.z].iter().enumerate() {
         assert!((t[12 + i] - c * 1e-3).abs() < 1e-12, "the anchor in metres");
     }
-    // The root's error: its box's diagonal, in metres.
+    // The root's error: its finest group bound's, in metres (its largest
+    // cell's diagonal), well under the scene's diagonal (a box's error).
+    let groups = r.group_summary().unwrap();
+    let finest = groups.levels.iter().rev().find_map(|l| l.root_eps_mm).expect("the root has a group bound");
     let d = scene.aabb().extent().norm() * 1e-3;
     let e = root["geometricError"].as_f64().unwrap();
-    assert!(e >= d * (1.0 - 1e-9) && e <= d * 1.01, "{e} m against the scene's diagonal {d} m");
-    let mut walk = Walk { tiles: 0, exact_triangles: 0, dir: out.clone() };
+    assert_eq!(e, finest * 1e-3, "the root's error is its group bound's");
+    assert!(e < d / 4.0, "{e} m against the scene's diagonal {d} m");
+    let mut walk = Walk { tiles: 0, exact_triangles: 0, shaped: 0, internal: 0, dir: out.clone() };
     walk.tile(root, tileset["geometricError"].as_f64().unwrap());
     assert_eq!(walk.tiles, report.tiles);
+    assert_eq!(walk.shaped, walk.internal, "every internal tile shows more than a box");
     let triangles: u64 = scene.objects().iter().map(|o| o.mesh.triangle_count() as u64).sum();
     assert_eq!(walk.exact_triangles, triangles, "every triangle once in the exact tiles");
     // The official validator, when it is installed.

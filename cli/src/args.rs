@@ -573,6 +573,10 @@ pub struct LodArgs {
     /// Store every object's bound at every level below M, whether it pays or not.
     #[arg(long)]
     pub lod_store_all: bool,
+    /// Store no group bounds b(S_n,k) (format-spec/group.md): the tree as
+    /// format version 7 laid it out, to compare.
+    #[arg(long)]
+    pub no_group_bounds: bool,
 }
 
 impl LodArgs {
@@ -580,6 +584,7 @@ impl LodArgs {
         mktree::lod::LodParams {
             eps: self.lod_eps.clone(),
             store_all: self.lod_store_all,
+            group_bounds: !self.no_group_bounds,
             ..mktree::lod::LodParams::default()
         }
     }

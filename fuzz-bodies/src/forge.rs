@@ -18,6 +18,8 @@ pub enum Kind {
     Node,
     Geometry,
     FreeList,
+    /// A group-bound block (format-spec/group.md), named from a node block's head.
+    Group,
     /// A key index block `level` levels above the leaves (0: a key leaf).
     Key {
         level: u32,
@@ -99,7 +101,8 @@ pub struct BoundAt {
 
 const INTERNAL_LEN: usize = 84;
 const FRAME_BOX_LEN: usize = 48;
-const RECORDS_START: usize = 24;
+/// Node block records start after the frame and the 16-byte head (format-spec/node.md, version 9).
+const RECORDS_START: usize = 32;
 
 /// A file's bytes in blocks of `bs` bytes.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -232,6 +235,11 @@ impl Image {
             }
             Kind::Node => {
                 let mut out = Vec::new();
+                // The head's group block (at 24) and its checksum (at 28).
+                let group = self.u32(base + 24);
+                if group != 0 {
+                    out.push(r(base + 28, group, Kind::Group));
+                }
                 for rec in self.records(id) {
                     match rec {
                         Record::Internal { at } => {
@@ -260,7 +268,7 @@ impl Image {
                 next => vec![r(base + 20, next, Kind::FreeList)],
             },
             Kind::Key { level } => self.key_references(base, level),
-            Kind::Geometry => Vec::new(),
+            Kind::Geometry | Kind::Group => Vec::new(),
         }
     }
 
@@ -504,6 +512,16 @@ impl Image {
             for e in self.key_entries(kb, false) {
                 if self.u32(e + 4) == id && moved(self.u32(e + 12)) {
                     fixes.push((e + 12, shift(self.u32(e + 12))));
+                }
+            }
+        }
+        // The block's group block names its records' group bounds by offset
+        // (format-spec/group.md: entries of 12 bytes from 24, `record` first).
+        if let Some(g) = self.base(self.u32(base + 24)).filter(|_| self.u32(base + 24) != 0) {
+            for i in 0..usize::from(self.u16(g + 20)) {
+                let e = g + 24 + 12 * i;
+                if e + 4 <= g + self.bs && moved(self.u32(e)) {
+                    fixes.push((e, shift(self.u32(e))));
                 }
             }
         }

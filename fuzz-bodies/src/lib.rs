@@ -30,7 +30,7 @@ use mktree::store::format::freelist::FreeListBlock;
 use mktree::store::format::meta::Meta;
 use mktree::store::format::node::{self, Limits};
 use mktree::store::format::quant::QuantBox;
-use mktree::store::format::{frame, geometry, keys};
+use mktree::store::format::{frame, geometry, group, keys};
 
 /// Makes the calling thread rayon's one worker, for a fuzz target's
 /// process (its `init`): the bodies' parallel work (a write's layout and
@@ -111,6 +111,25 @@ pub fn decode_block(data: &[u8]) {
             );
         }
     }
+    // A validated group block's entries are found and re-encode to its own bytes.
+    if let Ok(entries) = group::validate(7, &block, m) {
+        let mut drafts = Vec::new();
+        for (record, level, range) in &entries {
+            let blob = group::find(&block, &entries, *record, *level)
+                .unwrap_or_else(|| panic!("entry ({record}, {level}) validated but is not found"));
+            assert_eq!(blob, &block[range.clone()]);
+            let _ = mktree::lod::decode(blob, &lattice, &Aabb::from_array([0.0, 0.0, 0.0, 40.0, 30.0, 20.0]));
+            drafts.push(group::GroupEntry { record: *record, level: *level, blob: blob.to_vec() });
+        }
+        let mut again = vec![0u8; block.len()];
+        group::encode(&drafts, &mut again)
+            .unwrap_or_else(|e| panic!("a validated group block does not encode: {e}"));
+        assert_eq!(
+            again[frame::FRAME_LEN..],
+            block[frame::FRAME_LEN..],
+            "a group block's encoding is canonical"
+        );
+    }
     let _ = FreeListBlock::decode(7, &block);
     let _ = mktree::lod::decode(rest, &lattice, &Aabb::from_array([0.0, 0.0, 0.0, 40.0, 30.0, 20.0]));
     let _ = geometry::decode_object(7, rest);
@@ -141,6 +160,25 @@ pub fn open_and_query(data: &[u8]) {
         );
         let _ = read_hierarchy(&r);
         let _ = r.names();
+        // Views read group bounds (format-spec/group.md), with and without a budget.
+        let _ = r.group_summary();
+        if let Some(b) = r.info().map(|i| Aabb::from_array(i.scene_box)) {
+            let eye = mktree::geom::Point::new(b.min.x - 1000.0, b.center().y - 700.0, b.center().z + 300.0);
+            let view = mktree::query::View {
+                eye,
+                target: b.center(),
+                fov_deg: 60.0,
+                width_px: 64,
+                height_px: 48,
+                near_mm: 1.0,
+                far_mm: 1.0,
+            }
+            .seeing_all_of(&b);
+            for (tolerance_px, budget) in [(4.0, None), (1.0, Some(3))] {
+                let opts = mktree::query::ViewOptions { tolerance_px, budget, shapes: true };
+                let _ = r.view(&view, &opts, None);
+            }
+        }
         if let Some(info) = r.info() {
             for k in 1..=info.lod_levels {
                 for objects in [false, true] {

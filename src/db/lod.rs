@@ -1,9 +1,11 @@
 //! A node's levels of detail as the paper's queries ask for them (§1.4):
 //! b(S_n,k) or B(S_n,k) fetched with the number of block reads the records
-//! predict. In this format every bound below M lies inline in the leaf
-//! records, so a level is gathered from the node's subtree: its node blocks
-//! (level < M) and its geometry blocks too (level M), counts its parent's
-//! entry holds (format-spec/node.md).
+//! predict. A node's group bound b(S_n,k), where its record's flags say its
+//! block's group block holds it (`bFits[k]`), is that one block (`bPage[k]`,
+//! format-spec/group.md). Otherwise a level is gathered from the node's
+//! subtree, whose objects' bounds lie inline in the leaf records: its node
+//! blocks (level < M) and its geometry blocks too (level M), counts its
+//! parent's entry holds (format-spec/node.md): the paper's `BPage[k]`.
 
 use std::sync::Arc;
 
@@ -28,6 +30,8 @@ pub enum Piece {
     ObjectVoxels(Vec<(ObjectId, Voxels)>),
     /// Level M: exact objects.
     Objects(Vec<(ObjectId, Mesh)>),
+    /// b(S_n,k), 2 <= k < M: node `node`'s group bound, as stored.
+    Group { node: u32, level: u8, voxels: Voxels },
 }
 
 impl Piece {
@@ -39,6 +43,7 @@ impl Piece {
             Piece::ObjectBoxes(b) => 6 * b.len() as u64,
             Piece::ObjectVoxels(v) => v.iter().map(|(_, v)| v.faces() as u64).sum(),
             Piece::Objects(o) => o.iter().map(|(_, m)| m.triangle_count() as u64).sum(),
+            Piece::Group { voxels, .. } => voxels.faces() as u64,
         }
     }
 }
@@ -199,6 +204,18 @@ impl ReadTransaction {
         }
         let mut reads = Reads::new(None);
         let held = self.block(at.block, BlockType::Node, at.checksum, &mut Reads::new(None))?;
+        // b(S_n,k) stored in the block's group block: that block, one read.
+        if !objects && k < m {
+            let mut group_reads = Reads::new(None);
+            if let Some(voxels) = self.group_bound(&held, at.offset, &at.aabb, k, &mut group_reads)? {
+                *stats += group_reads.stats;
+                return Ok(Level {
+                    bytes: crate::lod::encoded_len(&voxels) as u64,
+                    pieces: vec![Piece::Group { node, level: k, voxels }],
+                    predicted_reads: 1,
+                });
+            }
+        }
         reads.hold(held);
         let mut gather = Gather::default();
         let opts = QueryOptions { lod: Some(k), budget: None, ..Default::default() };

@@ -5,6 +5,7 @@
 
 mod check;
 mod codes;
+mod group;
 mod hierarchy;
 mod hosted;
 mod key_index;
@@ -24,6 +25,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 
 pub use check::{CheckReport, check};
 pub use codes::{method_from_code, method_to_code};
+pub use group::{GroupLevel, GroupSummary};
 pub use hierarchy::read_hierarchy;
 pub(crate) use hosted::Host;
 pub use key_index::ObjectRecord;

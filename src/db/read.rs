@@ -12,6 +12,7 @@ use crate::scene::{Mesh, ObjectId};
 use crate::store::format::frame::BlockType;
 use crate::store::format::geometry;
 use crate::store::format::keys;
+use crate::store::format::group;
 use crate::store::format::node::{self, LeafView, Limits, NodeView, RecordRef};
 use crate::store::{Block, BlockCache, Pager, ReadStats, StorageError};
 
@@ -292,7 +293,11 @@ impl ReadTransaction {
                     BlockType::KeyBranch => keys::validate(id, &bytes, false)?,
                     _ => Vec::new(),
                 };
-                let b = Arc::new(Block { id, checksum: sum, bytes, records });
+                let groups = match t {
+                    BlockType::Group => group::validate(id, &bytes, self.pager().lod_levels())?,
+                    _ => Vec::new(),
+                };
+                let b = Arc::new(Block { id, checksum: sum, bytes, records, groups });
                 if let Some(c) = reads.shared {
                     c.put(b.clone());
                 }

@@ -15,10 +15,11 @@ use super::source::ObjectSource;
 use crate::bulk::{Hierarchy, LoadProgress, Order, QueryMix, Split, Stage, StageMeter};
 use crate::geom::Aabb;
 use crate::lod::LeafEntry;
-use crate::lod::{StoredBounds, Voxels};
+use crate::lod::{GroupRule, StoredBounds, Voxels, leaf_group, lift_group};
 use crate::scene::{Key, Mesh, ObjectId};
 use crate::store::format::frame::{BlockType, FRAME_LEN};
 use crate::store::format::geometry::{self, Placement};
+use crate::store::format::group::{self, GroupEntry};
 use crate::store::format::keys::TreePath;
 use crate::store::format::node::{
     self, BoundEntry, ChildEntry, ObjectEntry, RecordDraft, RecordRef, SplitInfo, leaf_len,
@@ -513,6 +514,7 @@ pub(crate) fn write(
     tree: &Hierarchy,
     plan: &Plan,
     bounds: &[Vec<BoundEntry>],
+    groups: Option<&GroupRule>,
     progress: &(dyn Fn(LoadProgress) + Sync),
 ) -> Result<Written, StorageError> {
     let bs = pager.block_size();
@@ -590,6 +592,21 @@ pub(crate) fn write(
             offset[m as usize] = at;
             at += sizes[m as usize] as u32;
         }
+    }
+    // The group bounds, each node block's in a group block of its own.
+    let group_entries = match groups {
+        Some(rule) => group_entries(rule, objects, tree, plan, &packing, &offset, bs)?,
+        None => vec![Vec::new(); packing.blocks.len()],
+    };
+    let group_count = group_entries.iter().filter(|e| !e.is_empty()).count();
+    let first_group = if group_count > 0 { allocate(group_count as u32)? } else { 0 };
+    let mut group_refs: Vec<Option<(u32, u32)>> = vec![None; packing.blocks.len()];
+    for (b, id) in
+        group_entries.iter().enumerate().filter(|(_, e)| !e.is_empty()).map(|(b, _)| b).zip(first_group..)
+    {
+        let mut bytes = vec![0u8; bs as usize];
+        group::encode(&group_entries[b], &mut bytes).map_err(invalid)?;
+        group_refs[b] = Some((id, pager.write(id, &mut bytes, BlockType::Group, txn)?));
     }
     let below = node_blocks_below(n, &packing.place, |i| nodes[i].children().map(|c| c.map(|x| x.index())));
     let subtree_leaves = |i: usize| -> (usize, usize) {
@@ -674,7 +691,19 @@ pub(crate) fn write(
             })
             .collect();
         let mut bytes = vec![0u8; bs as usize];
-        node::encode_block(&records, &mut bytes).map_err(invalid)?;
+        let group = group_refs[b].map(|(block, checksum)| {
+            let levels = packing.blocks[b]
+                .iter()
+                .map(|&m| {
+                    group_entries[b]
+                        .iter()
+                        .filter(|e| e.record == offset[m as usize])
+                        .fold(0u8, |mask, e| mask | 1 << (e.level - 1))
+                })
+                .collect();
+            node::GroupRef { block, checksum, levels }
+        });
+        node::encode_block_with_groups(&records, group.as_ref(), &mut bytes).map_err(invalid)?;
         node_bytes += records.iter().map(|r| r.encoded_len() as u64).sum::<u64>();
         checksums[b] = pager.write(first_node + b as u32, &mut bytes, BlockType::Node, txn)?;
     }
@@ -713,6 +742,83 @@ pub(crate) fn write(
         paths,
         split_boxes,
     })
+}
+
+/// Every node's group bounds b(S_n,k) (`lod/group.rs`), built bottom up
+/// over the boxes the records hold, and per node block the entries its
+/// group block holds: level by level, coarse first, and within a level in
+/// the block's record order (a piece's root first), each that still fits.
+fn group_entries(
+    rule: &GroupRule,
+    objects: &dyn ObjectSource,
+    tree: &Hierarchy,
+    plan: &Plan,
+    packing: &Packing,
+    offset: &[u32],
+    block_size: u32,
+) -> Result<Vec<Vec<GroupEntry>>, StorageError> {
+    let nodes = &tree.nodes;
+    let levels: Vec<u8> = rule.group_levels().collect();
+    let lod = |e: crate::lod::LodError| StorageError::Invalid(format!("a group bound: {e}"));
+    // Per node, per level: the encoded bound (None: not stored, the level
+    // answers as the coarser one, or the bound is empty).
+    let mut blobs: Vec<Vec<Option<Vec<u8>>>> = vec![Vec::new(); nodes.len()];
+    // The bounds of nodes whose parent is not built yet (preorder: children
+    // come after their parent, so walking ids down builds children first).
+    let mut held: HashMap<usize, Vec<Voxels>> = HashMap::new();
+    for i in (0..nodes.len()).rev() {
+        let mut mine: Vec<Voxels> = Vec::with_capacity(levels.len());
+        let kids: Option<Vec<Vec<Voxels>>> = nodes[i]
+            .children()
+            .map(|c| c.iter().map(|c| held.remove(&c.index()).unwrap_or_default()).collect());
+        let meshes: Vec<Cow<Mesh>> = match &kids {
+            Some(_) => Vec::new(),
+            None => (0..plan.entries[i].len())
+                .map(|j| plan.entry_mesh(objects, i, j))
+                .collect::<Result<_, _>>()?,
+        };
+        let mut out = Vec::with_capacity(levels.len());
+        let mut last_level = None;
+        for (li, &k) in levels.iter().enumerate() {
+            let grid = rule.grid(k, &plan.frames[i]).map_err(lod)?;
+            let lattice_level = grid.level();
+            let v = match &kids {
+                Some(kids) => lift_group(grid, kids.iter().filter_map(|k| k.get(li))).map_err(lod)?,
+                None => leaf_group(grid, meshes.iter().map(|m| m.as_ref())),
+            };
+            // A level on the same grid as the coarser one holds the same bound.
+            let same = last_level == Some(lattice_level);
+            last_level = Some(lattice_level);
+            out.push((!same && !v.is_empty()).then(|| crate::lod::encode(&v)));
+            mine.push(v);
+        }
+        blobs[i] = out;
+        if i > 0 {
+            held.insert(i, mine);
+        }
+    }
+    let capacity = group::capacity(block_size);
+    let mut per_block = Vec::with_capacity(packing.blocks.len());
+    for members in &packing.blocks {
+        let mut chosen: Vec<GroupEntry> = Vec::new();
+        let mut used = group::entries_len(&[]);
+        for (li, &k) in levels.iter().enumerate() {
+            for &m in members {
+                let Some(Some(blob)) = blobs[m as usize].get_mut(li) else { continue };
+                if used + group::ENTRY_LEN + blob.len() <= capacity {
+                    used += group::ENTRY_LEN + blob.len();
+                    chosen.push(GroupEntry {
+                        record: offset[m as usize],
+                        level: k,
+                        blob: std::mem::take(blob),
+                    });
+                }
+            }
+        }
+        chosen.sort_by_key(|e| (e.record, e.level));
+        per_block.push(chosen);
+    }
+    Ok(per_block)
 }
 
 /// A node's split as its record stores it.

@@ -16,7 +16,7 @@ use crate::bulk::{
     BuildParams, BuildProgress, CostModel, Hierarchy, LoadProgress, QueryMix, Stage, StageMeter, build_owned,
     check_range,
 };
-use crate::lod::{EntryMesh, Layout, LodError, LodParams, LodPlan, StoredBounds, plan_bounds};
+use crate::lod::{EntryMesh, GroupRule, Layout, LodError, LodParams, LodPlan, StoredBounds, plan_bounds};
 use crate::scene::{Key, KeyError, Object, ObjectId, Scene};
 use crate::store::StorageError;
 use crate::store::alloc::{FreeSpace, label_freed};
@@ -577,6 +577,15 @@ impl<'db> WriteTransaction<'db> {
             stored
         };
         let txn = self.txn;
+        let group_rule = match (&lod_plan, self.lod_params.group_bounds) {
+            (Some(p), true) => Some(GroupRule {
+                lattice: p.lattice,
+                levels: m,
+                floor: p.grid_level.clone(),
+                cuberille_bits: self.lod_params.cuberille_bits,
+            }),
+            _ => None,
+        };
         let written = {
             let allocate = &mut |count: u32| self.allocate(count);
             tree_writer::write(
@@ -585,6 +594,7 @@ impl<'db> WriteTransaction<'db> {
                 tree,
                 &plan,
                 &stored.bounds,
+                group_rule.as_ref(),
                 progress,
             )?
         };

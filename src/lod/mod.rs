@@ -2,7 +2,8 @@
 //! polyhedra at fixed lattice levels, built over objects' surfaces
 //! (`voxelize.rs`), stored inline in node records as compact blobs
 //! (`compact.rs`), and only where the query model says they pay
-//! (`policy.rs`).
+//! (`policy.rs`); and the group bounds b(S_n,k) of nodes, built bottom up
+//! and stored in group blocks (`group.rs`).
 //!
 //! Every grid sits on one global [`Lattice`], so levels nest: a grid at
 //! lattice level j over R' ⊆ R refines the grid at level j' >= j over R.
@@ -15,6 +16,7 @@ mod error;
 mod error_measure;
 mod faces;
 mod grid;
+mod group;
 mod inside;
 mod interior;
 mod lattice;
@@ -28,6 +30,7 @@ pub use compact::{aligned_grid, decode, encode, encoded_len};
 pub use error::LodError;
 pub use error_measure::{ErrorProbe, measured_error};
 pub use grid::{Grid, MAX_CELLS, MAX_DIM};
+pub use group::{GroupRule, LEVEL_FACTOR, leaf_group, lift_group};
 pub use lattice::Lattice;
 pub use plan::{LodParams, LodPlan};
 pub(crate) use policy::bound_grid;

@@ -23,6 +23,9 @@ pub struct LodParams {
     /// Store every object's bound at every level 2 .. M-1, paying or not
     /// (to measure what each level could give, and in tests).
     pub store_all: bool,
+    /// Store the nodes' group bounds b(S_n,k) in group blocks
+    /// (format-spec/group.md), as many as each node block's group block holds.
+    pub group_bounds: bool,
 }
 
 impl Default for LodParams {
@@ -34,6 +37,7 @@ impl Default for LodParams {
             error_samples: 64,
             model_samples: 64,
             store_all: false,
+            group_bounds: true,
         }
     }
 }

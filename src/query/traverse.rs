@@ -46,7 +46,7 @@ use crate::geom::Aabb;
 use crate::lod::Voxels;
 use crate::scene::{Key, Mesh, ObjectId};
 use crate::store::format::geometry;
-use crate::store::format::node::{BoundView, LeafView, NodeView, RecordRef};
+use crate::store::format::node::{BoundView, InternalView, LeafView, NodeView, RecordRef};
 use crate::store::format::quant::QuantBox;
 use crate::store::{Block, BlockCache, ReadStats, StorageError};
 
@@ -191,6 +191,9 @@ enum Step {
     /// Best first: an object at its exact distance, yielded when nothing
     /// left in the queue can be nearer.
     Found { object: u32, aabb: Aabb, key: Key, distance: f64 },
+    /// Stand-ins with a budget: a record in hand shown by its group bound
+    /// b(S_n,`level`), within `eps` mm of its objects, until it is refined.
+    Group { block: Arc<Block>, offset: u32, frame: Aabb, name: NodeName, level: u8, eps: f64, voxels: Voxels },
 }
 
 /// A step in the queue: the greatest (`priority`, then `tie`) goes first.
@@ -257,6 +260,18 @@ pub(crate) trait Visitor {
     /// A query that takes stand-ins: node `name`, whose box is `frame`,
     /// stands in for its subtree (settled, or set aside by the budget).
     fn stand_in(&mut self, _name: &NodeName, _frame: &Aabb) -> Result<(), StorageError> {
+        Ok(())
+    }
+    /// A query that takes stand-ins: node `name`'s group bound b(S_n,k),
+    /// `voxels` within `eps` mm of its objects, stands in for its subtree.
+    fn group(
+        &mut self,
+        _name: &NodeName,
+        _frame: &Aabb,
+        _level: u8,
+        _voxels: &Voxels,
+        _eps: f64,
+    ) -> Result<(), StorageError> {
         Ok(())
     }
 }
@@ -332,6 +347,9 @@ pub struct Select<'a, S> {
     started: Instant,
     /// Set when the queue is spent (or an error ended it).
     rest: Option<Rest>,
+    /// Stand-ins: how the file's group bounds are gridded (their errors
+    /// are known from a record's box before its bound is read).
+    groups: Option<crate::lod::GroupRule>,
 }
 
 impl<'a, S: Selection> Select<'a, S> {
@@ -380,7 +398,11 @@ impl<'a, S: Selection> Select<'a, S> {
             },
             started: Instant::now(),
             rest: None,
+            groups: None,
         };
+        if s.sel.tolerance().is_some() {
+            s.groups = txn.group_rule();
+        }
         // A budgeted query's costs count the blocks it holds: it holds all
         // it reads (at most its budget).
         s.reads.keep_all(opts.budget.is_some());
@@ -567,6 +589,13 @@ impl<'a, S: Selection> Select<'a, S> {
                     }
                 }
                 Step::Found { .. } => {}
+                Step::Group { frame, name, level, eps, voxels, .. } => {
+                    rest.unexplored_nodes += 1;
+                    rest.level_reached = rest.level_reached.min(level);
+                    if let Some(visitor) = self.visitor.as_deref_mut() {
+                        visitor.group(&name, &frame, level, &voxels, eps)?;
+                    }
+                }
             }
         }
         rest.maybe.sort_unstable();
@@ -583,10 +612,53 @@ impl<'a, S: Selection> Select<'a, S> {
             return Ok(false);
         };
         if !self.settles(frame, frame.extent().norm()) {
-            return Ok(false);
+            return self.settled_by_group(step);
         }
         if let Some(visitor) = self.visitor.as_deref_mut() {
             visitor.stand_in(name, frame)?;
+        }
+        Ok(true)
+    }
+
+    /// The group levels of a record in hand, coarse to fine, each with its
+    /// error in mm (from the record's box: no read), and the reads of its
+    /// group block (0 when held, or when the record stores none).
+    fn group_levels(
+        &self,
+        block: &Block,
+        offset: u32,
+        frame: &Aabb,
+    ) -> Result<(Vec<(u8, f64)>, u64), StorageError> {
+        let Some(rule) = &self.groups else { return Ok((Vec::new(), 0)) };
+        let record = view(block, offset)?;
+        let frame = record.frame(*frame);
+        let levels: Vec<(u8, f64)> =
+            record.group_levels().filter_map(|k| Some((k, rule.eps(k, &frame)?))).collect();
+        let cost = match crate::store::format::node::group_ref(block.bytes()) {
+            Some((g, _)) if !levels.is_empty() => u64::from(!self.reads.holds(g)),
+            _ => 0,
+        };
+        Ok((levels, cost))
+    }
+
+    /// A query that takes stand-ins settles a record in hand by its
+    /// coarsest group bound b(S_n,k) whose error is within the tolerance,
+    /// reading its group block (when the budget allows) and nothing below.
+    fn settled_by_group(&mut self, step: &Step) -> Result<bool, StorageError> {
+        let Step::Node { block, offset, frame, name, .. } = step else { return Ok(false) };
+        let (levels, cost) = self.group_levels(block, *offset, frame)?;
+        let Some(&(k, eps)) = levels.iter().find(|(_, eps)| self.settles(frame, *eps)) else {
+            return Ok(false);
+        };
+        if self.over_budget(cost) {
+            return Ok(false);
+        }
+        let Some(v) = self.txn.group_bound(block, *offset, frame, k, &mut self.reads)? else {
+            return Ok(false);
+        };
+        let frame = view(block, *offset)?.frame(*frame);
+        if let Some(visitor) = self.visitor.as_deref_mut() {
+            visitor.group(name, &frame, k, &v, eps)?;
         }
         Ok(true)
     }
@@ -601,6 +673,33 @@ impl<'a, S: Selection> Select<'a, S> {
         Ok(match step {
             Step::Unread { at, .. } => u64::from(!self.reads.holds(at.block)),
             Step::Node { .. } | Step::Found { .. } => 0,
+            // Refining a group bound reads its children's records; a leaf's
+            // objects are in hand, and refining it costs nothing when their
+            // own stand-ins are no coarser than the group bound, else the
+            // geometry blocks that make them exact.
+            Step::Group { block, offset, frame, eps, .. } => match view(block, *offset)? {
+                NodeView::Internal(n) => {
+                    let shown = self.sel.stand_in_error(frame, *eps);
+                    if self.children_error(block, &n, frame)? <= shown {
+                        0
+                    } else {
+                        (0..2)
+                            .map(|i| n.child_ref(i).block)
+                            .filter(|&b| b != 0 && !self.reads.holds(b))
+                            .count() as u64
+                    }
+                }
+                NodeView::Leaf(leaf) => {
+                    let shown = self.sel.stand_in_error(frame, *eps);
+                    if self.objects_error(block.id(), &leaf, frame)? <= shown {
+                        0
+                    } else {
+                        let (first, sums) = leaf.geometry();
+                        (0..sums.len() as u32).filter(|i| !self.reads.holds(first.saturating_add(*i))).count()
+                            as u64
+                    }
+                }
+            },
             Step::Exact { block, offset, index, .. } => {
                 let NodeView::Leaf(leaf) = view(block, *offset)? else { return Ok(0) };
                 let Some(o) = leaf.object(*index) else { return Ok(0) };
@@ -615,6 +714,52 @@ impl<'a, S: Selection> Select<'a, S> {
         })
     }
 
+    /// The largest error, in the query's unit, of an internal record's
+    /// children that may meet the query, shown without a read: by their
+    /// group bounds when in this block and its group block is held, else
+    /// by their boxes.
+    fn children_error(&self, block: &Block, n: &InternalView, frame: &Aabb) -> Result<f64, StorageError> {
+        let mut worst = 0.0f64;
+        for i in 0..2 {
+            let Some(qb) = n.child_box(i, frame) else { continue };
+            if !self.sel.may_meet_box(&qb.outer) {
+                continue;
+            }
+            let mut error = self.sel.stand_in_error(&qb.outer, qb.outer.extent().norm());
+            let at = n.child_ref(i);
+            if at.block == 0 {
+                let (levels, cost) = self.group_levels(block, at.offset, &qb.outer)?;
+                if let Some(&(_, eps)) = levels.last()
+                    && cost == 0
+                {
+                    error = error.min(self.sel.stand_in_error(&qb.outer, eps));
+                }
+            }
+            worst = worst.max(error);
+        }
+        Ok(worst)
+    }
+
+    /// The largest error, in the query's unit, of a leaf's objects that
+    /// may meet the query shown by their own stand-ins (the finest stored
+    /// bound below M, else the box), with the record in hand.
+    fn objects_error(&self, block: u32, leaf: &LeafView, frame: &Aabb) -> Result<f64, StorageError> {
+        let mut worst = 0.0f64;
+        for i in 0..leaf.len() {
+            let Some(o) = leaf.object(i) else { continue };
+            let Some(qb) = QuantBox::decode(frame, o.qbox) else { continue };
+            if !self.sel.may_meet_box(&qb.outer) {
+                continue;
+            }
+            let eps = match finest(leaf.bounds(), i as u16, self.bound_level) {
+                Some(b) => self.voxels(block, &b, &qb.outer)?.grid().max_cell_diagonal(),
+                None => qb.outer.extent().norm(),
+            };
+            worst = worst.max(self.sel.stand_in_error(&qb.outer, eps));
+        }
+        Ok(worst)
+    }
+
     fn push(&mut self, step: Step) -> Result<(), StorageError> {
         self.seq += 1;
         let (priority, tie) = match (&self.rank, self.budget) {
@@ -627,25 +772,30 @@ impl<'a, S: Selection> Select<'a, S> {
                     }
                     Step::Exact { part, .. } => (rank.box_distance(part), (1 << 32) + self.seq),
                     Step::Found { object, distance, .. } => (Some(*distance), u64::from(u32::MAX - object)),
+                    Step::Group { frame, .. } => (rank.box_distance(frame), (1 << 32) + self.seq),
                 };
                 // + 0.0: a distance of -0.0 orders as 0.
                 (-(key.unwrap_or(f64::INFINITY) + 0.0), tie)
             }
             // Depth first: the newest step first.
             (None, None) => (self.seq as f64, self.seq),
-            // Stand-ins: the largest error first; records in hand cost nothing.
+            // Stand-ins: the most error removed per block read first (the
+            // error shown now over the reads that refine it); records in
+            // hand cost nothing.
             (None, Some(_)) if self.sel.tolerance().is_some() => {
                 let error = match &step {
                     Step::Unread { frame, .. } => self.sel.stand_in_error(frame, frame.extent().norm()),
                     Step::Exact { part, eps, .. } => self.sel.stand_in_error(part, *eps),
+                    Step::Group { frame, eps, .. } => self.sel.stand_in_error(frame, *eps),
                     Step::Node { .. } | Step::Found { .. } => f64::INFINITY,
                 };
-                (error, self.seq)
+                let cost = self.cost(&step)? as f64;
+                (error / cost.max(1.0), self.seq)
             }
             (None, Some(_)) => {
                 let gain = match &step {
                     Step::Unread { estimate, .. } => *estimate,
-                    Step::Node { .. } | Step::Found { .. } => f64::INFINITY,
+                    Step::Node { .. } | Step::Found { .. } | Step::Group { .. } => f64::INFINITY,
                     Step::Exact { .. } => 1.0,
                 };
                 let cost = self.cost(&step)? as f64;
@@ -707,7 +857,23 @@ impl<'a, S: Selection> Select<'a, S> {
                 let name = NodeName { id: Some(view(&block, at.offset)?.node_id()), ..name };
                 self.push(Step::Node { block, offset: at.offset, frame, inside, name })
             }
-            Step::Node { block, offset, frame, inside, .. } => self.node(block, offset, frame, inside),
+            Step::Node { block, offset, frame, inside, name } => {
+                // With a budget, a record with group bounds is shown by its
+                // finest first, and refined from there (Step::Group).
+                if self.budget.is_some() && !inside {
+                    let (levels, cost) = self.group_levels(&block, offset, &frame)?;
+                    if let Some(&(level, eps)) = levels.last()
+                        && !self.over_budget(cost)
+                        && let Some(voxels) =
+                            self.txn.group_bound(&block, offset, &frame, level, &mut self.reads)?
+                    {
+                        let frame = view(&block, offset)?.frame(frame);
+                        return self.push(Step::Group { block, offset, frame, name, level, eps, voxels });
+                    }
+                }
+                self.node(block, offset, frame, inside)
+            }
+            Step::Group { block, offset, frame, .. } => self.node(block, offset, frame, false),
             Step::Exact { block, offset, index, part, whole, key, .. } => {
                 let NodeView::Leaf(leaf) = view(&block, offset)? else { return Ok(()) };
                 let Some(o) = leaf.object(index) else { return Ok(()) };

@@ -141,6 +141,9 @@ pub struct ViewOptions {
 pub enum Bound {
     /// b(S_n,1): the node's box.
     NodeBox,
+    /// b(S_n,k), 2 <= k < M: the node's group bound, from its group block
+    /// (format-spec/group.md); nothing below it is read.
+    GroupBound,
     /// B(S_n,k), k < M: each visible object of a leaf by its finest bound
     /// stored up to k (its box at worst).
     ObjectBounds,
@@ -308,6 +311,29 @@ impl Visitor for Cut<'_> {
         }
         if keep {
             p.shapes.push(Shown { object: Some(object), aabb: seen.aabb, eps_mm: eps, shape });
+        }
+        Ok(())
+    }
+
+    fn group(
+        &mut self,
+        name: &NodeName,
+        frame: &Aabb,
+        level: u8,
+        voxels: &Voxels,
+        eps: f64,
+    ) -> Result<(), StorageError> {
+        self.boxes += 1;
+        let key = (name.id.unwrap_or(u32::MAX), level, Bound::GroupBound, self.boxes);
+        let keep = self.shapes;
+        let p = self.add(key, *name, frame, eps);
+        if keep {
+            p.shapes.push(Shown {
+                object: None,
+                aabb: *frame,
+                eps_mm: eps,
+                shape: Shape::Voxels(voxels.clone()),
+            });
         }
         Ok(())
     }

@@ -34,6 +34,12 @@ fn empty_mesh() -> Mesh {
 pub fn level_colour(bound: Bound, level: u8, m: u8) -> [u8; 3] {
     match bound {
         Bound::NodeBox => [214, 64, 56],
+        Bound::GroupBound => {
+            // Group bounds, level 2 .. M-1, from purple to light violet.
+            let t = f64::from(level.saturating_sub(2)) / f64::from(m.saturating_sub(3).max(1));
+            let mix = |a: f64, b: f64| (a + (b - a) * t.min(1.0)).round() as u8;
+            [mix(150.0, 196.0), mix(70.0, 150.0), mix(190.0, 230.0)]
+        }
         Bound::Exact => [104, 132, 178],
         Bound::ObjectBounds if level <= 1 => [235, 150, 60],
         Bound::ObjectBounds => {
@@ -136,6 +142,9 @@ pub fn draw_level(view: &View, level: &Level, k: u8, m: u8, group: bool) -> Resu
                 for (_, mesh) in o {
                     draw_mesh(&p, &mut img, mesh, level_colour(Bound::Exact, m, m));
                 }
+            }
+            Piece::Group { level, voxels, .. } => {
+                draw_mesh(&p, &mut img, &voxels.boundary_mesh(), level_colour(Bound::GroupBound, *level, m))
             }
         }
     }

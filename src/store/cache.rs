@@ -20,6 +20,8 @@ pub struct Block {
     /// Node blocks: the offsets of their records; key blocks: of their
     /// entries (format-spec/keys.md). Validated when the block was read.
     pub(crate) records: Vec<u32>,
+    /// Group blocks: their entries (record, level, blob bytes), validated.
+    pub(crate) groups: Vec<(u32, u8, std::ops::Range<usize>)>,
 }
 
 impl Block {
@@ -132,7 +134,7 @@ mod tests {
     use super::*;
 
     fn block(id: u32, checksum: u32) -> Arc<Block> {
-        Arc::new(Block { id, checksum, bytes: vec![0; 4].into(), records: Vec::new() })
+        Arc::new(Block { id, checksum, bytes: vec![0; 4].into(), records: Vec::new(), groups: Vec::new() })
     }
 
     #[test]

@@ -17,6 +17,8 @@ pub struct ReadStats {
     pub geometry: u64,
     /// Key index blocks read from the device.
     pub keys: u64,
+    /// Group-bound blocks (b(S_n,k), format-spec/group.md) read from the device.
+    pub group: u64,
     /// Other blocks (meta, names, free list) read from the device.
     pub other: u64,
     /// Blocks found in a cache instead of read.
@@ -26,7 +28,7 @@ pub struct ReadStats {
 impl ReadStats {
     /// All device reads.
     pub fn total(&self) -> u64 {
-        self.node + self.geometry + self.keys + self.other
+        self.node + self.geometry + self.keys + self.group + self.other
     }
 
     fn count(&mut self, t: BlockType) {
@@ -34,6 +36,7 @@ impl ReadStats {
             BlockType::Node => self.node += 1,
             BlockType::Geometry => self.geometry += 1,
             BlockType::KeyLeaf | BlockType::KeyBranch => self.keys += 1,
+            BlockType::Group => self.group += 1,
             _ => self.other += 1,
         }
     }
@@ -44,6 +47,7 @@ impl std::ops::AddAssign for ReadStats {
         self.node += o.node;
         self.geometry += o.geometry;
         self.keys += o.keys;
+        self.group += o.group;
         self.other += o.other;
         self.cache_hits += o.cache_hits;
     }
@@ -57,6 +61,7 @@ impl std::ops::Sub for ReadStats {
             node: self.node - o.node,
             geometry: self.geometry - o.geometry,
             keys: self.keys - o.keys,
+            group: self.group - o.group,
             other: self.other - o.other,
             cache_hits: self.cache_hits - o.cache_hits,
         }

@@ -29,10 +29,10 @@ impl Image {
     }
 
     /// Absolute offsets of the records of node block `b` (node.md: the
-    /// record count at 20, records from 24, each sized by its head).
+    /// record count at 20, records from 32, each sized by its head).
     pub fn records(&self, b: usize) -> Vec<usize> {
         let base = b * self.bs;
-        let mut at = base + 24;
+        let mut at = base + 32;
         (0..u16_at(&self.bytes, base + 20))
             .map(|_| {
                 let r = at;
@@ -146,8 +146,16 @@ impl Image {
                 let c = Commit { meta_checksum: sum, ..c };
                 put_slot(&mut self.bytes, i, SlotState::Committed, &c);
             }
-            BlockType::Node | BlockType::Geometry => {
+            BlockType::Node | BlockType::Geometry | BlockType::Group => {
                 let mut parents = Vec::new();
+                // A group block is vouched for by its node block's head (group_block at 24, its checksum at 28).
+                for p in self.blocks_of(BlockType::Node).into_iter().filter(|&p| p != forged) {
+                    let head = p * self.bs + 24;
+                    if t == BlockType::Group && u32_at(&self.bytes, head) == b as u32 {
+                        self.bytes[head + 4..head + 8].copy_from_slice(&sum.to_le_bytes());
+                        parents.push(p);
+                    }
+                }
                 for p in self.blocks_of(BlockType::Node).into_iter().filter(|&p| p != forged) {
                     for r in self.records(p) {
                         for at in self.references(r, b) {
@@ -211,23 +219,23 @@ impl Image {
 }
 
 /// The golden file (format-spec/example.md: one node block holds the root
-/// record, offset 24, and its two leaves; slot 1 holds the commit) with the
+/// record, offset 32, and its two leaves; slot 1 holds the commit) with the
 /// root's first child pointed back at the root, and, if given, the meta
 /// block's `node_count` forged; every checksum resealed.
 pub fn golden_with_looping_root(node_count: Option<u32>) -> Vec<u8> {
-    let mut f = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v8.mkt")).unwrap();
+    let mut f = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v9.mkt")).unwrap();
     let block = |i: usize| i * 1024..(i + 1) * 1024;
     let of_type = |f: &[u8], t: BlockType| (1..f.len() / 1024).find(|&i| f[i * 1024 + 4] == t as u8).unwrap();
     let (node, meta) = (of_type(&f, BlockType::Node), of_type(&f, BlockType::Meta));
     let txn = 2;
-    // The root is an internal record (kind 1) at offset 24; its first child
+    // The root is an internal record (kind 1) at offset 32; its first child
     // entry starts at 20 in the record and names its record by `offset` at
     // 20 in the entry, with `block` 0 (this block): point it at the root.
-    let root = node * 1024 + 24;
+    let root = node * 1024 + 32;
     assert_eq!(f[root], 1, "the root is an internal record");
     let entry = root + 20;
     assert_eq!(&f[entry + 12..entry + 16], &[0; 4], "the first child lives in the root's block");
-    f[entry + 20..entry + 24].copy_from_slice(&24u32.to_le_bytes());
+    f[entry + 20..entry + 24].copy_from_slice(&32u32.to_le_bytes());
     let root_sum = seal(node as u32, &mut f[block(node)], BlockType::Node, txn);
     // The meta block holds the root block's checksum at offset 20, `node_count` at 32.
     f[meta * 1024 + 20..meta * 1024 + 24].copy_from_slice(&root_sum.to_le_bytes());

@@ -55,8 +55,12 @@ pub fn table(file: &Path, as_json: bool) -> Result<()> {
             "measured_saving": measured(usize::from(k)),
         }));
     }
+    // The nodes' group bounds b(S_n,k) (format-spec/group.md), with the root's faces.
+    let groups = r.group_summary()?;
     if as_json {
-        return output::json(&json!({ "levels": levels, "query_extent": info.query_extent }));
+        return output::json(
+            &json!({ "levels": levels, "query_extent": info.query_extent, "group": groups }),
+        );
     }
     println!(
         "{}: {} objects, {} triangles, M = {}; bounds judged on box queries of {:.0} x {:.0} x {:.0} mm",
@@ -106,6 +110,29 @@ pub fn table(file: &Path, as_json: bool) -> Result<()> {
             "costs reads/query",
             "measured saving",
         ],
+        &rows,
+    );
+    println!(
+        "group bounds b(S_n,k): {} group blocks ({} bytes of directory and blobs) over {} nodes",
+        groups.blocks, groups.block_bytes, groups.nodes
+    );
+    let rows: Vec<Vec<String>> = groups
+        .levels
+        .iter()
+        .map(|l| {
+            let opt = |v: Option<u64>| v.map_or("-".to_string(), |v| v.to_string());
+            vec![
+                l.level.to_string(),
+                l.stored.to_string(),
+                l.bytes.to_string(),
+                opt(l.root_faces),
+                opt(l.root_triangles),
+                l.root_eps_mm.map_or("-".to_string(), |e| format!("{e:.0}")),
+            ]
+        })
+        .collect();
+    output::table(
+        &["k", "nodes stored", "bytes", "root Faces(b(S,k))", "root triangles", "root eps mm"],
         &rows,
     );
     Ok(())
@@ -179,6 +206,9 @@ fn write_obj(path: &Path, node: u32, k: u8, pieces: &[Piece]) -> Result<()> {
                 for (id, mesh) in o {
                     put(format!("object{id}"), Some(mesh.clone()))?;
                 }
+            }
+            Piece::Group { node, level, voxels } => {
+                put(format!("node{node}_group_k{level}"), Some(voxels.boundary_mesh()))?
             }
         }
     }

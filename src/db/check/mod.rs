@@ -219,6 +219,9 @@ struct NodeFacts {
     /// Leaf: its geometry blocks.
     geometry: Vec<u32>,
     objects: u32,
+    /// Its block's group block, and the group bounds its flags name there.
+    group: Option<(u32, u32)>,
+    group_levels: u32,
 }
 
 /// A child entry: where its record is (block, offset), and the (node,
@@ -311,7 +314,18 @@ impl Visitor for Walker<'_> {
             children: None,
             geometry: Vec::new(),
             objects: rec.object_count(),
+            group: crate::store::format::node::group_ref(block.bytes()),
+            group_levels: 0,
         };
+        // Each group bound the flags name is in the group block, on its grid (format-spec/group.md).
+        for k in rec.group_levels() {
+            facts.group_levels += 1;
+            match self.txn.group_bound(block, offset, frame, k, &mut self.reads) {
+                Ok(Some(_)) => {}
+                Ok(None) => self.faults.push(format!("{here}: its group bound at level {k} is missing")),
+                Err(e) => self.faults.push(format!("{here}: its group bound at level {k}: {e}")),
+            }
+        }
         match rec {
             NodeView::Internal(n) => {
                 let mut kids = [((0, 0), (0, 0)); 2];
@@ -421,6 +435,8 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
     // Preorder ids (or, after a split or merge, ids unique below `node_ids`), and each block claimed once.
     let mut node_blocks = HashSet::new();
     let mut geometry_blocks = HashSet::new();
+    // Per group block: the group bounds its node block's records name.
+    let mut group_levels: HashMap<(u32, u32), u32> = HashMap::new();
     let mut parent_block: HashMap<u32, u32> = HashMap::new();
     let mut ids = HashSet::new();
     for (i, f) in w.facts.iter().enumerate() {
@@ -435,6 +451,12 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
         }
         if node_blocks.insert(f.block) {
             c.claim(f.block, Owner::Used(BlockType::Node));
+            if let Some((g, _)) = f.group {
+                c.claim(g, Owner::Used(BlockType::Group));
+            }
+        }
+        if let Some(g) = f.group {
+            *group_levels.entry(g).or_insert(0) += f.group_levels;
         }
         // A leaf's span holds no other leaf's records (format-spec/geometry.md).
         for &g in &f.geometry {
@@ -451,6 +473,17 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
             if b != f.block && *parent_block.entry(b).or_insert(f.block) != f.block {
                 c.fault(format!("node block {b} is named from blocks {} and {}", parent_block[&b], f.block));
             }
+        }
+    }
+    // A group block holds the bounds its node block's records name, and no other.
+    for ((g, sum), named) in group_levels {
+        match txn.block(g, BlockType::Group, sum, &mut Reads::new(None)) {
+            Ok(b) if b.groups.len() as u32 != named => c.fault(format!(
+                "group block {g} holds {} bounds, its node block's records name {named}",
+                b.groups.len()
+            )),
+            Ok(_) => {}
+            Err(e) => c.fault(format!("group block {g}: {e}")),
         }
     }
     // Each child entry's counts: (at least) the distinct node blocks of its

@@ -1076,6 +1076,11 @@ impl WriteTransaction<'_> {
             }
             let records: Vec<RecordDraft> = drafts.iter().map(|(_, d)| d.clone()).collect();
             freed.push(b);
+            // Its group bounds go with it: the subtrees below a rewritten
+            // block changed, and the block written anew names no group block.
+            if let Some((g, _)) = node::group_ref(old.bytes()) {
+                freed.push(g);
+            }
             if records.is_empty() {
                 // Its records left the tree with a merge, and no record names the block.
                 deltas.node_blocks -= 1;

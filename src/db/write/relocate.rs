@@ -12,6 +12,7 @@ use std::collections::{BTreeMap, HashMap};
 use super::WriteTransaction;
 use crate::store::alloc::FreeSpace;
 use crate::store::format::frame::BlockType;
+use crate::store::format::group;
 use crate::store::format::keys::{self, KeyBlock};
 use crate::store::format::meta::Meta;
 use crate::store::format::node::{self, Limits};
@@ -65,7 +66,13 @@ impl WriteTransaction<'_> {
         let chain = &self.base_chain;
         let free = FreeSpace::new(self.base.block_count, self.base_free.iter().map(|r| (r.first, r.count)));
         let keys = tree.keys.iter().flatten().map(|&(b, _)| b);
-        let blocks = tree.nodes.order.iter().copied().chain(tree.nodes.geometry.keys().copied());
+        let blocks = tree
+            .nodes
+            .order
+            .iter()
+            .copied()
+            .chain(tree.nodes.geometry.keys().copied())
+            .chain(tree.nodes.groups.keys().copied());
         let counts = [
             ("node_blocks", u64::from(meta.node_blocks), tree.nodes.order.len()),
             ("geometry_blocks", meta.geometry_blocks, tree.nodes.geometry.len()),
@@ -100,7 +107,7 @@ impl WriteTransaction<'_> {
         self.append_only = at_end;
         let pager = self.inner.pager().clone();
         let limits = limits(&pager, &meta);
-        let TreeBlocks { nodes: NodeWalk { order, sums: node_sums, geometry }, keys: levels } =
+        let TreeBlocks { nodes: NodeWalk { order, sums: node_sums, geometry, groups }, keys: levels } =
             TreeBlocks::walk(&pager, &meta)?;
 
         // New places, allocated in the order a bulk load allocates them, so
@@ -109,6 +116,12 @@ impl WriteTransaction<'_> {
         if !geometry.is_empty() {
             let first = self.allocate(geometry.len() as u32)?;
             geometry_moves.to = geometry.keys().zip(first..).map(|(&old, new)| (old, new)).collect();
+        }
+        // Group blocks next, as a bulk load allocates them before the node blocks.
+        let mut group_moves = Moves::default();
+        if !groups.is_empty() {
+            let first = self.allocate(groups.len() as u32)?;
+            group_moves.to = groups.keys().zip(first..).map(|(&old, new)| (old, new)).collect();
         }
         let mut node_moves = Moves::default();
         let mut sorted: Vec<u32> = order.clone();
@@ -131,6 +144,12 @@ impl WriteTransaction<'_> {
             let to = geometry_moves.to[&old];
             geometry_moves.sums.insert(old, pager.write(to, &mut bytes, BlockType::Geometry, txn)?);
         }
+        for (&old, &sum) in &groups {
+            let (mut bytes, _) = pager.read(old, BlockType::Group, Some(sum), &mut ReadStats::default())?;
+            group::validate(old, &bytes, pager.lod_levels())?;
+            let to = group_moves.to[&old];
+            group_moves.sums.insert(old, pager.write(to, &mut bytes, BlockType::Group, txn)?);
+        }
         for &old in &order {
             let (mut bytes, _) =
                 pager.read(old, BlockType::Node, Some(node_sums[&old]), &mut ReadStats::default())?;
@@ -151,7 +170,11 @@ impl WriteTransaction<'_> {
                 }
                 Ok((to, new))
             };
-            let child = &mut |block: u32, _: u32| node_moves.written(block, "node");
+            // A child node block, or the block's group block (format-spec/group.md).
+            let child = &mut |block: u32, _: u32| match group_moves.to.contains_key(&block) {
+                true => group_moves.written(block, "group"),
+                false => node_moves.written(block, "node"),
+            };
             node::relocate_block(old, &mut bytes, &records, child, span)?;
             let to = node_moves.to[&old];
             node_moves.sums.insert(old, pager.write(to, &mut bytes, BlockType::Node, txn)?);
@@ -233,6 +256,8 @@ struct NodeWalk {
     sums: HashMap<u32, u32>,
     /// The geometry blocks the leaves' spans name, in order, with their checksums.
     geometry: BTreeMap<u32, u32>,
+    /// The group blocks the node blocks name, in order, with their checksums.
+    groups: BTreeMap<u32, u32>,
 }
 
 /// The [`NodeWalk`] of the tree rooted in block `root` (checksum `sum`).
@@ -241,6 +266,7 @@ fn node_walk(pager: &Pager, limits: &Limits, root: u32, sum: u32) -> Result<Node
     let end = u32::try_from(pager.block_count()?).unwrap_or(u32::MAX);
     let mut sums = HashMap::from([(root, sum)]);
     let mut geometry = BTreeMap::new();
+    let mut groups = BTreeMap::new();
     // Per block: whether its children are done (false while they are walked).
     let mut done: HashMap<u32, bool> = HashMap::new();
     let mut order = Vec::new();
@@ -259,7 +285,16 @@ fn node_walk(pager: &Pager, limits: &Limits, root: u32, sum: u32) -> Result<Node
         done.insert(block, false);
         stack.push((block, true));
         let (bytes, _) = pager.read(block, BlockType::Node, Some(sums[&block]), &mut ReadStats::default())?;
-        for r in node::validate_block(block, &bytes, limits)? {
+        let records = node::validate_block(block, &bytes, limits)?;
+        if let Some((g, s)) = node::group_ref(&bytes) {
+            if g >= end {
+                return Err(past_end(g));
+            }
+            if groups.insert(g, s).is_some() || sums.contains_key(&g) {
+                return Err(met_twice(g, "group"));
+            }
+        }
+        for r in records {
             let view = node::NodeView::at(&bytes, r)
                 .map_err(|e| StorageError::corrupt_record(block, r, "record", e))?;
             match view {
@@ -297,5 +332,5 @@ fn node_walk(pager: &Pager, limits: &Limits, root: u32, sum: u32) -> Result<Node
             }
         }
     }
-    Ok(NodeWalk { order, sums, geometry })
+    Ok(NodeWalk { order, sums, geometry, groups })
 }

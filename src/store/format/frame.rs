@@ -30,13 +30,14 @@ pub enum BlockType {
     Free = 7,
     KeyLeaf = 8,
     KeyBranch = 9,
+    Group = 10,
 }
 
 impl BlockType {
     /// The type with this code, if any.
     pub fn from_code(code: u8) -> Option<BlockType> {
         use BlockType::*;
-        [Meta, Node, Geometry, FreeList, Free, KeyLeaf, KeyBranch]
+        [Meta, Node, Geometry, FreeList, Free, KeyLeaf, KeyBranch, Group]
             .into_iter()
             .find(|t| *t as u8 == code)
     }
@@ -51,6 +52,7 @@ impl BlockType {
             BlockType::Free => "free",
             BlockType::KeyLeaf => "key-leaf",
             BlockType::KeyBranch => "key-branch",
+            BlockType::Group => "group-bound",
         }
     }
 }

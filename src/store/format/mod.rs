@@ -1,4 +1,4 @@
-//! The on-disk format, version 7: one file per structure of `format-spec/`.
+//! The on-disk format, version 9: one file per structure of `format-spec/`.
 //! Records are zerocopy structs with unaligned little-endian fields; sizes are
 //! checked at compile time and offsets in `tests/format_spec.rs`.
 
@@ -6,6 +6,7 @@ pub mod blob;
 pub mod frame;
 pub mod freelist;
 pub mod geometry;
+pub mod group;
 pub mod header;
 pub mod keys;
 pub mod meta;
@@ -20,7 +21,7 @@ mod spec_tests;
 compile_error!("geometry arrays are cast with bytemuck and assume a little-endian target");
 
 /// The format version this build writes and reads (format-spec/versions.md).
-pub const FORMAT_VERSION: u32 = 8;
+pub const FORMAT_VERSION: u32 = 9;
 /// Smallest block size (format-spec/README.md).
 pub const MIN_BLOCK_SIZE: u32 = 1024;
 /// Largest block size.

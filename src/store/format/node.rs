@@ -13,7 +13,7 @@ use crate::scene::{Key, KeyRef};
 use crate::store::StorageError;
 
 /// Offset of the first record in a node block.
-pub const RECORDS_START: usize = FRAME_LEN + 8;
+pub const RECORDS_START: usize = FRAME_LEN + 16;
 /// Bytes of an internal record.
 pub const INTERNAL_LEN: usize = 84;
 /// Bytes of a leaf record's fixed head.
@@ -26,6 +26,11 @@ pub const BOUND_HEAD_LEN: usize = 4;
 pub const FRAME_BOX_LEN: usize = 48;
 /// Bit 0 of a record's flags: the record carries its own frame.
 const FLAG_FRAME: u8 = 1;
+/// Bits 1-7 of a record's flags: bit j set when the block's group block
+/// holds b(S_n, j + 1) for the record (format-spec/group.md).
+const FLAG_GROUPS: u8 = 0xfe;
+/// The finest level a group bound may have (flag bit 7).
+pub const MAX_GROUP_LEVEL: u8 = 8;
 
 const KIND_INTERNAL: u8 = 1;
 const KIND_LEAF: u8 = 2;
@@ -36,7 +41,11 @@ pub(crate) struct BlockHead {
     pub(crate) used_bytes: U32,
     pub(crate) record_count: U16,
     pub(crate) reserved: [u8; 2],
+    /// The group block of the block's records' group bounds; 0 for none.
+    pub(crate) group_block: U32,
+    pub(crate) group_checksum: U32,
 }
+const _: () = assert!(size_of::<BlockHead>() == RECORDS_START - FRAME_LEN);
 
 /// A child entry of an internal record.
 #[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
@@ -326,8 +335,28 @@ pub fn capacity(block_size: u32) -> usize {
     block_size as usize - RECORDS_START
 }
 
-/// Encodes `records` into a node block's payload; returns each record's offset.
+/// Encodes `records` into a node block's payload, with no group block;
+/// returns each record's offset.
 pub fn encode_block(records: &[RecordDraft], block: &mut [u8]) -> Result<Vec<u32>, String> {
+    encode_block_with_groups(records, None, block)
+}
+
+/// The group block a node block names, and per record (in order) the mask
+/// of levels it holds for it: bit k - 1 for b(S_n,k), k = 2 ..= [`MAX_GROUP_LEVEL`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GroupRef {
+    pub block: u32,
+    pub checksum: u32,
+    pub levels: Vec<u8>,
+}
+
+/// Encodes `records` into a node block's payload, naming `group`'s block
+/// and marking each record's group levels; returns each record's offset.
+pub fn encode_block_with_groups(
+    records: &[RecordDraft],
+    group: Option<&GroupRef>,
+    block: &mut [u8],
+) -> Result<Vec<u32>, String> {
     let mut bytes = Vec::with_capacity(capacity(block.len() as u32));
     let mut offsets = Vec::with_capacity(records.len());
     for r in records {
@@ -337,10 +366,23 @@ pub fn encode_block(records: &[RecordDraft], block: &mut [u8]) -> Result<Vec<u32
     if RECORDS_START + bytes.len() > block.len() {
         return Err(format!("{} bytes of records exceed the block", bytes.len()));
     }
+    if let Some(g) = group {
+        if g.block == 0 || g.levels.len() != records.len() || g.levels.iter().any(|l| l & !FLAG_GROUPS != 0) {
+            return Err("a group block of 0, or a level mask per record that is not one".into());
+        }
+        for (&o, &l) in offsets.iter().zip(&g.levels) {
+            let at = o as usize - RECORDS_START;
+            let flags = if bytes[at] == KIND_INTERNAL { at + 2 } else { at + 1 };
+            bytes[flags] |= l;
+        }
+    }
+    let (group_block, group_checksum) = group.map_or((0, 0), |g| (g.block, g.checksum));
     let head = BlockHead {
         used_bytes: (bytes.len() as u32).into(),
         record_count: u16::try_from(records.len()).map_err(|_| "too many records".to_string())?.into(),
         reserved: [0; 2],
+        group_block: group_block.into(),
+        group_checksum: group_checksum.into(),
     };
     block[FRAME_LEN..RECORDS_START].copy_from_slice(head.as_bytes());
     block[RECORDS_START..RECORDS_START + bytes.len()].copy_from_slice(&bytes);
@@ -385,12 +427,22 @@ pub fn validate_block(id: u32, block: &[u8], limits: &Limits) -> Result<Vec<u32>
     }
     let mut offsets = Vec::with_capacity(count);
     let mut at = RECORDS_START;
+    let mut groups = 0u8;
     for i in 0..count {
         if at >= end {
             return Err(bad("record_count", format!("record {i} starts past the used bytes")));
         }
         offsets.push(at as u32);
+        groups |= record_flags(&block[at..end]) & FLAG_GROUPS;
         at += validate_record(id, i as u32, &block[at..end], limits)?;
+    }
+    // A group block is named when, and only when, some record has a group bound there.
+    let (gb, gs) = (head.group_block.get(), head.group_checksum.get());
+    if (gb == 0) != (groups == 0) || (gb == 0 && gs != 0) || gb == id {
+        return Err(bad(
+            "group_block",
+            format!("group block {gb} (checksum {gs:#x}) for records with group levels {groups:#x}"),
+        ));
     }
     if at != end {
         return Err(bad("used_bytes", format!("{} bytes after the last record", end - at)));
@@ -414,6 +466,21 @@ pub fn validate_block(id: u32, block: &[u8], limits: &Limits) -> Result<Vec<u32>
     Ok(offsets)
 }
 
+/// A record's flags byte (0 for a record too short to have one).
+fn record_flags(bytes: &[u8]) -> u8 {
+    match bytes.first() {
+        Some(&KIND_INTERNAL) => bytes.get(2).copied().unwrap_or(0),
+        Some(&KIND_LEAF) => bytes.get(1).copied().unwrap_or(0),
+        _ => 0,
+    }
+}
+
+/// The group block node block `block` (validated) names, with its checksum.
+pub fn group_ref(block: &[u8]) -> Option<(u32, u32)> {
+    let head = BlockHead::read_from_bytes(block.get(FRAME_LEN..RECORDS_START)?).ok()?;
+    (head.group_block.get() != 0).then(|| (head.group_block.get(), head.group_checksum.get()))
+}
+
 /// Validates one record at the start of `bytes`; returns its length.
 fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result<usize, StorageError> {
     let bad = |field: &'static str, detail: String| StorageError::corrupt_record(id, index, field, detail);
@@ -421,6 +488,7 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
     match bytes.first() {
         Some(&KIND_INTERNAL) => {
             let (raw, rest) = InternalRaw::ref_from_prefix(bytes).map_err(|_| bad("record", "short".into()))?;
+            validate_groups(raw.flags, limits).map_err(|d| bad("flags", d))?;
             let frame = validate_frame(raw.flags, rest).map_err(|d| bad("frame", d))?;
             if raw.split & 0b11 > 2 || raw.split >> 2 > 2 {
                 return Err(bad("split", format!("{:#x} is not an axis and order", raw.split)));
@@ -451,6 +519,7 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
         }
         Some(&KIND_LEAF) => {
             let (raw, rest) = LeafRaw::ref_from_prefix(bytes).map_err(|_| bad("record", "short".into()))?;
+            validate_groups(raw.flags, limits).map_err(|d| bad("flags", d))?;
             let frame = validate_frame(raw.flags, rest).map_err(|d| bad("frame", d))?;
             // The rest of the record is read as if the frame were not there.
             let bytes = &bytes[frame..];
@@ -534,9 +603,7 @@ fn validate_record(id: u32, index: u32, bytes: &[u8], limits: &Limits) -> Result
 /// lower corner below the upper, within the coordinate range. Returns its
 /// bytes (0 without one).
 fn validate_frame(flags: u8, rest: &[u8]) -> Result<usize, String> {
-    if flags & !FLAG_FRAME != 0 {
-        return Err(format!("unknown flags {flags:#x}"));
-    }
+    // Every bit is named: bit 0 the frame, bits 1-7 group levels (validate_groups).
     if flags & FLAG_FRAME == 0 {
         return Ok(0);
     }
@@ -547,6 +614,17 @@ fn validate_frame(flags: u8, rest: &[u8]) -> Result<usize, String> {
         return Err(format!("{f:?} is not a box in the coordinate range"));
     }
     Ok(FRAME_BOX_LEN)
+}
+
+/// A record's group levels lie in 2 ..= M - 1.
+fn validate_groups(flags: u8, limits: &Limits) -> Result<(), String> {
+    let levels = flags & FLAG_GROUPS;
+    // Bit j is level j + 1: any bit at or above M - 1 names a level >= M.
+    let allowed = if limits.lod_levels >= 3 { FLAG_GROUPS & ((1u16 << (limits.lod_levels - 1)) - 1) as u8 } else { 0 };
+    if levels & !allowed != 0 {
+        return Err(format!("group levels {levels:#x} with M = {}", limits.lod_levels));
+    }
+    Ok(())
 }
 
 /// The frame a record carries after its fixed head, if its flags say so.
@@ -681,6 +759,16 @@ impl<'a> NodeView<'a> {
             NodeView::Leaf(l) => l.frame,
         };
         own.unwrap_or(decoded)
+    }
+
+    /// The levels k whose group bound b(S_n,k) the block's group block
+    /// holds for this record (the paper's `bFits[k]`), coarse to fine.
+    pub fn group_levels(&self) -> impl Iterator<Item = u8> + use<> {
+        let flags = match self {
+            NodeView::Internal(n) => n.raw.flags,
+            NodeView::Leaf(l) => l.raw.flags,
+        } & FLAG_GROUPS;
+        (2..=MAX_GROUP_LEVEL).filter(move |k| flags >> (k - 1) & 1 == 1)
     }
 
     /// The record's own frame, if it carries one.
@@ -884,6 +972,13 @@ pub fn relocate_block(
     span: &mut MoveSpan<'_>,
 ) -> Result<(), StorageError> {
     let short = |r: u32| StorageError::corrupt_record(id, r, "record", "short record");
+    // The group block moves as a child block does.
+    if let Some(head) = block.get_mut(FRAME_LEN..RECORDS_START).and_then(|b| BlockHead::mut_from_bytes(b).ok())
+        && head.group_block.get() != 0
+    {
+        let (b, sum) = child(head.group_block.get(), head.group_checksum.get())?;
+        (head.group_block, head.group_checksum) = (b.into(), sum.into());
+    }
     for &r in records {
         let bytes = block.get_mut(r as usize..).ok_or_else(|| short(r))?;
         match bytes.first() {
@@ -943,13 +1038,13 @@ mod tests {
             children: [
                 ChildEntry {
                     qbox: [0, 0, 0, 9, 9, 9],
-                    at: RecordRef { block: 0, checksum: 0, offset: 24 + 84 },
+                    at: RecordRef { block: 0, checksum: 0, offset: RECORDS_START as u32 + 84 },
                     node_blocks: 0,
                     geometry_blocks: 1,
                 },
                 ChildEntry {
                     qbox: [9, 9, 9, 99, 99, 99],
-                    at: RecordRef { block: 5, checksum: 1234, offset: 24 },
+                    at: RecordRef { block: 5, checksum: 1234, offset: RECORDS_START as u32 },
                     node_blocks: 1,
                     geometry_blocks: 1,
                 },
@@ -965,7 +1060,7 @@ mod tests {
         let offsets = encode_block(&drafts(), &mut block).unwrap();
         assert_eq!(validate_block(3, &block, &limits()).unwrap(), offsets);
         let NodeView::Internal(n) = NodeView::at(&block, offsets[0]).unwrap() else { panic!() };
-        assert_eq!(n.child_ref(1), RecordRef { block: 5, checksum: 1234, offset: 24 });
+        assert_eq!(n.child_ref(1), RecordRef { block: 5, checksum: 1234, offset: RECORDS_START as u32 });
         assert_eq!(n.split().axis, Axis::Y);
         let NodeView::Leaf(l) = NodeView::at(&block, offsets[1]).unwrap() else { panic!() };
         assert_eq!(l.len(), 3);
@@ -1045,8 +1140,8 @@ mod tests {
         assert_eq!(children, [(5, 1234)], "the child in this block is not a reference");
         assert_eq!(validate_block(3, &block, &limits()).unwrap(), offsets);
         let NodeView::Internal(n) = NodeView::at(&block, offsets[0]).unwrap() else { panic!() };
-        assert_eq!(n.child_ref(0), RecordRef { block: 0, checksum: 0, offset: 24 + 84 });
-        assert_eq!(n.child_ref(1), RecordRef { block: 105, checksum: 1234 ^ 0xffff, offset: 24 });
+        assert_eq!(n.child_ref(0), RecordRef { block: 0, checksum: 0, offset: RECORDS_START as u32 + 84 });
+        assert_eq!(n.child_ref(1), RecordRef { block: 105, checksum: 1234 ^ 0xffff, offset: RECORDS_START as u32 });
         let NodeView::Leaf(l) = NodeView::at(&block, offsets[1]).unwrap() else { panic!() };
         let (first, sums) = l.geometry();
         assert_eq!((first, sums.collect::<Vec<_>>()), (1009, vec![78]));
@@ -1059,6 +1154,27 @@ mod tests {
         for (i, (a, b)) in before.iter().zip(&block).enumerate() {
             assert!(a == b || moved.contains(&i), "byte {i} changed");
         }
+    }
+
+    #[test]
+    fn group_levels_and_the_group_block_round_trip_and_move() {
+        let mut block = vec![0u8; 1024];
+        let group = GroupRef { block: 9, checksum: 77, levels: vec![0b110, 0b010] };
+        let offsets = encode_block_with_groups(&drafts(), Some(&group), &mut block).unwrap();
+        assert_eq!(validate_block(3, &block, &limits()).unwrap(), offsets);
+        assert_eq!(group_ref(&block), Some((9, 77)));
+        let levels = |o: u32| NodeView::at(&block, o).unwrap().group_levels().collect::<Vec<u8>>();
+        assert_eq!((levels(offsets[0]), levels(offsets[1])), (vec![2, 3], vec![2]));
+        // The frame flag is kept apart from the group levels.
+        assert!(NodeView::at(&block, offsets[1]).unwrap().own_frame().is_none());
+        let child = &mut |b: u32, sum: u32| Ok((b + 100, sum + 1));
+        let span = &mut |first: u32, sums: &[u32]| Ok((first, sums.to_vec()));
+        relocate_block(3, &mut block, &offsets, child, span).unwrap();
+        assert_eq!(group_ref(&block), Some((109, 78)), "the group block moves as a child block");
+        assert!(encode_block_with_groups(&drafts(), Some(&GroupRef { levels: vec![1], ..group }), &mut block).is_err());
+        let mut none = vec![0u8; 1024];
+        encode_block(&drafts(), &mut none).unwrap();
+        assert_eq!(group_ref(&none), None);
     }
 
     #[test]
@@ -1078,9 +1194,14 @@ mod tests {
             (keys, 5),
             (keys + 10, 9),
             (keys + 15, 1),
-            (24, 7),
+            (RECORDS_START, 7),
             (16, 1),
-            (24 + 20 + 16, 1),
+            (RECORDS_START + 20 + 16, 1),
+            // A group level with no group block, a group block no record names.
+            (RECORDS_START + 2, 1 << 1),
+            (FRAME_LEN + 8, 9),
+            // A group level at M (level 4 of a file of M = 4).
+            (RECORDS_START + 2, 1 << 3),
             (1000, 1),
             (offsets[1] as usize + 20 + 4, 99),
             (third, 3),
