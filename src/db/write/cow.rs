@@ -101,6 +101,9 @@ struct Mod {
     node_blocks: i64,
     /// The record leaves the tree (a merge's).
     gone: bool,
+    /// A sibling a merge moved into its parent's place: the record that
+    /// is its children's parent now.
+    merged_into: Option<(u32, u32)>,
 }
 
 /// The most objects below a sibling an emptied leaf merges with: each one's
@@ -439,6 +442,7 @@ fn note_path(mods: &mut HashMap<(u32, u32), Mod>, steps: &[PathStep]) -> (u32, u
             geometry_blocks: 0,
             node_blocks: 0,
             gone: false,
+            merged_into: None,
         });
         parent = s.child.map(|c| (at, c));
     }
@@ -753,8 +757,10 @@ impl WriteTransaction<'_> {
                 geometry_blocks: 0,
                 node_blocks: 0,
                 gone: false,
+                merged_into: None,
             });
             (md.gone, md.draft) = (true, None);
+            md.merged_into = (place == sib_at).then_some(parent_at);
         }
         let md = mods
             .get_mut(&parent_at)
@@ -902,6 +908,7 @@ impl WriteTransaction<'_> {
                             geometry_blocks: 0,
                             node_blocks: 0,
                             gone: false,
+                            merged_into: None,
                         },
                     );
                 }
@@ -1012,6 +1019,8 @@ impl WriteTransaction<'_> {
                     None if at == root_at => None,
                     None => Some(parent_record(&blocks, &parent_block, at)?),
                 } {
+                    // A child of a merged sibling counts under the record in its parent's place.
+                    let p = mods.get(&p).and_then(|x| x.merged_into).unwrap_or(p);
                     if let Some(RecordDraft::Internal { children, .. }) =
                         mods.get_mut(&p).and_then(|x| x.draft.as_mut())
                     {
