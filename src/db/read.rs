@@ -11,8 +11,8 @@ use crate::geom::Aabb;
 use crate::scene::{Mesh, ObjectId};
 use crate::store::format::frame::BlockType;
 use crate::store::format::geometry;
-use crate::store::format::keys;
 use crate::store::format::group;
+use crate::store::format::keys;
 use crate::store::format::node::{self, LeafView, Limits, NodeView, RecordRef};
 use crate::store::{Block, BlockCache, Pager, ReadStats, StorageError};
 
