@@ -21,7 +21,11 @@
 //! subtree or a changed leaf is committed by writing the changed tree
 //! whole, as every commit did before format version 6.
 
-use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
+use std::collections::{BTreeMap, BTreeSet};
+
+// Record and block ids hash with Fx: SipHash's resistance buys nothing here
+// and cost a commit on ship 10^6 a tenth of its instructions.
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 use std::sync::Arc;
 
 use super::WriteTransaction;
@@ -363,7 +367,7 @@ struct Plan {
 /// one, the least growth for a new one) and notes the records on the way.
 fn plan_leaves(r: &ReadTransaction, meta: &Meta, edits: &Edits, reads: &mut Reads) -> Step<Plan> {
     let mut plan = Plan {
-        mods: HashMap::new(),
+        mods: HashMap::default(),
         leaves: BTreeMap::new(),
         key_changes: BTreeMap::new(),
         next_id: meta.object_ids,
@@ -946,8 +950,8 @@ impl WriteTransaction<'_> {
     ) -> Step<RecordRef> {
         let capacity = node::capacity(bs);
         // Each changed block, its parent block, and its old bytes.
-        let mut blocks: HashMap<u32, Arc<Block>> = HashMap::new();
-        let mut parent_block: HashMap<u32, u32> = HashMap::new();
+        let mut blocks: HashMap<u32, Arc<Block>> = HashMap::default();
+        let mut parent_block: HashMap<u32, u32> = HashMap::default();
         for md in mods.values() {
             blocks.insert(md.block.id(), md.block.clone());
             if let Some((p, _)) = md.parent
@@ -970,9 +974,9 @@ impl WriteTransaction<'_> {
         };
         let mut order: Vec<u32> = blocks.keys().copied().collect();
         order.sort_by_key(|&b| (std::cmp::Reverse(depth(b)), b));
-        let mut relocated: HashMap<(u32, u32), RecordRef> = HashMap::new();
+        let mut relocated: HashMap<(u32, u32), RecordRef> = HashMap::default();
         // Node blocks records outside the changed paths gain below them (leaves moved out).
-        let mut extra: HashMap<(u32, u32), [u32; 2]> = HashMap::new();
+        let mut extra: HashMap<(u32, u32), [u32; 2]> = HashMap::default();
         for b in order {
             let old = blocks[&b].clone();
             // The block's records, as they will be written.
@@ -1057,7 +1061,7 @@ impl WriteTransaction<'_> {
             drafts.retain(|(o, _)| !moved.contains(o));
             // New offsets, then every reference: within the block, to moved
             // records, and to the children's rewritten blocks.
-            let mut new_offset: HashMap<u32, u32> = HashMap::new();
+            let mut new_offset: HashMap<u32, u32> = HashMap::default();
             let mut at = node::RECORDS_START as u32;
             for (o, d) in &drafts {
                 new_offset.insert(*o, at);
@@ -1330,7 +1334,7 @@ impl WriteTransaction<'_> {
         let mut refs: Vec<Option<RecordRef>> = vec![None; n];
         for b in order.iter().copied().chain([root_block]) {
             let nodes: Vec<usize> = packing.blocks[b].iter().map(|&i| i as usize).collect();
-            let mut offset = HashMap::new();
+            let mut offset = HashMap::default();
             let mut at = node::RECORDS_START as u32;
             for &i in &nodes {
                 offset.insert(i, at);
