@@ -70,8 +70,8 @@ def ifcclash_run(model: str, mode: str, **settings: Any) -> Tuple[Dict[Pair, Dic
                 outside[0] += time.perf_counter() - t
         return run
 
-    clasher.load_ifc = timed(clasher.load_ifc)  # type: ignore[method-assign]
-    clasher.add_collision_objects = timed(clasher.add_collision_objects)  # type: ignore[method-assign]
+    clasher.load_ifc = timed(clasher.load_ifc)
+    clasher.add_collision_objects = timed(clasher.add_collision_objects)
     started = time.perf_counter()
     clasher.clash()
     seconds = time.perf_counter() - started
@@ -116,13 +116,13 @@ def compare(name: str, theirs: Dict[Pair, Any], ours: Dict[Pair, Any], reference
             boundary: float) -> Dict[str, Any]:
     only_theirs = [p for p in theirs if p not in ours]
     only_ours = [p for p in ours if p not in theirs]
-    cases = collections.Counter()
+    cases: collections.Counter[str] = collections.Counter()
     for p in only_theirs:
         cases[explain(p, reference, "IfcClash only", boundary)] += 1
     for p in only_ours:
         cases[explain(p, reference, "mktree only", boundary)] += 1
     # Coarser names for the README: the measure's text without its numbers.
-    kinds = collections.Counter()
+    kinds: collections.Counter[str] = collections.Counter()
     for text, n in cases.items():
         kinds[text.split(" (")[0].split(",")[0].split(" depth")[0]] += n
     return {"test": name, "ifcclash": len(theirs), "mktree": len(ours), "both": len(set(theirs) & set(ours)),
@@ -156,7 +156,7 @@ def main() -> int:
 
     everything, _, _ = ({}, None, None) if args.rerun_only else mktree_run(args.mktree, mkt, "--type", "clearance", "--distance", "50",
                                               "--touch", "--tolerance", "2")
-    runs = [
+    runs: List[Tuple[str, Tuple[str, Dict[str, Any]], Tuple[str, ...]]] = [
         ("hard", ("intersection", {"tolerance": 0.002, "check_all": True}),
          ("--type", "hard", "--tolerance", "2")),
         ("clearance 50 mm", ("clearance", {"clearance": 0.05, "check_all": True}),
@@ -196,8 +196,8 @@ def main() -> int:
                        "full_cli_s": full_s, "full_stats": full_summary["stats"], "equal": True}
     print(json.dumps(report["rerun"], indent=1), flush=True)
     if args.out:
-        with open(args.out, "w", encoding="utf-8") as f:
-            json.dump(report, f, indent=1, default=str)
+        with open(args.out, "w", encoding="utf-8") as out:
+            json.dump(report, out, indent=1, default=str)
     return 0
 
 
