@@ -709,6 +709,27 @@ impl WriteTransaction<'_> {
         if matches!(record, NodeView::Internal(_)) && record.object_count() > MERGE_SUBTREE_OBJECTS {
             return Ok(Err(Structural));
         }
+        // A child block the sibling names from its own block is named from
+        // the parent's block after the merge: only if no other record of the
+        // sibling's block names it too, since a block has one parent block
+        // (format-spec/node.md, "Packing").
+        if let NodeView::Internal(s) = &record
+            && sib_block.id() != parent_block.id()
+        {
+            for i in 0..2 {
+                let named = s.child_ref(i).block;
+                if named == 0 {
+                    continue;
+                }
+                for &o in sib_block.records.iter().filter(|&&o| o != sib.offset) {
+                    if let NodeView::Internal(other) = view(&sib_block, o)?
+                        && (0..2).any(|j| other.child_ref(j).block == named)
+                    {
+                        return Ok(Err(Structural));
+                    }
+                }
+            }
+        }
         let q = n
             .child_box(1 - c, &parent_frame)
             .ok_or_else(|| StorageError::corrupt(parent_block.id(), "child_box", "backwards"))?;
