@@ -182,24 +182,11 @@ fn proximity(clashes: &[Clash], g: f64) -> Vec<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::clash::test::ClashKind;
-    use crate::scene::Key;
     use proptest::prelude::*;
 
     fn at(a: u64, x: f64) -> Clash {
         let p = Point::new(x, 0.0, 0.0);
-        Clash {
-            a: Key::Int(a),
-            b: Key::Int(100 + a),
-            kind: ClashKind::Hard,
-            depth: 1.0,
-            distance: 0.0,
-            point: p,
-            closest: None,
-            overlap: None,
-            a_box: Aabb::new(p, p),
-            b_box: Aabb::new(p, p),
-        }
+        Clash::hard_at(a, 100 + a, p)
     }
 
     #[test]

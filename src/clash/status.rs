@@ -133,22 +133,11 @@ pub fn set_status(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::{Aabb, Point};
+    use crate::geom::Point;
 
     fn c(a: u64, b: u64) -> Clash {
         let p = Point::origin();
-        Clash {
-            a: Key::Int(a),
-            b: Key::Int(b),
-            kind: ClashKind::Hard,
-            depth: 1.0,
-            distance: 0.0,
-            point: p,
-            closest: None,
-            overlap: None,
-            a_box: Aabb::new(p, p),
-            b_box: Aabb::new(p, p),
-        }
+        Clash::hard_at(a, b, p)
     }
 
     #[test]

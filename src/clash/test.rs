@@ -155,6 +155,24 @@ pub struct Clash {
 }
 
 impl Clash {
+    /// A hard clash of depth 1 between integer keys `a` and `b` at point
+    /// `p`, for the grouping and status tests.
+    #[cfg(test)]
+    pub(crate) fn hard_at(a: u64, b: u64, p: Point) -> Clash {
+        Clash {
+            a: Key::Int(a),
+            b: Key::Int(b),
+            kind: ClashKind::Hard,
+            depth: 1.0,
+            distance: 0.0,
+            point: p,
+            closest: None,
+            overlap: None,
+            a_box: Aabb::new(p, p),
+            b_box: Aabb::new(p, p),
+        }
+    }
+
     /// What identifies a clash across runs: its keys and type.
     pub fn id(&self) -> (Key, Key, ClashKind) {
         (self.a.clone(), self.b.clone(), self.kind)
