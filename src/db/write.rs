@@ -804,9 +804,7 @@ impl<'db> WriteTransaction<'db> {
     /// except the free list's (`chain`), which the new list replaces.
     fn keep_base(&mut self, chain: &[u32]) {
         let free = FreeSpace::new(self.base.block_count, self.base_free.iter().map(|r| (r.first, r.count)));
-        for (first, count) in FreeSpace::complement(self.base.block_count, &free) {
-            self.written.release(first, count);
-        }
+        self.written.union(&FreeSpace::complement(self.base.block_count, &free));
         let chain: Vec<(u32, u32)> = chain.iter().map(|&b| (b, 1)).collect();
         self.written.remove_all(&chain);
     }

@@ -19,11 +19,26 @@ pub struct FreeSpace {
 impl FreeSpace {
     /// Free space of a file of `end` blocks whose free blocks are `ranges`.
     pub fn new(end: u32, ranges: impl IntoIterator<Item = (u32, u32)>) -> FreeSpace {
-        let mut f = FreeSpace { ranges: BTreeMap::new(), end };
-        for (first, count) in ranges {
-            f.release(first, count);
+        let mut sorted: Vec<(u32, u32)> = ranges.into_iter().filter(|&(_, c)| c > 0).collect();
+        sorted.sort_unstable();
+        FreeSpace { ranges: coalesce(sorted).collect(), end }
+    }
+
+    /// Adds the blocks of `other` (sorted by first block) to this set, in
+    /// one pass over both: a commit adds every block of the tree it keeps.
+    pub fn union(&mut self, other: &[(u32, u32)]) {
+        let mut merged: Vec<(u32, u32)> = Vec::with_capacity(self.ranges.len() + other.len());
+        let (mut a, mut b) = (self.ranges.iter().map(|(&f, &c)| (f, c)).peekable(), other.iter().copied().peekable());
+        loop {
+            let next = match (a.peek(), b.peek()) {
+                (Some(x), Some(y)) if x <= y => a.next(),
+                (Some(_), Some(_)) | (None, Some(_)) => b.next(),
+                (Some(_), None) => a.next(),
+                (None, None) => break,
+            };
+            merged.extend(next.filter(|&(_, c)| c > 0));
         }
-        f
+        self.ranges = coalesce(merged).collect();
     }
 
     /// Blocks in the file.
@@ -118,6 +133,21 @@ impl FreeSpace {
     }
 }
 
+/// Sorted ranges with overlapping and touching ones merged.
+fn coalesce(sorted: Vec<(u32, u32)>) -> impl Iterator<Item = (u32, u32)> {
+    let mut out: Vec<(u32, u32)> = Vec::with_capacity(sorted.len());
+    for (first, count) in sorted {
+        let end = u64::from(first) + u64::from(count);
+        match out.last_mut() {
+            Some((f, c)) if u64::from(*f) + u64::from(*c) >= u64::from(first) => {
+                *c = (end.max(u64::from(*f) + u64::from(*c)) - u64::from(*f)) as u32;
+            }
+            _ => out.push((first, count)),
+        }
+    }
+    out.into_iter()
+}
+
 /// The blocks of `free` (sorted, disjoint), each labelled with the commit
 /// that freed it: its label in `before` where it was free already, else
 /// `now`. Neighbours with one label are merged.
@@ -173,6 +203,20 @@ mod tests {
         assert_eq!(f.allocate(3).unwrap(), 20);
         assert_eq!(f.end(), 23);
         assert_eq!(f.ranges(), vec![(13, 2)]);
+    }
+
+    #[test]
+    fn new_and_union_merge_in_one_pass() {
+        let f = FreeSpace::new(50, [(9, 2), (3, 2), (5, 1), (20, 0), (10, 4)]);
+        assert_eq!(f.ranges(), vec![(3, 3), (9, 5)], "touching and overlapping ranges merge");
+        let mut g = FreeSpace::new(50, [(3, 2), (30, 1)]);
+        g.union(&[(1, 2), (5, 5), (31, 3), (40, 0)]);
+        assert_eq!(g.ranges(), vec![(1, 9), (30, 4)]);
+        let mut by_release = FreeSpace::new(50, [(3, 2), (30, 1)]);
+        for (first, count) in [(1, 2), (5, 5), (31, 3)] {
+            by_release.release(first, count);
+        }
+        assert_eq!(g, by_release);
     }
 
     #[test]

@@ -42,7 +42,7 @@ use crate::store::format::geometry::{self, Placement};
 use crate::store::format::keys::{self, ChildRef, KeyBlock, KeyEntry, TreePath};
 use crate::store::format::meta::Meta;
 use crate::store::format::node::{
-    self, BoundEntry, ChildEntry, NodeView, ObjectEntry, RecordDraft, RecordRef,
+    self, BoundEntry, ChildEntry, NodeView, ObjectEntry, RecordDraft, RecordPart, RecordRef,
 };
 use crate::store::format::quant::{QuantBox, quantize};
 use crate::store::layout;
@@ -1000,25 +1000,33 @@ impl WriteTransaction<'_> {
         let mut extra: HashMap<(u32, u32), [u32; 2]> = HashMap::default();
         for b in order {
             let old = blocks[&b].clone();
-            // The block's records, as they will be written.
-            let mut drafts: Vec<(u32, RecordDraft)> = Vec::with_capacity(old.records.len());
+            // The block's records, as they will be written: changed ones and
+            // internal ones (whose child offsets may move) as drafts, the
+            // unchanged leaves as their stored bytes.
+            let mut drafts: Vec<(u32, Rec)> = Vec::with_capacity(old.records.len());
             for &o in &old.records {
                 if mods.get(&(b, o)).is_some_and(|x| x.gone) {
                     continue;
                 }
                 let d = match mods.get(&(b, o)).and_then(|x| x.draft.clone()) {
-                    Some(d) => d,
-                    None => {
-                        let mut d = view(&old, o)?.to_draft();
-                        if let (Some(more), RecordDraft::Internal { children, .. }) =
-                            (extra.get(&(b, o)), &mut d)
-                        {
-                            for (c, m) in children.iter_mut().zip(more) {
-                                c.node_blocks = c.node_blocks.saturating_add(*m);
+                    Some(d) => Rec::Draft(d),
+                    None => match view(&old, o)? {
+                        v @ NodeView::Leaf(_) => Rec::Stored(
+                            v.stored_bytes(old.bytes(), o)
+                                .map_err(|d| StorageError::corrupt(b, "record", d))?,
+                        ),
+                        v @ NodeView::Internal(_) => {
+                            let mut d = v.to_draft();
+                            if let (Some(more), RecordDraft::Internal { children, .. }) =
+                                (extra.get(&(b, o)), &mut d)
+                            {
+                                for (c, m) in children.iter_mut().zip(more) {
+                                    c.node_blocks = c.node_blocks.saturating_add(*m);
+                                }
                             }
+                            Rec::Draft(d)
                         }
-                        d
-                    }
+                    },
                 };
                 drafts.push((o, d));
             }
@@ -1027,13 +1035,13 @@ impl WriteTransaction<'_> {
             // a block of its own: a leaf has no children, so no other block's
             // parent block changes.
             let mut moved: Vec<u32> = Vec::new();
-            let mut total: usize = drafts.iter().map(|(_, d)| d.encoded_len()).sum();
+            let mut total: usize = drafts.iter().map(|(_, d)| d.part().encoded_len()).sum();
             while total > capacity {
                 let candidate = drafts
                     .iter()
-                    .filter(|(o, d)| matches!(d, RecordDraft::Leaf { .. }) && !moved.contains(o))
-                    .max_by_key(|(_, d)| d.encoded_len())
-                    .map(|(o, d)| (*o, d.encoded_len()));
+                    .filter(|(o, d)| d.is_leaf() && !moved.contains(o))
+                    .max_by_key(|(_, d)| d.part().encoded_len())
+                    .map(|(o, d)| (*o, d.part().encoded_len()));
                 let Some((o, len)) = candidate else { return Ok(Err(Structural)) };
                 moved.push(o);
                 total -= len;
@@ -1051,7 +1059,7 @@ impl WriteTransaction<'_> {
                     {
                         children[c].node_blocks = children[c].node_blocks.saturating_add(1);
                     } else if p.0 == b {
-                        if let Some((_, RecordDraft::Internal { children, .. })) =
+                        if let Some((_, Rec::Draft(RecordDraft::Internal { children, .. }))) =
                             drafts.iter_mut().find(|(x, _)| *x == p.1)
                         {
                             children[c].node_blocks = children[c].node_blocks.saturating_add(1);
@@ -1066,7 +1074,7 @@ impl WriteTransaction<'_> {
             // The counts above changed drafts of this block too: take them again.
             for (o, d) in &mut drafts {
                 if let Some(x) = mods.get(&(b, *o)).and_then(|x| x.draft.clone()) {
-                    *d = x;
+                    *d = Rec::Draft(x);
                 }
             }
             for &o in &moved {
@@ -1074,9 +1082,9 @@ impl WriteTransaction<'_> {
                 let id = self.allocate(1)?;
                 let mut bytes = vec![0u8; bs as usize];
                 let offsets =
-                    node::encode_block(std::slice::from_ref(d), &mut bytes).map_err(StorageError::Invalid)?;
+                    node::encode_block_parts(&[d.part()], &mut bytes).map_err(StorageError::Invalid)?;
                 let checksum = self.put(id, &mut bytes, BlockType::Node)?;
-                deltas.node_bytes += d.encoded_len() as i64;
+                deltas.node_bytes += d.part().encoded_len() as i64;
                 relocated.insert((b, o), RecordRef { block: id, checksum, offset: offsets[0] });
             }
             drafts.retain(|(o, _)| !moved.contains(o));
@@ -1086,10 +1094,10 @@ impl WriteTransaction<'_> {
             let mut at = node::RECORDS_START as u32;
             for (o, d) in &drafts {
                 new_offset.insert(*o, at);
-                at += d.encoded_len() as u32;
+                at += d.part().encoded_len() as u32;
             }
             for (_, d) in &mut drafts {
-                if let RecordDraft::Internal { children, .. } = d {
+                if let Rec::Draft(RecordDraft::Internal { children, .. }) = d {
                     for c in children.iter_mut() {
                         let target =
                             if c.at.block == 0 { (b, c.at.offset) } else { (c.at.block, c.at.offset) };
@@ -1108,7 +1116,7 @@ impl WriteTransaction<'_> {
                     }
                 }
             }
-            let records: Vec<RecordDraft> = drafts.iter().map(|(_, d)| d.clone()).collect();
+            let records: Vec<RecordPart> = drafts.iter().map(|(_, d)| d.part()).collect();
             freed.push(b);
             // Its group bounds go with it: the subtrees below a rewritten
             // block changed, and the block written anew names no group block.
@@ -1123,9 +1131,9 @@ impl WriteTransaction<'_> {
             }
             let id = self.allocate(1)?;
             let mut bytes = vec![0u8; bs as usize];
-            node::encode_block(&records, &mut bytes).map_err(StorageError::Invalid)?;
+            node::encode_block_parts(&records, &mut bytes).map_err(StorageError::Invalid)?;
             let checksum = self.put(id, &mut bytes, BlockType::Node)?;
-            let used = records.iter().map(RecordDraft::encoded_len).sum::<usize>() as i64;
+            let used = records.iter().map(RecordPart::encoded_len).sum::<usize>() as i64;
             deltas.node_bytes += used - old_used(&old);
             for (o, _) in &drafts {
                 relocated.insert((b, *o), RecordRef { block: id, checksum, offset: new_offset[o] });
@@ -1136,6 +1144,26 @@ impl WriteTransaction<'_> {
             .copied()
             .ok_or_else(|| StorageError::Invalid("the root's block was not rewritten".into()))?;
         Ok(Ok(root))
+    }
+}
+
+/// A record of a node block being rewritten: a draft, or an unchanged
+/// leaf's stored bytes (in the old block, which the caller holds).
+enum Rec<'a> {
+    Draft(RecordDraft),
+    Stored(&'a [u8]),
+}
+
+impl Rec<'_> {
+    fn part(&self) -> RecordPart<'_> {
+        match self {
+            Rec::Draft(d) => RecordPart::Draft(d),
+            Rec::Stored(b) => RecordPart::StoredLeaf(b),
+        }
+    }
+
+    fn is_leaf(&self) -> bool {
+        matches!(self, Rec::Stored(_) | Rec::Draft(RecordDraft::Leaf { .. }))
     }
 }
 

@@ -341,6 +341,51 @@ pub fn encode_block(records: &[RecordDraft], block: &mut [u8]) -> Result<Vec<u32
     encode_block_with_groups(records, None, block)
 }
 
+/// A record of a node block being written: a draft to encode, or a stored
+/// record's bytes, copied as they are. A change commit rewrites a block
+/// whose records are mostly unchanged leaves; copying those costs a copy,
+/// where decoding them into drafts costs an allocation per key and bound.
+#[derive(Debug, Clone, Copy)]
+pub enum RecordPart<'a> {
+    Draft(&'a RecordDraft),
+    /// A leaf record as [`NodeView::stored_bytes`] gives it (a leaf names
+    /// no record by offset, so its bytes hold anywhere).
+    StoredLeaf(&'a [u8]),
+}
+
+impl RecordPart<'_> {
+    /// Encoded bytes.
+    pub fn encoded_len(&self) -> usize {
+        match self {
+            RecordPart::Draft(d) => d.encoded_len(),
+            RecordPart::StoredLeaf(b) => b.len(),
+        }
+    }
+}
+
+/// Encodes `records` into a node block's payload, with no group block: the
+/// stored ones lose their group marks, which named the old block's group
+/// block. Returns each record's offset.
+pub fn encode_block_parts(records: &[RecordPart], block: &mut [u8]) -> Result<Vec<u32>, String> {
+    let mut bytes = Vec::with_capacity(capacity(block.len() as u32));
+    let mut offsets = Vec::with_capacity(records.len());
+    for r in records {
+        offsets.push((RECORDS_START + bytes.len()) as u32);
+        match r {
+            RecordPart::Draft(d) => d.encode(&mut bytes)?,
+            RecordPart::StoredLeaf(b) => {
+                if b.first() != Some(&KIND_LEAF) || b.len() < 2 || b.len() % 4 != 0 {
+                    return Err("a stored record that is no leaf record".into());
+                }
+                let at = bytes.len();
+                bytes.extend_from_slice(b);
+                bytes[at + 1] &= !FLAG_GROUPS;
+            }
+        }
+    }
+    finish_block(bytes, offsets, None, block)
+}
+
 /// The group block a node block names, and per record (in order) the mask
 /// of levels it holds for it: bit k - 1 for b(S_n,k), k = 2 ..= [`MAX_GROUP_LEVEL`].
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -363,11 +408,22 @@ pub fn encode_block_with_groups(
         offsets.push((RECORDS_START + bytes.len()) as u32);
         r.encode(&mut bytes)?;
     }
+    finish_block(bytes, offsets, group, block)
+}
+
+/// Writes the head and the encoded `bytes` of records at `offsets` into
+/// `block`, marking each record's group levels.
+fn finish_block(
+    mut bytes: Vec<u8>,
+    offsets: Vec<u32>,
+    group: Option<&GroupRef>,
+    block: &mut [u8],
+) -> Result<Vec<u32>, String> {
     if RECORDS_START + bytes.len() > block.len() {
         return Err(format!("{} bytes of records exceed the block", bytes.len()));
     }
     if let Some(g) = group {
-        if g.block == 0 || g.levels.len() != records.len() || g.levels.iter().any(|l| l & !FLAG_GROUPS != 0) {
+        if g.block == 0 || g.levels.len() != offsets.len() || g.levels.iter().any(|l| l & !FLAG_GROUPS != 0) {
             return Err("a group block of 0, or a level mask per record that is not one".into());
         }
         for (&o, &l) in offsets.iter().zip(&g.levels) {
@@ -379,7 +435,7 @@ pub fn encode_block_with_groups(
     let (group_block, group_checksum) = group.map_or((0, 0), |g| (g.block, g.checksum));
     let head = BlockHead {
         used_bytes: (bytes.len() as u32).into(),
-        record_count: u16::try_from(records.len()).map_err(|_| "too many records".to_string())?.into(),
+        record_count: u16::try_from(offsets.len()).map_err(|_| "too many records".to_string())?.into(),
         reserved: [0; 2],
         group_block: group_block.into(),
         group_checksum: group_checksum.into(),
@@ -785,6 +841,21 @@ impl<'a> NodeView<'a> {
             NodeView::Internal(n) => n.raw.object_count.get(),
             NodeView::Leaf(l) => l.object_count(),
         }
+    }
+}
+
+impl<'a> NodeView<'a> {
+    /// The record's bytes as stored in `block` at `offset` (where
+    /// [`at`](Self::at) found it).
+    pub fn stored_bytes(&self, block: &'a [u8], offset: u32) -> Result<&'a [u8], String> {
+        let len = match self {
+            NodeView::Internal(n) => INTERNAL_LEN + frame_len(&n.frame),
+            NodeView::Leaf(l) => {
+                leaf_len(l.objects.len(), l.checksums.len(), l.bounds.len(), l.keys.len()) + frame_len(&l.frame)
+            }
+        };
+        let start = offset as usize;
+        block.get(start..start + len).ok_or_else(|| "record past the block".to_string())
     }
 }
 
