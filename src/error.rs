@@ -9,18 +9,25 @@ use crate::store::StorageError;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
+    /// Reading or writing the file.
     #[error(transparent)]
     Storage(#[from] StorageError),
+    /// A bulk load's scene or parameters.
     #[error(transparent)]
     Build(#[from] BuildError),
+    /// Reading a scene from OBJ, STL or glTF.
     #[error(transparent)]
     Import(#[from] ImportError),
+    /// Generating a scene.
     #[error(transparent)]
     Generate(#[from] GenError),
+    /// Building the levels of detail.
     #[error(transparent)]
     Lod(#[from] crate::lod::LodError),
+    /// A query.
     #[error(transparent)]
     Query(#[from] crate::query::QueryError),
+    /// An object's key or payload.
     #[error(transparent)]
     Key(#[from] crate::scene::KeyError),
 }

@@ -74,6 +74,7 @@
 
 // The one exception is the byte-range locks of src/store/lock.rs (fcntl).
 #![deny(unsafe_code)]
+#![deny(missing_docs)]
 
 pub use bulk::{BuildParams, LeafRule, Method};
 pub use clash::{Clash, ClashError, ClashKind, ClashRun, ClashTest, GroupBy, Selector, TestKind};

@@ -37,12 +37,26 @@ use crate::store::{ReadStats, StorageError};
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum TilesError {
+    /// The file could not be read.
     #[error(transparent)]
     Storage(#[from] StorageError),
+    /// A file or folder of the export could not be written.
     #[error("{path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// The operating system's error.
+        source: std::io::Error,
+    },
+    /// A tile's glTF (or the tileset's JSON) could not be built.
     #[error("tile {tile}: {detail}")]
-    Gltf { tile: String, detail: String },
+    Gltf {
+        /// The tile's name (`tileset` for the tileset's JSON).
+        tile: String,
+        /// What went wrong.
+        detail: String,
+    },
+    /// The file holds no tree.
     #[error("the file holds no tree")]
     NoTree,
 }
@@ -50,9 +64,13 @@ pub enum TilesError {
 /// What an export wrote.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct TilesetReport {
+    /// Tiles in the tileset.
     pub tiles: u64,
+    /// .glb files written.
     pub glb_files: u64,
+    /// Triangles written to the .glb files.
     pub triangles: u64,
+    /// Bytes written: the .glb files and `tileset.json`.
     pub bytes: u64,
     /// The anchor, mm: the origin of the tiles' coordinates.
     pub anchor_mm: [f64; 3],

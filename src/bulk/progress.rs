@@ -152,6 +152,7 @@ pub enum Stage {
 }
 
 impl Stage {
+    /// The stage's name, as the CLI prints it.
     pub fn name(self) -> &'static str {
         match self {
             Stage::Tree => "tree",
@@ -169,8 +170,11 @@ impl Stage {
 /// `done` = `total`, so a caller can show a bar and the time left per stage.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LoadProgress {
+    /// The stage.
     pub stage: Stage,
+    /// Units done so far.
     pub done: u64,
+    /// Units in the stage.
     pub total: u64,
 }
 

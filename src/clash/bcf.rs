@@ -26,8 +26,9 @@ use crate::scene::{Key, Mesh, ObjectId};
 /// How an export is made.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BcfOptions {
-    /// The snapshot's size, pixels.
+    /// The snapshot's width, pixels.
     pub width_px: u32,
+    /// The snapshot's height, pixels.
     pub height_px: u32,
     /// Written as each topic's author.
     pub author: String,
@@ -46,8 +47,9 @@ impl Default for BcfOptions {
 /// The most topics an export writes (the ZIP has at most 65,535 entries, three per topic).
 pub const MAX_TOPICS: usize = 20_000;
 
-/// The colours of A objects and B objects in a snapshot.
+/// The colour of A objects in a snapshot (RGB).
 pub const COLOUR_A: [u8; 3] = [214, 64, 56];
+/// The colour of B objects in a snapshot (RGB).
 pub const COLOUR_B: [u8; 3] = [72, 110, 190];
 
 /// The BCF 3.0 archive of `clashes` grouped by `groups`, with their

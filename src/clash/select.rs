@@ -29,7 +29,12 @@ pub enum Selector {
     /// matching: a string by its text, any other value by its JSON text
     /// (`payload.FIELD:GLOB`; `class:GLOB` is `payload.class:GLOB`, the
     /// IFC loader's class field).
-    Payload { field: String, pattern: String },
+    Payload {
+        /// The dotted path of the field in the payload.
+        field: String,
+        /// The glob its value must match.
+        pattern: String,
+    },
 }
 
 /// What a selector sees of an object.

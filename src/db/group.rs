@@ -27,6 +27,7 @@ pub struct GroupLevel {
     /// (the paper's Faces(b(S,k)), Figure 2), and its guaranteed error, mm;
     /// `None` when the root's is not stored.
     pub root_faces: Option<u64>,
+    /// The root's bound's guaranteed error, mm; `None` when it is not stored.
     pub root_eps_mm: Option<f64>,
     /// Triangles of the root's bound as drawn (its greedy rectangles, two each).
     pub root_triangles: Option<u64>,
@@ -39,6 +40,7 @@ pub struct GroupSummary {
     pub levels: Vec<GroupLevel>,
     /// Group blocks, and the bytes of entries they hold.
     pub blocks: u64,
+    /// Bytes of entries the group blocks hold.
     pub block_bytes: u64,
     /// Nodes of the tree (each could hold one per level).
     pub nodes: u64,

@@ -119,9 +119,13 @@ pub(crate) fn pack(sizes: &[usize], capacity: usize) -> Vec<std::ops::Range<usiz
 /// What a lookup by key finds: the object's id, key, exact box and payload.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ObjectRecord {
+    /// The object's id.
     pub id: ObjectId,
+    /// The application's key.
     pub key: Key,
+    /// The object's exact box, mm.
     pub aabb: Aabb,
+    /// The application's bytes kept with the key.
     pub payload: Vec<u8>,
 }
 

@@ -23,7 +23,12 @@ use crate::store::{Block, ReadStats, StorageError};
 #[derive(Debug, Clone)]
 pub enum Piece {
     /// b(S_n,1): node `node`'s box.
-    Box { node: u32, aabb: Aabb },
+    Box {
+        /// The node's id.
+        node: u32,
+        /// Its box as stored.
+        aabb: Aabb,
+    },
     /// Objects bounded by their boxes at this level.
     ObjectBoxes(Vec<(ObjectId, Aabb)>),
     /// Objects bounded by a stored voxel set (its surface cells).
@@ -31,7 +36,14 @@ pub enum Piece {
     /// Level M: exact objects.
     Objects(Vec<(ObjectId, Mesh)>),
     /// b(S_n,k), 2 <= k < M: node `node`'s group bound, as stored.
-    Group { node: u32, level: u8, voxels: Voxels },
+    Group {
+        /// The node's id.
+        node: u32,
+        /// The level k.
+        level: u8,
+        /// The bound's voxels.
+        voxels: Voxels,
+    },
 }
 
 impl Piece {
@@ -51,7 +63,9 @@ impl Piece {
 /// A fetched level: its pieces and the bytes they are stored in.
 #[derive(Debug, Clone, Default)]
 pub struct Level {
+    /// The pieces the level is made of.
     pub pieces: Vec<Piece>,
+    /// Bytes the pieces are stored in.
     pub bytes: u64,
     /// The reads the records predict for this fetch, with the node's record in hand.
     pub predicted_reads: u64,
@@ -75,6 +89,7 @@ pub struct LodInfo {
     /// Per level k = 1 .. M: the guaranteed error eps_k and the largest
     /// sampled one of the bounds stored (mm).
     pub eps: Vec<f64>,
+    /// Per level k = 1 .. M: the largest sampled error of the bounds stored (mm).
     pub measured_error: Vec<f64>,
     /// Per level k = 1 .. M: bytes stored (level M: the geometry records).
     pub bytes: Vec<u64>,
@@ -85,6 +100,7 @@ pub struct LodInfo {
     /// Per level k = 1 .. M: the query model's expected geometry reads
     /// saved and node reads cost per query by the bounds stored.
     pub predicted_saving: Vec<f64>,
+    /// Per level k = 1 .. M: the node reads the bounds stored cost per query.
     pub predicted_cost: Vec<f64>,
     /// The query model's extents q (mm).
     pub query_extent: [f64; 3],

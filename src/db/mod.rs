@@ -85,14 +85,22 @@ pub struct Recovery {
 pub enum Warning {
     /// A copy of a commit slot fails its checksum (a torn write or damage);
     /// the other copy holds the slot and the next write rewrites this one.
-    DamagedSlotCopy { slot: u8, copy: u8 },
+    DamagedSlotCopy {
+        /// The slot, 0 or 1.
+        slot: u8,
+        /// The copy, 0 or 1.
+        copy: u8,
+    },
     /// A write transaction was interrupted (crash or abort); the next write
     /// transaction cleans up after it.
     Interrupted,
     /// Commit `txn`, synced once, did not reach the disk whole (a crash
     /// before its sync returned, so it never reported success): the state
     /// before it is read, and the next write transaction clears its slot.
-    UnfinishedCommit { txn: u64 },
+    UnfinishedCommit {
+        /// The commit's transaction id.
+        txn: u64,
+    },
 }
 
 impl std::fmt::Display for Warning {

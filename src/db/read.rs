@@ -19,28 +19,43 @@ use crate::store::{Block, BlockCache, Pager, ReadStats, StorageError};
 /// What a file holds, from its meta block.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct TreeInfo {
+    /// The commit the snapshot reads (its transaction id).
     pub txn: u64,
+    /// Bytes per block.
     pub block_size: u32,
+    /// M, the number of levels of detail; level M is the exact geometry.
     pub lod_levels: u8,
+    /// File length in blocks at this commit.
     pub file_blocks: u32,
     /// Blocks of the file on its free list: reused by later writes, and
     /// given back by [`Database::compact`](super::Database::compact).
     pub free_blocks: u32,
+    /// Objects in the tree.
     pub objects: u32,
+    /// Nodes, leaves included.
     pub nodes: u32,
+    /// Leaves.
     pub leaves: u32,
     /// Deepest level (root 0).
     pub depth: u32,
+    /// Node blocks of the tree.
     pub node_blocks: u32,
+    /// Geometry blocks of the tree.
     pub geometry_blocks: u64,
     /// Bytes of node records over the node blocks' bytes.
     pub node_fill: f64,
     /// Bytes of geometry records over the geometry blocks' bytes.
     pub geometry_fill: f64,
+    /// Triangles over all objects.
     pub triangles: u64,
+    /// Vertices over all objects.
     pub vertices: u64,
+    /// The scene's box, x0 y0 z0 x1 y1 z1, mm.
     pub scene_box: [f64; 6],
+    /// Wall time of the bulk load, seconds.
     pub build_seconds: f64,
+    /// The parameters of the bulk load (the query extent is not stored: `Auto`);
+    /// `None` when the stored codes do not decode.
     #[serde(skip)]
     pub params: Option<BuildParams>,
 }
@@ -61,10 +76,13 @@ impl Drop for ReadTransaction {
 /// objects' boxes are quantized in).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NodeRef {
+    /// The node block holding the record.
     pub block: u32,
     /// The checksum the parent (or the meta block) holds for `block`.
     pub checksum: u32,
+    /// Byte offset of the record in `block`.
     pub offset: u32,
+    /// The record's box: the frame its children's and objects' boxes are quantized in.
     pub aabb: Aabb,
 }
 
@@ -81,6 +99,7 @@ pub struct NodeRef {
 /// costs count what it holds) every block is held to the end, so each is
 /// read at most once.
 pub struct Reads<'c> {
+    /// The blocks read so far, by kind, and the cache hits.
     pub stats: ReadStats,
     // Block ids hash with Fx: SipHash's resistance buys nothing here and costs a warm query.
     /// Blocks read, found while anything still holds them.

@@ -6,7 +6,9 @@ use super::{Axis, Point, Vector, round_down_f32, round_up_f32};
 /// max = -inf) is the identity of [`Aabb::union`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Aabb {
+    /// The lower corner, mm.
     pub min: Point,
+    /// The upper corner, mm.
     pub max: Point,
 }
 

@@ -7,8 +7,11 @@ use serde::Serialize;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Axis {
+    /// The x axis.
     X,
+    /// The y axis.
     Y,
+    /// The z axis (up).
     Z,
 }
 

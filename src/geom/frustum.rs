@@ -8,7 +8,9 @@ use super::{Aabb, Point, ShapeError, Vector};
 /// A perspective camera: the frustum's defining numbers. Up is +z.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
+    /// The camera's position, mm.
     pub eye: Point,
+    /// The point it looks at, mm.
     pub target: Point,
     /// Vertical field of view, degrees, in (0, 180).
     pub fov_deg: f64,
@@ -16,6 +18,7 @@ pub struct Camera {
     pub aspect: f64,
     /// Distances along the view direction, 0 < near < far.
     pub near: f64,
+    /// The far distance, mm.
     pub far: f64,
 }
 

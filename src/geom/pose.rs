@@ -9,7 +9,9 @@ use nalgebra::Rotation3;
 /// A rotation (about a centre the caller gives) and a translation, mm.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Pose {
+    /// The rotation.
     pub rotation: Rotation3<f64>,
+    /// The translation, mm.
     pub translation: Vector,
 }
 

@@ -5,8 +5,19 @@
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum ShapeError {
+    /// A number of the shape is NaN or infinite.
     #[error("{what} must be finite")]
-    NotFinite { what: &'static str },
+    NotFinite {
+        /// What the shape is.
+        what: &'static str,
+    },
+    /// The numbers are finite but describe no shape (a zero direction, a
+    /// negative length, a viewport of 0 pixels).
     #[error("{what}: {detail}")]
-    Invalid { what: &'static str, detail: String },
+    Invalid {
+        /// What the shape is.
+        what: &'static str,
+        /// What is wrong.
+        detail: String,
+    },
 }

@@ -35,6 +35,7 @@ const MAX_LATTICE_LEVEL: u8 = 60;
 /// floor and cell budget.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GroupRule {
+    /// The global voxel lattice.
     pub lattice: Lattice,
     /// M.
     pub levels: u8,

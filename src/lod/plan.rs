@@ -47,6 +47,7 @@ impl Default for LodParams {
 pub struct LodPlan {
     /// M.
     pub levels: u8,
+    /// The global voxel lattice.
     pub lattice: Lattice,
     /// Index k - 1: the lattice level of level k's grids (level 2: the
     /// finest its per-node grids may use); 0 for levels 1 and M.

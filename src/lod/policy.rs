@@ -46,8 +46,11 @@ use crate::store::format::quant::QuantBox;
 /// decrease).
 #[derive(Debug, Clone)]
 pub struct LeafEntry {
+    /// The object.
     pub id: ObjectId,
+    /// Its box (or the part's) in steps of the leaf's frame.
     pub qbox: [u16; 6],
+    /// The geometry block its record starts in.
     pub block: u64,
 }
 
@@ -89,6 +92,7 @@ pub struct StoredBounds {
     pub usage: Vec<[u64; 2]>,
     /// Per level k = 1 .. M: the lattice level of its grids (0 for 1 and M).
     pub grid_level: Vec<u8>,
+    /// The voxel lattice the bounds are on; `None` when no level holds voxels.
     pub lattice: Option<Lattice>,
     /// The query model's extents q, mm.
     pub query_extent: [f64; 3],

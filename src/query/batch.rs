@@ -25,31 +25,47 @@ use crate::store::{BlockCache, ReadStats};
 pub enum Request {
     /// The objects meeting the closed box `[x0, y0, z0, x1, y1, z1]`.
     Box {
+        /// The box, mm (`"box"` in JSON).
         #[serde(rename = "box")]
         aabb: [f64; 6],
+        /// The level k to answer at; absent: M, the exact answer.
         #[serde(default)]
         lod: Option<u8>,
+        /// At most this many block reads; absent: no limit.
         #[serde(default)]
         budget: Option<u64>,
     },
     /// The objects meeting a closed ball.
     Sphere {
+        /// The ball's centre, mm.
         center: [f64; 3],
+        /// The ball's radius, mm.
         radius: f64,
+        /// The level k to answer at; absent: M.
         #[serde(default)]
         lod: Option<u8>,
+        /// At most this many block reads; absent: no limit.
         #[serde(default)]
         budget: Option<u64>,
     },
     /// The `k` objects nearest `point`, nearest first, with their distances.
-    Nearest { point: [f64; 3], k: usize },
+    Nearest {
+        /// The point, mm.
+        point: [f64; 3],
+        /// How many objects.
+        k: usize,
+    },
     /// The first object the ray meets (`all`: every one, in order), with t
     /// and the point.
     Ray {
+        /// The ray's origin, mm.
         origin: [f64; 3],
+        /// The ray's direction (not zero; any length).
         direction: [f64; 3],
+        /// How far along the ray to look, mm; absent: no end.
         #[serde(default)]
         max_distance: Option<f64>,
+        /// Every object the ray meets, in order, not only the first.
         #[serde(default)]
         all: bool,
     },
@@ -58,15 +74,21 @@ pub enum Request {
     /// `translate`; the object itself is left out. Its mesh is read first,
     /// and those reads are not counted.
     Collide {
+        /// The id of the file's object to move.
         object: u32,
+        /// The move, mm.
         #[serde(default)]
         translate: [f64; 3],
+        /// The rotation about x, then y, then z, degrees.
         #[serde(default)]
         rotate_deg: [f64; 3],
+        /// The distance (mm) within which an object counts as touching.
         #[serde(default)]
         clearance: f64,
+        /// The level k to answer at; absent: M.
         #[serde(default)]
         lod: Option<u8>,
+        /// At most this many block reads; absent: no limit.
         #[serde(default)]
         budget: Option<u64>,
     },

@@ -20,6 +20,7 @@ pub struct ScanOracle<'p> {
 }
 
 impl<'p> ScanOracle<'p> {
+    /// An oracle for `probes`, with no object offered yet.
     pub fn new(probes: &'p [&'p dyn Selection]) -> ScanOracle<'p> {
         ScanOracle { probes, answers: vec![Vec::new(); probes.len()], next: 0 }
     }

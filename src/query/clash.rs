@@ -45,9 +45,11 @@ pub struct ClashAnswer {
     /// Sorted pairs (a, b), a < b: exact at M (the unordered pairs of
     /// `collide` over every object), a superset below.
     pub pairs: Vec<(ObjectId, ObjectId)>,
+    /// The level k the run answered at.
     pub level: u8,
     /// Blocks in the file, to set the reads against.
     pub file_blocks: u32,
+    /// What the traversal did.
     pub stats: TraverseStats,
 }
 

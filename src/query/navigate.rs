@@ -18,11 +18,13 @@ use crate::store::{BlockCache, ReadStats};
 /// One step of a walk.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct NavigateStep {
+    /// The step's index in the path (0-based).
     pub step: usize,
     /// Sorted ids in view (exact at M, a superset below).
     pub objects: Vec<ObjectId>,
     /// Device reads by kind, and hits in the pool.
     pub reads: ReadStats,
+    /// Wall time of the step, seconds.
     pub seconds: f64,
 }
 

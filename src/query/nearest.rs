@@ -17,6 +17,7 @@ use crate::store::BlockCache;
 /// An object at its distance from the point asked about.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Near {
+    /// The object.
     pub object: ObjectId,
     /// The application's key for it.
     pub key: Key,

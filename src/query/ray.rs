@@ -19,6 +19,7 @@ use crate::store::BlockCache;
 /// Where a ray meets an object first.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RayHit {
+    /// The object.
     pub object: ObjectId,
     /// The application's key for it.
     pub key: Key,

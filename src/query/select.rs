@@ -97,8 +97,11 @@ impl<T: Selection + ?Sized> Selection for &T {
 /// A region query's shape.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Region {
+    /// The objects meeting a closed box.
     Box(Aabb),
+    /// The objects meeting a closed ball.
     Sphere(Sphere),
+    /// The objects meeting a closed view frustum.
     Frustum(Box<Frustum>),
 }
 

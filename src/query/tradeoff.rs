@@ -20,16 +20,23 @@ pub const TRADEOFF_SHIFT_MM: f64 = 100.0;
 /// One level's means over the queries.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TradeoffRow {
+    /// The level k the queries were answered at.
     pub level: u8,
+    /// Mean block reads per query.
     pub mean_reads: f64,
+    /// Mean node-block reads per query.
     pub mean_node_reads: f64,
     /// Bounds the file stores at this level (none: the level answers as the one below).
     pub stored_bounds: u64,
+    /// Mean geometry-block reads per query.
     pub mean_geometry_reads: f64,
+    /// Mean wall time per query, milliseconds.
     pub mean_milliseconds: f64,
     /// Exact answers over reported ones, over all queries (1 when none reported).
     pub precision: f64,
+    /// Mean objects reported per query.
     pub mean_reported: f64,
+    /// Mean objects in the exact answer per query.
     pub mean_exact: f64,
 }
 
@@ -110,6 +117,7 @@ pub fn tradeoff(txn: &ReadTransaction, queries: &[Triangles]) -> Result<Vec<Trad
 /// What the bounds stored up to one level are worth, measured.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LevelBenefit {
+    /// The finest level whose stored bounds are used.
     pub level: u8,
     /// Mean block reads of an exact answer to the read model's queries when
     /// the bounds of levels up to `level` are used (level 1: none).

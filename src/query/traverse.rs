@@ -85,17 +85,20 @@ pub enum Proof {
 /// Where an object seen at a leaf was decided.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct ObjectLevel {
+    /// The object.
     pub object: ObjectId,
     /// The level of the bound that decided it (or the last it passed).
     pub level: u8,
     /// In the answer (confirmed, or a candidate below M), or rejected.
     pub accepted: bool,
+    /// How it was decided.
     pub proof: Proof,
 }
 
 /// An object a query accepted, as [`Select`] yields it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Hit {
+    /// The object.
     pub object: ObjectId,
     /// The application's key for it, from its leaf record (no read of its own).
     pub key: Key,
@@ -105,14 +108,18 @@ pub struct Hit {
     /// The level of the bound that decided it (a candidate below M: the
     /// finest it passed).
     pub level: u8,
+    /// How it was decided.
     pub proof: Proof,
 }
 
 /// What a traversal did besides its answer.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct TraverseStats {
+    /// Blocks read, by kind, and cache hits.
     pub reads: ReadStats,
+    /// Node records entered, leaves included.
     pub nodes_visited: u64,
+    /// Leaf records entered.
     pub leaves_visited: u64,
     /// Per level k = 1 .. M (index k - 1): objects confirmed there.
     pub confirmed: Vec<u64>,
@@ -122,7 +129,9 @@ pub struct TraverseStats {
     pub pruned: u64,
     /// Objects whose geometry was read and tested (the level-M decisions).
     pub geometry_tests: u64,
+    /// Triangles tested against the query at level M.
     pub triangles_tested: u64,
+    /// Wall time of the traversal, seconds.
     pub seconds: f64,
 }
 
@@ -144,6 +153,7 @@ pub struct QueryAnswer {
     pub level_reached: u8,
     /// Objects seen at leaves, with the level and proof of their decision (sorted).
     pub decided: Vec<ObjectLevel>,
+    /// What the traversal did.
     pub stats: TraverseStats,
 }
 
@@ -226,9 +236,13 @@ impl Ord for Queued {
 pub struct Seen<'a> {
     /// The id of the leaf holding it.
     pub leaf: u32,
+    /// Its box as stored (of the part, for an object stored as parts).
     pub aabb: Aabb,
+    /// The level and voxels of the bound that decided it, if one did.
     pub bound: Option<(u8, &'a Voxels)>,
+    /// Its mesh, when its geometry was read.
     pub mesh: Option<&'a Mesh>,
+    /// How it was decided.
     pub decision: ObjectLevel,
 }
 
@@ -239,8 +253,11 @@ pub struct Seen<'a> {
 /// no parent).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct NodeName {
+    /// The node's id; `None` when not known without a read.
     pub id: Option<u32>,
+    /// The parent's id; `None` for the root.
     pub parent: Option<u32>,
+    /// Which child of its parent it is (0 or 1; 0 for the root).
     pub child: u8,
 }
 

@@ -50,15 +50,20 @@ use crate::store::{BlockCache, StorageError};
 /// A perspective camera and its viewport. Up is +z, as for [`Camera`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct View {
+    /// The camera's position, mm.
     pub eye: Point,
+    /// The point it looks at, mm.
     pub target: Point,
     /// Vertical field of view, degrees, in (0, 180).
     pub fov_deg: f64,
+    /// Viewport width, pixels.
     pub width_px: u32,
+    /// Viewport height, pixels.
     pub height_px: u32,
     /// What the camera sees lies between these distances along the view
     /// direction, mm (0 < near < far).
     pub near_mm: f64,
+    /// The far distance, mm.
     pub far_mm: f64,
 }
 
@@ -154,8 +159,11 @@ pub enum Bound {
 /// A stand-in or an exact object, as drawn.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Shape {
+    /// A box.
     Box(Aabb),
+    /// A voxel bound.
     Voxels(Voxels),
+    /// The exact mesh.
     Mesh(Mesh),
 }
 
@@ -169,6 +177,7 @@ pub struct Shown {
     pub aabb: Aabb,
     /// How far the shape may be from what it stands for, both ways, mm.
     pub eps_mm: f64,
+    /// The shape drawn.
     pub shape: Shape,
 }
 
@@ -181,6 +190,7 @@ pub struct CutNode {
     pub node: NodeName,
     /// The level k shown: 1 for a box, M for exact.
     pub level: u8,
+    /// What the piece shows.
     pub bound: Bound,
     /// The node's box, or the union of its shown objects' boxes.
     pub aabb: Aabb,
@@ -204,8 +214,11 @@ pub struct ViewCut {
     /// The largest projected error in the cut, pixels (at most τ unless the
     /// budget stopped refinement).
     pub max_error_px: f64,
+    /// τ, pixels, as asked.
     pub tolerance_px: f64,
+    /// The block budget, as asked.
     pub budget: Option<u64>,
+    /// What the traversal did.
     pub stats: TraverseStats,
 }
 

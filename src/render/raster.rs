@@ -17,7 +17,9 @@ use crate::query::View;
 /// An RGB picture with its depth buffer.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Image {
+    /// Width, pixels.
     pub width: u32,
+    /// Height, pixels.
     pub height: u32,
     /// Row by row from the top, 3 bytes a pixel.
     pub rgb: Vec<u8>,

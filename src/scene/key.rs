@@ -20,6 +20,7 @@ pub enum Key {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("a key of {len} bytes (at most {max})", max = Key::MAX_BYTES)]
 pub struct KeyTooLong {
+    /// The key's length, bytes.
     pub len: usize,
 }
 

@@ -14,17 +14,39 @@ use crate::geom::{Aabb, Point, Vector};
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum MeshError {
+    /// A vertex with a NaN or infinite coordinate.
     #[error("vertex {vertex} has a non-finite coordinate")]
-    NonFiniteVertex { vertex: usize },
+    NonFiniteVertex {
+        /// The vertex's index (0-based).
+        vertex: usize,
+    },
+    /// A triangle names a vertex the mesh does not have.
     #[error("triangle {triangle} uses vertex index {index}, but the object has {vertices} vertices")]
-    IndexOutOfRange { triangle: usize, index: u32, vertices: usize },
+    IndexOutOfRange {
+        /// The triangle's index (0-based).
+        triangle: usize,
+        /// The vertex index it names.
+        index: u32,
+        /// The mesh's number of vertices.
+        vertices: usize,
+    },
+    /// The mesh has no triangles.
     #[error("object has no triangles")]
     NoTriangles,
+    /// More vertices than a u32 index addresses.
     #[error("object has {vertices} vertices, more than the 2^32 an index can address")]
-    TooManyVertices { vertices: usize },
+    TooManyVertices {
+        /// The number of vertices.
+        vertices: usize,
+    },
     /// Offsets from the anchor are f32: an object wider than f32's range has none.
     #[error("vertex {vertex} lies {offset:e} mm from the object's lower corner, beyond the {max:e} mm of an f32 offset", max = f32::MAX)]
-    TooWide { vertex: usize, offset: f64 },
+    TooWide {
+        /// The vertex's index (0-based).
+        vertex: usize,
+        /// Its distance from the object's lower corner, mm.
+        offset: f64,
+    },
 }
 
 /// A triangle mesh: vertex positions and triangles as index triples.

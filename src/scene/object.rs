@@ -25,7 +25,9 @@ impl std::fmt::Display for ObjectId {
 /// the application's key and payload.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Object {
+    /// The object's name, from the input file or the generator.
     pub name: String,
+    /// Its triangles, mm.
     pub mesh: Mesh,
     /// The application's key; `None` is the object's id as an integer key.
     pub key: Option<Key>,
@@ -172,12 +174,34 @@ pub(crate) fn unique_keys(mut keys: Vec<(Key, ObjectId)>) -> Result<(), KeyError
 /// Keys a scene cannot be stored with.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum KeyError {
+    /// Two objects share a key.
     #[error("objects {first} and {second} share the key {key}: keys are unique")]
-    Duplicate { key: Key, first: ObjectId, second: ObjectId },
+    Duplicate {
+        /// The key.
+        key: Key,
+        /// The first object with it.
+        first: ObjectId,
+        /// The second object with it.
+        second: ObjectId,
+    },
+    /// A payload longer than [`Object::MAX_PAYLOAD`].
     #[error("object {object}'s payload has {len} bytes (at most {max})", max = Object::MAX_PAYLOAD)]
-    PayloadTooLong { object: ObjectId, len: usize },
+    PayloadTooLong {
+        /// The object.
+        object: ObjectId,
+        /// The payload's length, bytes.
+        len: usize,
+    },
+    /// An insert of a key the tree already holds.
     #[error("an object with key {key} is already in the tree")]
-    Exists { key: Key },
+    Exists {
+        /// The key.
+        key: Key,
+    },
+    /// An update of a key the tree does not hold.
     #[error("no object has key {key}")]
-    NotFound { key: Key },
+    NotFound {
+        /// The key.
+        key: Key,
+    },
 }

@@ -9,8 +9,11 @@ use crate::geom::Aabb;
 /// Min, median and max of a sample (all zero for an empty one).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Distribution {
+    /// The smallest value.
     pub min: f64,
+    /// The median.
     pub median: f64,
+    /// The largest value.
     pub max: f64,
 }
 
@@ -32,12 +35,19 @@ impl Distribution {
 /// `extent` (`[dx, dy, dz]`) and `bbox` (`[x0, y0, z0, x1, y1, z1]`) are part of the CLI contract.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SceneInfo {
+    /// Objects in the scene.
     pub objects: usize,
+    /// Triangles over all objects.
     pub triangles: usize,
+    /// Vertices over all objects.
     pub vertices: usize,
+    /// Triangles of zero area (repeated index or collinear corners).
     pub degenerate_triangles: usize,
+    /// The scene box's size along x, y and z, mm.
     pub extent: [f64; 3],
+    /// The scene box, x0 y0 z0 x1 y1 z1, mm.
     pub bbox: [f64; 6],
+    /// Triangles per object.
     pub triangles_per_object: Distribution,
     /// Longest side of each object's box, mm.
     pub box_longest_side: Distribution,

@@ -6,28 +6,62 @@ use std::io;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum StorageError {
+    /// Reading, writing or syncing the file failed.
     #[error("I/O error")]
     Io(#[from] io::Error),
     /// The file could not be opened or created (the reason is in the message,
     /// not a source, so that printing the error alone says why).
     #[error("cannot open {}: {error}", path.display())]
-    Open { path: std::path::PathBuf, error: io::Error },
+    Open {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why it could not be opened or created.
+        error: io::Error,
+    },
     /// The spill file of a staged scene could not be created, written or read.
     #[error("spill file {}: {error}", path.display())]
-    Spill { path: std::path::PathBuf, error: io::Error },
+    Spill {
+        /// The spill file.
+        path: std::path::PathBuf,
+        /// What went wrong.
+        error: io::Error,
+    },
+    /// The file does not start with the mktree magic number.
     #[error("not an MKtree file (bad magic number)")]
     NotMktree,
+    /// The file is of a format version this build does not read.
     #[error("unsupported format version {found} (this build reads version {supported})")]
-    UnsupportedVersion { found: u32, supported: u32 },
+    UnsupportedVersion {
+        /// The version the file states.
+        found: u32,
+        /// The version this build reads.
+        supported: u32,
+    },
+    /// A block size that is not a multiple of 16 in 1,024 ..= 4,194,304 bytes.
     #[error("invalid block size {0}: it must be a multiple of 16 from 1024 to 4194304 bytes")]
     InvalidBlockSize(u64),
+    /// A number of levels of detail outside 1 ..= 16.
     #[error("invalid number of levels of detail {0}: it must be 1 to 16")]
     InvalidLodLevels(u64),
+    /// The file is shorter than its header, or ends before a block it needs.
     #[error("file is truncated: {detail}")]
-    Truncated { detail: String },
+    Truncated {
+        /// What is missing.
+        detail: String,
+    },
     /// A checksum or structural rule failed; names the block, the record (if any) and the field.
     #[error("corrupt file: block {block}{}: {field}: {detail}", record.map(|r| format!(", record {r}")).unwrap_or_default())]
-    Corruption { block: u32, record: Option<u32>, field: &'static str, detail: String },
+    Corruption {
+        /// The block.
+        block: u32,
+        /// The record, if the fault is in one: its index in the block when
+        /// the block is validated, its byte offset when a relocation reads it.
+        record: Option<u32>,
+        /// The field, as format-spec/ names it.
+        field: &'static str,
+        /// What is wrong.
+        detail: String,
+    },
     /// Another process holds the writer's lock: it is writing the file.
     #[error("another process is writing the file: try again when it ends, or wait for it (--wait)")]
     Locked,
@@ -37,10 +71,13 @@ pub enum StorageError {
         "a check by an older mktree in another process keeps writers out: try again when it ends, or wait for it (--wait)"
     )]
     LockedByCheck,
+    /// A write on a file opened read-only.
     #[error("the file was opened read-only")]
     ReadOnly,
+    /// A write would make the file longer than 2^32 blocks.
     #[error("the file would exceed 2^32 blocks")]
     FileTooLarge,
+    /// Anything else: a bad argument, or a file whose contents contradict each other.
     #[error("{0}")]
     Invalid(String),
     /// The application's redb database failed (the `redb` feature).

@@ -28,7 +28,9 @@ const LOOK_AHEAD: usize = 64;
 /// block); `blocks[b]` lists block b's nodes in record order.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Packing {
+    /// Per node: (block index, position in the block).
     pub place: Vec<(u32, u32)>,
+    /// Per block: its nodes, in record order.
     pub blocks: Vec<Vec<u32>>,
 }
 

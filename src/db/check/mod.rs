@@ -42,11 +42,17 @@ use keys::KeyedObject;
 /// What `check` found.
 #[derive(Debug, Clone, Default, serde::Serialize)]
 pub struct CheckReport {
+    /// The commit checked (its transaction id).
     pub txn: u64,
+    /// File length in blocks at that commit.
     pub file_blocks: u32,
+    /// Blocks whose frame verifies, by type name.
     pub blocks_by_type: BTreeMap<String, u64>,
+    /// Blocks on the free list.
     pub free_blocks: u64,
+    /// Objects in the tree.
     pub objects: u64,
+    /// Nodes the walk of the tree reached, leaves included.
     pub nodes: u64,
     /// A write transaction was interrupted; its torn free blocks are not faults.
     pub interrupted: bool,

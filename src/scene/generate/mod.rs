@@ -44,6 +44,7 @@ use parts::Part;
 /// What to generate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct GenOptions {
+    /// The kind of scene.
     pub preset: Preset,
     /// Objects to make; `None` for the preset's own count
     /// ([`Preset::default_objects`]). Must lie in [`Preset::object_range`].
@@ -55,8 +56,11 @@ pub struct GenOptions {
 /// Totals of a generated scene.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GenSummary {
+    /// Objects made.
     pub objects: u64,
+    /// Triangles over all objects.
     pub triangles: u64,
+    /// Vertices over all objects.
     pub vertices: u64,
     /// The box of all vertices, R(S).
     pub aabb: Aabb,
@@ -66,10 +70,23 @@ pub struct GenSummary {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum GenError {
+    /// An object count outside the preset's range.
     #[error("preset {preset} takes {} to {} objects, not {objects}", range.start(), range.end())]
-    InvalidObjectCount { preset: Preset, objects: u64, range: std::ops::RangeInclusive<u64> },
+    InvalidObjectCount {
+        /// The preset.
+        preset: Preset,
+        /// The count asked for.
+        objects: u64,
+        /// The counts it takes ([`Preset::object_range`]).
+        range: std::ops::RangeInclusive<u64>,
+    },
+    /// A preset name that is not one of the presets.
     #[error("unknown preset {name:?}: expected tanker1, tanker2, tanker3, ship or plant")]
-    UnknownPreset { name: String },
+    UnknownPreset {
+        /// The name given.
+        name: String,
+    },
+    /// The sink failed (for [`write_scene_obj`], writing the OBJ text).
     #[error("could not write the generated scene")]
     Io(#[from] io::Error),
 }

@@ -16,7 +16,14 @@ pub enum Location {
     /// A 0-based facet (triangle) of an STL file.
     Facet(u64),
     /// A primitive of the mesh that a glTF node instances (all 0-based).
-    Primitive { node: usize, mesh: usize, primitive: usize },
+    Primitive {
+        /// The glTF node.
+        node: usize,
+        /// The mesh the node instances.
+        mesh: usize,
+        /// The primitive within that mesh.
+        primitive: usize,
+    },
 }
 
 impl fmt::Display for Location {
@@ -39,26 +46,56 @@ pub enum ImportError {
     /// The file or directory could not be opened or read.
     #[error("cannot read {}", file.display())]
     Io {
+        /// The file or directory.
         file: PathBuf,
+        /// The operating system's error.
         #[source]
         source: io::Error,
     },
     /// The path names a FIFO, socket or device, not a file or directory.
     #[error("{} is not a regular file or a directory (a FIFO, socket or device is not read)", file.display())]
-    NotAFile { file: PathBuf },
+    NotAFile {
+        /// The path given.
+        file: PathBuf,
+    },
     /// A line of an OBJ file is not what the format allows there.
     #[error("{}: line {line}: expected {expected}, found {found:?}", file.display())]
-    Malformed { file: PathBuf, line: u64, expected: &'static str, found: String },
+    Malformed {
+        /// The OBJ file.
+        file: PathBuf,
+        /// The 1-based line.
+        line: u64,
+        /// What the format allows there.
+        expected: &'static str,
+        /// The text found instead.
+        found: String,
+    },
     /// A binary STL file ends before the facets its header announces.
     #[error(
         "{}: truncated: the header announces {facets} facets ({expected_bytes} bytes), \
          but the file has {actual_bytes} bytes",
         file.display()
     )]
-    Truncated { file: PathBuf, facets: u64, expected_bytes: u64, actual_bytes: u64 },
+    Truncated {
+        /// The STL file.
+        file: PathBuf,
+        /// The facet count in the header.
+        facets: u64,
+        /// The file size those facets need, in bytes.
+        expected_bytes: u64,
+        /// The file's size, in bytes.
+        actual_bytes: u64,
+    },
     /// A coordinate is NaN or infinite (after the transform, for glTF).
     #[error("{}: {at}: object {object:?} has a NaN or infinite coordinate", file.display())]
-    NonFiniteCoordinate { file: PathBuf, object: String, at: Location },
+    NonFiniteCoordinate {
+        /// The input file.
+        file: PathBuf,
+        /// The object's name.
+        object: String,
+        /// Where the coordinate is.
+        at: Location,
+    },
     /// A face refers to a vertex that does not exist. For OBJ, `index` is
     /// the index as written (1-based, or negative for relative) and
     /// `vertices` the number defined before that line.
@@ -66,31 +103,77 @@ pub enum ImportError {
         "{}: {at}: object {object:?}: vertex index {index} is out of range ({vertices} vertices)",
         file.display()
     )]
-    IndexOutOfRange { file: PathBuf, object: String, at: Location, index: i64, vertices: usize },
+    IndexOutOfRange {
+        /// The input file.
+        file: PathBuf,
+        /// The object's name.
+        object: String,
+        /// Where the face is.
+        at: Location,
+        /// The vertex index as written.
+        index: i64,
+        /// The number of vertices it may refer to.
+        vertices: usize,
+    },
     /// An object has no triangles; `line` is the line of its OBJ `o`.
     #[error("{}: object {object:?}{} has no triangles", file.display(), at_line(*line))]
-    NoTriangles { file: PathBuf, object: String, line: Option<u64> },
+    NoTriangles {
+        /// The input file.
+        file: PathBuf,
+        /// The object's name.
+        object: String,
+        /// The 1-based line of its OBJ `o`, when it has one.
+        line: Option<u64>,
+    },
     /// The file or directory holds no object at all.
     #[error("{}: the scene is empty: no object has a triangle", file.display())]
-    EmptyScene { file: PathBuf },
+    EmptyScene {
+        /// The file or directory.
+        file: PathBuf,
+    },
     /// The file name has no extension that `load` knows.
     #[error("{}: unsupported file type (expected .obj, .stl, .gltf, .glb or a directory)", file.display())]
-    UnsupportedExtension { file: PathBuf },
+    UnsupportedExtension {
+        /// The path given.
+        file: PathBuf,
+    },
     /// The STL decoder refused the file.
     #[error("{}: STL: {message}", file.display())]
-    Stl { file: PathBuf, message: String },
+    Stl {
+        /// The STL file.
+        file: PathBuf,
+        /// The decoder's message.
+        message: String,
+    },
     /// The glTF decoder refused the file, or its data is inconsistent.
     #[error("{}: glTF: {message}", file.display())]
-    Gltf { file: PathBuf, message: String },
+    Gltf {
+        /// The glTF or GLB file.
+        file: PathBuf,
+        /// What is wrong, from the decoder or the importer.
+        message: String,
+    },
     /// A glTF buffer's URI that the importer will not follow, or whose
     /// file does not hold the buffer.
     #[error("{}: glTF: buffer {buffer}: URI {uri:?} {reason}", file.display())]
-    BufferUri { file: PathBuf, buffer: usize, uri: String, reason: UriRefusal },
+    BufferUri {
+        /// The glTF file.
+        file: PathBuf,
+        /// The 0-based buffer index.
+        buffer: usize,
+        /// The buffer's URI as written.
+        uri: String,
+        /// Why it is refused.
+        reason: UriRefusal,
+    },
     /// The mesh of an object was refused (for example, too many vertices).
     #[error("{}: object {object:?}", file.display())]
     Mesh {
+        /// The input file.
         file: PathBuf,
+        /// The object's name.
         object: String,
+        /// Why the mesh was refused.
         #[source]
         source: MeshError,
     },
@@ -114,7 +197,12 @@ pub enum UriRefusal {
     /// Not a regular file: a folder, a device, a pipe.
     NotAFile,
     /// A file shorter than the buffer's declared `byteLength`.
-    Short { declared: u64, actual: u64 },
+    Short {
+        /// The buffer's `byteLength`, in bytes.
+        declared: u64,
+        /// The file's size, in bytes.
+        actual: u64,
+    },
 }
 
 impl fmt::Display for UriRefusal {

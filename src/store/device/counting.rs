@@ -9,10 +9,15 @@ use super::BlockDevice;
 /// Operation counts of a [`CountingDevice`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct DeviceCounts {
+    /// Read operations.
     pub reads: u64,
+    /// Bytes read.
     pub bytes_read: u64,
+    /// Write operations.
     pub writes: u64,
+    /// Bytes written.
     pub bytes_written: u64,
+    /// Syncs to stable storage.
     pub syncs: u64,
 }
 

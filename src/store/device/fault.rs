@@ -10,8 +10,11 @@ use super::BlockDevice;
 /// Which kind of operation to fail.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FaultOp {
+    /// A read.
     Read,
+    /// A write.
     Write,
+    /// A sync.
     Sync,
 }
 

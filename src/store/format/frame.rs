@@ -12,9 +12,13 @@ pub const FRAME_LEN: usize = 16;
 #[derive(Debug, Clone, Copy, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
 pub struct Frame {
+    /// CRC-32 over the block id (a u32, not stored), then bytes 4 .. `block_size` of the block.
     pub checksum: U32,
+    /// The block's type, a [`BlockType`] code.
     pub block_type: u8,
+    /// Zero.
     pub reserved: [u8; 3],
+    /// The id of the transaction that wrote the block.
     pub txn: U64,
 }
 const _: () = assert!(size_of::<Frame>() == FRAME_LEN);
@@ -23,13 +27,21 @@ const _: () = assert!(size_of::<Frame>() == FRAME_LEN);
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[repr(u8)]
 pub enum BlockType {
+    /// The meta block: tree root, counts, build parameters, LOD table (format-spec/meta.md).
     Meta = 1,
+    /// Node records (format-spec/node.md).
     Node = 2,
+    /// A stretch of the stream of object records (format-spec/geometry.md).
     Geometry = 3,
+    /// Ranges of free blocks (format-spec/freelist.md).
     FreeList = 5,
+    /// A free block scrubbed by recovery: payload all zero (format-spec/commit.md).
     Free = 7,
+    /// Keys in order, with their objects' ids, names, payloads and boxes (format-spec/keys.md).
     KeyLeaf = 8,
+    /// The key index's inner blocks (format-spec/keys.md).
     KeyBranch = 9,
+    /// The group bounds of one node block's records (format-spec/group.md).
     Group = 10,
 }
 

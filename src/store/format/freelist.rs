@@ -29,8 +29,11 @@ const RANGE_LEN: usize = size_of::<RangeRecord>();
 /// reader of a state older than `freed` may still read them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FreeRange {
+    /// The first free block.
     pub first: u32,
+    /// The number of blocks in the range.
     pub count: u32,
+    /// The transaction id of the commit that freed them.
     pub freed: u64,
 }
 
@@ -44,8 +47,11 @@ pub fn ranges_per_block(block_size: u32) -> usize {
 /// One decoded free-list block.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct FreeListBlock {
+    /// The next free-list block; 0 for the last.
     pub next_block: u32,
+    /// The checksum the next block must carry; 0 for none.
     pub next_checksum: u32,
+    /// The ranges this block holds.
     pub ranges: Vec<FreeRange>,
 }
 

@@ -40,8 +40,11 @@ const _: () = assert!(size_of::<EntryRaw>() == ENTRY_LEN);
 /// byte `record` of the node block.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct GroupEntry {
+    /// The record's byte offset in its node block.
     pub record: u32,
+    /// The level k, 2 ..= 8 and below M.
     pub level: u8,
+    /// The voxel blob (format-spec/lod.md).
     pub blob: Vec<u8>,
 }
 

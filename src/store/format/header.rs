@@ -7,12 +7,12 @@ use zerocopy::{FromBytes, FromZeros, Immutable, IntoBytes, KnownLayout, Unaligne
 use super::{FORMAT_VERSION, all_zero, validate_block_size, validate_lod_levels};
 use crate::store::StorageError;
 
-/// `\x89MKT\r\n\x1a\n`.
 /// The largest transaction id: every id names a reader's lock byte
 /// (`store/lock.rs`), which must stay below 2^63. No file reaches it by
 /// committing; a slot beyond it is forged or damaged.
 pub const MAX_TXN: u64 = (1 << 62) - 2;
 
+/// `\x89MKT\r\n\x1a\n`.
 pub const MAGIC: [u8; 8] = [0x89, b'M', b'K', b'T', b'\r', b'\n', 0x1a, b'\n'];
 /// Bytes a reader needs to learn the block size and read both slots.
 pub const PREFIX_LEN: usize = 1024;
@@ -27,11 +27,17 @@ pub const fn slot_offset(slot: usize, copy: usize) -> usize {
 #[derive(Debug, Clone, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
 pub struct FixedHeader {
+    /// [`MAGIC`]: catches text-mode transfers, as PNG's does.
     pub magic: [u8; 8],
+    /// The format version ([`FORMAT_VERSION`]; format-spec/versions.md).
     pub format_version: U32,
+    /// Bytes per block: a multiple of 16 in 1,024 ..= 4,194,304.
     pub block_size: U32,
+    /// M, the number of levels of detail, 1 ..= 16; level M is the exact geometry.
     pub lod_levels: u8,
+    /// Zero.
     pub reserved: [u8; 491],
+    /// CRC-32 over bytes 0 .. 508, then the tail of block 0 (bytes 1024 .. `block_size`).
     pub header_checksum: U32,
 }
 const _: () = assert!(size_of::<FixedHeader>() == 512);
@@ -40,8 +46,11 @@ const _: () = assert!(size_of::<FixedHeader>() == 512);
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u8)]
 pub enum SlotState {
+    /// No commit: the copy is all zero bytes.
     Empty = 0,
+    /// A write transaction began and has not committed.
     Pending = 1,
+    /// Committed (written as state 3 when [`Commit::listed`]).
     Committed = 2,
 }
 
@@ -53,16 +62,29 @@ const LISTED: u8 = 3;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
 pub struct Slot {
+    /// Transaction id, at most [`MAX_TXN`]; 0 only in an empty slot.
     pub txn: U64,
+    /// 0 empty, 1 pending, 2 committed, 3 committed with one sync (the meta
+    /// block lists the blocks written).
     pub state: u8,
+    /// Zero.
     pub reserved0: [u8; 3],
+    /// Block id of the meta block; 0 = no tree (an empty database).
     pub meta_block: U32,
+    /// The checksum the meta block must carry (0 when `meta_block` is 0).
     pub meta_checksum: U32,
+    /// File length in blocks at this commit.
     pub block_count: U32,
+    /// First free-list block; 0 = no free blocks.
     pub freelist_block: U32,
+    /// The checksum that free-list block must carry (0 when none).
     pub freelist_checksum: U32,
+    /// Number of free blocks the list holds.
     pub free_blocks: U32,
+    /// Zero.
     pub reserved1: [u8; 88],
+    /// CRC-32 over bytes 0 .. 124 of the copy, then the slot index and the
+    /// copy index, each as a u32.
     pub slot_checksum: U32,
 }
 const _: () = assert!(size_of::<Slot>() == SLOT_LEN);
@@ -70,12 +92,19 @@ const _: () = assert!(size_of::<Slot>() == SLOT_LEN);
 /// A slot's contents, decoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Commit {
+    /// Transaction id, 1 ..= [`MAX_TXN`].
     pub txn: u64,
+    /// Block id of the meta block; 0 = no tree.
     pub meta_block: u32,
+    /// The checksum the meta block must carry.
     pub meta_checksum: u32,
+    /// File length in blocks.
     pub block_count: u32,
+    /// First free-list block; 0 = no free blocks.
     pub freelist_block: u32,
+    /// The checksum that free-list block must carry.
     pub freelist_checksum: u32,
+    /// Number of free blocks the list holds.
     pub free_blocks: u32,
     /// Committed with one sync (state 3): the meta block lists every other
     /// block the commit wrote, which a reader verifies before it takes the
@@ -87,9 +116,16 @@ pub struct Commit {
 /// (torn or damaged).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SlotRead {
+    /// All zero bytes: never written.
     Empty,
-    Pending { txn: u64 },
+    /// A write transaction began and has not committed.
+    Pending {
+        /// The transaction's id.
+        txn: u64,
+    },
+    /// A commit (state 2 or 3).
     Committed(Commit),
+    /// The checksum fails, a reserved byte is set, or the id or state is out of range.
     Invalid,
 }
 
@@ -110,6 +146,7 @@ impl SlotRead {
 /// A slot as its two copies give it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SlotPair {
+    /// Copy 0 and copy 1, as read.
     pub copies: [SlotRead; 2],
 }
 

@@ -33,7 +33,9 @@ pub const MAX_HEIGHT: u32 = 64;
 /// by the object's box.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
 pub struct TreePath {
+    /// The steps, bit `i` the child taken at depth `i`.
     pub bits: u64,
+    /// The number of steps, 0 ..= [`TreePath::MAX_LEN`] (0: the root).
     pub len: u8,
 }
 
@@ -73,10 +75,14 @@ impl TreePath {
 /// One key's entry.
 #[derive(Debug, Clone, PartialEq)]
 pub struct KeyEntry {
+    /// The application's key.
     pub key: Key,
+    /// The application's opaque bytes kept with the key (at most
+    /// [`Object::MAX_PAYLOAD`](crate::scene::Object::MAX_PAYLOAD)).
     pub payload: Vec<u8>,
     /// The object's name (empty for none).
     pub name: String,
+    /// The object's id.
     pub object_id: u32,
     /// The path to the leaf holding the object.
     pub path: TreePath,
@@ -104,14 +110,18 @@ impl KeyEntry {
 /// (none for the first child).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ChildRef {
+    /// The least key in the child's subtree (not stored for the first child).
     pub first_key: Key,
+    /// The child's key block.
     pub block: u32,
+    /// The checksum that block must carry.
     pub checksum: u32,
 }
 
 /// A key block, decoded and validated.
 #[derive(Debug, Clone, PartialEq)]
 pub enum KeyBlock {
+    /// A leaf block: entries in key order.
     Leaf(Vec<KeyEntry>),
     /// Children in key order; child i >= 1 holds keys from its `first_key`.
     Branch(Vec<ChildRef>),

@@ -62,11 +62,13 @@ pub struct LodCodes {
     /// The global voxel lattice: origin and level-0 cell (mm); cell 0 when
     /// no level below M holds voxels.
     pub lattice_origin: [f64; 3],
+    /// Cell of lattice level 0, mm; 0 when no level below M holds voxels.
     pub lattice_cell: f64,
     /// Reserved: zero.
     pub flags: u32,
     /// Bit budgets of a node's and an object's cuberille (level 2).
     pub cuberille_bits: u32,
+    /// Cell budget of an object's level-2 grid.
     pub cuberille_object_bits: u32,
     /// Per level k = 1 .. 16: the lattice level of its grids (level 2: the finest allowed).
     pub grid_level: [u8; LOD_TABLE_LEN],
@@ -83,32 +85,50 @@ pub struct LodCodes {
 /// How the tree was built, as raw codes (the db layer maps them to `build` types).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct BuildCodes {
+    /// Bulk loader: 0 moa, 1 laa, 2 median, 3 hilbert, 4 sah, 5 vsah, 6 refine.
     pub method: u8,
+    /// 0 first-found (the paper), 1 widest-gap, 2 most-balanced.
     pub tie_break: u8,
+    /// 0 objects (`leaf_capacity` = MemPage objects), 1 bytes (`leaf_capacity` = bytes).
     pub leaf_rule: u8,
     /// `u32::MAX` = max.
     pub look_ahead: u32,
+    /// R, in [0, 0.5].
     pub rate: f64,
+    /// Objects or bytes per leaf, as `leaf_rule` says.
     pub leaf_capacity: u64,
+    /// Wall time of the bulk load, seconds.
     pub build_seconds: f64,
 }
 
 /// The meta block, decoded.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Meta {
+    /// The node block holding the root record.
     pub root_block: u32,
+    /// The checksum that block must carry.
     pub root_checksum: u32,
     /// Byte offset of the root record in its block.
     pub root_offset: u32,
+    /// Objects in the tree.
     pub object_count: u32,
+    /// Nodes, leaves included.
     pub node_count: u32,
+    /// Leaves.
     pub leaf_count: u32,
+    /// Deepest node level (root 0); an upper bound after a change commit that merged leaves.
     pub depth: u32,
+    /// Number of node blocks.
     pub node_blocks: u32,
+    /// Number of geometry blocks.
     pub geometry_blocks: u64,
+    /// Triangles over all objects.
     pub triangle_count: u64,
+    /// Vertices over all objects.
     pub vertex_count: u64,
+    /// R(S), x0 y0 z0 x1 y1 z1, exact: the root's box, the frame its children are quantized in.
     pub scene_box: [f64; 6],
+    /// How the tree was built.
     pub build: BuildCodes,
     /// Object ids lie below this (at least `object_count`): a change
     /// commit gives a new object the next id and leaves a removed one's unused.
@@ -120,15 +140,20 @@ pub struct Meta {
     pub node_ids: u32,
     /// Bytes of node records, and of geometry records, over all blocks (block fill).
     pub node_bytes: u64,
+    /// Bytes of geometry records over all geometry blocks.
     pub geometry_bytes: u64,
     /// (eps_k, measured error) for k = 1 .. 16.
     pub lod_table: [[f64; 2]; LOD_TABLE_LEN],
+    /// How the levels of detail below M were built.
     pub lods: LodCodes,
     /// The key index's root block and its checksum, its levels (1: the
     /// root is a leaf) and its blocks (format-spec/keys.md).
     pub keys_block: u32,
+    /// The checksum the key index's root block must carry.
     pub keys_checksum: u32,
+    /// Levels of the key index, 1 ..= 64.
     pub keys_height: u32,
+    /// Blocks of the key index.
     pub keys_blocks: u32,
     /// Every other block the commit that wrote this meta block wrote, with
     /// the checksum it carries, when that commit synced once (its slot's
@@ -146,9 +171,11 @@ pub fn written_capacity(block_size: u32) -> usize {
     (block_size as usize).saturating_sub(WRITTEN_AT + 4) / 8
 }
 
-/// Largest valid method, tie-break and leaf-rule codes.
+/// The largest valid method code (6, refine).
 pub const MAX_METHOD: u8 = 6;
+/// The largest valid tie-break code.
 pub const MAX_TIE_BREAK: u8 = 2;
+/// The largest valid leaf-rule code.
 pub const MAX_LEAF_RULE: u8 = 1;
 
 impl Meta {

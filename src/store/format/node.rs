@@ -125,6 +125,7 @@ impl BoundRaw {
 pub struct RecordRef {
     /// 0 for the parent's own block.
     pub block: u32,
+    /// The checksum of `block`; 0 for the parent's own block.
     pub checksum: u32,
     /// Byte offset of the record from the block's start.
     pub offset: u32,
@@ -135,6 +136,7 @@ pub struct RecordRef {
 pub struct ChildEntry {
     /// The child's box in steps of the parent's box.
     pub qbox: [u16; 6],
+    /// Where the child's record is.
     pub at: RecordRef,
     /// Node blocks of the child's subtree other than the parent's block.
     pub node_blocks: u32,
@@ -145,6 +147,7 @@ pub struct ChildEntry {
 /// An object of a leaf, ready to write.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ObjectEntry {
+    /// The object's id, below the meta block's `object_count`.
     pub object_id: u32,
     /// The object's box in steps of the leaf's box.
     pub qbox: [u16; 6],
@@ -156,42 +159,58 @@ pub struct ObjectEntry {
 /// (internal record) or object (leaf) `target`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BoundEntry {
+    /// The child (0 or 1) or the object index in the leaf the bound is for.
     pub target: u16,
+    /// The level of detail k, 2 ..= M - 1.
     pub level: u8,
+    /// The voxel blob (format-spec/lod.md), at most [`MAX_BOUND_BYTES`].
     pub blob: Vec<u8>,
 }
 
 /// How an internal node was split.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SplitInfo {
+    /// The split axis.
     pub axis: Axis,
     /// 0: objects sorted by min coordinate, 1: by max, 2: by box centre.
     pub order: u8,
+    /// wOverlap of the children (the paper's clamped value, >= 0).
     pub overlap: f32,
+    /// max(upper of first part) - min(lower of second part), negative for a gap.
     pub gap: f32,
 }
 
 /// A record to write.
 #[derive(Debug, Clone, PartialEq)]
 pub enum RecordDraft {
+    /// An internal record (kind 1): two children.
     Internal {
+        /// The node's id (its preorder number after a bulk load); root 0.
         node_id: u32,
+        /// Objects in the subtree, >= 2.
         object_count: u32,
+        /// How the node was split.
         split: SplitInfo,
+        /// The first child, then the second.
         children: [ChildEntry; 2],
         /// The record's own frame; `None`: the box its parent's entry decodes to.
         frame: Option<Aabb>,
     },
+    /// A leaf record (kind 2): objects over a span of geometry blocks.
     Leaf {
+        /// The node's id (its preorder number after a bulk load).
         node_id: u32,
         /// The record's own frame; `None`: the box its parent's entry decodes to.
         frame: Option<Aabb>,
+        /// The first geometry block of the leaf's span.
         first_block: u32,
         /// Checksums of the geometry blocks `first_block ..`, one per block of the span.
         checksums: Vec<u32>,
+        /// The object entries (parts of a large object are consecutive entries with one id).
         objects: Vec<ObjectEntry>,
         /// Byte offset in the span just past the last object's record.
         end: u64,
+        /// Per-object bounds B(o,k) (target = object index).
         bounds: Vec<BoundEntry>,
         /// Each object's key, in entry order (one per object, not per part).
         keys: Vec<Key>,
@@ -347,6 +366,7 @@ pub fn encode_block(records: &[RecordDraft], block: &mut [u8]) -> Result<Vec<u32
 /// where decoding them into drafts costs an allocation per key and bound.
 #[derive(Debug, Clone, Copy)]
 pub enum RecordPart<'a> {
+    /// A record to encode.
     Draft(&'a RecordDraft),
     /// A leaf record as [`NodeView::stored_bytes`] gives it (a leaf names
     /// no record by offset, so its bytes hold anywhere).
@@ -390,8 +410,11 @@ pub fn encode_block_parts(records: &[RecordPart], block: &mut [u8]) -> Result<Ve
 /// of levels it holds for it: bit k - 1 for b(S_n,k), k = 2 ..= [`MAX_GROUP_LEVEL`].
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct GroupRef {
+    /// The group block's id (never 0).
     pub block: u32,
+    /// The group block's checksum.
     pub checksum: u32,
+    /// Per record, the mask of group levels (flag bits 1-7).
     pub levels: Vec<u8>,
 }
 
@@ -448,6 +471,7 @@ fn finish_block(
 /// What validation needs to know of the file.
 #[derive(Debug, Clone, Copy)]
 pub struct Limits {
+    /// Bytes per block.
     pub block_size: u32,
     /// M: bound levels lie in 2 ..= M - 1.
     pub lod_levels: u8,
@@ -738,7 +762,9 @@ fn validate_bounds(mut area: &[u8], targets: usize, limits: &Limits) -> Result<(
 /// A record of a validated block, borrowed in place.
 #[derive(Debug, Clone, Copy)]
 pub enum NodeView<'a> {
+    /// An internal record.
     Internal(InternalView<'a>),
+    /// A leaf record.
     Leaf(LeafView<'a>),
 }
 
@@ -907,8 +933,11 @@ impl NodeView<'_> {
 /// A bound borrowed from a record: the blob of level `level` for `target`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BoundView<'a> {
+    /// The child (0 or 1) or the object index in the leaf the bound is for.
     pub target: u16,
+    /// The level of detail k.
     pub level: u8,
+    /// The voxel blob (format-spec/lod.md).
     pub blob: &'a [u8],
 }
 
@@ -955,7 +984,9 @@ impl<'a> InternalView<'a> {
 /// An object of a leaf in place.
 #[derive(Debug, Clone, Copy)]
 pub struct ObjectView {
+    /// The object's id.
     pub object_id: u32,
+    /// The box of the object's (or part's) triangles, in steps of the leaf's box.
     pub qbox: [u16; 6],
     /// Byte range of its geometry record (and any padding after it) in the leaf's span.
     pub span: (u64, u64),

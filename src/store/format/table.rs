@@ -42,12 +42,15 @@ const RANGE_LEN: usize = size_of::<RangeRecord>();
 /// The committed state of a tree in a table, decoded.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct TableState {
+    /// Bytes per block.
     pub block_size: u32,
+    /// M, the number of levels of detail.
     pub lod_levels: u8,
     /// The mktree transaction that wrote it; 1 for a new, empty tree.
     pub txn: u64,
     /// 0: no tree yet.
     pub meta_block: u32,
+    /// The checksum the meta block must carry.
     pub meta_checksum: u32,
     /// One past the largest block id in use.
     pub block_count: u32,
