@@ -236,7 +236,7 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Many queries in one process: one JSON request per line (stdin, or --queries), one JSON answer per line.
+    /// Many queries and changes in one process: one JSON request per line (stdin, or --queries), one JSON answer per line; changes commit one per line, or --commit-every N together.
     Batch {
         file: PathBuf,
         /// Read the requests from this file instead of stdin.
@@ -246,6 +246,13 @@ pub enum Command {
         /// gets an error answer and is skipped, never held in memory.
         #[arg(long, value_parser = byte_size, default_value = "1M")]
         max_line: u64,
+        /// Write lines per commit: every N changes commit together (the
+        /// last ones when the input ends).
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+        commit_every: u64,
+        /// If another process is writing the file, wait for it instead of failing.
+        #[arg(long)]
+        wait: bool,
     },
     /// The view's cut through the levels of detail: (node, level) pieces front to back, as JSON.
     View {

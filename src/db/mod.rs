@@ -17,6 +17,7 @@ mod staged;
 mod stored;
 mod tree_writer;
 mod write;
+mod write_request;
 
 use std::collections::{BTreeMap, HashMap};
 use std::fs::OpenOptions;
@@ -34,6 +35,7 @@ pub(crate) use read::view;
 pub use read::{NodeRef, ReadTransaction, Reads, TreeInfo};
 pub use staged::StagedScene;
 pub use write::{ChangeStats, WriteTransaction};
+pub use write_request::{JsonKey, JsonObject, WriteAnswer, WriteRequest, apply_write};
 
 use crate::store::device::FileDevice;
 use crate::store::format::frame::{self, BlockType};

@@ -204,4 +204,7 @@ pub enum KeyError {
         /// The key.
         key: Key,
     },
+    /// A key longer than [`Key::MAX_BYTES`].
+    #[error(transparent)]
+    TooLong(#[from] super::key::KeyTooLong),
 }

@@ -13,17 +13,32 @@
 //! cannot be opened or the input not read. Lines starting with `#` are
 //! comments. Every query reads through the database's shared cache, so a
 //! block an earlier line read is counted as a cache hit, not a read.
+//!
+//! A line with a `"write"` tag is a change (`mktree::db::WriteRequest`:
+//! insert, update, move, remove by key). Changes go into one write
+//! transaction that commits after every `--commit-every` of them (default
+//! 1: each its own commit); the change's answer then holds `"committed"`
+//! (the lines committed, the milliseconds since the first of them, and
+//! the commit's `ChangeStats`), else `"pending": true`. A group still open
+//! when the input ends commits then, answered by one last line without
+//! `"line"`. Queries read the last commit, never a pending change. A
+//! change that fails answers its error and leaves the group as it was; a
+//! commit that fails answers its error, and the group's changes are lost.
+//! A file this process may not write is opened to read, and its changes
+//! answer that it is read-only.
 
 use std::io::{BufRead, BufReader, Write};
 use std::path::Path;
+use std::time::Instant;
 
 use anyhow::{Context, Result};
+use mktree::db::{Database, WriteRequest, WriteTransaction, WriterWait, apply_write};
 use mktree::query::{Request, answer_request};
+use mktree::{ReadTransaction, StorageError};
 use serde_json::{Value, json};
 
-pub fn run(file: &Path, queries: Option<&Path>, max_line: u64) -> Result<()> {
-    let db = crate::input::open_to_read(file)?;
-    let r = db.begin_read()?;
+pub fn run(file: &Path, queries: Option<&Path>, max_line: u64, commit_every: u64, wait: bool) -> Result<()> {
+    let db = open(file)?;
     let mut input: Box<dyn BufRead> = match queries {
         Some(p) => Box::new(BufReader::new(
             std::fs::File::open(p).with_context(|| format!("opening {}", p.display()))?,
@@ -31,6 +46,7 @@ pub fn run(file: &Path, queries: Option<&Path>, max_line: u64) -> Result<()> {
         None => Box::new(std::io::stdin().lock()),
     };
     let mut out = std::io::stdout().lock();
+    let mut session = Session { db: &db, read: db.begin_read()?, write: None, wait, commit_every };
     let mut bytes = Vec::new();
     let mut skipping = false;
     for n in 1.. {
@@ -53,12 +69,7 @@ pub fn run(file: &Path, queries: Option<&Path>, max_line: u64) -> Result<()> {
         {
             continue;
         }
-        let answer = text
-            .map_err(Clone::clone)
-            .and_then(|t| serde_json::from_str::<Request>(t).map_err(|e| e.to_string()))
-            .and_then(|q| answer_request(&r, &q, Some(r.cache())).map_err(|e| e.to_string()))
-            .and_then(|a| serde_json::to_value(a).map_err(|e| e.to_string()));
-        let value = match answer {
+        let value = match text.map_err(Clone::clone).and_then(|t| session.answer(n, t)) {
             Ok(Value::Object(mut a)) => {
                 a.insert("line".into(), json!(n));
                 Value::Object(a)
@@ -69,7 +80,100 @@ pub fn run(file: &Path, queries: Option<&Path>, max_line: u64) -> Result<()> {
         writeln!(out, "{value}")?;
         out.flush()?;
     }
+    // The changes of a last, unfilled group commit when the input ends.
+    if let Some(committed) = session.commit() {
+        writeln!(out, "{}", committed.unwrap_or_else(|error| json!({ "error": error })))?;
+    }
     Ok(())
+}
+
+/// The file, to change when this process may write it, else to read (its
+/// write lines then answer with the error that it is read-only).
+fn open(file: &Path) -> Result<Database> {
+    match Database::open(file) {
+        Ok(db) => {
+            for w in db.warnings() {
+                eprintln!("warning: {}: {w}", file.display());
+            }
+            Ok(db)
+        }
+        Err(StorageError::Open { error, .. })
+            if matches!(
+                error.kind(),
+                std::io::ErrorKind::PermissionDenied | std::io::ErrorKind::ReadOnlyFilesystem
+            ) =>
+        {
+            crate::input::open_to_read(file)
+        }
+        Err(e) => Err(crate::input::opening(e, file)),
+    }
+}
+
+/// The batch's transactions: queries read the last commit; changes go
+/// into a write transaction that commits every `commit_every` of them.
+struct Session<'db> {
+    db: &'db Database,
+    read: ReadTransaction,
+    /// The open write transaction, the input lines of its changes, and when it began.
+    write: Option<(WriteTransaction<'db>, Vec<u64>, Instant)>,
+    wait: bool,
+    commit_every: u64,
+}
+
+impl Session<'_> {
+    /// The answer to request line `n`.
+    fn answer(&mut self, n: u64, text: &str) -> Result<Value, String> {
+        let value: Value = serde_json::from_str(text).map_err(|e| e.to_string())?;
+        if value.get("write").is_none() {
+            let q: Request = serde_json::from_value(value).map_err(|e| e.to_string())?;
+            let a = answer_request(&self.read, &q, Some(self.read.cache())).map_err(|e| e.to_string())?;
+            return serde_json::to_value(a).map_err(|e| e.to_string());
+        }
+        let request: WriteRequest = serde_json::from_value(value).map_err(|e| e.to_string())?;
+        if self.write.is_none() {
+            let w = self
+                .db
+                .begin_write_with(if self.wait { WriterWait::Wait } else { WriterWait::Fail })
+                .map_err(|e| e.to_string())?;
+            self.write = Some((w, Vec::new(), Instant::now()));
+        }
+        let (w, lines, _) = self.write.as_mut().ok_or("no write transaction")?;
+        let answer = apply_write(w, &request).map_err(|e| e.to_string())?;
+        lines.push(n);
+        let full = lines.len() as u64 >= self.commit_every;
+        let mut value = serde_json::to_value(answer).map_err(|e| e.to_string())?;
+        if let Value::Object(a) = &mut value {
+            if full {
+                let committed = self.commit().ok_or("no write transaction")??;
+                a.insert("committed".into(), committed);
+            } else {
+                a.insert("pending".into(), json!(true));
+            }
+        }
+        Ok(value)
+    }
+
+    /// Commits the open write transaction, if any; its answer: the lines
+    /// it held, its time and what it wrote.
+    fn commit(&mut self) -> Option<Result<Value, String>> {
+        let (w, lines, began) = self.write.take()?;
+        if lines.is_empty() {
+            // Its only changes failed: nothing to commit, and the writer's lock goes.
+            return None;
+        }
+        Some(
+            w.commit_with_stats()
+                .map_err(|e| format!("the commit of lines {lines:?} failed, and their changes with it: {e}"))
+                .and_then(|stats| {
+                    self.read = self.db.begin_read().map_err(|e| e.to_string())?;
+                    Ok(json!({
+                        "lines": lines,
+                        "ms": began.elapsed().as_secs_f64() * 1e3,
+                        "stats": stats,
+                    }))
+                }),
+        )
+    }
 }
 
 /// What [`read_line`] found.

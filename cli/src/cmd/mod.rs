@@ -78,7 +78,9 @@ pub fn run(cli: Cli) -> Result<()> {
             let pair = clash_status::Pair { a, b, kind, set, text };
             clash_status::run(&file, &test, &pair, store.as_deref(), json)
         }
-        Command::Batch { file, queries, max_line } => batch::run(&file, queries.as_deref(), max_line),
+        Command::Batch { file, queries, max_line, commit_every, wait } => {
+            batch::run(&file, queries.as_deref(), max_line, commit_every, wait)
+        }
         Command::View { file, view } => view::run(&file, &view),
         Command::Export3dTiles { file, out, json } => export_tiles::run(&file, &out, json),
         Command::Serve { tiles, port, vendor } => serve::run(&tiles, port, vendor.as_deref()),

@@ -65,7 +65,7 @@ pub(crate) struct Edits {
 }
 
 /// What a change commit wrote, for its caller and the benchmarks.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct ChangeStats {
     /// Objects inserted, updated and removed.
     pub changes: u64,
