@@ -7,7 +7,7 @@
 //! mktree the blocks and syncs its device saw. Then the usual box queries
 //! on the changed mktree file against a fresh bulk load of the same objects.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -21,6 +21,7 @@ use rusqlite::Connection;
 use serde::Serialize;
 
 use crate::rng::Rng;
+use crate::stream::{StreamEngine, StreamJob, StreamRole, StreamRow, stream};
 use crate::{BenchError, QuerySet, WorkloadStats, record, run_boxes};
 
 /// How the changes run.
@@ -34,6 +35,9 @@ pub struct ChangeOptions {
     pub seed: u64,
     /// mktree's block size (SQLite's page size) and levels of detail.
     pub create: CreateOptions,
+    /// The `mktree` binary, to run the two-process stream of `singles`
+    /// moves with ([`crate::stream`]); `None`: no stream.
+    pub worker: Option<PathBuf>,
 }
 
 /// One engine's commits of one kind.
@@ -73,6 +77,9 @@ pub struct ChangesReport {
     pub reads: Vec<(String, WorkloadStats, WorkloadStats)>,
     /// The changed file's blocks against a fresh load's.
     pub file_blocks: (u32, u32),
+    /// Per engine, single-object moves committed by one process while
+    /// another queries (empty without [`ChangeOptions::worker`]).
+    pub streams: Vec<StreamRow>,
 }
 
 /// One change of the run, the same for every engine.
@@ -139,7 +146,7 @@ fn file_len(path: &Path) -> u64 {
     std::fs::metadata(path).map_or(0, |m| m.len())
 }
 
-fn percentile(sorted: &[f64], p: f64) -> f64 {
+pub(crate) fn percentile(sorted: &[f64], p: f64) -> f64 {
     if sorted.is_empty() {
         return 0.0;
     }
@@ -269,8 +276,23 @@ pub fn bench_changes(
     let file_blocks =
         (changed.info().map_or(0, |i| i.file_blocks), clean.info().map_or(0, |i| i.file_blocks));
     drop((changed, clean, fresh, db));
-    let _ = std::fs::remove_file(&path);
     let _ = std::fs::remove_file(&fresh_path);
+    // The stream runs on the changed file, from two other processes.
+    let job = |engine, file: &Path| StreamJob {
+        engine,
+        role: StreamRole::Writer,
+        file: file.to_path_buf(),
+        keys: keyed.len() as u64,
+        commits: opts.singles,
+        extent: keyed.aabb(),
+        seed: opts.seed,
+        stop: PathBuf::new(),
+    };
+    let mut streams = Vec::new();
+    if let Some(exe) = &opts.worker {
+        streams.push(stream(exe, "mktree", job(StreamEngine::Mktree, &path))?);
+    }
+    let _ = std::fs::remove_file(&path);
 
     // SQLite, with a write-ahead log and with its rollback journal.
     for (engine, journal) in [("sqlite-wal", "WAL"), ("sqlite-rollback", "DELETE")] {
@@ -310,11 +332,14 @@ pub fn bench_changes(
         let phase = rows_of(&mixed, true)?;
         rows.push(phase.row(engine, &format!("mixed {}", mixed.len()), size(&path)));
         drop(conn);
+        if let Some(exe) = &opts.worker {
+            streams.push(stream(exe, engine, job(StreamEngine::Sqlite, &path))?);
+        }
         for suffix in ["", "-wal", "-shm", "-journal"] {
             let _ = std::fs::remove_file(format!("{}{suffix}", path.display()));
         }
     }
-    Ok(ChangesReport { objects: scene.len(), rows, reads, file_blocks })
+    Ok(ChangesReport { objects: scene.len(), rows, reads, file_blocks, streams })
 }
 
 /// A new SQLite file of `scene`: the R*Tree of boxes and the blob table,
@@ -330,29 +355,29 @@ fn sqlite_load(scene: &Scene, path: &Path, page_size: u32, journal: &str) -> Res
     ))?;
     let tx = conn.transaction()?;
     for (i, o) in scene.objects().iter().enumerate() {
-        sqlite_put(&tx, i as u64, o)?;
+        sqlite_put(&tx, i as u64, &o.mesh)?;
     }
     tx.commit()?;
     Ok(conn)
 }
 
-fn sqlite_put(conn: &Connection, key: u64, o: &Object) -> Result<(), BenchError> {
-    let (lo, hi) = o.mesh.aabb().to_f32_outward();
+pub(crate) fn sqlite_put(conn: &Connection, key: u64, mesh: &Mesh) -> Result<(), BenchError> {
+    let (lo, hi) = mesh.aabb().to_f32_outward();
     let b = [lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]].map(f64::from);
     let id = key as i64;
     conn.execute(
         "INSERT OR REPLACE INTO boxes VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
         rusqlite::params![id, b[0], b[1], b[2], b[3], b[4], b[5]],
     )?;
-    let blob = record::encode(key as u32, &o.mesh)
-        .map_err(|source| BenchError::Record { rank: key as u32, source })?;
+    let blob =
+        record::encode(key as u32, mesh).map_err(|source| BenchError::Record { rank: key as u32, source })?;
     conn.execute("INSERT OR REPLACE INTO geometry(id, data) VALUES (?1, ?2)", rusqlite::params![id, blob])?;
     Ok(())
 }
 
 fn sqlite_apply(conn: &Connection, scene: &Scene, op: &Op) -> Result<(), BenchError> {
     match op {
-        Op::Insert(k, o) => sqlite_put(conn, *k, o),
+        Op::Insert(k, o) => sqlite_put(conn, *k, &o.mesh),
         Op::Move(k, by) => {
             // As mktree's move does, the object is read before it is written moved.
             let blob: Vec<u8> =
@@ -360,7 +385,7 @@ fn sqlite_apply(conn: &Connection, scene: &Scene, op: &Op) -> Result<(), BenchEr
             record::decode(&blob).map_err(|source| BenchError::Record { rank: *k as u32, source })?;
             let o = scene.objects().get(*k as usize).map(|o| moved(o, *by));
             match o {
-                Some(o) => sqlite_put(conn, *k, &o),
+                Some(o) => sqlite_put(conn, *k, &o.mesh),
                 None => Ok(()),
             }
         }

@@ -27,6 +27,7 @@ pub mod record;
 mod redb_backend;
 mod replace;
 mod rng;
+pub mod stream;
 mod verify;
 mod view;
 mod workload;

@@ -458,6 +458,9 @@ pub enum Command {
     /// Change commits (inserts, moves, removals, one at a time and many in
     /// one) on mktree and on SQLite's R*Tree plus blobs, in the same run.
     BenchChanges(BenchChangesArgs),
+    /// One process of bench-changes' stream (run by bench-changes itself).
+    #[command(hide = true)]
+    BenchChangesWorker(StreamWorkerArgs),
     /// The view query along a walk through each file: reads and triangles per frame against tau, error under a block budget, exact frustum reads; a chart and frame strips.
     BenchView(BenchViewArgs),
     /// Import alone, timed: each scene read --repeat times; triangles and megabytes per second of the fastest run.
@@ -828,10 +831,41 @@ pub struct BenchChangesArgs {
     /// scenes' objects, a line per engine and kind, as PATH.svg and PATH.png.
     #[arg(long, value_name = "PATH")]
     pub chart: Option<PathBuf>,
+    /// Leave out the two-process stream (a writer process's single-object
+    /// moves while a reader process queries).
+    #[arg(long)]
+    pub no_stream: bool,
     #[arg(long)]
     pub json: bool,
     #[command(flatten)]
     pub import: ImportArgs,
+}
+
+/// `bench-changes-worker`'s arguments: one side of the stream.
+#[derive(Args, Debug, Clone)]
+pub struct StreamWorkerArgs {
+    /// mktree or sqlite.
+    #[arg(long)]
+    pub engine: String,
+    /// writer or reader.
+    #[arg(long)]
+    pub role: String,
+    #[arg(long)]
+    pub file: PathBuf,
+    /// Objects' integer keys lie below this.
+    #[arg(long)]
+    pub keys: u64,
+    /// The writer's commits.
+    #[arg(long)]
+    pub commits: usize,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// The scene's box: x0,y0,z0,x1,y1,z1 (mm).
+    #[arg(long, value_parser = numbers::<6>, allow_hyphen_values = true)]
+    pub extent: [f64; 6],
+    /// The reader stops once this file exists.
+    #[arg(long)]
+    pub stop: PathBuf,
 }
 
 /// `bench-view`'s arguments.

@@ -3,11 +3,13 @@
 //! run, through `mktree_bench::bench_changes`.
 
 use anyhow::{Result, bail};
+use mktree::Aabb;
 use mktree::bulk::BuildParams;
 use mktree::db::CreateOptions;
+use mktree_bench::stream::{StreamEngine, StreamJob, StreamRole};
 use mktree_bench::{ChangeOptions, bench_changes, standard_sets};
 
-use crate::args::BenchChangesArgs;
+use crate::args::{BenchChangesArgs, StreamWorkerArgs};
 use crate::output;
 
 pub fn run(args: &BenchChangesArgs) -> Result<()> {
@@ -21,7 +23,9 @@ pub fn run(args: &BenchChangesArgs) -> Result<()> {
     for name in &args.scenes {
         let scene = crate::input::scene_or_preset(name, &options)?;
         let sets = standard_sets(&scene.object_boxes(), args.queries, args.seed);
-        let opts = ChangeOptions { singles: args.singles, batch: args.batch, seed: args.seed, create };
+        let worker = if args.no_stream { None } else { Some(std::env::current_exe()?) };
+        let opts =
+            ChangeOptions { singles: args.singles, batch: args.batch, seed: args.seed, create, worker };
         let report = bench_changes(&scene, &params, &sets, &opts, &args.dir)?;
         if !args.json {
             print(name, &report);
@@ -93,4 +97,43 @@ fn print(name: &str, r: &mktree_bench::ChangesReport) {
         );
     }
     println!("  file blocks: {} / {}", r.file_blocks.0, r.file_blocks.1);
+    if !r.streams.is_empty() {
+        println!("single-object moves committed by one process while another queries (box 1%), per commit:");
+        println!("| engine | commits | median ms | p95 ms | reader queries | failed |");
+        println!("|---|---|---|---|---|---|");
+        for s in &r.streams {
+            println!(
+                "| {} | {} | {:.2} | {:.2} | {} | {} |",
+                s.engine, s.commits, s.median_ms, s.p95_ms, s.reader_queries, s.reader_failed
+            );
+            if let Some(e) = &s.first_error {
+                println!("  {}: first failure: {e}", s.engine);
+            }
+        }
+    }
+}
+
+/// One side of the stream, in its own process: its report as JSON.
+pub fn worker(args: &StreamWorkerArgs) -> Result<()> {
+    let engine = match args.engine.as_str() {
+        "mktree" => StreamEngine::Mktree,
+        "sqlite" => StreamEngine::Sqlite,
+        other => bail!("--engine {other}: mktree or sqlite"),
+    };
+    let role = match args.role.as_str() {
+        "writer" => StreamRole::Writer,
+        "reader" => StreamRole::Reader,
+        other => bail!("--role {other}: writer or reader"),
+    };
+    let job = StreamJob {
+        engine,
+        role,
+        file: args.file.clone(),
+        keys: args.keys,
+        commits: args.commits,
+        extent: Aabb::from_array(args.extent),
+        seed: args.seed,
+        stop: args.stop.clone(),
+    };
+    output::json(&mktree_bench::stream::worker(&job)?)
 }

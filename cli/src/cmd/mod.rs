@@ -141,6 +141,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::BenchPeers(args) => bench_peers::run(&args),
         Command::BenchReplace(args) => bench_replace::run(&args),
         Command::BenchChanges(args) => bench_changes::run(&args),
+        Command::BenchChangesWorker(args) => bench_changes::worker(&args),
         Command::BenchView(args) => bench_view::run(&args),
         Command::BenchImport { files, repeat, json, import } => {
             bench_import::run(&files, repeat, &import, json)
