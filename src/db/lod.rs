@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use super::{NodeRef, ReadTransaction, Reads, view};
 use crate::geom::Aabb;
-use crate::lod::{Lattice, Voxels};
+use crate::lod::{Lattice, LodParams, LodPlan, Voxels};
 use crate::query::{QueryOptions, Seen, Selection, Visitor, walk};
 use crate::scene::{Mesh, ObjectId};
 use crate::store::format::frame::BlockType;
@@ -336,4 +336,16 @@ impl Visitor for Gather {
         }
         Ok(())
     }
+}
+
+/// The lattice plan and the parameters the writer chose bounds' grids by,
+/// as the meta block records them: `check` holds every stored bound to
+/// them, and a change commit draws its leaves' bounds by them.
+pub(crate) fn bound_rules(txn: &ReadTransaction) -> Option<(LodPlan, LodParams)> {
+    let meta = txn.snapshot.meta.as_ref()?;
+    let levels = txn.pager().lod_levels();
+    let grid_level = meta.lods.grid_level[..usize::from(levels).min(LOD_TABLE_LEN)].to_vec();
+    let plan = LodPlan { levels, lattice: txn.lattice()?, grid_level };
+    let params = LodParams { cuberille_object_bits: meta.lods.cuberille_object_bits, ..LodParams::default() };
+    Some((plan, params))
 }

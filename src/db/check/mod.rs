@@ -33,7 +33,6 @@ use crate::store::format::frame::{self, BlockType};
 use crate::store::format::freelist::{FreeListBlock, FreeRange};
 use crate::store::format::header::Commit;
 use crate::store::format::keys::TreePath;
-use crate::store::format::meta::LOD_TABLE_LEN;
 use crate::store::format::node::{BoundView, NodeView};
 use crate::store::format::quant::QuantBox;
 use crate::store::{Block, ReadStats, StorageError};
@@ -297,17 +296,6 @@ impl Walker<'_> {
     }
 }
 
-/// The lattice plan and the parameters the writer chose bounds' grids by,
-/// as the meta block records them.
-fn bound_rules(txn: &ReadTransaction) -> Option<(LodPlan, LodParams)> {
-    let meta = txn.snapshot.meta.as_ref()?;
-    let levels = txn.pager().lod_levels();
-    let grid_level = meta.lods.grid_level[..usize::from(levels).min(LOD_TABLE_LEN)].to_vec();
-    let plan = LodPlan { levels, lattice: txn.lattice()?, grid_level };
-    let params = LodParams { cuberille_object_bits: meta.lods.cuberille_object_bits, ..LodParams::default() };
-    Some((plan, params))
-}
-
 impl Visitor for Walker<'_> {
     fn node(&mut self, block: &Arc<Block>, offset: u32, frame: &Aabb) -> Result<(), StorageError> {
         let rec = view(block, offset)?;
@@ -426,7 +414,7 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
         path_of: HashMap::new(),
         seen: HashSet::new(),
         objects: meta.object_ids,
-        rules: bound_rules(txn),
+        rules: super::lod::bound_rules(txn),
         eps: txn.lod_info().map(|l| l.eps).unwrap_or_default(),
         triangles: 0,
         vertices: 0,

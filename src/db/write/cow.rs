@@ -30,12 +30,14 @@ use std::sync::Arc;
 
 use super::WriteTransaction;
 use crate::bulk::{BuildParams, LeafRule};
+use crate::db::lod::bound_rules;
 use crate::db::path::PathStep;
 use crate::db::read::view;
 use crate::db::source::check_object;
 use crate::db::tree_writer::split_info;
 use crate::db::{ReadTransaction, Reads};
 use crate::geom::Aabb;
+use crate::lod::{self, LodParams, LodPlan, Voxels, bound_grid};
 use crate::scene::{Key, KeyError, Object, ObjectId};
 use crate::store::format::frame::{BlockType, FRAME_LEN};
 use crate::store::format::geometry::{self, Placement};
@@ -185,6 +187,11 @@ struct Deltas {
     /// The next node id; whether a split took one.
     next_node: u32,
     new_ids: bool,
+    /// The rules changed leaves draw their entries' bounds by (none below M = 3).
+    rules: Option<(LodPlan, LodParams)>,
+    /// Per level k - 1: the widest cell diagonal of a bound drawn, which
+    /// eps_k must cover.
+    eps: Vec<f64>,
 }
 
 impl Deltas {
@@ -193,6 +200,18 @@ impl Deltas {
         if let Some(u) = usize::from(level).checked_sub(1).and_then(|k| self.lod_usage.get_mut(k)) {
             u[0] -= len as i64;
             u[1] -= 1;
+        }
+    }
+
+    /// A bound of level `level`, `len` bytes and cells of diagonal `diag`, drawn.
+    fn add_bound(&mut self, level: u8, len: usize, diag: f64) {
+        let k = usize::from(level).saturating_sub(1);
+        if let Some(u) = self.lod_usage.get_mut(k) {
+            u[0] += len as i64;
+            u[1] += 1;
+        }
+        if let Some(e) = self.eps.get_mut(k) {
+            *e = e.max(diag);
         }
     }
 
@@ -271,6 +290,8 @@ impl WriteTransaction<'_> {
         let mut deltas = Deltas {
             lod_usage: vec![[0; 2]; usize::from(m)],
             next_node: if meta.node_ids == 0 { meta.node_count } else { meta.node_ids },
+            rules: if m >= 3 { bound_rules(r) } else { None },
+            eps: vec![0.0; usize::from(m)],
             ..Deltas::default()
         };
         let Plan { mut mods, leaves, mut key_changes, next_id } = plan;
@@ -344,6 +365,10 @@ impl WriteTransaction<'_> {
         for (u, d) in new.lods.usage.iter_mut().zip(&deltas.lod_usage) {
             u[0] = apply(u[0], d[0])?;
             u[1] = apply(u[1], d[1])?;
+        }
+        // eps_k still bounds every stored bound's cells (format-spec/lod.md).
+        for (row, &e) in new.lod_table.iter_mut().zip(&deltas.eps) {
+            row[0] = row[0].max(e);
         }
         (new.keys_block, new.keys_checksum, new.keys_height, new.keys_blocks) =
             (keys.block, keys.checksum, keys.height, keys.blocks);
@@ -629,8 +654,16 @@ impl WriteTransaction<'_> {
         let quant_frame = new_frame.unwrap_or(frame);
         let node_id = view(&block, mods[&at].offset)?.node_id();
         let objects_held = keys.len() as u64;
-        let (mut draft, dropped) =
-            leaf_draft(&entries, keys.clone(), node_id, new_frame, &quant_frame, requantize, bs)?;
+        let (mut draft, dropped, drawn) = leaf_draft(
+            &entries,
+            keys.clone(),
+            node_id,
+            new_frame,
+            &quant_frame,
+            requantize,
+            deltas.rules.as_ref(),
+            bs,
+        )?;
         // A leaf grows to twice its bulk load's capacity at most (its reads
         // with it), and its record must fit a node block; past either, it
         // splits as its file's method splits (format-spec/commit.md, "Splits").
@@ -657,6 +690,9 @@ impl WriteTransaction<'_> {
             }
             for (level, len) in dropped {
                 deltas.drop_bound(level, len);
+            }
+            for (level, len, diag) in drawn {
+                deltas.add_bound(level, len, diag);
             }
             (self.write_span(&entries, &mut draft)?, 0)
         };
@@ -1031,8 +1067,8 @@ impl WriteTransaction<'_> {
                 drafts.push((o, d));
             }
             // A block that no longer holds its records (a leaf grew, records
-            // took frames of their own) moves its largest leaves out, each to
-            // a block of its own: a leaf has no children, so no other block's
+            // took frames of their own) moves its largest leaves out, to new
+            // blocks they share: a leaf has no children, so no other block's
             // parent block changes.
             let mut moved: Vec<u32> = Vec::new();
             let mut total: usize = drafts.iter().map(|(_, d)| d.part().encoded_len()).sum();
@@ -1069,7 +1105,6 @@ impl WriteTransaction<'_> {
                     }
                     at = p;
                 }
-                deltas.node_blocks += 1;
             }
             // The counts above changed drafts of this block too: take them again.
             for (o, d) in &mut drafts {
@@ -1077,15 +1112,35 @@ impl WriteTransaction<'_> {
                     *d = Rec::Draft(x);
                 }
             }
+            // The moved leaves share new blocks, first fit: the counts above
+            // took one block per leaf, which stays an upper bound.
+            let mut bins: Vec<(usize, Vec<u32>)> = Vec::new();
             for &o in &moved {
                 let Some((_, d)) = drafts.iter().find(|(x, _)| *x == o) else { continue };
+                let len = d.part().encoded_len();
+                match bins.iter_mut().find(|(used, _)| used + len <= capacity) {
+                    Some((used, records)) => {
+                        *used += len;
+                        records.push(o);
+                    }
+                    None => bins.push((len, vec![o])),
+                }
+            }
+            for (used, records) in &bins {
+                let parts: Vec<RecordPart> = records
+                    .iter()
+                    .filter_map(|o| drafts.iter().find(|(x, _)| x == o))
+                    .map(|(_, d)| d.part())
+                    .collect();
                 let id = self.allocate(1)?;
                 let mut bytes = vec![0u8; bs as usize];
-                let offsets =
-                    node::encode_block_parts(&[d.part()], &mut bytes).map_err(StorageError::Invalid)?;
+                let offsets = node::encode_block_parts(&parts, &mut bytes).map_err(StorageError::Invalid)?;
                 let checksum = self.put(id, &mut bytes, BlockType::Node)?;
-                deltas.node_bytes += d.part().encoded_len() as i64;
-                relocated.insert((b, o), RecordRef { block: id, checksum, offset: offsets[0] });
+                deltas.node_bytes += *used as i64;
+                deltas.node_blocks += 1;
+                for (&o, offset) in records.iter().zip(offsets) {
+                    relocated.insert((b, o), RecordRef { block: id, checksum, offset });
+                }
             }
             drafts.retain(|(o, _)| !moved.contains(o));
             // New offsets, then every reference: within the block, to moved
@@ -1168,9 +1223,15 @@ impl Rec<'_> {
 }
 
 /// A leaf record of `entries` (each object's parts adjacent; `keys` one per
-/// object), quantized in `frame`, its span not yet written; and the bounds
-/// it drops as (level, bytes): every one when `requantize` (a bound is
-/// drawn on the grid around its entry's old box), else none.
+/// object), quantized in `frame`, its span not yet written; the bounds it
+/// drops as (level, bytes); and those it draws as (level, bytes, cell
+/// diagonal). A kept entry keeps its bounds unless `requantize`; then
+/// they are drawn anew at the same levels on the grid around the entry's
+/// new box (a bound is drawn on the grid around its entry's box as the
+/// record holds it). A new entry gets a bound at each level most of the
+/// leaf's kept entries have one: where the read model found bounds paid
+/// for these objects' neighbours (format-spec/commit.md, "Levels of detail").
+#[allow(clippy::too_many_arguments)]
 fn leaf_draft(
     entries: &[NewEntry],
     keys: Vec<Key>,
@@ -1178,12 +1239,22 @@ fn leaf_draft(
     own_frame: Option<Aabb>,
     frame: &Aabb,
     requantize: bool,
+    rules: Option<&(LodPlan, LodParams)>,
     bs: u32,
-) -> Result<(RecordDraft, Vec<(u8, usize)>), StorageError> {
+) -> Result<(RecordDraft, Vec<(u8, usize)>, Vec<(u8, usize, f64)>), StorageError> {
     let mut placement = Placement::new(bs);
     let mut objects = Vec::with_capacity(entries.len());
     let mut bounds = Vec::new();
     let mut dropped = Vec::new();
+    let mut drawn = Vec::new();
+    let kept = entries.iter().filter(|e| e.old_q.is_some()).count();
+    let mut held = [0usize; 16];
+    for b in entries.iter().filter(|e| e.old_q.is_some()).flat_map(|e| &e.bounds) {
+        if let Some(n) = held.get_mut(usize::from(b.level)) {
+            *n += 1;
+        }
+    }
+    let usual: Vec<u8> = (0..held.len() as u8).filter(|&k| 2 * held[usize::from(k)] > kept).collect();
     for (j, e) in entries.iter().enumerate() {
         let position = placement.place(e.record.len() as u64);
         let qbox = match (requantize, e.old_q) {
@@ -1191,14 +1262,33 @@ fn leaf_draft(
             _ => quantize(frame, &e.aabb),
         };
         objects.push(ObjectEntry { object_id: e.id, qbox, position });
-        for b in &e.bounds {
-            if requantize {
-                dropped.push((b.level, b.blob.len()));
-                continue;
+        let target =
+            u16::try_from(j).map_err(|_| StorageError::Invalid("a leaf of too many entries".into()))?;
+        if !requantize && e.old_q.is_some() {
+            bounds.extend(e.bounds.iter().map(|b| BoundEntry {
+                target,
+                level: b.level,
+                blob: b.blob.clone(),
+            }));
+            continue;
+        }
+        dropped.extend(e.bounds.iter().map(|b| (b.level, b.blob.len())));
+        let levels: Vec<u8> =
+            if e.old_q.is_some() { e.bounds.iter().map(|b| b.level).collect() } else { usual.clone() };
+        let Some((plan, params)) = rules.filter(|_| !levels.is_empty()) else { continue };
+        let Some(outer) = QuantBox::decode(frame, qbox).map(|q| q.outer) else { continue };
+        let mesh = geometry::decode_object(0, &e.record)?.1;
+        for level in levels {
+            let grid = bound_grid(plan, params, level, &outer)
+                .map_err(|err| StorageError::Invalid(format!("a bound's grid: {err}")))?
+                .filter(|g| g.cells() <= u64::from(u16::MAX));
+            let Some(grid) = grid else { continue };
+            let voxels = Voxels::of_surfaces(grid, [&mesh]);
+            let blob = lod::encode(&voxels);
+            if blob.len() <= node::MAX_BOUND_BYTES {
+                drawn.push((level, blob.len(), voxels.grid().max_cell_diagonal()));
+                bounds.push(BoundEntry { target, level, blob });
             }
-            let target =
-                u16::try_from(j).map_err(|_| StorageError::Invalid("a leaf of too many entries".into()))?;
-            bounds.push(BoundEntry { target, level: b.level, blob: b.blob.clone() });
         }
     }
     let end = placement.end();
@@ -1214,7 +1304,7 @@ fn leaf_draft(
         bounds,
         keys,
     };
-    Ok((draft, dropped))
+    Ok((draft, dropped, drawn))
 }
 
 /// What a leaf split needs besides its entries.
@@ -1320,9 +1410,13 @@ impl WriteTransaction<'_> {
                 sub.extend(entries[run.clone()].iter().cloned());
                 sub_keys.push(keys[o.index()].clone());
             }
-            let (mut d, dropped) = leaf_draft(&sub, sub_keys, ids[i], None, &frames[i], true, bs)?;
+            let (mut d, dropped, drawn) =
+                leaf_draft(&sub, sub_keys, ids[i], None, &frames[i], true, deltas.rules.as_ref(), bs)?;
             for (level, len) in dropped {
                 deltas.drop_bound(level, len);
+            }
+            for (level, len, diag) in drawn {
+                deltas.add_bound(level, len, diag);
             }
             if d.encoded_len() > capacity {
                 return Ok(Err(Structural));
