@@ -1222,6 +1222,10 @@ impl Rec<'_> {
     }
 }
 
+/// A drafted leaf record, the bounds it drops as (level, bytes) and those
+/// it draws as (level, bytes, cell diagonal).
+type LeafDraft = (RecordDraft, Vec<(u8, usize)>, Vec<(u8, usize, f64)>);
+
 /// A leaf record of `entries` (each object's parts adjacent; `keys` one per
 /// object), quantized in `frame`, its span not yet written; the bounds it
 /// drops as (level, bytes); and those it draws as (level, bytes, cell
@@ -1241,7 +1245,7 @@ fn leaf_draft(
     requantize: bool,
     rules: Option<&(LodPlan, LodParams)>,
     bs: u32,
-) -> Result<(RecordDraft, Vec<(u8, usize)>, Vec<(u8, usize, f64)>), StorageError> {
+) -> Result<LeafDraft, StorageError> {
     let mut placement = Placement::new(bs);
     let mut objects = Vec::with_capacity(entries.len());
     let mut bounds = Vec::new();
