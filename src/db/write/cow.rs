@@ -1112,13 +1112,27 @@ impl WriteTransaction<'_> {
                     *d = Rec::Draft(x);
                 }
             }
-            // The moved leaves share new blocks, first fit: the counts above
-            // took one block per leaf, which stays an upper bound.
+            // The moved leaves whose parents stay in this block share new
+            // blocks, first fit, so that each new block is named from this
+            // one only ([node.md], "Packing"); a leaf named from another
+            // block moves alone. The counts above took one block per leaf,
+            // which stays an upper bound.
+            let named_here = |o: u32| {
+                drafts.iter().any(|(_, d)| match d {
+                    Rec::Draft(RecordDraft::Internal { children, .. }) => {
+                        children.iter().any(|c| c.at.offset == o && (c.at.block == 0 || c.at.block == b))
+                    }
+                    _ => false,
+                })
+            };
             let mut bins: Vec<(usize, Vec<u32>)> = Vec::new();
             for &o in &moved {
                 let Some((_, d)) = drafts.iter().find(|(x, _)| *x == o) else { continue };
                 let len = d.part().encoded_len();
-                match bins.iter_mut().find(|(used, _)| used + len <= capacity) {
+                let shared = named_here(o);
+                match bins.iter_mut().find(|(used, records)| {
+                    shared && used + len <= capacity && records.iter().all(|&r| named_here(r))
+                }) {
                     Some((used, records)) => {
                         *used += len;
                         records.push(o);
