@@ -30,4 +30,8 @@ pub enum Error {
     /// An object's key or payload.
     #[error(transparent)]
     Key(#[from] crate::scene::KeyError),
+    /// A mesh an operation was given or made (a change's object, a moved
+    /// object) that is not one.
+    #[error("the object's mesh: {0}")]
+    Mesh(#[from] crate::scene::MeshError),
 }

@@ -128,9 +128,10 @@ impl From<mktree::Error> for Failure {
                         Kind::DuplicateKey
                     }
                     mktree::Error::Key(KeyError::NotFound { .. }) => Kind::KeyNotFound,
-                    mktree::Error::Key(_) | mktree::Error::Generate(_) | mktree::Error::Build(_) => {
-                        Kind::Value
-                    }
+                    mktree::Error::Key(_)
+                    | mktree::Error::Mesh(_)
+                    | mktree::Error::Generate(_)
+                    | mktree::Error::Build(_) => Kind::Value,
                     _ => Kind::Engine,
                 };
                 Failure::new(kind, chain(&e))

@@ -417,8 +417,7 @@ impl<'db> WriteTransaction<'db> {
     pub fn move_by(&mut self, key: &Key, by: crate::geom::Vector) -> Result<bool, crate::Error> {
         let Some(mut object) = self.object(key)? else { return Ok(false) };
         let moved: Vec<crate::geom::Point> = object.mesh.vertices().map(|p| p + by).collect();
-        object.mesh = crate::scene::Mesh::from_world(&moved, object.mesh.triangles().to_vec())
-            .map_err(|e| StorageError::Invalid(format!("the moved object: {e}")))?;
+        object.mesh = crate::scene::Mesh::from_world(&moved, object.mesh.triangles().to_vec())?;
         object.key = Some(key.clone());
         self.update(object)?;
         Ok(true)

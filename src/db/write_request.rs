@@ -50,8 +50,7 @@ pub struct JsonObject {
 impl JsonObject {
     fn to_object(&self) -> Result<Object, crate::Error> {
         let points: Vec<Point> = self.vertices.iter().map(|&[x, y, z]| Point::new(x, y, z)).collect();
-        let mesh = Mesh::from_world(&points, self.triangles.clone())
-            .map_err(|e| crate::StorageError::Invalid(format!("the object's mesh: {e}")))?;
+        let mesh = Mesh::from_world(&points, self.triangles.clone())?;
         Ok(Object::new(self.name.clone(), mesh).with_key(self.key.to_key()?))
     }
 }
@@ -147,5 +146,13 @@ mod tests {
         }
         let long = JsonKey::Text("x".repeat(Key::MAX_BYTES + 1));
         assert!(long.to_key().is_err());
+    }
+
+    #[test]
+    fn a_mesh_that_is_not_one_is_a_mesh_error() {
+        let o: JsonObject =
+            serde_json::from_str(r#"{"key": 1, "vertices": [[0,0,0],[1,0,0]], "triangles": [[0,1,2]]}"#)
+                .unwrap();
+        assert!(matches!(o.to_object(), Err(crate::Error::Mesh(_))));
     }
 }
