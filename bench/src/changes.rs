@@ -380,8 +380,7 @@ fn sqlite_apply(conn: &Connection, scene: &Scene, op: &Op) -> Result<(), BenchEr
         Op::Insert(k, o) => sqlite_put(conn, *k, &o.mesh),
         Op::Move(k, by) => {
             // As mktree's move does, the object is read before it is written moved.
-            let blob: Vec<u8> =
-                conn.query_row("SELECT data FROM geometry WHERE id = ?1", [*k as i64], |r| r.get(0))?;
+            let blob: Vec<u8> = conn.query_row(crate::peers::sqlite::BLOB_SQL, [*k as i64], |r| r.get(0))?;
             record::decode(&blob).map_err(|source| BenchError::Record { rank: *k as u32, source })?;
             let o = scene.objects().get(*k as usize).map(|o| moved(o, *by));
             match o {

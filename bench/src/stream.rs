@@ -17,6 +17,7 @@ use mktree::scene::{Key, Mesh};
 use rusqlite::{Connection, OpenFlags};
 use serde::{Deserialize, Serialize};
 
+use crate::peers::sqlite::{BLOB_SQL, FILTER_SQL};
 use crate::rng::Rng;
 use crate::{BenchError, record};
 
@@ -270,7 +271,7 @@ fn sqlite_move(conn: &Connection, key: u64, by: Vector) -> Result<bool, BenchErr
     conn.execute_batch("BEGIN IMMEDIATE")?;
     let moved = (|| {
         let blob: Option<Vec<u8>> = conn
-            .query_row("SELECT data FROM geometry WHERE id = ?1", [key as i64], |r| r.get(0))
+            .query_row(BLOB_SQL, [key as i64], |r| r.get(0))
             .map(Some)
             .or_else(|e| if e == rusqlite::Error::QueryReturnedNoRows { Ok(None) } else { Err(e) })?;
         let Some(blob) = blob else { return Ok(false) };
@@ -298,21 +299,17 @@ fn sqlite_move(conn: &Connection, key: u64, by: Vector) -> Result<bool, BenchErr
     }
 }
 
-/// An exact-query stand-in: the R*Tree's candidates and their blobs.
+/// An exact-query stand-in: the R*Tree's candidates and their blobs, by
+/// the peer benchmark's statements.
 fn sqlite_box(conn: &Connection, b: &Aabb) -> Result<usize, BenchError> {
-    let mut stmt = conn.prepare_cached(
-        "SELECT g.data FROM boxes b JOIN geometry g ON g.id = b.id
-         WHERE b.max_x >= ?1 AND b.min_x <= ?2 AND b.max_y >= ?3 AND b.min_y <= ?4
-           AND b.max_z >= ?5 AND b.min_z <= ?6",
-    )?;
-    let rows = stmt
-        .query_map(rusqlite::params![b.min.x, b.max.x, b.min.y, b.max.y, b.min.z, b.max.z], |r| {
-            r.get::<_, Vec<u8>>(0)
-        })?;
-    let mut n = 0;
-    for blob in rows {
-        record::decode(&blob?).map_err(|source| BenchError::Record { rank: 0, source })?;
-        n += 1;
+    let mut filter = conn.prepare_cached(FILTER_SQL)?;
+    let ids: Vec<i64> = filter
+        .query_map(rusqlite::params![b.min.x, b.max.x, b.min.y, b.max.y, b.min.z, b.max.z], |r| r.get(0))?
+        .collect::<Result<_, _>>()?;
+    let mut blob = conn.prepare_cached(BLOB_SQL)?;
+    for &id in &ids {
+        let data: Vec<u8> = blob.query_row([id], |r| r.get(0))?;
+        record::decode(&data).map_err(|source| BenchError::Record { rank: id as u32, source })?;
     }
-    Ok(n)
+    Ok(ids.len())
 }

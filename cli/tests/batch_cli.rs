@@ -11,7 +11,7 @@ use mktree::geom::{Point, Ray, Vector};
 
 mod common;
 
-use common::{mktree, tanker1_in};
+use common::{batch_with, mktree, tanker1_in};
 
 #[test]
 fn batch_answers_each_line_and_a_bad_line_with_an_error() {
@@ -73,34 +73,6 @@ not json
     assert_eq!(ids(&answers[2]), hits.iter().map(|h| h.object.0).collect::<Vec<_>>());
     assert_eq!(answers[2]["points"].as_array().unwrap().len(), hits.len());
     assert!(answers[5]["objects"].is_array(), "collide: {}", answers[5]);
-}
-
-/// Runs `mktree batch FILE` with `args`, `input` on stdin written by
-/// another thread (so a large input cannot deadlock against the output).
-fn batch_with(
-    mkt: &std::path::Path,
-    args: &[&str],
-    input: Vec<u8>,
-) -> (std::process::ExitStatus, Vec<serde_json::Value>, String) {
-    let mut child = mktree()
-        .arg("batch")
-        .arg(mkt)
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut stdin = child.stdin.take().unwrap();
-    let writer = std::thread::spawn(move || {
-        // The server may stop reading early on failure; the test then fails on its output.
-        let _ = stdin.write_all(&input);
-    });
-    let out = child.wait_with_output().unwrap();
-    writer.join().unwrap();
-    let answers =
-        String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
-    (out.status, answers, String::from_utf8_lossy(&out.stderr).into_owned())
 }
 
 #[test]

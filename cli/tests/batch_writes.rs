@@ -5,31 +5,18 @@
 //! error and the rest go on; and the file afterwards checks clean and
 //! holds exactly the committed changes.
 
-use std::io::Write;
-use std::process::Stdio;
-
 use mktree::db::Database;
 use mktree::scene::Key;
 use serde_json::Value;
 
 mod common;
 
-use common::{mktree, tanker1_in};
+use common::{batch_with, tanker1_in};
 
 fn batch(mkt: &std::path::Path, args: &[&str], input: &str) -> Vec<Value> {
-    let mut child = mktree()
-        .arg("batch")
-        .arg(mkt)
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child.stdin.take().unwrap().write_all(input.as_bytes()).unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect()
+    let (status, answers, stderr) = batch_with(mkt, args, input.as_bytes().to_vec());
+    assert!(status.success(), "{stderr}");
+    answers
 }
 
 const EVERYTHING: &str = r#"{"query": "box", "box": [-1e6, -1e6, -1e6, 1e6, 1e6, 1e6]}"#;

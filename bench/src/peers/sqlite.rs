@@ -29,10 +29,10 @@ use crate::error::{BenchError, io};
 use crate::record;
 
 /// The R*Tree filter: objects whose stored box meets the closed query box.
-const FILTER_SQL: &str = "SELECT id FROM boxes \
+pub(crate) const FILTER_SQL: &str = "SELECT id FROM boxes \
      WHERE max_x >= ?1 AND min_x <= ?2 AND max_y >= ?3 AND min_y <= ?4 AND max_z >= ?5 AND min_z <= ?6";
 /// One object's geometry by rowid.
-const BLOB_SQL: &str = "SELECT data FROM geometry WHERE id = ?1";
+pub(crate) const BLOB_SQL: &str = "SELECT data FROM geometry WHERE id = ?1";
 /// A page cache no query fills, in KiB (SQLite allocates it as pages are
 /// read): each page is read at most once per query, as mktree reads each
 /// block at most once per query.

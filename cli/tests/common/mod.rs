@@ -1,8 +1,9 @@
 //! What the CLI tests share: the binary, and a generated scene built into a file.
 #![allow(dead_code)]
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Stdio};
 
 pub fn mktree() -> Command {
     Command::new(env!("CARGO_BIN_EXE_mktree"))
@@ -67,4 +68,32 @@ pub fn assert_chart_has_text(path: &Path) {
             path.display()
         );
     }
+}
+
+/// Runs `mktree batch FILE` with `args`, `input` on stdin written by
+/// another thread (so a large input cannot deadlock against the output).
+pub fn batch_with(
+    mkt: &Path,
+    args: &[&str],
+    input: Vec<u8>,
+) -> (std::process::ExitStatus, Vec<serde_json::Value>, String) {
+    let mut child = mktree()
+        .arg("batch")
+        .arg(mkt)
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let writer = std::thread::spawn(move || {
+        // The server may stop reading early on failure; the test then fails on its output.
+        let _ = stdin.write_all(&input);
+    });
+    let out = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    let answers =
+        String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    (out.status, answers, String::from_utf8_lossy(&out.stderr).into_owned())
 }
