@@ -79,7 +79,7 @@
 pub use bulk::{BuildParams, LeafRule, Method};
 pub use clash::{Clash, ClashError, ClashKind, ClashRun, ClashTest, GroupBy, Selector, TestKind};
 pub use db::{
-    ChangeStats, CheckReport, Compaction, CreateOptions, Database, ReadTransaction, TreeInfo,
+    ChangeStats, CheckReport, Compaction, CreateOptions, Database, LayoutDrift, ReadTransaction, TreeInfo,
     WriteTransaction, check,
 };
 pub use error::Error;

@@ -45,6 +45,10 @@ pub struct ReplaceRow {
     pub free_blocks: u32,
     /// A fresh bulk load's blocks.
     pub fresh_blocks: u32,
+    /// The changed file's layout drift as `stats` reports it: the read
+    /// model's node reads on its layout over a fresh packing's, at the
+    /// worst scale.
+    pub layout_drift: f64,
     /// Per query set: (label, changed file, fresh load).
     pub reads: Vec<(String, WorkloadStats, WorkloadStats)>,
 }
@@ -115,6 +119,7 @@ pub fn bench_replace(
         let info =
             changed.info().ok_or_else(|| BenchError::Invalid("the changed file holds no tree".into()))?;
         let fresh_blocks = clean.info().map_or(0, |i| i.file_blocks);
+        let layout_drift = changed.layout_drift()?.map_or(1.0, |d| d.worst_ratio());
         let mut reads = Vec::new();
         for set in sets {
             reads.push((set.label.clone(), run_boxes(&changed, &set.boxes)?, run_boxes(&clean, &set.boxes)?));
@@ -127,6 +132,7 @@ pub fn bench_replace(
             file_blocks: info.file_blocks,
             free_blocks: info.free_blocks,
             fresh_blocks,
+            layout_drift,
             reads,
         });
         drop((changed, clean, fresh));

@@ -39,7 +39,8 @@ pub enum Command {
         #[command(flatten)]
         import: ImportArgs,
     },
-    /// Build in memory (or read a .mkt file) and print the paper's per-level table and totals.
+    /// Build in memory (or read a .mkt file) and print the paper's per-level table and totals; for a
+    /// file also its blocks and how far change commits moved its layout from a fresh one.
     Stats {
         input: PathBuf,
         #[command(flatten)]

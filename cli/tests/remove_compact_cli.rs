@@ -1,6 +1,7 @@
 //! Claim (issue 13): `mktree remove` deletes objects by key in one commit,
 //! all or none; `stats` reports free blocks; `compact` gives a file that
-//! grew across rewrites back its size.
+//! grew across rewrites back its size; `stats` reports the layout's drift,
+//! which `optimize` takes back to none.
 
 mod common;
 
@@ -134,10 +135,19 @@ fn optimize_lays_a_changed_tree_out_again_and_keeps_every_object() {
     let inserted = json(&run(&["insert", mkt, obj, "--json"]));
     assert_eq!(inserted["commit"]["in_place"], true, "{inserted}");
     let objects = file_stats(mkt)["objects"].as_u64().unwrap();
+    let drift = || json(&run(&["stats", mkt, "--json"]))["drift"].clone();
+    let before = drift();
+    assert_eq!(before["stored_reads"].as_array().map(Vec::len), Some(4), "{before}");
+    assert!(before["worst_ratio"].as_f64() >= Some(1.0), "{before}");
     let o = json(&run(&["optimize", mkt, "--json"]));
     // Leaves filled to twice their capacity in place go back to a bulk load's.
     assert!(o["after"]["leaves"].as_u64() > o["before"]["leaves"].as_u64(), "{o}");
     assert_eq!(file_stats(mkt)["objects"].as_u64(), Some(objects));
+    let after = drift();
+    assert_eq!(after["stored_reads"], after["fresh_reads"], "{after}");
+    assert_eq!(after["worst_ratio"].as_f64(), Some(1.0), "{after}");
+    let text = String::from_utf8_lossy(&run(&["stats", mkt]).stdout).to_string();
+    assert!(text.contains("layout drift:") && text.contains("1.00x at worst"), "{text}");
     let check = run(&["check", mkt]);
     assert!(check.status.success(), "{}", String::from_utf8_lossy(&check.stdout));
     let out = run(&["optimize", &format!("{mkt}.missing")]);

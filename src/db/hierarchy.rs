@@ -23,13 +23,17 @@ struct Collect {
     nodes: Vec<(Node, Option<[At; 2]>)>,
     at: HashMap<(u32, u32), u32>,
     depth: HashMap<(u32, u32), u32>,
+    /// Per node: its block, and its record's bytes without a frame of its own.
+    stored: Vec<(u32, usize)>,
 }
 
 impl Visitor for Collect {
     fn node(&mut self, block: &Arc<Block>, offset: u32, frame: &Aabb) -> Result<(), StorageError> {
         let level = self.depth.get(&(block.id(), offset)).copied().unwrap_or(0);
         self.at.insert((block.id(), offset), self.nodes.len() as u32);
-        let (kind, kids) = match view(block, offset)? {
+        let record = view(block, offset)?;
+        self.stored.push((block.id(), record.len_without_frame()));
+        let (kind, kids) = match record {
             NodeView::Internal(n) => {
                 let s = n.split();
                 let kids = [0, 1].map(|i| {
@@ -64,15 +68,37 @@ impl Visitor for Collect {
 /// Every node of the snapshot's tree, in preorder, with each leaf's objects
 /// (this reads every node block, no geometry).
 pub fn read_hierarchy(txn: &ReadTransaction) -> Result<Hierarchy, StorageError> {
-    let Some(root) = txn.root() else { return Ok(Hierarchy { nodes: Vec::new() }) };
+    Ok(read_layout(txn)?.tree)
+}
+
+/// The stored tree with where its records lie.
+pub(crate) struct StoredLayout {
+    /// The tree, in preorder.
+    pub tree: Hierarchy,
+    /// Per node: the node block holding its record.
+    pub blocks: Vec<u32>,
+    /// Per node: its record's bytes, without a frame of its own.
+    pub sizes: Vec<usize>,
+}
+
+/// The snapshot's tree (see [`read_hierarchy`]) with the block and size of
+/// every record.
+pub(crate) fn read_layout(txn: &ReadTransaction) -> Result<StoredLayout, StorageError> {
+    let Some(root) = txn.root() else {
+        return Ok(StoredLayout {
+            tree: Hierarchy { nodes: Vec::new() },
+            blocks: Vec::new(),
+            sizes: Vec::new(),
+        });
+    };
     let mut c = Collect::default();
     let all = QueryOptions { lod: Some(1), budget: None, ..Default::default() };
     walk(txn, root, &Everything, &all, &mut Reads::new(None), &mut c).map_err(|e| match e {
         QueryError::Storage(s) => s,
         other => StorageError::Invalid(other.to_string()),
     })?;
-    let Collect { nodes, at, .. } = c;
-    Ok(Hierarchy {
+    let Collect { nodes, at, stored, .. } = c;
+    let tree = Hierarchy {
         nodes: nodes
             .into_iter()
             .map(|(mut node, kids)| {
@@ -82,5 +108,7 @@ pub fn read_hierarchy(txn: &ReadTransaction) -> Result<Hierarchy, StorageError> 
                 node
             })
             .collect(),
-    })
+    };
+    let (blocks, sizes) = stored.into_iter().unzip();
+    Ok(StoredLayout { tree, blocks, sizes })
 }

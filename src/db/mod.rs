@@ -5,6 +5,7 @@
 
 mod check;
 mod codes;
+mod drift;
 mod group;
 mod hierarchy;
 mod hosted;
@@ -26,6 +27,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 
 pub use check::{CheckReport, check};
 pub use codes::{method_from_code, method_to_code};
+pub use drift::LayoutDrift;
 pub use group::{GroupLevel, GroupSummary};
 pub use hierarchy::read_hierarchy;
 pub(crate) use hosted::Host;

@@ -29,7 +29,7 @@ use crate::store::layout::{self, Packing};
 use crate::store::{Pager, StorageError};
 
 /// Sample queries per scale of the read model.
-const SAMPLES_PER_SCALE: usize = 256;
+pub(crate) const SAMPLES_PER_SCALE: usize = 256;
 
 /// The least average fill of node blocks a packing must reach, when one can.
 const MIN_FILL: f64 = 0.8;
@@ -206,7 +206,7 @@ impl Plan {
                 sizes[i]
             )));
         }
-        let (packing, reads) = plan.choose(tree, &sizes, capacity);
+        let (packing, reads) = choose_packing(tree, &sizes, capacity, &plan.samples);
         let reads = reads.unwrap_or_else(|| BlockWalk::new(tree, &packing).reads_per_block(&plan.samples));
         let q = plan.samples.len().max(1) as f64;
         plan.read_share = packing.place.iter().map(|p| f64::from(reads[p.0 as usize]) / q).collect();
@@ -273,47 +273,6 @@ impl Plan {
             })
             .collect()
     }
-
-    /// The packing, among the piece sizes tried, whose blocks the model's
-    /// sample queries read least (then the fullest); with each block's reads,
-    /// unless every piece size packs alike (nothing to choose: not measured).
-    fn choose(&self, tree: &Hierarchy, sizes: &[usize], capacity: usize) -> (Packing, Option<Vec<u32>>) {
-        let children = |i: usize| tree.nodes[i].children().map(|c| c.map(|x| x.index()));
-        let total: usize = sizes.iter().sum();
-        let packings: Vec<Packing> = PIECE_SHARES
-            .par_iter()
-            .map(|share| layout::pack(sizes, children, capacity, (capacity as f64 * share) as usize))
-            .collect();
-        // Piece sizes often pack a small tree alike: each distinct packing is measured once.
-        let mut distinct: Vec<Packing> = Vec::with_capacity(packings.len());
-        for p in packings {
-            if !distinct.contains(&p) {
-                distinct.push(p);
-            }
-        }
-        if distinct.len() == 1 {
-            return (distinct.remove(0), None);
-        }
-        let tried: Vec<(Packing, Vec<u32>)> = distinct
-            .into_par_iter()
-            .map(|p| {
-                let reads = BlockWalk::new(tree, &p).reads_per_block(&self.samples);
-                (p, reads)
-            })
-            .collect();
-        // Blocks at least MIN_FILL full on average when some packing makes
-        // them so (fewer blocks, a smaller file), then the fewest reads.
-        let full = |p: &Packing| total as f64 >= MIN_FILL * (p.blocks.len() * capacity) as f64;
-        let any_full = tried.iter().any(|(p, _)| full(p));
-        let chosen = tried
-            .into_iter()
-            .filter(|(p, _)| full(p) || !any_full)
-            .min_by_key(|(p, reads)| (reads.iter().map(|&r| u64::from(r)).sum::<u64>(), p.blocks.len()));
-        match chosen {
-            Some((p, reads)) => (p, Some(reads)),
-            None => (layout::pack(sizes, children, capacity, capacity), None),
-        }
-    }
 }
 
 impl Plan {
@@ -336,7 +295,7 @@ impl Plan {
             // Bounds that swell a record past a block cannot be written: never worth keeping.
             return vec![f64::INFINITY; scales];
         }
-        let (packing, _) = self.choose(tree, &sizes, capacity);
+        let (packing, _) = choose_packing(tree, &sizes, capacity, &self.samples);
         let walk = BlockWalk::new(tree, &packing);
         // Per sample: its node block reads plus its distinct geometry blocks
         // (integer sums, so the same on any number of threads).
@@ -497,6 +456,67 @@ impl<'a> BlockWalk<'a> {
     }
 }
 
+/// The packing of `tree`'s records (`sizes` bytes each), among the piece
+/// sizes tried, whose blocks the model's `samples` read least (then the fullest); with each block's reads,
+/// unless every piece size packs alike (nothing to choose: not measured).
+pub(crate) fn choose_packing(
+    tree: &Hierarchy,
+    sizes: &[usize],
+    capacity: usize,
+    samples: &[Aabb],
+) -> (Packing, Option<Vec<u32>>) {
+    let children = |i: usize| tree.nodes[i].children().map(|c| c.map(|x| x.index()));
+    let total: usize = sizes.iter().sum();
+    let packings: Vec<Packing> = PIECE_SHARES
+        .par_iter()
+        .map(|share| layout::pack(sizes, children, capacity, (capacity as f64 * share) as usize))
+        .collect();
+    // Piece sizes often pack a small tree alike: each distinct packing is measured once.
+    let mut distinct: Vec<Packing> = Vec::with_capacity(packings.len());
+    for p in packings {
+        if !distinct.contains(&p) {
+            distinct.push(p);
+        }
+    }
+    if distinct.len() == 1 {
+        return (distinct.remove(0), None);
+    }
+    let tried: Vec<(Packing, Vec<u32>)> = distinct
+        .into_par_iter()
+        .map(|p| {
+            let reads = BlockWalk::new(tree, &p).reads_per_block(samples);
+            (p, reads)
+        })
+        .collect();
+    // Blocks at least MIN_FILL full on average when some packing makes
+    // them so (fewer blocks, a smaller file), then the fewest reads.
+    let full = |p: &Packing| total as f64 >= MIN_FILL * (p.blocks.len() * capacity) as f64;
+    let any_full = tried.iter().any(|(p, _)| full(p));
+    let chosen = tried
+        .into_iter()
+        .filter(|(p, _)| full(p) || !any_full)
+        .min_by_key(|(p, reads)| (reads.iter().map(|&r| u64::from(r)).sum::<u64>(), p.blocks.len()));
+    match chosen {
+        Some((p, reads)) => (p, Some(reads)),
+        None => (layout::pack(sizes, children, capacity, capacity), None),
+    }
+}
+
+/// The node blocks the read model's `samples` read per query on `packing`
+/// of `tree`, averaged per scale of the mix (samples in scale order,
+/// [`SAMPLES_PER_SCALE`] each).
+pub(crate) fn node_reads_per_scale(tree: &Hierarchy, packing: &Packing, samples: &[Aabb]) -> Vec<f64> {
+    let walk = BlockWalk::new(tree, packing);
+    let (mut stack, mut blocks) = (Vec::new(), Vec::new());
+    samples
+        .chunks(SAMPLES_PER_SCALE)
+        .map(|scale| {
+            let reads: usize = scale.iter().map(|q| walk.blocks_read(q, &mut stack, &mut blocks)).sum();
+            reads as f64 / scale.len() as f64
+        })
+        .collect()
+}
+
 /// Where a write transaction's new blocks go: its pager and id, and its
 /// allocator (count -> first block).
 pub(crate) struct Sink<'a> {
@@ -581,7 +601,7 @@ pub(crate) fn write(
             sizes[i]
         )));
     }
-    let (packing, _) = plan.choose(tree, &sizes, capacity);
+    let (packing, _) = choose_packing(tree, &sizes, capacity, &plan.samples);
     let block_count = u32::try_from(packing.blocks.len()).map_err(|_| StorageError::FileTooLarge)?;
     let first_node = allocate(block_count)?;
     // Offsets of every record in its block.

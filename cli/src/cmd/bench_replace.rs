@@ -41,10 +41,10 @@ pub fn run(args: &BenchReplaceArgs) -> Result<()> {
     );
     let labels: Vec<&str> = report.rows[0].reads.iter().map(|r| r.0.as_str()).collect();
     println!(
-        "| replaced | commits (written whole) | ms/commit | blocks (free) | fresh blocks | {} |",
+        "| replaced | commits (written whole) | ms/commit | blocks (free) | fresh blocks | layout drift | {} |",
         labels.join(" | ")
     );
-    println!("|---|---|---|---|---|{}", "---|".repeat(labels.len()));
+    println!("|---|---|---|---|---|---|{}", "---|".repeat(labels.len()));
     for row in &report.rows {
         let cells: Vec<String> = row
             .reads
@@ -59,7 +59,7 @@ pub fn run(args: &BenchReplaceArgs) -> Result<()> {
             })
             .collect();
         println!(
-            "| {:.0}% | {} ({}) | {:.2} | {} ({}) | {} | {} |",
+            "| {:.0}% | {} ({}) | {:.2} | {} ({}) | {} | {:.2}x | {} |",
             100.0 * row.replaced,
             row.commits,
             row.whole,
@@ -67,6 +67,7 @@ pub fn run(args: &BenchReplaceArgs) -> Result<()> {
             row.file_blocks,
             row.free_blocks,
             row.fresh_blocks,
+            row.layout_drift,
             cells.join(" | ")
         );
     }

@@ -875,10 +875,8 @@ impl<'a> NodeView<'a> {
     /// [`at`](Self::at) found it).
     pub fn stored_bytes(&self, block: &'a [u8], offset: u32) -> Result<&'a [u8], String> {
         let len = match self {
-            NodeView::Internal(n) => INTERNAL_LEN + frame_len(&n.frame),
-            NodeView::Leaf(l) => {
-                leaf_len(l.objects.len(), l.checksums.len(), l.bounds.len(), l.keys.len()) + frame_len(&l.frame)
-            }
+            NodeView::Internal(n) => self.len_without_frame() + frame_len(&n.frame),
+            NodeView::Leaf(l) => self.len_without_frame() + frame_len(&l.frame),
         };
         let start = offset as usize;
         block.get(start..start + len).ok_or_else(|| "record past the block".to_string())
@@ -886,6 +884,15 @@ impl<'a> NodeView<'a> {
 }
 
 impl NodeView<'_> {
+    /// The record's bytes without a frame of its own: what a bulk load
+    /// would write for it.
+    pub fn len_without_frame(&self) -> usize {
+        match self {
+            NodeView::Internal(_) => INTERNAL_LEN,
+            NodeView::Leaf(l) => leaf_len(l.objects.len(), l.checksums.len(), l.bounds.len(), l.keys.len()),
+        }
+    }
+
     /// The record as a draft to write again: every field as stored.
     pub fn to_draft(&self) -> RecordDraft {
         match self {
