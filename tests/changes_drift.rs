@@ -18,11 +18,7 @@ fn keyed(preset: Preset, objects: Option<u64>, seed: u64) -> Scene {
 }
 
 fn loaded(dir: &std::path::Path, scene: &Scene, block_size: u32, lod_levels: u8) -> Database {
-    let db = Database::create(
-        dir.join("d.mkt"),
-        CreateOptions { block_size, lod_levels },
-    )
-    .unwrap();
+    let db = Database::create(dir.join("d.mkt"), CreateOptions { block_size, lod_levels }).unwrap();
     let mut w = db.begin_write().unwrap();
     w.bulk_load(scene, &BuildParams::for_blocks(block_size), &|_| {}).unwrap();
     w.commit().unwrap();

@@ -9,7 +9,7 @@ use serde::Serialize;
 
 use super::ReadTransaction;
 use super::hierarchy::read_layout;
-use super::tree_writer::{SAMPLES_PER_SCALE, choose_packing, node_reads_per_scale};
+use super::load::{SAMPLES_PER_SCALE, choose_packing, node_reads_per_scale};
 use crate::bulk::QueryMix;
 use crate::store::StorageError;
 use crate::store::format::node;

@@ -3,8 +3,8 @@
 
 use std::sync::Arc;
 
+use super::load::{Sink, Written};
 use super::source::ObjectSource;
-use super::tree_writer::{Sink, Written};
 use super::{ReadTransaction, Reads};
 use crate::geom::Aabb;
 use crate::scene::{Key, Mesh, Object, ObjectId};

@@ -10,13 +10,13 @@ mod group;
 mod hierarchy;
 mod hosted;
 mod key_index;
+mod load;
 mod lod;
 mod path;
 mod read;
 mod source;
 mod staged;
 mod stored;
-mod tree_writer;
 mod write;
 mod write_request;
 

@@ -6,17 +6,11 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use super::StagedScene;
+use super::load::{Load, Sink};
 use super::source::{self, ObjectSource};
-use super::tree_writer::Sink;
-use super::{
-    Inner, ReadTransaction, Recovery, SeatGuard, Snapshot, WriterLock, codes, interrupted, key_index,
-    recover, tree_writer,
-};
-use crate::bulk::{
-    BuildParams, BuildProgress, CostModel, Hierarchy, LoadProgress, QueryMix, Stage, StageMeter, build_owned,
-    check_range,
-};
-use crate::lod::{EntryMesh, GroupRule, Layout, LodError, LodParams, LodPlan, StoredBounds, plan_bounds};
+use super::{Inner, ReadTransaction, Recovery, SeatGuard, Snapshot, WriterLock, interrupted, recover};
+use crate::bulk::{BuildParams, BuildProgress, Hierarchy, LoadProgress, Stage, build_owned, check_range};
+use crate::lod::LodParams;
 use crate::scene::{Key, KeyError, Object, ObjectId, Scene};
 use crate::store::StorageError;
 use crate::store::alloc::{FreeSpace, label_freed};
@@ -24,7 +18,7 @@ use crate::store::format::frame::BlockType;
 use crate::store::format::freelist::{FreeListBlock, FreeRange, ranges_per_block};
 use crate::store::format::geometry;
 use crate::store::format::header::{self, Commit, Slot, SlotState};
-use crate::store::format::meta::{LOD_TABLE_LEN, LodCodes, Meta, written_capacity};
+use crate::store::format::meta::{Meta, written_capacity};
 
 mod cow;
 mod hosted;
@@ -527,7 +521,8 @@ impl<'db> WriteTransaction<'db> {
         Ok(false)
     }
 
-    /// Writes a valid tree of `objects` (built here, or checked by `write_tree`).
+    /// Writes a valid tree of `objects` (built here, or checked by
+    /// `write_tree`) through the load pipeline, then its meta block.
     fn write(
         &mut self,
         objects: &dyn ObjectSource,
@@ -537,128 +532,14 @@ impl<'db> WriteTransaction<'db> {
         progress: &(dyn Fn(LoadProgress) + Sync),
     ) -> Result<(), StorageError> {
         let pager = self.inner.pager().clone();
-        let (bs, m) = (pager.block_size(), pager.lod_levels());
-        if tree.nodes.is_empty() {
-            return Err(StorageError::Invalid("a tree holds at least one object".into()));
-        }
-        // What needs every object's box at once, before anything else is held.
-        let (mix, lod_plan) = {
-            let boxes = objects.object_boxes();
-            let q = CostModel::of_boxes(&boxes, params.query_extent).query_extent();
-            let lod_plan =
-                (m >= 3).then(|| LodPlan::new(&boxes, m, &self.lod_params)).transpose().map_err(lod_error)?;
-            (QueryMix::new(&tree.nodes[0].aabb, q), lod_plan)
-        };
-        let plan = {
-            let _layout = StageMeter::new(progress, Stage::Layout, 1);
-            tree_writer::Plan::new(objects, tree, bs, &mix)?
-        };
-        let mut stored = {
-            let entries = plan.leaf_entries();
-            let mesh: &EntryMesh =
-                &|i, j| plan.entry_mesh(objects, i, j).map_err(|e| LodError::Mesh(e.to_string()));
-            let layout = Layout {
-                frames: &plan.frames,
-                read_share: &plan.read_share,
-                entries: &entries,
-                mesh,
-                block_size: bs,
-            };
-            let mut stored =
-                plan_bounds(lod_plan.as_ref(), tree, m, &self.lod_params, &mix, &layout, progress)
-                    .map_err(lod_error)?;
-            let choose = StageMeter::new(progress, Stage::Choose, 2);
-            if !self.lod_params.store_all && !stored.is_empty() {
-                stored = worth_keeping(&plan, tree, stored, bs);
-            }
-            choose.add(1);
-            stored.measure_errors(&layout, self.lod_params.error_samples).map_err(lod_error)?;
-            stored
-        };
-        let txn = self.txn;
-        let group_rule = match (&lod_plan, self.lod_params.group_bounds) {
-            (Some(p), true) => Some(GroupRule {
-                lattice: p.lattice,
-                levels: m,
-                floor: p.grid_level.clone(),
-                cuberille_bits: self.lod_params.cuberille_bits,
-            }),
-            _ => None,
-        };
-        let written = {
+        let (txn, lod_params) = (self.txn, self.lod_params.clone());
+        let meta = {
             let allocate = &mut |count: u32| self.allocate(count);
-            tree_writer::write(
-                Sink { pager: &pager, txn, allocate },
-                objects,
-                tree,
-                &plan,
-                &stored.bounds,
-                group_rule.as_ref(),
-                progress,
-            )?
-        };
-        // Written: only the tables of the bounds are left to record.
-        drop(plan);
-        stored.release_bounds();
-        let keys = {
-            let allocate = &mut |count: u32| self.allocate(count);
-            key_index::write(Sink { pager: &pager, txn, allocate }, objects, &written)?
-        };
-        let mut lod_table = [[0.0; 2]; LOD_TABLE_LEN];
-        for (row, e) in lod_table.iter_mut().zip(&stored.errors) {
-            *row = *e;
-        }
-        let mut usage = [[0u64; 2]; LOD_TABLE_LEN];
-        for (row, u) in usage.iter_mut().zip(&stored.usage) {
-            *row = *u;
-        }
-        let mut predicted = [[0f32; 2]; LOD_TABLE_LEN];
-        for (row, p) in predicted.iter_mut().zip(&stored.predicted) {
-            *row = p.map(|x| x as f32);
-        }
-        let mut grid_level = [0u8; LOD_TABLE_LEN];
-        for (g, l) in grid_level.iter_mut().zip(&stored.grid_level) {
-            *g = *l;
-        }
-        let (root_block, root_checksum, root_offset) = written.root;
-        let meta = Meta {
-            root_block,
-            root_checksum,
-            root_offset,
-            object_count: objects.len() as u32,
-            object_ids: objects.len() as u32,
-            node_ids: 0,
-            node_count: tree.nodes.len() as u32,
-            leaf_count: tree.leaves().count() as u32,
-            depth: tree.depth().saturating_sub(1),
-            node_blocks: written.node_blocks,
-            geometry_blocks: written.geometry_blocks,
-            triangle_count: objects.triangle_count(),
-            vertex_count: written.vertices,
-            scene_box: tree.nodes[0].aabb.to_array(),
-            build: codes::encode(params, build_seconds),
-            node_bytes: written.node_bytes,
-            geometry_bytes: written.geometry_bytes,
-            lod_table,
-            lods: LodCodes {
-                lattice_origin: stored.lattice.map_or([0.0; 3], |l| l.origin.coords.into()),
-                lattice_cell: stored.lattice.map_or(0.0, |l| l.cell),
-                flags: 0,
-                cuberille_bits: self.lod_params.cuberille_bits,
-                cuberille_object_bits: self.lod_params.cuberille_object_bits,
-                grid_level,
-                usage,
-                query_extent: stored.query_extent,
-                predicted,
-            },
-            keys_block: keys.block,
-            keys_checksum: keys.checksum,
-            keys_height: keys.height,
-            keys_blocks: keys.blocks,
-            written: Vec::new(),
+            let load = Load { objects, tree, params, build_seconds, lod_params: &lod_params };
+            load.write(Sink { pager: &pager, txn, allocate }, progress)?
         };
         let meta_block = self.allocate(1)?;
-        let mut block = vec![0u8; bs as usize];
+        let mut block = vec![0u8; pager.block_size() as usize];
         meta.encode(&mut block);
         let sum = pager.write(meta_block, &mut block, BlockType::Meta, self.txn)?;
         self.meta = Some((meta_block, sum, meta));
@@ -896,38 +777,4 @@ impl Drop for WriteTransaction<'_> {
             let _ = self.rollback();
         }
     }
-}
-
-fn lod_error(e: crate::lod::LodError) -> StorageError {
-    StorageError::Invalid(format!("levels of detail: {e}"))
-}
-
-/// The bounds to store: chosen block by block, they may still not pay as a
-/// whole, since the bytes they add change the packing. Of the best-valued
-/// bounds (all, half, a quarter, an eighth, by value), the most the model's
-/// queries read no more with at any scale than with none, and less in all;
-/// none if no share passes.
-fn worth_keeping(
-    plan: &tree_writer::Plan,
-    tree: &Hierarchy,
-    stored: StoredBounds,
-    block_size: u32,
-) -> StoredBounds {
-    let base = plan.expected_reads(tree, &stored, f64::INFINITY, block_size);
-    let values = stored.values();
-    let mut count = values.len();
-    for _ in 0..4 {
-        if count == 0 {
-            break;
-        }
-        let min_value = values[count - 1];
-        let reads = plan.expected_reads(tree, &stored, min_value, block_size);
-        if reads.iter().zip(&base).all(|(x, y)| x <= y)
-            && reads.iter().sum::<f64>() < base.iter().sum::<f64>()
-        {
-            return stored.keep(min_value);
-        }
-        count /= 2;
-    }
-    stored.none()
 }

@@ -10,7 +10,7 @@
 //!    pieces of a third fill them about 75% under the one-parent-block
 //!    rule below (`blocks_are_mostly_full_under_one_parent_block`; 90% and
 //!    more without it), at the price of more pieces a query may cross. The writer chooses the
-//!    size by the reads of its read model (`db/tree_writer.rs`).
+//!    size by the reads of its read model (`db/load/read_model.rs`).
 //! 2. Fill blocks with whole pieces in preorder of their roots: the next
 //!    piece that fits and whose parent piece is already placed, looking a
 //!    few pieces ahead, so small pieces of one neighbourhood share a block.

@@ -30,11 +30,11 @@ use std::sync::Arc;
 
 use super::WriteTransaction;
 use crate::bulk::{BuildParams, LeafRule};
+use crate::db::load::split_info;
 use crate::db::lod::bound_rules;
 use crate::db::path::PathStep;
 use crate::db::read::view;
 use crate::db::source::check_object;
-use crate::db::tree_writer::split_info;
 use crate::db::{ReadTransaction, Reads};
 use crate::geom::Aabb;
 use crate::lod::{self, LodParams, LodPlan, Voxels, bound_grid};

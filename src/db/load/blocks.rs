@@ -1,0 +1,462 @@
+//! Writes a planned tree into blocks (format-spec/node.md, geometry.md,
+//! group.md): geometry records in leaf order, node records with quantized
+//! boxes in the chosen packing, each child entry's counts of the blocks
+//! below it, and the group bounds' blocks.
+
+use std::borrow::Cow;
+use std::collections::HashMap;
+
+use super::Sink;
+use super::plan::{Plan, object_ids};
+use super::read_model::choose_packing;
+use crate::bulk::{Hierarchy, LoadProgress, NodeId, Order, Split, Stage, StageMeter};
+use crate::db::source::ObjectSource;
+use crate::geom::Aabb;
+use crate::lod::{GroupRule, Voxels, leaf_group, lift_group};
+use crate::scene::{Mesh, ObjectId};
+use crate::store::StorageError;
+use crate::store::format::frame::{BlockType, FRAME_LEN};
+use crate::store::format::geometry;
+use crate::store::format::group::{self, GroupEntry};
+use crate::store::format::keys::TreePath;
+use crate::store::format::node::{
+    self, BoundEntry, ChildEntry, ObjectEntry, RecordDraft, RecordRef, SplitInfo,
+};
+use crate::store::layout::Packing;
+
+/// What the layout wrote, for the meta block.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Written {
+    pub root: (u32, u32, u32),
+    pub node_blocks: u32,
+    pub node_bytes: u64,
+    pub geometry_blocks: u64,
+    pub geometry_bytes: u64,
+    /// Vertices as stored (a vertex two parts of an object share counts twice).
+    pub vertices: u64,
+    /// Per object (by id): the path from the root to its leaf.
+    pub paths: Vec<TreePath>,
+    /// The objects stored in parts, by id, with the union of their parts'
+    /// boxes (any other object's box as the tree holds it is its source's).
+    pub split_boxes: Vec<(ObjectId, Aabb)>,
+}
+
+impl Written {
+    /// Object `id`'s box as the tree holds it.
+    pub fn aabb(&self, objects: &dyn ObjectSource, id: ObjectId) -> Aabb {
+        match self.split_boxes.binary_search_by_key(&id, |&(o, _)| o) {
+            Ok(at) => self.split_boxes[at].1,
+            Err(_) => objects.aabb(id),
+        }
+    }
+}
+
+/// Writes `tree` over `objects` as `plan` lays it out, with the inline
+/// `bounds` of each node (internal: its children's group bounds; leaf: its
+/// objects'), into `sink`.
+pub(crate) fn write(
+    Sink { pager, txn, allocate }: Sink,
+    objects: &dyn ObjectSource,
+    tree: &Hierarchy,
+    plan: &Plan,
+    bounds: &[Vec<BoundEntry>],
+    groups: Option<&GroupRule>,
+    progress: &(dyn Fn(LoadProgress) + Sync),
+) -> Result<Written, StorageError> {
+    let bs = pager.block_size();
+    let nodes = &tree.nodes;
+    let n = nodes.len();
+    let invalid = StorageError::Invalid;
+    let p = plan.payload;
+    let geometry_blocks = plan.stream_end.div_ceil(p);
+    let count = u32::try_from(geometry_blocks).map_err(|_| StorageError::FileTooLarge)?;
+    let first_geometry = allocate(count)?;
+    let mut sums = Vec::with_capacity(count as usize);
+    let mut block = vec![0u8; bs as usize];
+    let mut filled = 0u64; // stream bytes of blocks already written
+    let mut record = Vec::new();
+    let mut geometry_bytes = 0u64;
+    let mut vertices = 0u64;
+    let meter = StageMeter::new(progress, Stage::Geometry, geometry_blocks);
+    let flush = |block: &mut Vec<u8>, index: u64, sums: &mut Vec<u32>| -> Result<(), StorageError> {
+        let id = first_geometry + index as u32;
+        sums.push(pager.write(id, block, BlockType::Geometry, txn)?);
+        block.fill(0);
+        meter.add(1);
+        Ok(())
+    };
+    for entries in &plan.entries {
+        for e in entries {
+            record.clear();
+            vertices += match &e.part {
+                Some(part) => {
+                    geometry::encode_object(e.id, &part.0, &mut record);
+                    part.0.vertex_count() as u64
+                }
+                None => objects.encode_record(e.id, &mut record)?,
+            };
+            geometry_bytes += record.len() as u64;
+            let pos = e.pos;
+            let mut at = pos;
+            let mut rest = &record[..];
+            while !rest.is_empty() {
+                while at >= filled + p {
+                    flush(&mut block, filled / p, &mut sums)?;
+                    filled += p;
+                }
+                let off = (at - filled) as usize;
+                let take = rest.len().min(p as usize - off);
+                block[FRAME_LEN + off..FRAME_LEN + off + take].copy_from_slice(&rest[..take]);
+                rest = &rest[take..];
+                at += take as u64;
+            }
+        }
+    }
+    while filled < plan.stream_end {
+        flush(&mut block, filled / p, &mut sums)?;
+        filled += p;
+    }
+    drop(meter);
+    let child_q = &plan.child_q;
+    let leaf_span = |i: usize| plan.leaf_span(i);
+    let sizes = plan.sizes(tree, |i| node::bounds_len(&bounds[i]));
+    let capacity = node::capacity(bs);
+    if let Some(i) = (0..n).find(|&i| sizes[i] > capacity) {
+        return Err(invalid(format!(
+            "node {i}'s record with its bounds takes {} bytes and a node block holds {capacity}",
+            sizes[i]
+        )));
+    }
+    let (packing, _) = choose_packing(tree, &sizes, capacity, &plan.samples);
+    let block_count = u32::try_from(packing.blocks.len()).map_err(|_| StorageError::FileTooLarge)?;
+    let first_node = allocate(block_count)?;
+    // Offsets of every record in its block.
+    let mut offset = vec![0u32; n];
+    for members in &packing.blocks {
+        let mut at = node::RECORDS_START as u32;
+        for &m in members {
+            offset[m as usize] = at;
+            at += sizes[m as usize] as u32;
+        }
+    }
+    // The group bounds, each node block's in a group block of its own.
+    let group_entries = match groups {
+        Some(rule) => group_entries(rule, objects, tree, plan, &packing, &offset, bs)?,
+        None => vec![Vec::new(); packing.blocks.len()],
+    };
+    let group_count = group_entries.iter().filter(|e| !e.is_empty()).count();
+    let first_group = if group_count > 0 { allocate(group_count as u32)? } else { 0 };
+    let mut group_refs: Vec<Option<(u32, u32)>> = vec![None; packing.blocks.len()];
+    for (b, id) in
+        group_entries.iter().enumerate().filter(|(_, e)| !e.is_empty()).map(|(b, _)| b).zip(first_group..)
+    {
+        let mut bytes = vec![0u8; bs as usize];
+        group::encode(&group_entries[b], &mut bytes).map_err(invalid)?;
+        group_refs[b] = Some((id, pager.write(id, &mut bytes, BlockType::Group, txn)?));
+    }
+    let below = node_blocks_below(n, &packing.place, |i| nodes[i].children().map(|c| c.map(|x| x.index())));
+    let subtree_leaves = |i: usize| -> (usize, usize) {
+        // First and last leaf of a subtree in preorder.
+        let (mut a, mut b) = (i, i);
+        while let Some(c) = nodes[a].children() {
+            a = c[0].index();
+        }
+        while let Some(c) = nodes[b].children() {
+            b = c[1].index();
+        }
+        (a, b)
+    };
+    // Blocks last to first: a child's block never precedes its parent's.
+    let mut checksums = vec![0u32; packing.blocks.len()];
+    let mut node_bytes = 0u64;
+    let meter = StageMeter::new(progress, Stage::Nodes, packing.blocks.len() as u64);
+    for b in (0..packing.blocks.len()).rev() {
+        meter.add(1);
+        let records: Vec<RecordDraft> = packing.blocks[b]
+            .iter()
+            .map(|&m| {
+                let i = m as usize;
+                let node = &nodes[i];
+                match (node.children(), node.split()) {
+                    (Some(kids), Some(s)) => {
+                        let child = |c: usize| {
+                            let (cb, _) = packing.place[c];
+                            let at = if cb as usize == b {
+                                RecordRef { block: 0, checksum: 0, offset: offset[c] }
+                            } else {
+                                RecordRef {
+                                    block: first_node + cb,
+                                    checksum: checksums[cb as usize],
+                                    offset: offset[c],
+                                }
+                            };
+                            let (fl, ll) = subtree_leaves(c);
+                            let geometry_blocks = (leaf_span(ll).1 - leaf_span(fl).0 + 1) as u32;
+                            ChildEntry {
+                                qbox: child_q[c],
+                                at,
+                                node_blocks: below[c]
+                                    - u32::from(block_in_subtree(
+                                        &packing.place,
+                                        b as u32,
+                                        c,
+                                        subtree_end(c, &subtree_leaves),
+                                    )),
+                                geometry_blocks,
+                            }
+                        };
+                        RecordDraft::Internal {
+                            node_id: i as u32,
+                            object_count: object_count(tree, i),
+                            split: split_info(s),
+                            children: [child(kids[0].index()), child(kids[1].index())],
+                            frame: None,
+                        }
+                    }
+                    _ => {
+                        let (a, last) = leaf_span(i);
+                        let base = a * p;
+                        let entries = plan.entries[i]
+                            .iter()
+                            .map(|e| ObjectEntry { object_id: e.id.0, qbox: e.qbox, position: e.pos - base })
+                            .collect();
+                        let end = plan.entries[i].last().map_or(0, |e| e.pos + e.len);
+                        let keys = object_ids(&plan.entries[i]).map(|id| objects.key(id)).collect();
+                        RecordDraft::Leaf {
+                            node_id: i as u32,
+                            frame: None,
+                            first_block: first_geometry + a as u32,
+                            checksums: sums[a as usize..=last as usize].to_vec(),
+                            objects: entries,
+                            end: end - base,
+                            bounds: bounds[i].clone(),
+                            keys,
+                        }
+                    }
+                }
+            })
+            .collect();
+        let mut bytes = vec![0u8; bs as usize];
+        let group = group_refs[b].map(|(block, checksum)| {
+            let levels = packing.blocks[b]
+                .iter()
+                .map(|&m| {
+                    group_entries[b]
+                        .iter()
+                        .filter(|e| e.record == offset[m as usize])
+                        .fold(0u8, |mask, e| mask | 1 << (e.level - 1))
+                })
+                .collect();
+            node::GroupRef { block, checksum, levels }
+        });
+        node::encode_block_with_groups(&records, group.as_ref(), &mut bytes).map_err(invalid)?;
+        node_bytes += records.iter().map(|r| r.encoded_len() as u64).sum::<u64>();
+        checksums[b] = pager.write(first_node + b as u32, &mut bytes, BlockType::Node, txn)?;
+    }
+    // Nodes are in preorder: a parent's path is known before its children's.
+    let mut node_paths = vec![TreePath::default(); n];
+    for i in 0..n {
+        for (c, kid) in nodes[i].children().into_iter().flatten().enumerate() {
+            node_paths[kid.index()] = node_paths[i].child(c);
+        }
+    }
+    let mut paths = vec![TreePath::default(); objects.len()];
+    let mut split_boxes: Vec<(ObjectId, Aabb)> = Vec::new();
+    for (i, es) in plan.entries.iter().enumerate() {
+        for (j, e) in es.iter().enumerate() {
+            let first = j == 0 || es[j - 1].id != e.id;
+            if first {
+                paths[e.id.index()] = node_paths[i];
+            }
+            if let Some((_, part_box)) = e.part.as_deref() {
+                match split_boxes.last_mut() {
+                    Some((id, aabb)) if !first && *id == e.id => *aabb = aabb.union(part_box),
+                    _ => split_boxes.push((e.id, *part_box)),
+                }
+            }
+        }
+    }
+    split_boxes.sort_unstable_by_key(|&(id, _)| id);
+    let (rb, _) = packing.place[0];
+    Ok(Written {
+        root: (first_node + rb, checksums[rb as usize], offset[0]),
+        node_blocks: block_count,
+        node_bytes,
+        geometry_blocks,
+        geometry_bytes,
+        vertices,
+        paths,
+        split_boxes,
+    })
+}
+
+/// Every node's group bounds b(S_n,k) (`lod/group.rs`), built bottom up
+/// over the boxes the records hold, and per node block the entries its
+/// group block holds: level by level, coarse first, and within a level in
+/// the block's record order (a piece's root first), each that still fits.
+fn group_entries(
+    rule: &GroupRule,
+    objects: &dyn ObjectSource,
+    tree: &Hierarchy,
+    plan: &Plan,
+    packing: &Packing,
+    offset: &[u32],
+    block_size: u32,
+) -> Result<Vec<Vec<GroupEntry>>, StorageError> {
+    let nodes = &tree.nodes;
+    let levels: Vec<u8> = rule.group_levels().collect();
+    let lod = |e: crate::lod::LodError| StorageError::Invalid(format!("a group bound: {e}"));
+    // Per node, per level: the encoded bound (None: not stored, the level
+    // answers as the coarser one, or the bound is empty).
+    let mut blobs: Vec<Vec<Option<Vec<u8>>>> = vec![Vec::new(); nodes.len()];
+    // The bounds of nodes whose parent is not built yet (preorder: children
+    // come after their parent, so walking ids down builds children first).
+    let mut held: HashMap<usize, Vec<Voxels>> = HashMap::new();
+    for i in (0..nodes.len()).rev() {
+        let mut mine: Vec<Voxels> = Vec::with_capacity(levels.len());
+        let kids: Option<Vec<Vec<Voxels>>> = nodes[i]
+            .children()
+            .map(|c| c.iter().map(|c| held.remove(&c.index()).unwrap_or_default()).collect());
+        let meshes: Vec<Cow<Mesh>> = match &kids {
+            Some(_) => Vec::new(),
+            None => (0..plan.entries[i].len())
+                .map(|j| plan.entry_mesh(objects, i, j))
+                .collect::<Result<_, _>>()?,
+        };
+        let mut out = Vec::with_capacity(levels.len());
+        let mut last_level = None;
+        for (li, &k) in levels.iter().enumerate() {
+            let grid = rule.grid(k, &plan.frames[i]).map_err(lod)?;
+            let lattice_level = grid.level();
+            let v = match &kids {
+                Some(kids) => lift_group(grid, kids.iter().filter_map(|k| k.get(li))).map_err(lod)?,
+                None => leaf_group(grid, meshes.iter().map(|m| m.as_ref())),
+            };
+            // A level on the same grid as the coarser one holds the same bound.
+            let same = last_level == Some(lattice_level);
+            last_level = Some(lattice_level);
+            out.push((!same && !v.is_empty()).then(|| crate::lod::encode(&v)));
+            mine.push(v);
+        }
+        blobs[i] = out;
+        if i > 0 {
+            held.insert(i, mine);
+        }
+    }
+    let capacity = group::capacity(block_size);
+    let mut per_block = Vec::with_capacity(packing.blocks.len());
+    for members in &packing.blocks {
+        let mut chosen: Vec<GroupEntry> = Vec::new();
+        let mut used = group::entries_len(&[]);
+        for (li, &k) in levels.iter().enumerate() {
+            for &m in members {
+                let Some(Some(blob)) = blobs[m as usize].get_mut(li) else { continue };
+                if used + group::ENTRY_LEN + blob.len() <= capacity {
+                    used += group::ENTRY_LEN + blob.len();
+                    chosen.push(GroupEntry {
+                        record: offset[m as usize],
+                        level: k,
+                        blob: std::mem::take(blob),
+                    });
+                }
+            }
+        }
+        chosen.sort_by_key(|e| (e.record, e.level));
+        per_block.push(chosen);
+    }
+    Ok(per_block)
+}
+
+/// A node's split as its record stores it.
+pub(crate) fn split_info(s: &Split) -> SplitInfo {
+    let order = match s.order {
+        Order::Min => 0,
+        Order::Max => 1,
+        Order::Center => 2,
+    };
+    SplitInfo { axis: s.axis, order, overlap: s.overlap as f32, gap: s.gap as f32 }
+}
+
+/// Objects below node `i`.
+fn object_count(tree: &Hierarchy, i: usize) -> u32 {
+    tree.subtree(NodeId(i as u32)).filter_map(|(_, _, n)| n.objects()).map(|o| o.len() as u32).sum()
+}
+
+/// One past the last preorder id of node `i`'s subtree.
+fn subtree_end(i: usize, leaves: &dyn Fn(usize) -> (usize, usize)) -> usize {
+    leaves(i).1 + 1
+}
+
+/// True when a node of the subtree `[c, end)` (preorder ids) lies in block `b`.
+fn block_in_subtree(place: &[(u32, u32)], b: u32, c: usize, end: usize) -> bool {
+    place[c..end].iter().any(|p| p.0 == b)
+}
+
+/// For each node, the distinct node blocks of its subtree (nodes in
+/// preorder: a subtree is a range of ids), by the offline distinct-count of
+/// ranges with a Fenwick tree.
+fn node_blocks_below(
+    n: usize,
+    place: &[(u32, u32)],
+    children: impl Fn(usize) -> Option<[usize; 2]>,
+) -> Vec<u32> {
+    // Subtree ranges [i, end_i).
+    let mut end = vec![0usize; n];
+    for i in (0..n).rev() {
+        end[i] = match children(i) {
+            Some(c) => end[c[1]],
+            None => i + 1,
+        };
+    }
+    let mut by_end: Vec<usize> = (0..n).collect();
+    by_end.sort_by_key(|&i| end[i]);
+    let mut fenwick = vec![0i64; n + 1];
+    let add = |f: &mut Vec<i64>, mut i: usize, v: i64| {
+        i += 1;
+        while i < f.len() {
+            f[i] += v;
+            i += i & i.wrapping_neg();
+        }
+    };
+    let sum = |f: &Vec<i64>, mut i: usize| -> i64 {
+        let mut s = 0;
+        while i > 0 {
+            s += f[i];
+            i -= i & i.wrapping_neg();
+        }
+        s
+    };
+    let mut last_seen: std::collections::HashMap<u32, usize> = std::collections::HashMap::new();
+    let mut out = vec![0u32; n];
+    let mut pos = 0usize;
+    for &i in &by_end {
+        while pos < end[i] {
+            let b = place[pos].0;
+            if let Some(&prev) = last_seen.get(&b) {
+                add(&mut fenwick, prev, -1);
+            }
+            add(&mut fenwick, pos, 1);
+            last_seen.insert(b, pos);
+            pos += 1;
+        }
+        out[i] = (sum(&fenwick, end[i]) - sum(&fenwick, i)) as u32;
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn distinct_blocks_of_subtrees() {
+        // 0 -> (1, 4); 1 -> (2, 3); preorder ids.
+        let kids = |i: usize| match i {
+            0 => Some([1, 4]),
+            1 => Some([2, 3]),
+            _ => None,
+        };
+        let place = [(0, 0), (0, 1), (1, 0), (2, 0), (1, 1)];
+        assert_eq!(node_blocks_below(5, &place, kids), vec![3, 3, 1, 1, 1]);
+    }
+}

@@ -1,0 +1,102 @@
+//! The bulk load's write pipeline: a built tree and its objects in, the
+//! blocks written and the meta block's contents out. One file per step:
+//!
+//! 1. `plan.rs`: where every record goes, and how node records pack
+//!    (chosen by the read model of `read_model.rs`);
+//! 2. `bounds.rs`: which levels of detail pay to store (format-spec/lod.md);
+//! 3. `blocks.rs`: geometry, node and group blocks (format-spec/node.md,
+//!    geometry.md, group.md);
+//! 4. the key index, bottom up (`db/key_index.rs`, format-spec/keys.md);
+//! 5. `meta.rs`: the meta block's fields (format-spec/meta.md).
+//!
+//! The write transaction lends allocation ([`Sink`]) and writes the meta
+//! block and the commit (format-spec/commit.md); change commits
+//! (`db/write/cow.rs`) reuse the read model and the record helpers.
+
+mod blocks;
+mod bounds;
+mod meta;
+mod plan;
+mod read_model;
+
+pub(crate) use blocks::{Written, split_info};
+pub(crate) use read_model::{SAMPLES_PER_SCALE, choose_packing, node_reads_per_scale};
+
+use super::key_index;
+use super::source::ObjectSource;
+use crate::bulk::{BuildParams, CostModel, Hierarchy, LoadProgress, QueryMix, Stage, StageMeter};
+use crate::lod::{GroupRule, LodError, LodParams, LodPlan};
+use crate::store::format::meta::Meta;
+use crate::store::{Pager, StorageError};
+
+/// Where a write transaction's new blocks go: its pager and id, and its
+/// allocator (count -> first block).
+pub(crate) struct Sink<'a> {
+    pub pager: &'a Pager,
+    pub txn: u64,
+    pub allocate: &'a mut dyn FnMut(u32) -> Result<u32, StorageError>,
+}
+
+/// One bulk load's inputs.
+pub(crate) struct Load<'a> {
+    pub objects: &'a dyn ObjectSource,
+    pub tree: &'a Hierarchy,
+    pub params: &'a BuildParams,
+    pub build_seconds: f64,
+    pub lod_params: &'a LodParams,
+}
+
+impl Load<'_> {
+    /// Writes the tree's blocks and key index into `sink`; returns the
+    /// meta block to commit.
+    pub fn write(&self, sink: Sink, progress: &(dyn Fn(LoadProgress) + Sync)) -> Result<Meta, StorageError> {
+        let Sink { pager, txn, allocate } = sink;
+        let Load { objects, tree, params, lod_params, .. } = *self;
+        let (bs, m) = (pager.block_size(), pager.lod_levels());
+        if tree.nodes.is_empty() {
+            return Err(StorageError::Invalid("a tree holds at least one object".into()));
+        }
+        // What needs every object's box at once, before anything else is held.
+        let (mix, lod_plan) = {
+            let boxes = objects.object_boxes();
+            let q = CostModel::of_boxes(&boxes, params.query_extent).query_extent();
+            let lod_plan =
+                (m >= 3).then(|| LodPlan::new(&boxes, m, lod_params)).transpose().map_err(lod_error)?;
+            (QueryMix::new(&tree.nodes[0].aabb, q), lod_plan)
+        };
+        let plan = {
+            let _layout = StageMeter::new(progress, Stage::Layout, 1);
+            plan::Plan::new(objects, tree, bs, &mix)?
+        };
+        let mut stored = bounds::choose_bounds(self, &plan, lod_plan.as_ref(), m, &mix, bs, progress)
+            .map_err(lod_error)?;
+        let group_rule = match (&lod_plan, lod_params.group_bounds) {
+            (Some(p), true) => Some(GroupRule {
+                lattice: p.lattice,
+                levels: m,
+                floor: p.grid_level.clone(),
+                cuberille_bits: lod_params.cuberille_bits,
+            }),
+            _ => None,
+        };
+        let written = blocks::write(
+            Sink { pager, txn, allocate: &mut *allocate },
+            objects,
+            tree,
+            &plan,
+            &stored.bounds,
+            group_rule.as_ref(),
+            progress,
+        )?;
+        // Written: only the tables of the bounds are left to record.
+        drop(plan);
+        stored.release_bounds();
+        let keys = key_index::write(Sink { pager, txn, allocate }, objects, &written)?;
+        Ok(meta::assemble(self, &written, &stored, &keys))
+    }
+}
+
+/// A level-of-detail failure while writing: the file's contents would be wrong.
+fn lod_error(e: LodError) -> StorageError {
+    StorageError::Invalid(format!("levels of detail: {e}"))
+}
