@@ -14,7 +14,6 @@ use crate::db::source::ObjectSource;
 use crate::geom::Aabb;
 use crate::lod::{GroupRule, Voxels, leaf_group, lift_group};
 use crate::scene::{Mesh, ObjectId};
-use crate::store::StorageError;
 use crate::store::format::frame::{BlockType, FRAME_LEN};
 use crate::store::format::geometry;
 use crate::store::format::group::{self, GroupEntry};
@@ -23,6 +22,7 @@ use crate::store::format::node::{
     self, BoundEntry, ChildEntry, ObjectEntry, RecordDraft, RecordRef, SplitInfo,
 };
 use crate::store::layout::Packing;
+use crate::store::{Pager, StorageError};
 
 /// What the layout wrote, for the meta block.
 #[derive(Debug, Clone, Default)]
@@ -53,9 +53,11 @@ impl Written {
 
 /// Writes `tree` over `objects` as `plan` lays it out, with the inline
 /// `bounds` of each node (internal: its children's group bounds; leaf: its
-/// objects'), into `sink`.
+/// objects'), into `sink`: geometry blocks, then group blocks, then node
+/// blocks last to first (a record names the checksums of its children's
+/// blocks).
 pub(crate) fn write(
-    Sink { pager, txn, allocate }: Sink,
+    sink: Sink,
     objects: &dyn ObjectSource,
     tree: &Hierarchy,
     plan: &Plan,
@@ -63,66 +65,14 @@ pub(crate) fn write(
     groups: Option<&GroupRule>,
     progress: &(dyn Fn(LoadProgress) + Sync),
 ) -> Result<Written, StorageError> {
+    let Sink { pager, txn, allocate } = sink;
     let bs = pager.block_size();
-    let nodes = &tree.nodes;
-    let n = nodes.len();
-    let invalid = StorageError::Invalid;
-    let p = plan.payload;
-    let geometry_blocks = plan.stream_end.div_ceil(p);
-    let count = u32::try_from(geometry_blocks).map_err(|_| StorageError::FileTooLarge)?;
-    let first_geometry = allocate(count)?;
-    let mut sums = Vec::with_capacity(count as usize);
-    let mut block = vec![0u8; bs as usize];
-    let mut filled = 0u64; // stream bytes of blocks already written
-    let mut record = Vec::new();
-    let mut geometry_bytes = 0u64;
-    let mut vertices = 0u64;
-    let meter = StageMeter::new(progress, Stage::Geometry, geometry_blocks);
-    let flush = |block: &mut Vec<u8>, index: u64, sums: &mut Vec<u32>| -> Result<(), StorageError> {
-        let id = first_geometry + index as u32;
-        sums.push(pager.write(id, block, BlockType::Geometry, txn)?);
-        block.fill(0);
-        meter.add(1);
-        Ok(())
-    };
-    for entries in &plan.entries {
-        for e in entries {
-            record.clear();
-            vertices += match &e.part {
-                Some(part) => {
-                    geometry::encode_object(e.id, &part.0, &mut record);
-                    part.0.vertex_count() as u64
-                }
-                None => objects.encode_record(e.id, &mut record)?,
-            };
-            geometry_bytes += record.len() as u64;
-            let pos = e.pos;
-            let mut at = pos;
-            let mut rest = &record[..];
-            while !rest.is_empty() {
-                while at >= filled + p {
-                    flush(&mut block, filled / p, &mut sums)?;
-                    filled += p;
-                }
-                let off = (at - filled) as usize;
-                let take = rest.len().min(p as usize - off);
-                block[FRAME_LEN + off..FRAME_LEN + off + take].copy_from_slice(&rest[..take]);
-                rest = &rest[take..];
-                at += take as u64;
-            }
-        }
-    }
-    while filled < plan.stream_end {
-        flush(&mut block, filled / p, &mut sums)?;
-        filled += p;
-    }
-    drop(meter);
-    let child_q = &plan.child_q;
-    let leaf_span = |i: usize| plan.leaf_span(i);
+    let n = tree.nodes.len();
+    let geometry = write_geometry(Sink { pager, txn, allocate: &mut *allocate }, objects, plan, progress)?;
     let sizes = plan.sizes(tree, |i| node::bounds_len(&bounds[i]));
     let capacity = node::capacity(bs);
     if let Some(i) = (0..n).find(|&i| sizes[i] > capacity) {
-        return Err(invalid(format!(
+        return Err(StorageError::Invalid(format!(
             "node {i}'s record with its bounds takes {} bytes and a node block holds {capacity}",
             sizes[i]
         )));
@@ -144,123 +94,269 @@ pub(crate) fn write(
         Some(rule) => group_entries(rule, objects, tree, plan, &packing, &offset, bs)?,
         None => vec![Vec::new(); packing.blocks.len()],
     };
-    let group_count = group_entries.iter().filter(|e| !e.is_empty()).count();
-    let first_group = if group_count > 0 { allocate(group_count as u32)? } else { 0 };
-    let mut group_refs: Vec<Option<(u32, u32)>> = vec![None; packing.blocks.len()];
-    for (b, id) in
-        group_entries.iter().enumerate().filter(|(_, e)| !e.is_empty()).map(|(b, _)| b).zip(first_group..)
-    {
-        let mut bytes = vec![0u8; bs as usize];
-        group::encode(&group_entries[b], &mut bytes).map_err(invalid)?;
-        group_refs[b] = Some((id, pager.write(id, &mut bytes, BlockType::Group, txn)?));
-    }
-    let below = node_blocks_below(n, &packing.place, |i| nodes[i].children().map(|c| c.map(|x| x.index())));
-    let subtree_leaves = |i: usize| -> (usize, usize) {
-        // First and last leaf of a subtree in preorder.
-        let (mut a, mut b) = (i, i);
-        while let Some(c) = nodes[a].children() {
-            a = c[0].index();
-        }
-        while let Some(c) = nodes[b].children() {
-            b = c[1].index();
-        }
-        (a, b)
+    let group_refs = write_groups(Sink { pager, txn, allocate }, &group_entries, &packing)?;
+    let nodes = NodeBlocks {
+        tree,
+        plan,
+        packing: &packing,
+        offset: &offset,
+        first_node,
+        bounds,
+        geometry: &geometry,
+        groups: &group_entries,
+        group_refs: &group_refs,
     };
-    // Blocks last to first: a child's block never precedes its parent's.
-    let mut checksums = vec![0u32; packing.blocks.len()];
-    let mut node_bytes = 0u64;
-    let meter = StageMeter::new(progress, Stage::Nodes, packing.blocks.len() as u64);
-    for b in (0..packing.blocks.len()).rev() {
+    let (checksums, node_bytes) = nodes.write(pager, txn, objects, progress)?;
+    let (paths, split_boxes) = object_paths(tree, plan, objects.len());
+    let (rb, _) = packing.place[0];
+    Ok(Written {
+        root: (first_node + rb, checksums[rb as usize], offset[0]),
+        node_blocks: block_count,
+        node_bytes,
+        geometry_blocks: geometry.blocks,
+        geometry_bytes: geometry.bytes,
+        vertices: geometry.vertices,
+        paths,
+        split_boxes,
+    })
+}
+
+/// The geometry blocks as written.
+struct GeometryWritten {
+    /// The first block; the others follow it.
+    first: u32,
+    /// Each block's checksum.
+    sums: Vec<u32>,
+    blocks: u64,
+    bytes: u64,
+    vertices: u64,
+}
+
+/// Writes every leaf entry's geometry record where `plan` placed it, in
+/// consecutive blocks.
+fn write_geometry(
+    Sink { pager, txn, allocate }: Sink,
+    objects: &dyn ObjectSource,
+    plan: &Plan,
+    progress: &(dyn Fn(LoadProgress) + Sync),
+) -> Result<GeometryWritten, StorageError> {
+    let p = plan.payload;
+    let blocks = plan.stream_end.div_ceil(p);
+    let count = u32::try_from(blocks).map_err(|_| StorageError::FileTooLarge)?;
+    let first = allocate(count)?;
+    let mut sums = Vec::with_capacity(count as usize);
+    let mut block = vec![0u8; pager.block_size() as usize];
+    let mut filled = 0u64; // stream bytes of blocks already written
+    let mut record = Vec::new();
+    let (mut bytes, mut vertices) = (0u64, 0u64);
+    let meter = StageMeter::new(progress, Stage::Geometry, blocks);
+    let flush = |block: &mut Vec<u8>, index: u64, sums: &mut Vec<u32>| -> Result<(), StorageError> {
+        let id = first + index as u32;
+        sums.push(pager.write(id, block, BlockType::Geometry, txn)?);
+        block.fill(0);
         meter.add(1);
-        let records: Vec<RecordDraft> = packing.blocks[b]
-            .iter()
-            .map(|&m| {
-                let i = m as usize;
-                let node = &nodes[i];
-                match (node.children(), node.split()) {
-                    (Some(kids), Some(s)) => {
-                        let child = |c: usize| {
-                            let (cb, _) = packing.place[c];
-                            let at = if cb as usize == b {
-                                RecordRef { block: 0, checksum: 0, offset: offset[c] }
-                            } else {
-                                RecordRef {
-                                    block: first_node + cb,
-                                    checksum: checksums[cb as usize],
-                                    offset: offset[c],
-                                }
-                            };
-                            let (fl, ll) = subtree_leaves(c);
-                            let geometry_blocks = (leaf_span(ll).1 - leaf_span(fl).0 + 1) as u32;
-                            ChildEntry {
-                                qbox: child_q[c],
-                                at,
-                                node_blocks: below[c]
-                                    - u32::from(block_in_subtree(
-                                        &packing.place,
-                                        b as u32,
-                                        c,
-                                        subtree_end(c, &subtree_leaves),
-                                    )),
-                                geometry_blocks,
-                            }
-                        };
-                        RecordDraft::Internal {
-                            node_id: i as u32,
-                            object_count: object_count(tree, i),
-                            split: split_info(s),
-                            children: [child(kids[0].index()), child(kids[1].index())],
-                            frame: None,
-                        }
-                    }
-                    _ => {
-                        let (a, last) = leaf_span(i);
-                        let base = a * p;
-                        let entries = plan.entries[i]
-                            .iter()
-                            .map(|e| ObjectEntry { object_id: e.id.0, qbox: e.qbox, position: e.pos - base })
-                            .collect();
-                        let end = plan.entries[i].last().map_or(0, |e| e.pos + e.len);
-                        let keys = object_ids(&plan.entries[i]).map(|id| objects.key(id)).collect();
-                        RecordDraft::Leaf {
-                            node_id: i as u32,
-                            frame: None,
-                            first_block: first_geometry + a as u32,
-                            checksums: sums[a as usize..=last as usize].to_vec(),
-                            objects: entries,
-                            end: end - base,
-                            bounds: bounds[i].clone(),
-                            keys,
-                        }
-                    }
-                }
-            })
-            .collect();
-        let mut bytes = vec![0u8; bs as usize];
-        let group = group_refs[b].map(|(block, checksum)| {
-            let levels = packing.blocks[b]
-                .iter()
-                .map(|&m| {
-                    group_entries[b]
-                        .iter()
-                        .filter(|e| e.record == offset[m as usize])
-                        .fold(0u8, |mask, e| mask | 1 << (e.level - 1))
-                })
-                .collect();
-            node::GroupRef { block, checksum, levels }
-        });
-        node::encode_block_with_groups(&records, group.as_ref(), &mut bytes).map_err(invalid)?;
-        node_bytes += records.iter().map(|r| r.encoded_len() as u64).sum::<u64>();
-        checksums[b] = pager.write(first_node + b as u32, &mut bytes, BlockType::Node, txn)?;
+        Ok(())
+    };
+    for e in plan.entries.iter().flatten() {
+        record.clear();
+        vertices += match &e.part {
+            Some(part) => {
+                geometry::encode_object(e.id, &part.0, &mut record);
+                part.0.vertex_count() as u64
+            }
+            None => objects.encode_record(e.id, &mut record)?,
+        };
+        bytes += record.len() as u64;
+        let mut at = e.pos;
+        let mut rest = &record[..];
+        while !rest.is_empty() {
+            while at >= filled + p {
+                flush(&mut block, filled / p, &mut sums)?;
+                filled += p;
+            }
+            let off = (at - filled) as usize;
+            let take = rest.len().min(p as usize - off);
+            block[FRAME_LEN + off..FRAME_LEN + off + take].copy_from_slice(&rest[..take]);
+            rest = &rest[take..];
+            at += take as u64;
+        }
     }
+    while filled < plan.stream_end {
+        flush(&mut block, filled / p, &mut sums)?;
+        filled += p;
+    }
+    Ok(GeometryWritten { first, sums, blocks, bytes, vertices })
+}
+
+/// Writes the non-empty group blocks of `entries` (per node block); returns
+/// per node block its group block and checksum.
+fn write_groups(
+    Sink { pager, txn, allocate }: Sink,
+    entries: &[Vec<GroupEntry>],
+    packing: &Packing,
+) -> Result<Vec<Option<(u32, u32)>>, StorageError> {
+    let bs = pager.block_size();
+    let count = entries.iter().filter(|e| !e.is_empty()).count();
+    let first = if count > 0 { allocate(count as u32)? } else { 0 };
+    let mut refs: Vec<Option<(u32, u32)>> = vec![None; packing.blocks.len()];
+    for (b, id) in entries.iter().enumerate().filter(|(_, e)| !e.is_empty()).map(|(b, _)| b).zip(first..) {
+        let mut bytes = vec![0u8; bs as usize];
+        group::encode(&entries[b], &mut bytes).map_err(StorageError::Invalid)?;
+        refs[b] = Some((id, pager.write(id, &mut bytes, BlockType::Group, txn)?));
+    }
+    Ok(refs)
+}
+
+/// The node blocks of a packed tree, and what their records name.
+struct NodeBlocks<'a> {
+    tree: &'a Hierarchy,
+    plan: &'a Plan,
+    packing: &'a Packing,
+    /// Per node: its record's offset in its block.
+    offset: &'a [u32],
+    /// The first node block; block b of the packing is `first_node + b`.
+    first_node: u32,
+    bounds: &'a [Vec<BoundEntry>],
+    geometry: &'a GeometryWritten,
+    /// Per node block: its group block's entries, and where that block is.
+    groups: &'a [Vec<GroupEntry>],
+    group_refs: &'a [Option<(u32, u32)>],
+}
+
+impl NodeBlocks<'_> {
+    /// Writes the blocks last to first (a child's block never precedes its
+    /// parent's, whose record holds its checksum); returns each block's
+    /// checksum and the records' bytes.
+    fn write(
+        &self,
+        pager: &Pager,
+        txn: u64,
+        objects: &dyn ObjectSource,
+        progress: &(dyn Fn(LoadProgress) + Sync),
+    ) -> Result<(Vec<u32>, u64), StorageError> {
+        let (nodes, packing, offset) = (&self.tree.nodes, self.packing, self.offset);
+        let below = node_blocks_below(nodes.len(), &packing.place, |i| {
+            nodes[i].children().map(|c| c.map(|x| x.index()))
+        });
+        let mut checksums = vec![0u32; packing.blocks.len()];
+        let mut node_bytes = 0u64;
+        let meter = StageMeter::new(progress, Stage::Nodes, packing.blocks.len() as u64);
+        for b in (0..packing.blocks.len()).rev() {
+            meter.add(1);
+            let records: Vec<RecordDraft> = packing.blocks[b]
+                .iter()
+                .map(|&m| self.record(m as usize, b, &checksums, &below, objects))
+                .collect();
+            let mut bytes = vec![0u8; pager.block_size() as usize];
+            let group = self.group_refs[b].map(|(block, checksum)| {
+                let levels = packing.blocks[b]
+                    .iter()
+                    .map(|&m| {
+                        self.groups[b]
+                            .iter()
+                            .filter(|e| e.record == offset[m as usize])
+                            .fold(0u8, |mask, e| mask | 1 << (e.level - 1))
+                    })
+                    .collect();
+                node::GroupRef { block, checksum, levels }
+            });
+            node::encode_block_with_groups(&records, group.as_ref(), &mut bytes)
+                .map_err(StorageError::Invalid)?;
+            node_bytes += records.iter().map(|r| r.encoded_len() as u64).sum::<u64>();
+            checksums[b] = pager.write(self.first_node + b as u32, &mut bytes, BlockType::Node, txn)?;
+        }
+        Ok((checksums, node_bytes))
+    }
+
+    /// Node `i`'s record in block `b`, the blocks after it written
+    /// (`checksums`); `below`: per node, the distinct node blocks of its subtree.
+    fn record(
+        &self,
+        i: usize,
+        b: usize,
+        checksums: &[u32],
+        below: &[u32],
+        objects: &dyn ObjectSource,
+    ) -> RecordDraft {
+        let (nodes, plan, packing, offset) = (&self.tree.nodes, self.plan, self.packing, self.offset);
+        let subtree_leaves = |i: usize| -> (usize, usize) {
+            // First and last leaf of a subtree in preorder.
+            let (mut a, mut b) = (i, i);
+            while let Some(c) = nodes[a].children() {
+                a = c[0].index();
+            }
+            while let Some(c) = nodes[b].children() {
+                b = c[1].index();
+            }
+            (a, b)
+        };
+        let node = &nodes[i];
+        match (node.children(), node.split()) {
+            (Some(kids), Some(s)) => {
+                let child = |c: usize| {
+                    let (cb, _) = packing.place[c];
+                    let at = if cb as usize == b {
+                        RecordRef { block: 0, checksum: 0, offset: offset[c] }
+                    } else {
+                        RecordRef {
+                            block: self.first_node + cb,
+                            checksum: checksums[cb as usize],
+                            offset: offset[c],
+                        }
+                    };
+                    let (fl, ll) = subtree_leaves(c);
+                    let geometry_blocks = (plan.leaf_span(ll).1 - plan.leaf_span(fl).0 + 1) as u32;
+                    let end = subtree_end(c, &subtree_leaves);
+                    ChildEntry {
+                        qbox: plan.child_q[c],
+                        at,
+                        node_blocks: below[c] - u32::from(block_in_subtree(&packing.place, b as u32, c, end)),
+                        geometry_blocks,
+                    }
+                };
+                RecordDraft::Internal {
+                    node_id: i as u32,
+                    object_count: object_count(self.tree, i),
+                    split: split_info(s),
+                    children: [child(kids[0].index()), child(kids[1].index())],
+                    frame: None,
+                }
+            }
+            _ => {
+                let (a, last) = plan.leaf_span(i);
+                let base = a * plan.payload;
+                let entries = plan.entries[i]
+                    .iter()
+                    .map(|e| ObjectEntry { object_id: e.id.0, qbox: e.qbox, position: e.pos - base })
+                    .collect();
+                let end = plan.entries[i].last().map_or(0, |e| e.pos + e.len);
+                RecordDraft::Leaf {
+                    node_id: i as u32,
+                    frame: None,
+                    first_block: self.geometry.first + a as u32,
+                    checksums: self.geometry.sums[a as usize..=last as usize].to_vec(),
+                    objects: entries,
+                    end: end - base,
+                    bounds: self.bounds[i].clone(),
+                    keys: object_ids(&plan.entries[i]).map(|id| objects.key(id)).collect(),
+                }
+            }
+        }
+    }
+}
+
+/// Per object (by id) the path from the root to its leaf, and the objects
+/// stored in parts with the union of their parts' boxes.
+fn object_paths(tree: &Hierarchy, plan: &Plan, objects: usize) -> (Vec<TreePath>, Vec<(ObjectId, Aabb)>) {
+    let nodes = &tree.nodes;
     // Nodes are in preorder: a parent's path is known before its children's.
-    let mut node_paths = vec![TreePath::default(); n];
-    for i in 0..n {
+    let mut node_paths = vec![TreePath::default(); nodes.len()];
+    for i in 0..nodes.len() {
         for (c, kid) in nodes[i].children().into_iter().flatten().enumerate() {
             node_paths[kid.index()] = node_paths[i].child(c);
         }
     }
-    let mut paths = vec![TreePath::default(); objects.len()];
+    let mut paths = vec![TreePath::default(); objects];
     let mut split_boxes: Vec<(ObjectId, Aabb)> = Vec::new();
     for (i, es) in plan.entries.iter().enumerate() {
         for (j, e) in es.iter().enumerate() {
@@ -277,17 +373,7 @@ pub(crate) fn write(
         }
     }
     split_boxes.sort_unstable_by_key(|&(id, _)| id);
-    let (rb, _) = packing.place[0];
-    Ok(Written {
-        root: (first_node + rb, checksums[rb as usize], offset[0]),
-        node_blocks: block_count,
-        node_bytes,
-        geometry_blocks,
-        geometry_bytes,
-        vertices,
-        paths,
-        split_boxes,
-    })
+    (paths, split_boxes)
 }
 
 /// Every node's group bounds b(S_n,k) (`lod/group.rs`), built bottom up
