@@ -96,6 +96,19 @@ pub use store::StorageError;
 #[doc = include_str!("../README.md")]
 struct ReadmeDoctests;
 
+/// Re-exports public only with the `internals` feature (the fuzz targets'
+/// bodies, the tests, the benches and the CLI); crate-visible otherwise, so
+/// an embedder's surface holds no stage of the engine's own machinery.
+macro_rules! internal_use {
+    ($($tree:tt)*) => {
+        #[cfg(feature = "internals")]
+        pub use $($tree)*;
+        #[cfg(not(feature = "internals"))]
+        #[allow(unused_imports)]
+        pub(crate) use $($tree)*;
+    };
+}
+
 pub mod bulk;
 pub mod clash;
 pub mod db;

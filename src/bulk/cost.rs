@@ -18,7 +18,9 @@
 //! the 10^5-object ship but reads 5% fewer blocks only, its deeper tree
 //! reading 13% more node blocks; with it, 17% fewer blocks.
 
-use super::{Hierarchy, QueryExtent};
+#[cfg(feature = "internals")]
+use super::Hierarchy;
+use super::QueryExtent;
 use crate::geom::{Aabb, Point, Vector};
 
 /// Added to the mean object extent by [`QueryExtent::Auto`], in mm.
@@ -91,6 +93,7 @@ impl CostModel {
 
     /// The expected number of leaves of `tree` a query reaches: the sum of
     /// its leaves' access probabilities, in preorder.
+    #[cfg(feature = "internals")]
     pub fn expected_leaf_accesses(&self, tree: &Hierarchy) -> f64 {
         tree.nodes.iter().filter(|n| n.objects().is_some()).map(|n| self.access_probability(&n.aabb)).sum()
     }
@@ -104,6 +107,7 @@ impl CostModel {
     /// The expected block reads of a query, as `refine` estimates them: a
     /// leaf reached costs one geometry read, every node reached (leaves
     /// included) `NODE_READ_WEIGHT` (a third) of a node block read. Summed in preorder.
+    #[cfg(feature = "internals")]
     pub fn expected_cost(&self, tree: &Hierarchy) -> f64 {
         tree.nodes.iter().map(|n| self.node_cost(&n.aabb, n.objects().is_some())).sum()
     }
@@ -140,6 +144,7 @@ impl QueryMix {
     }
 
     /// The probability that a query of the mix meets box `b`.
+    #[cfg(feature = "internals")]
     pub fn probability(&self, b: &Aabb) -> f64 {
         let n = self.extents.len() as f64;
         self.extents.iter().map(|q| CostModel::new(&self.scene, *q).access_probability(b)).sum::<f64>() / n

@@ -68,7 +68,6 @@ pub use incremental::{Recorded, RunMode, rerun, run_recorded};
 pub use run::{AT_D, ClashRun, RunStats, measure, run_test};
 pub use select::{Candidate, MAX_SELECTOR, Selector, glob, in_set};
 pub use status::{Status, Tracked, set_status, update};
-pub use store::{
-    ClashStore, Fingerprint, HEADER_LEN, MAGIC, MAX_STORE_BYTES, RecordedRun, SavedTest, VERSION, store_path,
-};
+pub use store::{ClashStore, store_path};
+internal_use!(store::{Fingerprint, HEADER_LEN, MAGIC, MAX_STORE_BYTES, RecordedRun, SavedTest, VERSION});
 pub use test::{Clash, ClashKind, ClashTest, DEFAULT_TOLERANCE, MAX_DISTANCE, MAX_NAME, TestKind};

@@ -28,7 +28,7 @@ pub use parry::{
 };
 pub use pose::Pose;
 pub use ray::Ray;
-pub use round::{round_down_f32, round_up_f32};
+internal_use!(round::{round_down_f32, round_up_f32});
 pub use shape_error::ShapeError;
 pub use solid::{Overlap, closest, overlap, same_within, winding_number};
 pub use sphere::Sphere;

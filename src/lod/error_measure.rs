@@ -13,6 +13,7 @@ use crate::scene::Mesh;
 /// ceil(count / max_cells)-th set cell in cell order, so the result is
 /// deterministic. Never above `v.grid().max_cell_diagonal()` for a set built
 /// by [`Voxels::of_meshes`] on these meshes (or lifted from one).
+#[cfg(any(test, feature = "internals"))]
 pub fn measured_error<'a>(
     v: &Voxels,
     meshes: impl IntoIterator<Item = &'a Mesh> + Clone,

@@ -26,13 +26,16 @@ mod voxelize;
 mod voxels;
 
 pub use closed::is_closed;
-pub use compact::{aligned_grid, decode, encode, encoded_len};
+internal_use!(compact::{aligned_grid, decode, encode, encoded_len});
 pub use error::LodError;
-pub use error_measure::{ErrorProbe, measured_error};
-pub use grid::{Grid, MAX_CELLS, MAX_DIM};
-pub use group::{GroupRule, LEVEL_FACTOR, leaf_group, lift_group};
+internal_use!(error_measure::ErrorProbe);
+#[cfg(feature = "internals")]
+pub use error_measure::measured_error;
+internal_use!(grid::{Grid, MAX_CELLS, MAX_DIM});
+internal_use!(group::{GroupRule, LEVEL_FACTOR, leaf_group, lift_group});
 pub use lattice::Lattice;
-pub use plan::{LodParams, LodPlan};
+pub use plan::LodParams;
+internal_use!(plan::LodPlan);
 pub(crate) use policy::bound_grid;
-pub use policy::{EntryMesh, Layout, LeafEntry, StoredBounds, plan_bounds};
+internal_use!(policy::{EntryMesh, Layout, LeafEntry, StoredBounds, plan_bounds});
 pub use voxels::Voxels;

@@ -123,6 +123,7 @@ impl LodPlan {
     }
 
     /// Level k's guaranteed error for a grid at its lattice level (k >= 3).
+    #[cfg(feature = "internals")]
     pub fn eps(&self, k: u8) -> f64 {
         self.lattice.cell_at(self.grid_level[usize::from(k) - 1]) * 3f64.sqrt()
     }

@@ -35,7 +35,7 @@ use super::compact::{aligned_grid, decode, encode};
 use super::{ErrorProbe, Grid, Lattice, LodError, LodParams, LodPlan, Voxels};
 use crate::bulk::{Hierarchy, LoadProgress, QueryMix, Stage, StageMeter};
 use crate::geom::Aabb;
-use crate::scene::{Mesh, ObjectId};
+use crate::scene::Mesh;
 use crate::store::format::node::{BOUND_HEAD_LEN, BoundEntry, MAX_BOUND_BYTES, bounds_len, capacity};
 use crate::store::format::quant::QuantBox;
 
@@ -46,8 +46,6 @@ use crate::store::format::quant::QuantBox;
 /// decrease).
 #[derive(Debug, Clone)]
 pub struct LeafEntry {
-    /// The object.
-    pub id: ObjectId,
     /// Its box (or the part's) in steps of the leaf's frame.
     pub qbox: [u16; 6],
     /// The geometry block its record starts in.

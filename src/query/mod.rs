@@ -9,6 +9,7 @@
 //! pager where the reads happen.
 
 mod batch;
+#[cfg(feature = "internals")]
 mod brute_force;
 mod clash;
 mod collide;
@@ -27,6 +28,7 @@ mod traverse;
 mod view;
 
 pub use batch::{Request, Response, answer_request};
+#[cfg(feature = "internals")]
 pub use brute_force::{
     ScanOracle, brute_force_clash, brute_force_collide, brute_force_nearest, brute_force_ray,
     brute_force_region,
@@ -47,7 +49,8 @@ pub use tradeoff::{
     LevelBenefit, TRADEOFF_SHIFT_MM, TradeoffRow, collision_workload, level_benefit, tradeoff,
 };
 pub use traverse::{
-    Hit, NodeName, ObjectLevel, Proof, QueryAnswer, QueryOptions, Seen, Select, TraverseStats, traverse,
+    Hit, NodeName, ObjectLevel, Proof, QueryAnswer, QueryOptions, Select, TraverseStats, traverse,
 };
+internal_use!(traverse::Seen);
 pub(crate) use traverse::{Visitor, walk};
 pub use view::{Bound, CutNode, Shape, Shown, View, ViewCut, ViewOptions};

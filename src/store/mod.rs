@@ -22,4 +22,5 @@ internal_mods!(alloc, format, layout, pager);
 pub use cache::{Block, BlockCache};
 pub use device::BlockDevice;
 pub use error::StorageError;
-pub use pager::{Pager, ReadStats};
+internal_use!(pager::Pager);
+pub use pager::ReadStats;

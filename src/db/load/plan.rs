@@ -178,11 +178,7 @@ impl Plan {
             .map(|(i, es)| {
                 es.iter()
                     .enumerate()
-                    .map(|(j, e)| LeafEntry {
-                        id: e.id,
-                        qbox: e.qbox,
-                        block: *self.entry_blocks(i, j).start(),
-                    })
+                    .map(|(j, e)| LeafEntry { qbox: e.qbox, block: *self.entry_blocks(i, j).start() })
                     .collect()
             })
             .collect()
