@@ -15,6 +15,9 @@ pub enum Error {
     /// A bulk load's scene or parameters.
     #[error(transparent)]
     Build(#[from] BuildError),
+    /// A tree given to write that is not a valid tree of its scene.
+    #[error("the tree does not fit the scene: {0}")]
+    Hierarchy(#[from] crate::bulk::HierarchyError),
     /// Reading a scene from OBJ, STL or glTF.
     #[error(transparent)]
     Import(#[from] ImportError),

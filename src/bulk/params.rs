@@ -28,8 +28,8 @@ pub struct BuildParams {
     pub look_ahead: LookAhead,
     /// MOA and LAA: which of several equally good cuts wins.
     pub tie_break: TieBreak,
-    /// `refine`: the query extent q of the cost model it minimises (see
-    /// [`CostModel`](super::CostModel)).
+    /// `refine`: the query extent q of the cost model it minimises
+    /// (`bulk/cost.rs`).
     pub query_extent: QueryExtent,
 }
 
@@ -102,7 +102,7 @@ pub enum Method {
     Vsah,
     /// `vsah`, then one top-down pass that replaces a node's cut by one of
     /// MOA's six candidates where that lowers the subtree's expected leaf
-    /// accesses under the [`CostModel`](super::CostModel).
+    /// accesses under the read model's cost model (`bulk/cost.rs`).
     Refine,
 }
 

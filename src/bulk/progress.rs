@@ -20,7 +20,7 @@ pub struct BuildProgress {
     pub objects_total: u64,
     /// Object visits so far, trial subtrees included.
     pub work_done: u64,
-    /// [`estimate_work`] for this build.
+    /// The object visits this build is estimated to take.
     pub work_estimate: f64,
     /// LAA: the deepest trial level split so far below a candidate's
     /// children (the look level actually reached; at most the

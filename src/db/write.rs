@@ -294,14 +294,13 @@ impl<'db> WriteTransaction<'db> {
         tree: &Hierarchy,
         params: &BuildParams,
         build_seconds: f64,
-    ) -> Result<(), StorageError> {
+    ) -> Result<(), crate::Error> {
         self.may_write_tree()?;
-        check_range(scene, geometry::MAX_COORDINATE).map_err(|e| StorageError::Invalid(e.to_string()))?;
-        scene.check_keys().map_err(|e| StorageError::Invalid(e.to_string()))?;
+        check_range(scene, geometry::MAX_COORDINATE)?;
+        scene.check_keys()?;
         let boxes = scene.object_boxes();
         let sizes: Vec<u64> = scene.objects().iter().map(|o| geometry::record_len(&o.mesh)).collect();
-        tree.validate(&boxes, Some(&sizes), params)
-            .map_err(|e| StorageError::Invalid(format!("the tree does not fit the scene: {e}")))?;
+        tree.validate(&boxes, Some(&sizes), params)?;
         self.write(scene, tree, params, build_seconds, &|_| {})
     }
 
@@ -530,7 +529,7 @@ impl<'db> WriteTransaction<'db> {
         params: &BuildParams,
         build_seconds: f64,
         progress: &(dyn Fn(LoadProgress) + Sync),
-    ) -> Result<(), StorageError> {
+    ) -> Result<(), crate::Error> {
         let pager = self.inner.pager().clone();
         let (txn, lod_params) = (self.txn, self.lod_params.clone());
         let meta = {

@@ -31,7 +31,8 @@ pub use error::LodError;
 internal_use!(error_measure::ErrorProbe);
 #[cfg(feature = "internals")]
 pub use error_measure::measured_error;
-internal_use!(grid::{Grid, MAX_CELLS, MAX_DIM});
+pub use grid::{MAX_CELLS, MAX_DIM};
+internal_use!(grid::Grid);
 internal_use!(group::{GroupRule, LEVEL_FACTOR, leaf_group, lift_group});
 pub use lattice::Lattice;
 pub use plan::LodParams;

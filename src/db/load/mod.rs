@@ -25,7 +25,7 @@ pub(crate) use read_model::{SAMPLES_PER_SCALE, choose_packing, node_reads_per_sc
 use super::key_index;
 use super::source::ObjectSource;
 use crate::bulk::{BuildParams, CostModel, Hierarchy, LoadProgress, QueryMix, Stage, StageMeter};
-use crate::lod::{GroupRule, LodError, LodParams, LodPlan};
+use crate::lod::{GroupRule, LodParams, LodPlan};
 use crate::store::format::meta::Meta;
 use crate::store::{Pager, StorageError};
 
@@ -49,27 +49,25 @@ pub(crate) struct Load<'a> {
 impl Load<'_> {
     /// Writes the tree's blocks and key index into `sink`; returns the
     /// meta block to commit.
-    pub fn write(&self, sink: Sink, progress: &(dyn Fn(LoadProgress) + Sync)) -> Result<Meta, StorageError> {
+    pub fn write(&self, sink: Sink, progress: &(dyn Fn(LoadProgress) + Sync)) -> Result<Meta, crate::Error> {
         let Sink { pager, txn, allocate } = sink;
         let Load { objects, tree, params, lod_params, .. } = *self;
         let (bs, m) = (pager.block_size(), pager.lod_levels());
         if tree.nodes.is_empty() {
-            return Err(StorageError::Invalid("a tree holds at least one object".into()));
+            return Err(StorageError::Invalid("a tree holds at least one object".into()).into());
         }
         // What needs every object's box at once, before anything else is held.
         let (mix, lod_plan) = {
             let boxes = objects.object_boxes();
             let q = CostModel::of_boxes(&boxes, params.query_extent).query_extent();
-            let lod_plan =
-                (m >= 3).then(|| LodPlan::new(&boxes, m, lod_params)).transpose().map_err(lod_error)?;
+            let lod_plan = (m >= 3).then(|| LodPlan::new(&boxes, m, lod_params)).transpose()?;
             (QueryMix::new(&tree.nodes[0].aabb, q), lod_plan)
         };
         let plan = {
             let _layout = StageMeter::new(progress, Stage::Layout, 1);
             plan::Plan::new(objects, tree, bs, &mix)?
         };
-        let mut stored = bounds::choose_bounds(self, &plan, lod_plan.as_ref(), m, &mix, bs, progress)
-            .map_err(lod_error)?;
+        let mut stored = bounds::choose_bounds(self, &plan, lod_plan.as_ref(), m, &mix, bs, progress)?;
         let group_rule = match (&lod_plan, lod_params.group_bounds) {
             (Some(p), true) => Some(GroupRule {
                 lattice: p.lattice,
@@ -94,9 +92,4 @@ impl Load<'_> {
         let keys = key_index::write(Sink { pager, txn, allocate }, objects, &written)?;
         Ok(meta::assemble(self, &written, &stored, &keys))
     }
-}
-
-/// A level-of-detail failure while writing: the file's contents would be wrong.
-fn lod_error(e: LodError) -> StorageError {
-    StorageError::Invalid(format!("levels of detail: {e}"))
 }
