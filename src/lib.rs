@@ -68,9 +68,16 @@
 //! (objects, import, generator), over [`geom`] (boxes and exact tests).
 //! [`render`] and [`tiles`] draw and export what the view query cuts, over
 //! db and query; [`clash`] runs typed clash tests between chosen sets over
-//! db and query too. The storage format is specified in the repository's
-//! `format-spec/`; its internals are public only with the `internals`
-//! feature.
+//! db and query too. Inside db, a bulk load's blocks are written by the
+//! load pipeline (`db/load/`: plan, read model, bounds, blocks, meta), and
+//! change commits by `db/write/cow.rs`; the transaction lends them
+//! allocation and owns the commit protocol (format-spec/commit.md).
+//!
+//! The storage format is specified in the repository's `format-spec/`. Its
+//! machinery (the pager, record formats and walks, the read model, the
+//! voxel codec, the clash store's layout, the brute-force oracles) is
+//! public only with the `internals` feature, which the CLI, the benches,
+//! the fuzz targets and the tests turn on.
 
 // The one exception is the byte-range locks of src/store/lock.rs (fcntl).
 #![deny(unsafe_code)]
