@@ -6,10 +6,10 @@
 use std::collections::{BTreeMap, HashSet};
 use std::sync::Arc;
 
-use super::{ReadTransaction, Reads, view};
+use super::{ReadTransaction, Reads, view, walk_everything};
 use crate::geom::Aabb;
 use crate::lod::{GroupRule, Voxels};
-use crate::query::{Everything, QueryOptions, Visitor, walk};
+use crate::query::Visitor;
 use crate::store::format::frame::BlockType;
 use crate::store::format::{group, node};
 use crate::store::{Block, StorageError};
@@ -106,11 +106,7 @@ impl ReadTransaction {
         out.levels = rule.group_levels().map(|level| GroupLevel { level, ..GroupLevel::default() }).collect();
         let mut tally =
             Tally { txn: self, rule: &rule, out: &mut out, blocks: HashSet::new(), root: true, err: None };
-        let all = QueryOptions { lod: Some(1), budget: None, ..Default::default() };
-        walk(self, root, &Everything, &all, &mut Reads::new(None), &mut tally).map_err(|e| match e {
-            crate::query::QueryError::Storage(s) => s,
-            other => StorageError::Invalid(other.to_string()),
-        })?;
+        walk_everything(self, root, &mut Reads::new(None), &mut tally)?;
         if let Some(e) = tally.err {
             return Err(e);
         }

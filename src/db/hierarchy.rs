@@ -6,10 +6,10 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use super::{ReadTransaction, Reads, view};
+use super::{ReadTransaction, Reads, view, walk_everything};
 use crate::bulk::{Hierarchy, Node, NodeId, NodeKind, Order, Split};
 use crate::geom::Aabb;
-use crate::query::{Everything, QueryError, QueryOptions, Visitor, walk};
+use crate::query::Visitor;
 use crate::scene::ObjectId;
 use crate::store::format::node::NodeView;
 use crate::store::{Block, StorageError};
@@ -92,11 +92,7 @@ pub(crate) fn read_layout(txn: &ReadTransaction) -> Result<StoredLayout, Storage
         });
     };
     let mut c = Collect::default();
-    let all = QueryOptions { lod: Some(1), budget: None, ..Default::default() };
-    walk(txn, root, &Everything, &all, &mut Reads::new(None), &mut c).map_err(|e| match e {
-        QueryError::Storage(s) => s,
-        other => StorageError::Invalid(other.to_string()),
-    })?;
+    walk_everything(txn, root, &mut Reads::new(None), &mut c)?;
     let Collect { nodes, at, stored, .. } = c;
     let tree = Hierarchy {
         nodes: nodes

@@ -439,3 +439,22 @@ pub(crate) fn view(block: &Block, offset: u32) -> Result<NodeView<'_>, StorageEr
     }
     NodeView::at(&block.bytes, offset).map_err(|d| StorageError::corrupt(block.id, "record", d))
 }
+
+/// Walks every node below `root` (level 1: boxes only, no geometry but
+/// what `visitor` reads itself): the db's own passes over a stored tree
+/// (`check`, `stats`, `scene`, group summaries). Only the file can fail
+/// such a walk: level 1 exists at every M, and it has no other option to
+/// refuse.
+pub(crate) fn walk_everything(
+    txn: &ReadTransaction,
+    root: NodeRef,
+    reads: &mut Reads,
+    visitor: &mut dyn crate::query::Visitor,
+) -> Result<(), StorageError> {
+    let all = crate::query::QueryOptions { lod: Some(1), budget: None, ..Default::default() };
+    match crate::query::walk(txn, root, &crate::query::Everything, &all, reads, visitor) {
+        Ok(_) => Ok(()),
+        Err(crate::query::QueryError::Storage(s)) => Err(s),
+        Err(other) => Err(StorageError::Invalid(format!("the tree's walk: {other}"))),
+    }
+}

@@ -5,9 +5,9 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use super::{ReadTransaction, Reads, view};
+use super::{ReadTransaction, Reads, view, walk_everything};
 use crate::geom::Aabb;
-use crate::query::{Everything, QueryError, QueryOptions, Visitor, walk};
+use crate::query::Visitor;
 use crate::scene::{Key, Mesh, Object, ObjectId, Scene};
 use crate::store::format::geometry;
 use crate::store::format::node::NodeView;
@@ -43,11 +43,7 @@ impl ReadTransaction {
     pub fn scene(&self) -> Result<Scene, StorageError> {
         let Some(root) = self.root() else { return Ok(Scene::default()) };
         let mut gather = Gather { txn: self, reads: Reads::new(Some(self.cache())), found: HashMap::new() };
-        let all = QueryOptions { lod: Some(1), budget: None, ..Default::default() };
-        walk(self, root, &Everything, &all, &mut Reads::new(None), &mut gather).map_err(|e| match e {
-            QueryError::Storage(s) => s,
-            other => StorageError::Invalid(other.to_string()),
-        })?;
+        walk_everything(self, root, &mut Reads::new(None), &mut gather)?;
         let mut found: Vec<_> = gather.found.into_iter().collect();
         found.sort_unstable_by_key(|(id, _)| *id);
         let mut objects = Vec::with_capacity(found.len());

@@ -24,10 +24,10 @@ use std::sync::Arc;
 
 mod keys;
 
-use super::{Database, ReadTransaction, Reads, Warning, view};
+use super::{Database, ReadTransaction, Reads, Warning, view, walk_everything};
 use crate::geom::{Aabb, Point};
 use crate::lod::{LodParams, LodPlan, Voxels, bound_grid};
-use crate::query::{Everything, QueryError, QueryOptions, Visitor, walk};
+use crate::query::Visitor;
 use crate::scene::Mesh;
 use crate::store::format::frame::{self, BlockType};
 use crate::store::format::freelist::{FreeListBlock, FreeRange};
@@ -420,11 +420,7 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
         vertices: 0,
         keyed: HashMap::new(),
     };
-    let all = QueryOptions { lod: Some(1), budget: None, ..Default::default() };
-    walk(txn, root, &Everything, &all, &mut Reads::new(None), &mut w).map_err(|e| match e {
-        QueryError::Storage(s) => s,
-        other => StorageError::Invalid(other.to_string()),
-    })?;
+    walk_everything(txn, root, &mut Reads::new(None), &mut w)?;
     c.report.faults.append(&mut w.faults);
     // Preorder ids (or, after a split or merge, ids unique below `node_ids`), and each block claimed once.
     let mut node_blocks = HashSet::new();
