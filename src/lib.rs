@@ -61,17 +61,21 @@
 //!
 //! # Layers
 //!
-//! Each module uses only those below it: [`db`] (the database and its
-//! transactions) and [`query`] (every query, one traversal), which still
-//! use each other, over [`lod`] (levels of detail), over [`bulk`] (the bulk
-//! loaders), over [`store`] (blocks, pager, format records), over [`scene`]
-//! (objects, import, generator), over [`geom`] (boxes and exact tests).
-//! [`render`] and [`tiles`] draw and export what the view query cuts, over
-//! db and query; [`clash`] runs typed clash tests between chosen sets over
-//! db and query too. Inside db, a bulk load's blocks are written by the
-//! load pipeline (`db/load/`: plan, read model, bounds, blocks, meta), and
-//! change commits by `db/write/cow.rs`; the transaction lends them
-//! allocation and owns the commit protocol (format-spec/commit.md).
+//! Each module uses only those below it, in this order: [`render`],
+//! [`tiles`] and [`clash`] (pictures, 3D Tiles, typed clash tests) over
+//! [`db`] (the database: opening, transactions, the commit protocol,
+//! check, the bulk load's writer in `db/load/` and change commits in
+//! `db/write/`), over [`query`] (every query family, one traversal), over
+//! `tree` (a snapshot's verified, counted block reads and what its records
+//! and meta block say; [`ReadTransaction`] lives here, and `db` only opens
+//! and ends it), over [`lod`] (levels of detail), over [`bulk`] (the bulk
+//! loaders and the in-memory hierarchy), over [`store`] (blocks, pager,
+//! format records), over [`scene`] (objects, import, generator), over
+//! [`geom`] (boxes and exact tests). The crate's [`Error`] sits between db
+//! and query: db's operations return it, and it wraps the errors of the
+//! layers below. The transaction lends the load pipeline and the change
+//! commits allocation and owns the commit protocol (format-spec/commit.md).
+//! `tests/layering.rs` holds the code to this order.
 //!
 //! The storage format is specified in the repository's `format-spec/`. Its
 //! machinery (the pager, record formats and walks, the read model, the
@@ -131,3 +135,4 @@ pub mod scene;
 mod spill;
 pub mod store;
 pub mod tiles;
+mod tree;

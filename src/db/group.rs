@@ -1,18 +1,18 @@
-//! Reading group bounds b(S_n,k) (paper §1.5, format-spec/group.md): the
-//! grid rule from the meta block, one node's bound from its node block's
-//! group block (one read, predicted from the record's flags: the paper's
-//! bFits/bPage), and a file's summary of them per level (`mktree lods`).
+//! A file's summary of its group bounds b(S_n,k) per level (paper §1.5,
+//! format-spec/group.md; `mktree lods`). One bound is read by
+//! `tree/group.rs`.
 
 use std::collections::{BTreeMap, HashSet};
 use std::sync::Arc;
 
-use super::{ReadTransaction, Reads, view, walk_everything};
+use super::walk_everything;
 use crate::geom::Aabb;
 use crate::lod::{GroupRule, Voxels};
 use crate::query::Visitor;
 use crate::store::format::frame::BlockType;
 use crate::store::format::{group, node};
 use crate::store::{Block, StorageError};
+use crate::tree::{ReadTransaction, Reads, view};
 
 /// Group bounds of one level k, over a whole tree.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
@@ -47,57 +47,6 @@ pub struct GroupSummary {
 }
 
 impl ReadTransaction {
-    /// How the snapshot's group bounds are gridded (`None` for M < 3 or no tree).
-    pub fn group_rule(&self) -> Option<GroupRule> {
-        let meta = self.snapshot.meta.as_ref()?;
-        let m = self.pager().lod_levels();
-        (m >= 3).then_some(())?;
-        Some(GroupRule {
-            lattice: self.lattice()?,
-            levels: m,
-            floor: meta.lods.grid_level.iter().take(usize::from(m)).copied().collect(),
-            cuberille_bits: meta.lods.cuberille_bits,
-        })
-    }
-
-    /// b(S_n,k) of the record at `offset` of node block `block`, whose box
-    /// is `frame`, read through `reads` (its group block, unless held);
-    /// `None` when the block's group block holds none at level k.
-    pub(crate) fn group_bound(
-        &self,
-        block: &Block,
-        offset: u32,
-        frame: &Aabb,
-        k: u8,
-        reads: &mut Reads,
-    ) -> Result<Option<Voxels>, StorageError> {
-        let record = view(block, offset)?;
-        if !record.group_levels().any(|l| l == k) {
-            return Ok(None);
-        }
-        let frame = record.frame(*frame);
-        let corrupt = |d: String| StorageError::corrupt(block.id(), "group_block", d);
-        let (gb, sum) = node::group_ref(block.bytes()).ok_or_else(|| corrupt("no group block".into()))?;
-        let g = self.block(gb, BlockType::Group, sum, reads)?;
-        let blob = group::find(g.bytes(), &g.groups, offset, k).ok_or_else(|| {
-            corrupt(format!("record {offset}'s bound at level {k} is not in group block {gb}"))
-        })?;
-        let rule =
-            self.group_rule().ok_or_else(|| corrupt("group bounds in a file without a lattice".into()))?;
-        let grid = rule.grid(k, &frame).map_err(|e| corrupt(format!("level {k}: {e}")))?;
-        crate::lod::decode(blob, &rule.lattice, grid.bounds())
-            .ok()
-            .filter(|v| v.grid() == &grid)
-            .map(Some)
-            .ok_or_else(|| {
-                StorageError::corrupt(
-                    gb,
-                    "blob",
-                    format!("record {offset}'s bound at level {k} is not on its grid"),
-                )
-            })
-    }
-
     /// Every group bound the snapshot's tree stores, per level, with the
     /// root's faces (reads every node block and group block once).
     pub fn group_summary(&self) -> Result<GroupSummary, StorageError> {

@@ -130,6 +130,38 @@ pub struct ObjectRecord {
 }
 
 impl ReadTransaction {
+    /// Every object's name, by id (reads the key index, which holds them);
+    /// an id no object has gets an empty name. Ids sparser than 16 per
+    /// object (past the first 65,536) are refused, not listed.
+    pub fn names(&self) -> Result<Vec<String>, StorageError> {
+        let Some(m) = self.snapshot.meta.as_ref() else { return Ok(Vec::new()) };
+        let entries = self.key_entries(&mut Reads::new(None))?;
+        let len = entries.iter().map(|e| e.object_id as usize + 1).max().unwrap_or(0);
+        if len > m.object_ids as usize {
+            return Err(StorageError::corrupt(
+                m.keys_block,
+                "object_id",
+                format!("an id past the tree's {}", m.object_ids),
+            ));
+        }
+        // The list is sized by the ids the entries hold: a file whose ids
+        // are far sparser than its objects (forged, or after a great many
+        // removals) is refused rather than listed.
+        if len > 16 * entries.len() + (1 << 16) {
+            return Err(StorageError::Invalid(format!(
+                "ids up to {len} for {} objects are too sparse to list by id",
+                entries.len()
+            )));
+        }
+        let mut names = vec![String::new(); len];
+        for e in entries {
+            if let Some(slot) = names.get_mut(e.object_id as usize) {
+                *slot = e.name;
+            }
+        }
+        Ok(names)
+    }
+
     /// The key block `id` of the snapshot, decoded.
     pub(crate) fn key_block(
         &self,

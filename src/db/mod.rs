@@ -4,8 +4,8 @@
 //! The protocol is format-spec/commit.md.
 
 mod check;
-mod codes;
 mod drift;
+mod everything;
 mod group;
 mod hierarchy;
 mod hosted;
@@ -13,7 +13,6 @@ mod key_index;
 mod load;
 mod lod;
 mod path;
-mod read;
 mod source;
 mod staged;
 mod stored;
@@ -26,16 +25,17 @@ use std::path::Path;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 
 pub use check::{CheckReport, check};
-internal_use!(codes::{method_from_code, method_to_code});
+internal_use!(crate::tree::{method_from_code, method_to_code});
 pub use drift::LayoutDrift;
 pub use group::{GroupLevel, GroupSummary};
 internal_use!(hierarchy::read_hierarchy);
+pub use crate::tree::{LodInfo, ReadTransaction, TreeInfo};
+pub(crate) use crate::tree::{Snapshot, view};
+pub(crate) use everything::walk_everything;
 pub(crate) use hosted::Host;
 pub use key_index::ObjectRecord;
-pub use lod::{Level, LodInfo, Piece};
-pub use read::{ReadTransaction, TreeInfo};
-pub(crate) use read::{view, walk_everything};
-internal_use!(read::{NodeRef, Reads});
+pub use lod::{Level, Piece};
+internal_use!(crate::tree::{NodeRef, Reads});
 pub use staged::StagedScene;
 pub use write::{ChangeStats, WriteTransaction};
 pub use write_request::{JsonKey, JsonObject, WriteAnswer, WriteRequest, apply_write};
@@ -48,13 +48,13 @@ use crate::store::format::meta::Meta;
 use crate::store::format::{validate_block_size, validate_lod_levels};
 use crate::store::lock::{FileLocks, Holder};
 use crate::store::{BlockCache, BlockDevice, Pager, ReadStats, StorageError};
+use crate::tree::Owner;
 
 /// Default block size, bytes (the format's; see the README's measurements).
 pub const DEFAULT_BLOCK_SIZE: u32 = crate::store::format::DEFAULT_BLOCK_SIZE;
 /// Default number of levels of detail M.
 pub const DEFAULT_LOD_LEVELS: u8 = 4;
-/// Blocks the shared read cache holds by default (16 MiB of 16 KiB blocks).
-pub const DEFAULT_CACHE_BLOCKS: usize = 1024;
+pub use crate::store::cache::DEFAULT_CACHE_BLOCKS;
 
 /// Settings fixed when a file is created.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -125,23 +125,6 @@ impl std::fmt::Display for Warning {
                  the state before it is read, and the next write clears it"
             ),
         }
-    }
-}
-
-/// The committed state a reader sees.
-#[derive(Debug)]
-pub(crate) struct Snapshot {
-    pub txn: u64,
-    pub meta: Option<Meta>,
-    pub block_count: u32,
-    /// Blocks on the free list.
-    pub free_blocks: u32,
-}
-
-impl Snapshot {
-    /// The state commit `c` made, with its meta block.
-    pub(crate) fn of(c: &Commit, meta: Option<Meta>) -> Snapshot {
-        Snapshot { txn: c.txn, meta, block_count: c.block_count, free_blocks: c.free_blocks }
     }
 }
 
@@ -847,21 +830,6 @@ impl Inner {
         Ok(ReadTransaction::new(self.clone(), snapshot))
     }
 
-    /// A reader of snapshot `txn` ended.
-    pub(crate) fn release_reader(&self, txn: u64) {
-        let mut s = self.lock_state();
-        if let Some(n) = s.readers.get_mut(&txn) {
-            *n -= 1;
-            if *n == 0 {
-                s.readers.remove(&txn);
-                if let Some(l) = &self.locks {
-                    // Closing the file releases it too; a failure only delays reuse.
-                    let _ = l.unpin(txn);
-                }
-            }
-        }
-    }
-
     /// The oldest state a reader in this or another process still reads.
     fn oldest_reader(&self, below: u64) -> Result<Option<u64>, StorageError> {
         let here = self.lock_state().readers.keys().next().copied();
@@ -1002,6 +970,30 @@ impl Inner {
 
     pub(crate) fn cache(&self) -> &BlockCache {
         &self.cache
+    }
+}
+
+impl crate::tree::Owner for Inner {
+    fn pager(&self) -> &Pager {
+        &self.pager
+    }
+
+    fn cache(&self) -> &BlockCache {
+        &self.cache
+    }
+
+    fn release_reader(&self, txn: u64) {
+        let mut s = self.lock_state();
+        if let Some(n) = s.readers.get_mut(&txn) {
+            *n -= 1;
+            if *n == 0 {
+                s.readers.remove(&txn);
+                if let Some(l) = &self.locks {
+                    // Closing the file releases it too; a failure only delays reuse.
+                    let _ = l.unpin(txn);
+                }
+            }
+        }
     }
 }
 

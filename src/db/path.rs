@@ -4,13 +4,13 @@
 
 use std::sync::Arc;
 
-use super::read::view;
 use super::{ReadTransaction, Reads};
 use crate::geom::Aabb;
 use crate::store::format::frame::BlockType;
 use crate::store::format::keys::TreePath;
 use crate::store::format::node::{NodeView, RecordRef};
 use crate::store::{Block, StorageError};
+use crate::tree::view;
 
 /// One record on a path from the root.
 #[derive(Debug, Clone)]

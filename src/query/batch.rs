@@ -13,10 +13,10 @@ use super::collide::{CollideOptions, collide, object_mesh};
 use super::region::query_region;
 use super::select::Region;
 use super::traverse::{QueryAnswer, QueryOptions, TraverseStats};
-use crate::db::ReadTransaction;
 use crate::geom::{Aabb, Point, Pose, Ray, Sphere, Vector};
 use crate::scene::{Key, ObjectId};
 use crate::store::{BlockCache, ReadStats};
+use crate::tree::ReadTransaction;
 
 /// One query, as a JSON object tagged by `"query"`, e.g.
 /// `{"query": "nearest", "point": [0, 0, 0], "k": 3}`. Lengths in mm.

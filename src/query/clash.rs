@@ -22,13 +22,13 @@ use serde::Serialize;
 use super::QueryError;
 use super::select::{Everything, Region, Triangles, reach};
 use super::traverse::{QueryOptions, Seen, TraverseStats, Visitor, levels, walk};
-use crate::db::{ReadTransaction, Reads, view};
 use crate::geom::{Aabb, Pose};
 use crate::scene::ObjectId;
 use crate::store::format::geometry;
 use crate::store::format::node::NodeView;
 use crate::store::format::quant::QuantBox;
 use crate::store::{Block, BlockCache, StorageError};
+use crate::tree::{ReadTransaction, Reads, view};
 
 /// A clash run's settings.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -116,7 +116,7 @@ pub fn clash(
         let file_blocks = u32::try_from(txn.pager().block_count()?).unwrap_or(u32::MAX);
         return Ok(ClashAnswer { pairs: Vec::new(), level: k, file_blocks, stats: TraverseStats::default() });
     };
-    let own = BlockCache::new(crate::db::DEFAULT_CACHE_BLOCKS);
+    let own = BlockCache::new(crate::store::cache::DEFAULT_CACHE_BLOCKS);
     let pool = cache.unwrap_or(&own);
     let mut total = TraverseStats::default();
     let mut list = List::default();

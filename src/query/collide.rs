@@ -11,12 +11,12 @@ use std::sync::Arc;
 use super::QueryError;
 use super::select::{Everything, Triangles};
 use super::traverse::{QueryAnswer, QueryOptions, Visitor, traverse, walk};
-use crate::db::{ReadTransaction, Reads, view};
 use crate::geom::{Aabb, Pose};
 use crate::scene::{Mesh, ObjectId};
 use crate::store::format::geometry;
 use crate::store::format::node::NodeView;
 use crate::store::{Block, BlockCache, StorageError};
+use crate::tree::{ReadTransaction, Reads, view};
 
 /// A collision or clearance query's settings.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]

@@ -10,10 +10,10 @@ use super::QueryError;
 use super::select::Region;
 use super::traverse::{QueryOptions, traverse};
 use super::view::{View, ViewCut, ViewOptions};
-use crate::db::ReadTransaction;
 use crate::geom::{Camera, Frustum, Point};
 use crate::scene::ObjectId;
 use crate::store::{BlockCache, ReadStats};
+use crate::tree::ReadTransaction;
 
 /// One step of a walk.
 #[derive(Debug, Clone, PartialEq, Serialize)]

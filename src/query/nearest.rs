@@ -9,10 +9,10 @@ use super::QueryError;
 use super::rank::Rank;
 use super::select::Selection;
 use super::traverse::{QueryOptions, Select, TraverseStats};
-use crate::db::{ReadTransaction, Reads};
 use crate::geom::{Point, ShapeError};
 use crate::scene::{Key, ObjectId};
 use crate::store::BlockCache;
+use crate::tree::{ReadTransaction, Reads};
 
 /// An object at its distance from the point asked about.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]

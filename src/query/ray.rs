@@ -11,10 +11,10 @@ use super::QueryError;
 use super::rank::Rank;
 use super::select::Selection;
 use super::traverse::{QueryOptions, Select, TraverseStats};
-use crate::db::{ReadTransaction, Reads};
 use crate::geom::{Point, Ray};
 use crate::scene::{Key, ObjectId};
 use crate::store::BlockCache;
+use crate::tree::{ReadTransaction, Reads};
 
 /// Where a ray meets an object first.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -6,9 +6,9 @@
 use std::sync::Arc;
 
 use super::{Everything, QueryError, QueryOptions, Visitor, walk};
-use crate::db::{NodeRef, ReadTransaction, Reads};
 use crate::geom::Aabb;
 use crate::store::{Block, StorageError};
+use crate::tree::{NodeRef, ReadTransaction, Reads};
 
 /// A node record: its block, its offset there, and its frame.
 pub type RecordAt = (Arc<Block>, u32, Aabb);

@@ -9,8 +9,8 @@
 use super::QueryError;
 use super::select::Region;
 use super::traverse::{QueryAnswer, QueryOptions, traverse};
-use crate::db::ReadTransaction;
 use crate::store::BlockCache;
+use crate::tree::ReadTransaction;
 
 /// A box, sphere or frustum query at `opts`' level and budget, reading
 /// through `cache` (a pool kept across queries) when given.

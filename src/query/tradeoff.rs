@@ -9,10 +9,10 @@ use super::QueryError;
 use super::collide::object_meshes;
 use super::select::Triangles;
 use super::traverse::{QueryOptions, levels, traverse};
-use crate::db::ReadTransaction;
 use crate::geom::Pose;
 use crate::rng::Rng;
 use crate::scene::ObjectId;
+use crate::tree::ReadTransaction;
 
 /// How far a workload moves each object on every axis, mm at most.
 pub const TRADEOFF_SHIFT_MM: f64 = 100.0;

@@ -41,7 +41,6 @@ use serde::Serialize;
 use super::QueryError;
 use super::rank::Rank;
 use super::select::Selection;
-use crate::db::{NodeRef, ReadTransaction, Reads, view};
 use crate::geom::Aabb;
 use crate::lod::Voxels;
 use crate::scene::{Key, Mesh, ObjectId};
@@ -49,6 +48,7 @@ use crate::store::format::geometry;
 use crate::store::format::node::{BoundView, InternalView, LeafView, NodeView, RecordRef};
 use crate::store::format::quant::QuantBox;
 use crate::store::{Block, BlockCache, ReadStats, StorageError};
+use crate::tree::{NodeRef, ReadTransaction, Reads, view};
 
 /// Level and block budget of a query.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -1140,6 +1140,12 @@ impl<S: Selection> Iterator for Select<'_, S> {
 }
 
 impl ReadTransaction {
+    /// The objects whose exact geometry (their triangles) meets `query`,
+    /// with the reads it took: the one traversal from a cold start.
+    pub fn query_box(&self, query: &Aabb) -> Result<QueryAnswer, QueryError> {
+        super::query_region(self, &super::Region::Box(*query), &Default::default(), None)
+    }
+
     /// The objects `sel` accepts at `opts`' level and budget, one at a time
     /// as the traversal decides them (depth first; with a budget, the most
     /// objects per block first), reading through `cache` (a pool kept

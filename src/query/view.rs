@@ -41,11 +41,11 @@ use serde::Serialize;
 use super::QueryError;
 use super::select::{Region, Selection};
 use super::traverse::{NodeName, QueryOptions, Seen, Select, TraverseStats, Visitor};
-use crate::db::{ReadTransaction, Reads};
 use crate::geom::{Aabb, Camera, Frustum, Point, ShapeError, Vector};
 use crate::lod::Voxels;
 use crate::scene::{Mesh, ObjectId};
 use crate::store::{BlockCache, StorageError};
+use crate::tree::{ReadTransaction, Reads};
 
 /// A perspective camera and its viewport. Up is +z, as for [`Camera`].
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -43,6 +43,9 @@ struct Lru {
     by_age: BTreeMap<u64, u32>,
 }
 
+/// Blocks the shared read cache holds by default (16 MiB of 16 KiB blocks).
+pub const DEFAULT_CACHE_BLOCKS: usize = 1024;
+
 /// A least-recently-used pool of verified blocks, shared by readers
 /// (`Arc<BlockCache>` or `&BlockCache` from any thread).
 #[derive(Debug)]

@@ -3,10 +3,10 @@
 //! the key index's root.
 
 use super::{Load, Written};
-use crate::db::codes;
 use crate::db::key_index::WrittenKeys;
 use crate::lod::StoredBounds;
 use crate::store::format::meta::{LOD_TABLE_LEN, LodCodes, Meta};
+use crate::tree::codes;
 
 /// The meta block of `load`, written as `written` and `keys` say, with the
 /// tables of `stored`.

@@ -33,7 +33,6 @@ use crate::bulk::{BuildParams, LeafRule};
 use crate::db::load::split_info;
 use crate::db::lod::bound_rules;
 use crate::db::path::PathStep;
-use crate::db::read::view;
 use crate::db::source::check_object;
 use crate::db::{ReadTransaction, Reads};
 use crate::geom::Aabb;
@@ -49,6 +48,7 @@ use crate::store::format::node::{
 use crate::store::format::quant::{QuantBox, quantize};
 use crate::store::layout;
 use crate::store::{Block, StorageError};
+use crate::tree::view;
 
 /// A change to one key, as the transaction last asked for it.
 #[derive(Debug, Clone)]

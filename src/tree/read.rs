@@ -1,18 +1,21 @@
 //! The read transaction: a consistent snapshot of the committed tree, with
 //! verified, counted block reads (format-spec/node.md, geometry.md).
+//! `db` opens it and ends it (the reader's seat); the queries read through it.
 
 use rustc_hash::FxHashMap;
 use std::collections::VecDeque;
 use std::sync::{Arc, Weak};
 
-use super::{Inner, Snapshot, codes};
+use super::codes;
 use crate::bulk::BuildParams;
 use crate::geom::Aabb;
 use crate::scene::{Mesh, ObjectId};
 use crate::store::format::frame::BlockType;
 use crate::store::format::geometry;
 use crate::store::format::group;
+use crate::store::format::header::Commit;
 use crate::store::format::keys;
+use crate::store::format::meta::Meta;
 use crate::store::format::node::{self, LeafView, Limits, NodeView, RecordRef};
 use crate::store::{Block, BlockCache, Pager, ReadStats, StorageError};
 
@@ -28,7 +31,7 @@ pub struct TreeInfo {
     /// File length in blocks at this commit.
     pub file_blocks: u32,
     /// Blocks of the file on its free list: reused by later writes, and
-    /// given back by [`Database::compact`](super::Database::compact).
+    /// given back by [`Database::compact`](crate::Database::compact).
     pub free_blocks: u32,
     /// Objects in the tree.
     pub objects: u32,
@@ -60,15 +63,44 @@ pub struct TreeInfo {
     pub params: Option<BuildParams>,
 }
 
+/// The committed state a reader sees.
+#[derive(Debug)]
+pub(crate) struct Snapshot {
+    pub txn: u64,
+    pub meta: Option<Meta>,
+    pub block_count: u32,
+    /// Blocks on the free list.
+    pub free_blocks: u32,
+}
+
+impl Snapshot {
+    /// The state commit `c` made, with its meta block.
+    pub(crate) fn of(c: &Commit, meta: Option<Meta>) -> Snapshot {
+        Snapshot { txn: c.txn, meta, block_count: c.block_count, free_blocks: c.free_blocks }
+    }
+}
+
+/// What a read transaction reads through, and gives its seat back to: the
+/// database that opened it (`db`, which this layer does not name).
+pub(crate) trait Owner: Send + Sync {
+    /// The file's pager.
+    fn pager(&self) -> &Pager;
+    /// The database's shared cache of verified blocks.
+    fn cache(&self) -> &BlockCache;
+    /// A reader of commit `txn` has ended: its blocks may be reused once no
+    /// other reader holds them.
+    fn release_reader(&self, txn: u64);
+}
+
 /// A snapshot of the committed state, unaffected by later commits.
 pub struct ReadTransaction {
-    inner: Arc<Inner>,
-    pub(super) snapshot: Arc<Snapshot>,
+    owner: Arc<dyn Owner>,
+    pub(crate) snapshot: Arc<Snapshot>,
 }
 
 impl Drop for ReadTransaction {
     fn drop(&mut self) {
-        self.inner.release_reader(self.snapshot.txn);
+        self.owner.release_reader(self.snapshot.txn);
     }
 }
 
@@ -198,17 +230,18 @@ impl<'c> Reads<'c> {
 }
 
 impl ReadTransaction {
-    pub(super) fn new(inner: Arc<Inner>, snapshot: Arc<Snapshot>) -> ReadTransaction {
-        ReadTransaction { inner, snapshot }
+    /// A reader of `snapshot`, which `owner` has seated.
+    pub(crate) fn new(owner: Arc<dyn Owner>, snapshot: Arc<Snapshot>) -> ReadTransaction {
+        ReadTransaction { owner, snapshot }
     }
 
     pub(crate) fn pager(&self) -> &Pager {
-        self.inner.pager()
+        self.owner.pager()
     }
 
     /// The database's shared cache of verified blocks.
     pub fn cache(&self) -> &BlockCache {
-        self.inner.cache()
+        self.owner.cache()
     }
 
     /// The snapshot's tree, or `None` for a database with no tree yet.
@@ -388,44 +421,6 @@ impl ReadTransaction {
         }
         Ok((id, mesh))
     }
-
-    /// The objects whose exact geometry (their triangles) meets `query`,
-    /// with the reads it took: the one traversal from a cold start.
-    pub fn query_box(&self, query: &Aabb) -> Result<crate::query::QueryAnswer, crate::query::QueryError> {
-        crate::query::query_region(self, &crate::query::Region::Box(*query), &Default::default(), None)
-    }
-
-    /// Every object's name, by id (reads the key index, which holds them);
-    /// an id no object has gets an empty name. Ids sparser than 16 per
-    /// object (past the first 65,536) are refused, not listed.
-    pub fn names(&self) -> Result<Vec<String>, StorageError> {
-        let Some(m) = self.snapshot.meta.as_ref() else { return Ok(Vec::new()) };
-        let entries = self.key_entries(&mut Reads::new(None))?;
-        let len = entries.iter().map(|e| e.object_id as usize + 1).max().unwrap_or(0);
-        if len > m.object_ids as usize {
-            return Err(StorageError::corrupt(
-                m.keys_block,
-                "object_id",
-                format!("an id past the tree's {}", m.object_ids),
-            ));
-        }
-        // The list is sized by the ids the entries hold: a file whose ids
-        // are far sparser than its objects (forged, or after a great many
-        // removals) is refused rather than listed.
-        if len > 16 * entries.len() + (1 << 16) {
-            return Err(StorageError::Invalid(format!(
-                "ids up to {len} for {} objects are too sparse to list by id",
-                entries.len()
-            )));
-        }
-        let mut names = vec![String::new(); len];
-        for e in entries {
-            if let Some(slot) = names.get_mut(e.object_id as usize) {
-                *slot = e.name;
-            }
-        }
-        Ok(names)
-    }
 }
 
 /// The record at `offset` of a validated node block.
@@ -438,23 +433,4 @@ pub(crate) fn view(block: &Block, offset: u32) -> Result<NodeView<'_>, StorageEr
         ));
     }
     NodeView::at(&block.bytes, offset).map_err(|d| StorageError::corrupt(block.id, "record", d))
-}
-
-/// Walks every node below `root` (level 1: boxes only, no geometry but
-/// what `visitor` reads itself): the db's own passes over a stored tree
-/// (`check`, `stats`, `scene`, group summaries). Only the file can fail
-/// such a walk: level 1 exists at every M, and it has no other option to
-/// refuse.
-pub(crate) fn walk_everything(
-    txn: &ReadTransaction,
-    root: NodeRef,
-    reads: &mut Reads,
-    visitor: &mut dyn crate::query::Visitor,
-) -> Result<(), StorageError> {
-    let all = crate::query::QueryOptions { lod: Some(1), budget: None, ..Default::default() };
-    match crate::query::walk(txn, root, &crate::query::Everything, &all, reads, visitor) {
-        Ok(_) => Ok(()),
-        Err(crate::query::QueryError::Storage(s)) => Err(s),
-        Err(other) => Err(StorageError::Invalid(format!("the tree's walk: {other}"))),
-    }
 }
