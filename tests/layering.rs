@@ -1,7 +1,8 @@
 //! lib.rs's "Layers": each top-level module of `src/` names only modules
-//! below it (a `crate::m` path in code, comments aside), so no two modules
-//! import each other.
+//! below it (a `crate::m` path in code, comments aside), and no two
+//! modules, at the top or inside one, import each other.
 
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 /// Top to bottom; a module may name any module after it. `error` is the
@@ -44,24 +45,78 @@ fn sources(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
-/// The modules a source file names as `crate::m`, outside comments.
-fn named(text: &str) -> Vec<String> {
+/// The lines of a source file that are code, before its tests.
+fn code(text: &str) -> impl Iterator<Item = &str> {
+    text.lines().take_while(|l| !l.contains("#[cfg(test)]")).filter(|l| !l.trim_start().starts_with("//"))
+}
+
+/// What follows each `prefix` in `line` that starts a path (not after
+/// `$` or `::`): the next name.
+fn after<'a>(line: &'a str, prefix: &str) -> Vec<&'a str> {
     let mut out = Vec::new();
-    for line in text.lines().filter(|l| !l.trim_start().starts_with("//")) {
-        let mut rest = line;
-        while let Some(i) = rest.find("crate::") {
-            let after = &rest[i + "crate::".len()..];
-            let name: String = after.chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
-            // `mktree::crate::` cannot occur; `$crate::` (macros) and
-            // `parry3d_f64::…` are not this crate's modules.
-            let before = &rest[..i];
-            if !before.ends_with('$') && !before.ends_with("::") && !name.is_empty() {
-                out.push(name);
-            }
-            rest = after;
+    let mut rest = line;
+    while let Some(i) = rest.find(prefix) {
+        let tail = &rest[i + prefix.len()..];
+        let end = tail.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).unwrap_or(tail.len());
+        let before = &rest[..i];
+        let starts = !(before.ends_with('$')
+            || before.ends_with("::")
+            || before.ends_with(|c: char| c.is_alphanumeric() || c == '_'));
+        if starts && end > 0 {
+            out.push(&tail[..end]);
         }
+        rest = tail;
     }
     out
+}
+
+/// The modules a source file names as `crate::m`, outside comments.
+fn named(text: &str) -> Vec<String> {
+    code(text).flat_map(|l| after(l, "crate::")).map(str::to_string).collect()
+}
+
+/// `(module, submodule)` of a file under src/, for files inside a module.
+fn submodule(rel: &Path) -> Option<(String, String)> {
+    let parts: Vec<String> =
+        rel.iter().map(|p| p.to_string_lossy().trim_end_matches(".rs").to_string()).collect();
+    (parts.len() >= 2 && parts[1] != "mod").then(|| (parts[0].clone(), parts[1].clone()))
+}
+
+#[test]
+fn no_two_submodules_of_a_module_name_each_other() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    sources(&src, &mut files);
+    let mut edges = BTreeSet::new();
+    for f in &files {
+        let rel = f.strip_prefix(&src).expect("under src/");
+        let Some((top, sub)) = submodule(rel) else { continue };
+        let text = std::fs::read_to_string(f).expect("a source file reads");
+        // `super::x` names a sibling from `top/sub.rs`, and
+        // `super::super::x` from a file one folder deeper.
+        let depth = rel.iter().count();
+        let up = if depth == 2 { "super::" } else { "super::super::" };
+        let own = format!("crate::{top}::");
+        for line in code(&text) {
+            let siblings = after(line, up).into_iter().filter(|n| *n != "super");
+            let by_path = line
+                .match_indices(own.as_str())
+                .map(|(i, m)| &line[i + m.len()..])
+                .map(|t| &t[..t.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).unwrap_or(t.len())]);
+            for name in siblings.chain(by_path) {
+                if name.chars().next().is_some_and(|c| c.is_ascii_lowercase()) && name != sub {
+                    edges.insert((sub.clone(), format!("{top}/{name}"), format!("{top}/{sub}")));
+                }
+            }
+        }
+    }
+    let has = |from: &str, to: &str| edges.iter().any(|(_, t, f)| f == from && t == to);
+    let cycles: Vec<String> = edges
+        .iter()
+        .filter(|(_, to, from)| from < to && has(to, from))
+        .map(|(_, to, from)| format!("{from} <-> {to}"))
+        .collect();
+    assert!(cycles.is_empty(), "submodules that import each other:\n{}", cycles.join("\n"));
 }
 
 #[test]
@@ -99,7 +154,8 @@ fn every_module_names_only_modules_below_it() {
 #[test]
 fn the_check_sees_a_fault() {
     // The scanner itself: an upward name is found, a comment is not.
-    let text = "use crate::db::ReadTransaction;\n// crate::query::walk\nlet x = $crate::geom::Aabb;";
+    let text = "use crate::db::ReadTransaction;\n// crate::query::walk\nlet x = $crate::geom::Aabb;\n#[cfg(test)]\nuse crate::lib;";
     assert_eq!(named(text), vec!["db".to_string()]);
+    assert_eq!(after("use super::{a, b}; super::driver::Ctx; crate::super::z", "super::"), vec!["driver"]);
     assert!(rank("query") > rank("db"));
 }

@@ -10,6 +10,7 @@
 
 use super::cost::CostModel;
 use super::cut::Keys;
+use super::estimate_work;
 use super::hierarchy::node_id;
 use super::hilbert::{self, Hilbert};
 use super::laa::Laa;
@@ -19,12 +20,10 @@ use super::moa::Moa;
 use super::progress::Meter;
 use super::refine::Refine;
 use super::sah::{Heuristic, Sah};
+use super::splitter::{Ctx, Splitter};
 use super::walk::{Walk, walk};
-use super::{
-    BuildError, BuildParams, BuildProgress, Hierarchy, Method, Node, NodeId, NodeKind, Order, Split,
-};
-use super::{TieBreak, estimate_work};
-use crate::geom::{Aabb, Axis};
+use super::{BuildError, BuildParams, BuildProgress, Hierarchy, Method, Node, NodeId, NodeKind};
+use crate::geom::Aabb;
 use crate::scene::ObjectId;
 
 /// The most objects a build takes: its fewer than 2 N nodes keep u32 ids.
@@ -169,67 +168,6 @@ pub(crate) fn check_input<'a>(
         return Err(BuildError::SizesMismatch { boxes: boxes.len(), sizes: s.len() });
     }
     Leaf::new(params.leaf, sizes)
-}
-
-/// What every method needs while it builds. Objects are numbered
-/// locally (0..N in Hilbert order): local object j is input object
-/// `ids[j]`, has box `boxes[j]`, and every tie between objects is broken
-/// by input id, so the tree does not depend on the numbering.
-pub(crate) struct Ctx<'a> {
-    pub(crate) boxes: &'a [Aabb],
-    pub(crate) ids: &'a [u32],
-    pub(crate) leaf: Leaf<'a>,
-    /// `rate` (R).
-    pub(crate) rate: f64,
-    pub(crate) tie: TieBreak,
-    pub(crate) meter: Meter<'a>,
-}
-
-impl Ctx<'_> {
-    /// R(S) of the objects: the union of their boxes.
-    pub(crate) fn aabb_of(&self, objects: &[u32]) -> Aabb {
-        objects.iter().fold(Aabb::EMPTY, |b, &j| b.union(&self.boxes[j as usize]))
-    }
-
-    /// The split record of a reference method that divided a node into
-    /// `left` and `right`: the signed intersection of the children's boxes
-    /// on `axis`, or, without an axis, on the axis where it is least (the
-    /// first on ties).
-    pub(crate) fn split_between(&self, left: &[u32], right: &[u32], axis: Option<Axis>) -> Split {
-        self.split_of(&self.aabb_of(left), &self.aabb_of(right), axis)
-    }
-
-    /// [`Ctx::split_between`] of children with boxes `l` and `r`.
-    pub(crate) fn split_of(&self, l: &Aabb, r: &Aabb, axis: Option<Axis>) -> Split {
-        let axes = axis.as_ref().map_or(&Axis::ALL[..], std::slice::from_ref);
-        let (axis, gap) = axes
-            .iter()
-            .map(|&a| (a, signed_intersection(l, r, a)))
-            .fold((Axis::X, f64::INFINITY), |best, c| if c.1 < best.1 { c } else { best });
-        Split { axis, order: Order::Center, overlap: if gap > 0.0 { gap } else { 0.0 }, gap }
-    }
-}
-
-/// The length of the intersection of the two boxes' projections on `axis`,
-/// negative by the distance between them when they are apart.
-pub(crate) fn signed_intersection(a: &Aabb, b: &Aabb, axis: Axis) -> f64 {
-    let i = axis.index();
-    a.max[i].min(b.max[i]) - a.min[i].max(b.min[i])
-}
-
-/// How a method divides a node that does not fit a page.
-pub(crate) trait Splitter: Sync {
-    /// The method's view of a node's objects.
-    type Set: Send;
-    /// The objects of `set`, in any order.
-    fn objects<'s>(&self, set: &'s Self::Set) -> &'s [u32];
-    /// R(S_n) of `set`: the union of its objects' boxes.
-    fn aabb(&self, ctx: &Ctx<'_>, set: &Self::Set) -> Aabb {
-        ctx.aabb_of(self.objects(set))
-    }
-    /// Divides `set` (at least two objects) into two non-empty parts,
-    /// first the left; `aabb` is the node's box.
-    fn split(&self, set: Self::Set, aabb: &Aabb) -> (Self::Set, Self::Set, Split);
 }
 
 /// The tree grown by `splitter` from `set`, in preorder.

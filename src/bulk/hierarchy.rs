@@ -78,7 +78,7 @@ impl Split {
         let i = self.axis.index();
         match self.order {
             Order::Min | Order::Max => left.max[i] - right.min[i],
-            Order::Center => crate::bulk::driver::signed_intersection(left, right, self.axis),
+            Order::Center => signed_intersection(left, right, self.axis),
         }
     }
 }
@@ -252,6 +252,13 @@ impl Serialize for Hierarchy {
         s.serialize_field("nodes", &Records(&self.nodes))?;
         s.end()
     }
+}
+
+/// The length of the intersection of the two boxes' projections on `axis`,
+/// negative by the distance between them when they are apart.
+pub(crate) fn signed_intersection(a: &Aabb, b: &Aabb, axis: Axis) -> f64 {
+    let i = axis.index();
+    a.max[i].min(b.max[i]) - a.min[i].max(b.min[i])
 }
 
 #[cfg(test)]

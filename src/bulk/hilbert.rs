@@ -11,8 +11,8 @@
 use rayon::prelude::*;
 
 use super::Split;
-use super::driver::{Ctx, Splitter};
 use super::median::left_half;
+use super::splitter::{Ctx, Splitter};
 use crate::geom::Aabb;
 
 /// Bits per axis of the Hilbert code: 3 × 21 = 63 bits.

@@ -36,7 +36,7 @@
 //     overlaps, the quantity of Tables 39-44.
 
 use super::cut::{Cut, Keys, SixLists, candidates, moa_cut, partition};
-use super::driver::{Ctx, Splitter};
+use super::splitter::{Ctx, Splitter};
 use super::walk::{PAR_MIN, Walk, join_if, walk};
 use super::{LookAhead, Split};
 use crate::geom::Aabb;

@@ -6,7 +6,7 @@
 use std::cmp::Ordering;
 
 use super::Split;
-use super::driver::{Ctx, Splitter};
+use super::splitter::{Ctx, Splitter};
 use crate::geom::Aabb;
 
 /// The median splitter.

@@ -5,7 +5,7 @@
 
 use super::Split;
 use super::cut::{Keys, SixLists, moa_cut, partition};
-use super::driver::{Ctx, Splitter};
+use super::splitter::{Ctx, Splitter};
 use crate::geom::Aabb;
 
 /// MOA's splitter: the greedy minimum-overlap cut.

@@ -25,6 +25,7 @@ mod progress;
 mod refine;
 mod report;
 mod sah;
+mod splitter;
 mod validate;
 mod walk;
 
@@ -32,6 +33,7 @@ internal_use!(cost::{CostModel, MIX_SHARES, QueryMix});
 pub use driver::build;
 pub(crate) use driver::build_owned;
 pub use error::BuildError;
+pub(crate) use hierarchy::signed_intersection;
 pub use hierarchy::{Hierarchy, Node, NodeId, NodeKind, Order, Preorder, Split};
 internal_use!(hilbert::curve_order);
 pub use leaf::{LeafRule, object_bytes};

@@ -17,8 +17,8 @@
 //! proportion to its area.
 
 use super::Split;
-use super::driver::{Ctx, Splitter};
 use super::median::Median;
+use super::splitter::{Ctx, Splitter};
 use crate::geom::{Aabb, Axis};
 
 /// Bins per axis.

@@ -1,120 +1,16 @@
-//! The key index (format-spec/keys.md): written bottom-up after the tree,
-//! read by lookups that descend it and never walk the MKtree.
+//! Reading the key index (format-spec/keys.md): lookups descend it and
+//! never walk the MKtree. A bulk load writes it (`load/keys.rs`).
 
 use std::sync::Arc;
 
-use super::load::{Sink, Written};
-use super::source::ObjectSource;
 use super::{ReadTransaction, Reads};
 use crate::geom::Aabb;
 use crate::scene::{Key, Mesh, Object, ObjectId};
 use crate::store::format::frame::BlockType;
 use crate::store::format::geometry;
-use crate::store::format::keys::{self, ChildRef, KeyBlock, KeyEntry};
+use crate::store::format::keys::{self, KeyBlock, KeyEntry};
 use crate::store::format::node::NodeView;
 use crate::store::{Block, StorageError};
-
-/// The key index as written: its root, levels and blocks.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct WrittenKeys {
-    pub block: u32,
-    pub checksum: u32,
-    pub height: u32,
-    pub blocks: u32,
-}
-
-/// Writes the key index of `objects`, whose leaf records and boxes
-/// `written` tells, into `sink`. Keys must be unique
-/// (`Scene::check_keys`). Only the keys in order are held for every
-/// object; entries are made a block at a time.
-pub(crate) fn write(
-    Sink { pager, txn, allocate }: Sink,
-    objects: &dyn ObjectSource,
-    written: &Written,
-) -> Result<WrittenKeys, StorageError> {
-    let bs = pager.block_size();
-    let capacity = keys::capacity(bs);
-    let mut order: Vec<(Key, ObjectId)> =
-        (0..objects.len()).map(|i| (objects.key(ObjectId(i as u32)), ObjectId(i as u32))).collect();
-    order.sort_unstable();
-    if let Some(w) = order.windows(2).find(|w| w[0].0 == w[1].0) {
-        return Err(StorageError::Invalid(format!("the key {} is not unique", w[0].0)));
-    }
-    let entry = |&(ref key, id): &(Key, ObjectId)| KeyEntry {
-        key: key.clone(),
-        payload: objects.payload(id).to_vec(),
-        name: objects.name(id).to_string(),
-        object_id: id.0,
-        path: written.paths[id.index()],
-        aabb: written.aabb(objects, id),
-    };
-    let sizes: Vec<usize> = order
-        .iter()
-        .map(|(key, id)| keys::entry_len(key, objects.payload(*id).len(), objects.name(*id).len()))
-        .collect();
-    if let Some(at) = sizes.iter().position(|&len| len > capacity) {
-        return Err(StorageError::Invalid(format!(
-            "the key {} with its payload and name takes {} bytes and a key block holds {capacity}: use larger blocks",
-            order[at].0, sizes[at]
-        )));
-    }
-    let mut block = vec![0u8; bs as usize];
-    let mut blocks = 0u32;
-    // Writes the encoded `block` as a new block of type `t` whose least key is `first_key`.
-    let mut put = |block: &mut [u8], t: BlockType, first_key: Key| -> Result<ChildRef, StorageError> {
-        let id = allocate(1)?;
-        let checksum = pager.write(id, block, t, txn)?;
-        blocks += 1;
-        Ok(ChildRef { first_key, block: id, checksum })
-    };
-    let mut level: Vec<ChildRef> = Vec::new();
-    for group in pack(&sizes, capacity) {
-        let first_key = order[group.start].0.clone();
-        let part: Vec<KeyEntry> = order[group].iter().map(entry).collect();
-        keys::encode_leaf(&part, &mut block).map_err(StorageError::Invalid)?;
-        level.push(put(&mut block, BlockType::KeyLeaf, first_key)?);
-    }
-    let mut height = 1;
-    while level.len() > 1 {
-        let sizes: Vec<usize> =
-            level.iter().enumerate().map(|(i, c)| keys::child_len(&c.first_key, i == 0)).collect();
-        let mut up = Vec::new();
-        for group in pack(&sizes, capacity) {
-            let part = &level[group];
-            keys::encode_branch(part, &mut block).map_err(StorageError::Invalid)?;
-            up.push(put(&mut block, BlockType::KeyBranch, part[0].first_key.clone())?);
-        }
-        level = up;
-        height += 1;
-    }
-    let root = level.pop().ok_or_else(|| StorageError::Invalid("a key index of no keys".into()))?;
-    Ok(WrittenKeys { block: root.block, checksum: root.checksum, height, blocks })
-}
-
-/// Consecutive groups of items of `sizes` bytes filling blocks of
-/// `capacity` bytes in order. A group after the first holds at least two
-/// items when there are two: a branch has at least two children. (Every
-/// item fits a third of a block in a branch, so the block before a lone
-/// last item holds at least three and can give one.)
-pub(crate) fn pack(sizes: &[usize], capacity: usize) -> Vec<std::ops::Range<usize>> {
-    let mut groups: Vec<std::ops::Range<usize>> = Vec::new();
-    let (mut start, mut used) = (0, 0);
-    for (i, &s) in sizes.iter().enumerate() {
-        // A branch's first child takes no key; sizes are what each adds.
-        if i > start && used + s > capacity {
-            groups.push(start..i);
-            (start, used) = (i, 0);
-        }
-        used += s;
-    }
-    groups.push(start..sizes.len());
-    let n = groups.len();
-    if n >= 2 && groups[n - 1].len() == 1 && groups[n - 2].len() >= 3 {
-        groups[n - 2].end -= 1;
-        groups[n - 1].start -= 1;
-    }
-    groups
-}
 
 /// What a lookup by key finds: the object's id, key, exact box and payload.
 #[derive(Debug, Clone, PartialEq)]
@@ -312,26 +208,5 @@ impl ReadTransaction {
     /// The exact mesh of the object with key `key` (see [`ReadTransaction::mesh_with`]).
     pub fn mesh(&self, key: &Key) -> Result<Option<Mesh>, StorageError> {
         self.mesh_with(key, &mut Reads::new(Some(self.cache())))
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn groups_fill_blocks_in_order_and_never_leave_a_lone_branch_child() {
-        assert_eq!(pack(&[4, 4, 4], 8), vec![0..2, 2..3]);
-        assert_eq!(
-            pack(&[3, 3, 3, 3], 9),
-            vec![0..2, 2..4],
-            "a lone last item takes one from the block before"
-        );
-        assert_eq!(pack(&[5], 8), vec![0..1]);
-        assert_eq!(
-            pack(&[9, 2], 8),
-            vec![0..1, 1..2],
-            "an item larger than a block stands alone (the caller refuses it)"
-        );
     }
 }

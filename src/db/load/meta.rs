@@ -2,8 +2,8 @@
 //! counts and root, how it was built, the levels of detail's tables and
 //! the key index's root.
 
+use super::keys::WrittenKeys;
 use super::{Load, Written};
-use crate::db::key_index::WrittenKeys;
 use crate::lod::StoredBounds;
 use crate::store::format::meta::{LOD_TABLE_LEN, LodCodes, Meta};
 use crate::tree::codes;

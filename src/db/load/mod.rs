@@ -6,7 +6,7 @@
 //! 2. `bounds.rs`: which levels of detail pay to store (format-spec/lod.md);
 //! 3. `blocks.rs`: geometry, node and group blocks (format-spec/node.md,
 //!    geometry.md, group.md);
-//! 4. the key index, bottom up (`db/key_index.rs`, format-spec/keys.md);
+//! 4. the key index, bottom up (`keys.rs`, format-spec/keys.md);
 //! 5. `meta.rs`: the meta block's fields (format-spec/meta.md).
 //!
 //! The write transaction lends allocation ([`Sink`]) and writes the meta
@@ -15,6 +15,7 @@
 
 mod blocks;
 mod bounds;
+mod keys;
 mod meta;
 mod plan;
 mod read_model;
@@ -22,7 +23,6 @@ mod read_model;
 pub(crate) use blocks::{Written, split_info};
 pub(crate) use read_model::{SAMPLES_PER_SCALE, choose_packing, node_reads_per_scale};
 
-use super::key_index;
 use super::source::ObjectSource;
 use crate::bulk::{BuildParams, CostModel, Hierarchy, LoadProgress, QueryMix, Stage, StageMeter};
 use crate::lod::{GroupRule, LodParams, LodPlan};
@@ -89,7 +89,7 @@ impl Load<'_> {
         // Written: only the tables of the bounds are left to record.
         drop(plan);
         stored.release_bounds();
-        let keys = key_index::write(Sink { pager, txn, allocate }, objects, &written)?;
+        let keys = keys::write(Sink { pager, txn, allocate }, objects, &written)?;
         Ok(meta::assemble(self, &written, &stored, &keys))
     }
 }

@@ -1746,7 +1746,7 @@ impl WriteTransaction<'_> {
         }
         let sizes: Vec<usize> = parts.iter().map(|p| p.len()).collect();
         let mut out = Vec::new();
-        for group in crate::db::key_index::pack(&sizes, capacity) {
+        for group in keys::pack(&sizes, capacity) {
             let first_key = match order[group.start] {
                 (None, at) => old[at].0.to_key(),
                 (Some(n), _) => encoded[n].2.clone(),
@@ -1773,7 +1773,7 @@ impl WriteTransaction<'_> {
         let sizes: Vec<usize> =
             children.iter().enumerate().map(|(i, c)| keys::child_len(&c.first_key, i == 0)).collect();
         let mut out = Vec::new();
-        for group in crate::db::key_index::pack(&sizes, capacity) {
+        for group in keys::pack(&sizes, capacity) {
             let part = &children[group];
             let mut block = vec![0u8; pager.block_size() as usize];
             keys::encode_branch(part, &mut block).map_err(StorageError::Invalid)?;

@@ -458,6 +458,32 @@ pub fn entry_len(key: &Key, payload_len: usize, name_len: usize) -> usize {
     key.encoded_len() + 2 + payload_len + 2 + name_len + FIXED_LEN
 }
 
+/// Consecutive groups of items of `sizes` bytes filling blocks of
+/// `capacity` bytes in order. A group after the first holds at least two
+/// items when there are two: a branch has at least two children. (Every
+/// item fits a third of a block in a branch, so the block before a lone
+/// last item holds at least three and can give one.)
+pub(crate) fn pack(sizes: &[usize], capacity: usize) -> Vec<std::ops::Range<usize>> {
+    let mut groups: Vec<std::ops::Range<usize>> = Vec::new();
+    let (mut start, mut used) = (0, 0);
+    for (i, &s) in sizes.iter().enumerate() {
+        // A branch's first child takes no key; sizes are what each adds.
+        if i > start && used + s > capacity {
+            groups.push(start..i);
+            (start, used) = (i, 0);
+        }
+        used += s;
+    }
+    groups.push(start..sizes.len());
+    let n = groups.len();
+    if n >= 2 && groups[n - 1].len() == 1 && groups[n - 2].len() >= 3 {
+        groups[n - 2].end -= 1;
+        groups[n - 1].start -= 1;
+    }
+    groups
+}
+
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -561,5 +587,21 @@ mod tests {
         let mut one_child = vec![0u8; 1024];
         encode_branch(&[ChildRef { first_key: Key::Int(0), block: 4, checksum: 9 }], &mut one_child).unwrap();
         assert!(decode(5, &one_child, false).is_ok(), "a branch of one child, as a change commit may leave");
+    }
+
+    #[test]
+    fn groups_fill_blocks_in_order_and_never_leave_a_lone_branch_child() {
+        assert_eq!(pack(&[4, 4, 4], 8), vec![0..2, 2..3]);
+        assert_eq!(
+            pack(&[3, 3, 3, 3], 9),
+            vec![0..2, 2..4],
+            "a lone last item takes one from the block before"
+        );
+        assert_eq!(pack(&[5], 8), vec![0..1]);
+        assert_eq!(
+            pack(&[9, 2], 8),
+            vec![0..1, 1..2],
+            "an item larger than a block stands alone (the caller refuses it)"
+        );
     }
 }
