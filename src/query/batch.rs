@@ -12,7 +12,7 @@ use super::QueryError;
 use super::collide::{CollideOptions, collide, object_mesh};
 use super::region::query_region;
 use super::select::Region;
-use super::traverse::{QueryAnswer, QueryOptions, TraverseStats};
+use super::{QueryAnswer, QueryOptions, TraverseStats};
 use crate::geom::{Aabb, Point, Pose, Ray, Sphere, Vector};
 use crate::scene::{Key, ObjectId};
 use crate::store::{BlockCache, ReadStats};

@@ -21,7 +21,7 @@ use serde::Serialize;
 
 use super::QueryError;
 use super::select::{Everything, Region, Triangles, reach};
-use super::traverse::{QueryOptions, Seen, TraverseStats, Visitor, levels, walk};
+use super::{QueryOptions, Seen, TraverseStats, Visitor, levels, walk};
 use crate::geom::{Aabb, Pose};
 use crate::scene::ObjectId;
 use crate::store::format::geometry;

@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use super::QueryError;
 use super::select::{Everything, Triangles};
-use super::traverse::{QueryAnswer, QueryOptions, Visitor, traverse, walk};
+use super::{QueryAnswer, QueryOptions, Visitor, traverse, walk};
 use crate::geom::{Aabb, Pose};
 use crate::scene::{Mesh, ObjectId};
 use crate::store::format::geometry;

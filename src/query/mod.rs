@@ -8,6 +8,7 @@
 //! ray. Each returns its answer and the blocks it read, counted by the
 //! pager where the reads happen.
 
+mod answer;
 mod batch;
 #[cfg(feature = "internals")]
 mod brute_force;
@@ -26,7 +27,10 @@ mod select;
 mod tradeoff;
 mod traverse;
 mod view;
+mod visit;
 
+pub(crate) use answer::levels;
+pub use answer::{Hit, ObjectLevel, Proof, QueryAnswer, QueryOptions, TraverseStats};
 pub use batch::{Request, Response, answer_request};
 #[cfg(feature = "internals")]
 pub use brute_force::{
@@ -48,9 +52,9 @@ pub use select::{Everything, Region, Selection, Triangles};
 pub use tradeoff::{
     LevelBenefit, TRADEOFF_SHIFT_MM, TradeoffRow, collision_workload, level_benefit, tradeoff,
 };
-pub use traverse::{
-    Hit, NodeName, ObjectLevel, Proof, QueryAnswer, QueryOptions, Select, TraverseStats, traverse,
-};
-internal_use!(traverse::Seen);
-pub(crate) use traverse::{Visitor, walk};
+pub(crate) use traverse::walk;
+pub use traverse::{Select, traverse};
+pub use visit::NodeName;
+internal_use!(visit::Seen);
 pub use view::{Bound, CutNode, Shape, Shown, View, ViewCut, ViewOptions};
+pub(crate) use visit::Visitor;

@@ -8,8 +8,8 @@ use serde::Serialize;
 
 use super::QueryError;
 use super::select::Region;
-use super::traverse::{QueryOptions, traverse};
 use super::view::{View, ViewCut, ViewOptions};
+use super::{QueryOptions, traverse};
 use crate::geom::{Camera, Frustum, Point};
 use crate::scene::ObjectId;
 use crate::store::{BlockCache, ReadStats};

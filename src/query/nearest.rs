@@ -8,7 +8,7 @@
 use super::QueryError;
 use super::rank::Rank;
 use super::select::Selection;
-use super::traverse::{QueryOptions, Select, TraverseStats};
+use super::{QueryOptions, Select, TraverseStats};
 use crate::geom::{Point, ShapeError};
 use crate::scene::{Key, ObjectId};
 use crate::store::BlockCache;

@@ -10,7 +10,7 @@ use serde::Serialize;
 use super::QueryError;
 use super::rank::Rank;
 use super::select::Selection;
-use super::traverse::{QueryOptions, Select, TraverseStats};
+use super::{QueryOptions, Select, TraverseStats};
 use crate::geom::{Point, Ray};
 use crate::scene::{Key, ObjectId};
 use crate::store::BlockCache;

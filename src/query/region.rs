@@ -8,7 +8,7 @@
 
 use super::QueryError;
 use super::select::Region;
-use super::traverse::{QueryAnswer, QueryOptions, traverse};
+use super::{QueryAnswer, QueryOptions, traverse};
 use crate::store::BlockCache;
 use crate::tree::ReadTransaction;
 

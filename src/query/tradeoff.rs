@@ -8,7 +8,7 @@ use serde::Serialize;
 use super::QueryError;
 use super::collide::object_meshes;
 use super::select::Triangles;
-use super::traverse::{QueryOptions, levels, traverse};
+use super::{QueryOptions, levels, traverse};
 use crate::geom::Pose;
 use crate::rng::Rng;
 use crate::scene::ObjectId;

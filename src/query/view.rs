@@ -40,7 +40,7 @@ use serde::Serialize;
 
 use super::QueryError;
 use super::select::{Region, Selection};
-use super::traverse::{NodeName, QueryOptions, Seen, Select, TraverseStats, Visitor};
+use super::{NodeName, QueryOptions, Seen, Select, TraverseStats, Visitor};
 use crate::geom::{Aabb, Camera, Frustum, Point, ShapeError, Vector};
 use crate::lod::Voxels;
 use crate::scene::{Mesh, ObjectId};
