@@ -20,7 +20,8 @@ mod open {
     use std::collections::BTreeMap;
     use std::sync::Arc;
 
-    use super::super::{Database, Snapshot, State, read_meta};
+    use super::super::committed::read_meta;
+    use super::super::{Database, Snapshot, State};
     use super::{Commit, Host};
     use crate::store::format::freelist::FreeRange;
     use crate::store::format::header::{SlotPair, SlotRead};
