@@ -24,7 +24,7 @@ use std::sync::Arc;
 
 mod keys;
 
-use super::{Database, ReadTransaction, Reads, Warning, view, walk_everything};
+use super::{Database, ReadTransaction, Reads, TreeInfo, Warning, view, walk_everything};
 use crate::geom::{Aabb, Point};
 use crate::lod::{LodParams, LodPlan, Voxels, bound_grid};
 use crate::query::Visitor;
@@ -33,7 +33,8 @@ use crate::store::format::frame::{self, BlockType};
 use crate::store::format::freelist::{FreeListBlock, FreeRange};
 use crate::store::format::header::Commit;
 use crate::store::format::keys::TreePath;
-use crate::store::format::node::{BoundView, NodeView};
+use crate::store::format::meta::Meta;
+use crate::store::format::node::{BoundView, LeafView, NodeView};
 use crate::store::format::quant::QuantBox;
 use crate::store::{Block, ReadStats, StorageError};
 use keys::KeyedObject;
@@ -294,6 +295,66 @@ impl Walker<'_> {
         }
         Ok(())
     }
+
+    /// Each object of `leaf` (record `offset` of `block`, whose box is
+    /// `frame`): read whole, once, inside its tight stored box, with its
+    /// bounds on their grids and within their eps.
+    fn check_objects(&mut self, here: &str, block: &Arc<Block>, offset: u32, frame: &Aabb, leaf: &LeafView) {
+        // The previous entry's id and anchor, when its record was read.
+        let mut previous: Option<(u32, Point)> = None;
+        for i in 0..leaf.len() {
+            let Some(o) = leaf.object(i) else { continue };
+            let (id, mesh) = match self.txn.read_object(block.id(), leaf, i, &mut self.reads) {
+                Ok(x) => x,
+                Err(e) => {
+                    self.faults.push(format!("{here}: {e}"));
+                    previous = None;
+                    continue;
+                }
+            };
+            self.triangles += mesh.triangle_count() as u64;
+            self.vertices += mesh.vertex_count() as u64;
+            // An object's parts are consecutive entries of one leaf.
+            let part_of_previous = i > 0 && leaf.object(i - 1).is_some_and(|p| p.object_id == id.0);
+            if id.0 >= self.objects || !self.seen.insert(id.0) && !part_of_previous {
+                self.faults.push(format!("{here}: object {id} appears twice or is out of range"));
+            }
+            // Every part carries its object's anchor: a part relabelled
+            // as its neighbour's has another one.
+            if previous.is_some_and(|(p, a)| p == id.0 && a != mesh.anchor()) {
+                self.faults.push(format!("{here}: object {id}'s parts have different anchors"));
+            }
+            previous = Some((id.0, mesh.anchor()));
+            let path = self.path_of.get(&(block.id(), offset)).copied().unwrap_or_default();
+            let k = self.keyed.entry(id.0).or_insert_with(|| KeyedObject {
+                key: leaf.key(i),
+                path,
+                aabb: Aabb::EMPTY,
+            });
+            k.aabb = k.aabb.union(&mesh.aabb());
+            let Some(q) = QuantBox::decode(frame, o.qbox) else {
+                self.faults.push(format!("{here}: object {id}'s box is backwards"));
+                continue;
+            };
+            let b = mesh.aabb();
+            if !q.outer.contains(&b) {
+                self.faults.push(format!("{here}: object {id} lies outside its stored box"));
+            }
+            // Each face of the stored box must hold the true face: the box witnesses contact.
+            let tight = (0..3).all(|a| {
+                let (lower, upper) = (q.lower_face(a), q.upper_face(a));
+                (lower.0..=lower.1).contains(&b.min[a]) && (upper.0..=upper.1).contains(&b.max[a])
+            });
+            if !tight {
+                self.faults.push(format!("{here}: object {id}'s stored box is not tight on its surface"));
+            }
+            for bound in leaf.bounds().filter(|x| usize::from(x.target) == i) {
+                if let Err(e) = self.check_bound(&bound, &q.outer, &mesh) {
+                    self.faults.push(format!("{here}: object {id}'s bound at level {}: {e}", bound.level));
+                }
+            }
+        }
+    }
 }
 
 impl Visitor for Walker<'_> {
@@ -336,62 +397,7 @@ impl Visitor for Walker<'_> {
             NodeView::Leaf(leaf) => {
                 let (first, sums) = leaf.geometry();
                 facts.geometry = (0..sums.len() as u32).map(|i| first.saturating_add(i)).collect();
-                // The previous entry's id and anchor, when its record was read.
-                let mut previous: Option<(u32, Point)> = None;
-                for i in 0..leaf.len() {
-                    let Some(o) = leaf.object(i) else { continue };
-                    let (id, mesh) = match self.txn.read_object(block.id(), &leaf, i, &mut self.reads) {
-                        Ok(x) => x,
-                        Err(e) => {
-                            self.faults.push(format!("{here}: {e}"));
-                            previous = None;
-                            continue;
-                        }
-                    };
-                    self.triangles += mesh.triangle_count() as u64;
-                    self.vertices += mesh.vertex_count() as u64;
-                    // An object's parts are consecutive entries of one leaf.
-                    let part_of_previous = i > 0 && leaf.object(i - 1).is_some_and(|p| p.object_id == id.0);
-                    if id.0 >= self.objects || !self.seen.insert(id.0) && !part_of_previous {
-                        self.faults.push(format!("{here}: object {id} appears twice or is out of range"));
-                    }
-                    // Every part carries its object's anchor: a part relabelled
-                    // as its neighbour's has another one.
-                    if previous.is_some_and(|(p, a)| p == id.0 && a != mesh.anchor()) {
-                        self.faults.push(format!("{here}: object {id}'s parts have different anchors"));
-                    }
-                    previous = Some((id.0, mesh.anchor()));
-                    let path = self.path_of.get(&(block.id(), offset)).copied().unwrap_or_default();
-                    let k = self.keyed.entry(id.0).or_insert_with(|| KeyedObject {
-                        key: leaf.key(i),
-                        path,
-                        aabb: Aabb::EMPTY,
-                    });
-                    k.aabb = k.aabb.union(&mesh.aabb());
-                    let Some(q) = QuantBox::decode(frame, o.qbox) else {
-                        self.faults.push(format!("{here}: object {id}'s box is backwards"));
-                        continue;
-                    };
-                    let b = mesh.aabb();
-                    if !q.outer.contains(&b) {
-                        self.faults.push(format!("{here}: object {id} lies outside its stored box"));
-                    }
-                    // Each face of the stored box must hold the true face: the box witnesses contact.
-                    let tight = (0..3).all(|a| {
-                        let (lower, upper) = (q.lower_face(a), q.upper_face(a));
-                        (lower.0..=lower.1).contains(&b.min[a]) && (upper.0..=upper.1).contains(&b.max[a])
-                    });
-                    if !tight {
-                        self.faults
-                            .push(format!("{here}: object {id}'s stored box is not tight on its surface"));
-                    }
-                    for bound in leaf.bounds().filter(|x| usize::from(x.target) == i) {
-                        if let Err(e) = self.check_bound(&bound, &q.outer, &mesh) {
-                            self.faults
-                                .push(format!("{here}: object {id}'s bound at level {}: {e}", bound.level));
-                        }
-                    }
-                }
+                self.check_objects(&here, block, offset, frame, &leaf);
             }
         }
         self.at.insert((block.id(), offset), self.facts.len());
@@ -422,6 +428,18 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
     };
     walk_everything(txn, root, &mut Reads::new(None), &mut w)?;
     c.report.faults.append(&mut w.faults);
+    let (node_blocks, geometry_blocks, group_levels) = claim_blocks(c, &w.facts, &meta);
+    check_group_blocks(c, txn, group_levels);
+    check_child_counts(c, &w);
+    check_totals(c, &info, &meta, &w, (node_blocks, geometry_blocks));
+    keys::check_keys(c, txn, &meta, &w.keyed)
+}
+
+/// Claims each node, group and geometry block of the tree for `c`'s map
+/// of the file, checking node ids and that each block is claimed once:
+/// the node and geometry blocks counted, and per group block the bounds
+/// its node block's records name.
+fn claim_blocks(c: &mut Checker, facts: &[NodeFacts], meta: &Meta) -> (u64, u64, HashMap<(u32, u32), u32>) {
     // Preorder ids (or, after a split or merge, ids unique below `node_ids`), and each block claimed once.
     let mut node_blocks = HashSet::new();
     let mut geometry_blocks = HashSet::new();
@@ -429,7 +447,7 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
     let mut group_levels: HashMap<(u32, u32), u32> = HashMap::new();
     let mut parent_block: HashMap<u32, u32> = HashMap::new();
     let mut ids = HashSet::new();
-    for (i, f) in w.facts.iter().enumerate() {
+    for (i, f) in facts.iter().enumerate() {
         if meta.node_ids == 0 && f.id as usize != i {
             c.fault(format!("node {} is met at preorder position {i}", f.id));
         }
@@ -465,6 +483,10 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
             }
         }
     }
+    (node_blocks.len() as u64, geometry_blocks.len() as u64, group_levels)
+}
+
+fn check_group_blocks(c: &mut Checker, txn: &ReadTransaction, group_levels: HashMap<(u32, u32), u32>) {
     // A group block holds the bounds its node block's records name, and no other.
     for ((g, sum), named) in group_levels {
         match txn.block(g, BlockType::Group, sum, &mut Reads::new(None)) {
@@ -476,6 +498,9 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
             Err(e) => c.fault(format!("group block {g}: {e}")),
         }
     }
+}
+
+fn check_child_counts(c: &mut Checker, w: &Walker) {
     // Each child entry's counts: (at least) the distinct node blocks of its
     // subtree other than the parent's, and the geometry blocks of its objects.
     let n = w.facts.len();
@@ -512,7 +537,18 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
         sub_nodes[i] = nodes;
         sub_geometry[i] = geometry;
     }
+}
+
+/// The tree's totals against the meta block's.
+fn check_totals(
+    c: &mut Checker,
+    info: &TreeInfo,
+    meta: &Meta,
+    w: &Walker,
+    (node_blocks, geometry_blocks): (u64, u64),
+) {
     // Ids are unique below `object_ids` (checked per entry); the tree holds as many as the meta block counts.
+    let n = w.facts.len();
     if w.seen.len() as u64 != u64::from(info.objects) {
         c.fault(format!("meta says {} objects, the tree's leaves hold {}", info.objects, w.seen.len()));
     }
@@ -522,8 +558,8 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
         ("nodes", n as u64, u64::from(info.nodes)),
         ("leaves", leaves, u64::from(info.leaves)),
         ("depth", u64::from(depth), u64::from(info.depth)),
-        ("node blocks", node_blocks.len() as u64, u64::from(info.node_blocks)),
-        ("geometry blocks", geometry_blocks.len() as u64, info.geometry_blocks),
+        ("node blocks", node_blocks, u64::from(info.node_blocks)),
+        ("geometry blocks", geometry_blocks, info.geometry_blocks),
         ("triangles", w.triangles, info.triangles),
         ("vertices", w.vertices, info.vertices),
     ];
@@ -536,5 +572,4 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
     }
     c.report.objects = u64::from(info.objects);
     c.report.nodes = n as u64;
-    keys::check_keys(c, txn, &meta, &w.keyed)
 }
