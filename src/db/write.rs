@@ -598,35 +598,8 @@ impl<'db> WriteTransaction<'db> {
             }
         };
         let unwritten_meta = meta_checksum == 0 && meta_block != 0;
-        // The new free list: everything this transaction did not write (or
-        // keep). Its own blocks come from `avail` (never from the blocks it frees).
-        let per = ranges_per_block(pager.block_size());
-        let mut list_blocks: Vec<u32> = Vec::new();
-        let (free, end) = loop {
-            let mut free = label_freed(
-                &FreeSpace::complement(self.avail.end(), &self.written),
-                &self.base_free,
-                self.txn,
-            );
-            let end = self.trim_tail(&mut free, self.avail.end(), &old_chain);
-            if free.len().div_ceil(per) <= list_blocks.len() {
-                break (free, end);
-            }
-            list_blocks.push(self.allocate(1)?);
-        };
-        let (mut next, mut next_sum) = (0u32, 0u32);
-        let chunks: Vec<&[FreeRange]> = free.chunks(per).collect();
-        for (j, &id) in list_blocks.iter().enumerate().rev() {
-            let fl = FreeListBlock {
-                next_block: next,
-                next_checksum: next_sum,
-                ranges: chunks.get(j).map_or(Vec::new(), |c| c.to_vec()),
-            };
-            let mut block = vec![0u8; pager.block_size() as usize];
-            fl.encode(&mut block);
-            next_sum = self.put(id, &mut block, BlockType::FreeList)?;
-            next = id;
-        }
+        let FreeList { free, end, head: (next, next_sum), blocks: list_blocks } =
+            self.write_free_list(&old_chain)?;
         // A change commit small enough for its meta block to list what it
         // wrote commits with one sync (format-spec/commit.md).
         let mut listed = false;
@@ -655,6 +628,41 @@ impl<'db> WriteTransaction<'db> {
             pager.device().set_len(u64::from(end) * u64::from(pager.block_size()))?;
         }
         Ok(self.change_stats)
+    }
+
+    /// Writes the new free list: everything this transaction did not write
+    /// (or keep), past the end it cuts off. Its own blocks come from
+    /// `avail`, never from the blocks it frees.
+    fn write_free_list(&mut self, old_chain: &[u32]) -> Result<FreeList, StorageError> {
+        let pager = self.inner.pager().clone();
+        let per = ranges_per_block(pager.block_size());
+        let mut list_blocks: Vec<u32> = Vec::new();
+        let (free, end) = loop {
+            let mut free = label_freed(
+                &FreeSpace::complement(self.avail.end(), &self.written),
+                &self.base_free,
+                self.txn,
+            );
+            let end = self.trim_tail(&mut free, self.avail.end(), old_chain);
+            if free.len().div_ceil(per) <= list_blocks.len() {
+                break (free, end);
+            }
+            list_blocks.push(self.allocate(1)?);
+        };
+        let (mut next, mut next_sum) = (0u32, 0u32);
+        let chunks: Vec<&[FreeRange]> = free.chunks(per).collect();
+        for (j, &id) in list_blocks.iter().enumerate().rev() {
+            let fl = FreeListBlock {
+                next_block: next,
+                next_checksum: next_sum,
+                ranges: chunks.get(j).map_or(Vec::new(), |c| c.to_vec()),
+            };
+            let mut block = vec![0u8; pager.block_size() as usize];
+            fl.encode(&mut block);
+            next_sum = self.put(id, &mut block, BlockType::FreeList)?;
+            next = id;
+        }
+        Ok(FreeList { free, end, head: (next, next_sum), blocks: list_blocks })
     }
 
     /// Drops the free ranges at the end of a file of `end` blocks that no
@@ -776,4 +784,16 @@ impl Drop for WriteTransaction<'_> {
             let _ = self.rollback();
         }
     }
+}
+
+/// A commit's new free list as written.
+struct FreeList {
+    /// Its ranges.
+    free: Vec<FreeRange>,
+    /// The file's length in blocks after the commit.
+    end: u32,
+    /// Its first block and that block's checksum (0, 0: none).
+    head: (u32, u32),
+    /// Its blocks, head first.
+    blocks: Vec<u32>,
 }

@@ -27,6 +27,26 @@ struct Moves {
 }
 
 impl Moves {
+    /// Copies `blocks` (id and checksum) of type `t`, which name no other
+    /// block, to their new places; a group block is validated first.
+    fn copy(
+        &mut self,
+        pager: &Pager,
+        blocks: &BTreeMap<u32, u32>,
+        t: BlockType,
+        txn: u64,
+    ) -> Result<(), StorageError> {
+        for (&old, &sum) in blocks {
+            let (mut bytes, _) = pager.read(old, t, Some(sum), &mut ReadStats::default())?;
+            if t == BlockType::Group {
+                group::validate(old, &bytes, pager.lod_levels())?;
+            }
+            let to = self.to[&old];
+            self.sums.insert(old, pager.write(to, &mut bytes, t, txn)?);
+        }
+        Ok(())
+    }
+
     /// The new id and checksum of old block `old`, already written.
     fn written(&self, old: u32, what: &str) -> Result<(u32, u32), StorageError> {
         match (self.to.get(&old), self.sums.get(&old)) {
@@ -138,18 +158,8 @@ impl WriteTransaction<'_> {
         let meta_block = self.allocate(1)?;
 
         let txn = self.txn;
-        for (&old, &sum) in &geometry {
-            let (mut bytes, _) =
-                pager.read(old, BlockType::Geometry, Some(sum), &mut ReadStats::default())?;
-            let to = geometry_moves.to[&old];
-            geometry_moves.sums.insert(old, pager.write(to, &mut bytes, BlockType::Geometry, txn)?);
-        }
-        for (&old, &sum) in &groups {
-            let (mut bytes, _) = pager.read(old, BlockType::Group, Some(sum), &mut ReadStats::default())?;
-            group::validate(old, &bytes, pager.lod_levels())?;
-            let to = group_moves.to[&old];
-            group_moves.sums.insert(old, pager.write(to, &mut bytes, BlockType::Group, txn)?);
-        }
+        geometry_moves.copy(&pager, &geometry, BlockType::Geometry, txn)?;
+        group_moves.copy(&pager, &groups, BlockType::Group, txn)?;
         for &old in &order {
             let (mut bytes, _) =
                 pager.read(old, BlockType::Node, Some(node_sums[&old]), &mut ReadStats::default())?;
@@ -179,25 +189,7 @@ impl WriteTransaction<'_> {
             let to = node_moves.to[&old];
             node_moves.sums.insert(old, pager.write(to, &mut bytes, BlockType::Node, txn)?);
         }
-        for (depth, level) in levels.iter().enumerate().rev() {
-            let leaf = depth + 1 == levels.len();
-            let t = if leaf { BlockType::KeyLeaf } else { BlockType::KeyBranch };
-            for &(old, sum) in level {
-                let (mut bytes, _) = pager.read(old, t, Some(sum), &mut ReadStats::default())?;
-                match keys::decode(old, &bytes, leaf)? {
-                    // Key entries name no node block: a leaf moves as it is.
-                    KeyBlock::Leaf(_) => {}
-                    KeyBlock::Branch(mut children) => {
-                        for c in &mut children {
-                            (c.block, c.checksum) = key_moves.written(c.block, "key")?;
-                        }
-                        keys::encode_branch(&children, &mut bytes).map_err(StorageError::Invalid)?;
-                    }
-                }
-                let to = key_moves.to[&old];
-                key_moves.sums.insert(old, pager.write(to, &mut bytes, t, txn)?);
-            }
-        }
+        copy_key_blocks(&pager, &levels, &mut key_moves, txn)?;
 
         let mut moved = meta;
         (moved.root_block, moved.root_checksum) = node_moves.written(moved.root_block, "node")?;
@@ -208,6 +200,37 @@ impl WriteTransaction<'_> {
         self.meta = Some((meta_block, sum, moved));
         Ok(())
     }
+}
+
+/// Copies the key index's blocks, `levels` from the root down, to the
+/// places `moves` gives them, leaves first: a branch names its children's
+/// new places.
+fn copy_key_blocks(
+    pager: &Pager,
+    levels: &[Vec<(u32, u32)>],
+    moves: &mut Moves,
+    txn: u64,
+) -> Result<(), StorageError> {
+    for (depth, level) in levels.iter().enumerate().rev() {
+        let leaf = depth + 1 == levels.len();
+        let t = if leaf { BlockType::KeyLeaf } else { BlockType::KeyBranch };
+        for &(old, sum) in level {
+            let (mut bytes, _) = pager.read(old, t, Some(sum), &mut ReadStats::default())?;
+            match keys::decode(old, &bytes, leaf)? {
+                // Key entries name no node block: a leaf moves as it is.
+                KeyBlock::Leaf(_) => {}
+                KeyBlock::Branch(mut children) => {
+                    for c in &mut children {
+                        (c.block, c.checksum) = moves.written(c.block, "key")?;
+                    }
+                    keys::encode_branch(&children, &mut bytes).map_err(StorageError::Invalid)?;
+                }
+            }
+            let to = moves.to[&old];
+            moves.sums.insert(old, pager.write(to, &mut bytes, t, txn)?);
+        }
+    }
+    Ok(())
 }
 
 /// What node validation needs of the file.
