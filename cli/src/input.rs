@@ -149,3 +149,14 @@ pub fn build_in_memory(scene: &Scene, args: &BuildArgs) -> Result<Hierarchy> {
     pb.finish_and_clear();
     Ok(tree)
 }
+
+/// A key as typed: [`mktree::Key::parse`] (an integer only when written as one,
+/// digits alone: `+5` and `05` are text), or its bytes when `bytes`.
+///
+/// A key that is not UTF-8 is read as the importers read a name that is
+/// not (each bad sequence one U+FFFD), so `--key-names` keys are reached
+/// by the names they came from.
+pub fn parse_key(text: &std::ffi::OsStr, bytes: bool) -> Result<mktree::Key> {
+    let text = text.to_string_lossy();
+    Ok(if bytes { mktree::Key::bytes(text.as_bytes())? } else { mktree::Key::parse(&text)? })
+}

@@ -33,7 +33,7 @@ pub fn run(file: &Path, test: &str, pair: &Pair, store: Option<&Path>, as_json: 
             bail!("--set {set}: a person sets reviewed, approved or active; the runs set the rest");
         }
         let (Some(a), Some(b)) = (&pair.a, &pair.b) else { bail!("--set needs --a KEY and --b KEY") };
-        let key = |k: &String| super::get::parse_key(std::ffi::OsStr::new(k), pair.text);
+        let key = |k: &String| crate::input::parse_key(std::ffi::OsStr::new(k), pair.text);
         let kind = match pair.kind.as_deref() {
             None => None,
             Some("hard") => Some(ClashKind::Hard),

@@ -10,17 +10,6 @@ use serde_json::json;
 
 use crate::output;
 
-/// A key as typed: [`Key::parse`] (an integer only when written as one,
-/// digits alone: `+5` and `05` are text), or its bytes when `bytes`.
-///
-/// A key that is not UTF-8 is read as the importers read a name that is
-/// not (each bad sequence one U+FFFD), so `--key-names` keys are reached
-/// by the names they came from.
-pub fn parse_key(text: &std::ffi::OsStr, bytes: bool) -> Result<Key> {
-    let text = text.to_string_lossy();
-    Ok(if bytes { Key::bytes(text.as_bytes())? } else { Key::parse(&text)? })
-}
-
 pub fn run(file: &Path, key: &Key, mesh: bool, as_json: bool) -> Result<()> {
     let db = crate::input::open_to_read(file)?;
     let r = db.begin_read()?;

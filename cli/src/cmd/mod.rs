@@ -118,7 +118,7 @@ pub fn run(cli: Cli) -> Result<()> {
             tradeoff::run(&files, queries, seed, &out, json)
         }
         Command::Get { file, key, text, mesh, json } => {
-            get::run(&file, &get::parse_key(&key, text)?, mesh, json)
+            get::run(&file, &crate::input::parse_key(&key, text)?, mesh, json)
         }
         Command::Check { file, json } => check::run(&file, json),
         Command::Compact { file, wait, json } => compact::run(&file, wait, json),
@@ -127,10 +127,10 @@ pub fn run(cli: Cli) -> Result<()> {
             insert::run_insert(&file, &scene, key_names, json)
         }
         Command::Move { file, key, text, by, json } => {
-            insert::run_move(&file, &get::parse_key(&key, text)?, by, json)
+            insert::run_move(&file, &crate::input::parse_key(&key, text)?, by, json)
         }
         Command::Remove { file, keys, text, wait, json } => {
-            let keys = keys.iter().map(|k| get::parse_key(k, text)).collect::<Result<Vec<_>>>()?;
+            let keys = keys.iter().map(|k| crate::input::parse_key(k, text)).collect::<Result<Vec<_>>>()?;
             remove::run(&file, &keys, wait, json)
         }
         Command::Demo { dir } => demo::run(&dir),
