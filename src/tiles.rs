@@ -265,13 +265,7 @@ impl Writer<'_> {
     /// Writes `content` as `name`; the box of its positions (mm from the
     /// anchor), `None` (and no file) when it has no triangle.
     fn write_glb(&mut self, name: &str, content: &Content) -> Result<Option<Aabb>, TilesError> {
-        let bad = |detail: String| TilesError::Gltf { tile: name.into(), detail };
-        let mut root = json::Root {
-            asset: json::Asset { generator: Some("mktree".into()), ..Default::default() },
-            ..Default::default()
-        };
-        let mut bin: Vec<u8> = Vec::new();
-        let mut nodes = Vec::new();
+        let mut glb = GlbBuilder::new();
         let mut bounds = Aabb::EMPTY;
         for (mesh, colour) in content {
             if mesh.triangle_count() == 0 {
@@ -282,124 +276,160 @@ impl Writer<'_> {
             // z-up to glTF's y-up: (x, y, z) -> (x, z, -y).
             let positions: Vec<[f32; 3]> =
                 local.iter().map(|p| [p.x as f32, p.z as f32, -p.y as f32]).collect();
-            let (lo, hi) = positions.iter().fold(([f32::MAX; 3], [f32::MIN; 3]), |(lo, hi), p| {
-                (std::array::from_fn(|i| lo[i].min(p[i])), std::array::from_fn(|i| hi[i].max(p[i])))
-            });
             let indices: Vec<u32> = mesh.triangles().iter().flatten().copied().collect();
-            let count = |n: usize| USize64::from(n);
-            let view = |root: &mut json::Root, bin: &mut Vec<u8>, bytes: &[u8], target| {
-                let offset = bin.len();
-                bin.extend_from_slice(bytes);
-                bin.resize(bin.len().next_multiple_of(4), 0);
-                root.push(json::buffer::View {
-                    buffer: json::Index::new(0),
-                    byte_length: count(bytes.len()),
-                    byte_offset: Some(count(offset)),
-                    byte_stride: None,
-                    extensions: None,
-                    extras: Default::default(),
-                    name: None,
-                    target: Some(Valid(target)),
-                })
-            };
-            let pos_view = view(
-                &mut root,
-                &mut bin,
-                bytemuck::cast_slice(&positions),
-                json::buffer::Target::ArrayBuffer,
-            );
-            let idx_view = view(
-                &mut root,
-                &mut bin,
-                bytemuck::cast_slice(&indices),
-                json::buffer::Target::ElementArrayBuffer,
-            );
-            let accessor =
-                |view, n: usize, ty, component, min: Option<Value>, max: Option<Value>| json::Accessor {
-                    buffer_view: Some(view),
-                    byte_offset: None,
-                    count: count(n),
-                    component_type: Valid(json::accessor::GenericComponentType(component)),
-                    extensions: None,
-                    extras: Default::default(),
-                    type_: Valid(ty),
-                    min,
-                    max,
-                    name: None,
-                    normalized: false,
-                    sparse: None,
-                };
-            let pos = root.push(accessor(
-                pos_view,
-                positions.len(),
-                json::accessor::Type::Vec3,
-                json::accessor::ComponentType::F32,
-                Some(jv!(lo)),
-                Some(jv!(hi)),
-            ));
-            let idx = root.push(accessor(
-                idx_view,
-                indices.len(),
-                json::accessor::Type::Scalar,
-                json::accessor::ComponentType::U32,
-                None,
-                None,
-            ));
-            let c = colour.map(|v| f32::from(v) / 255.0);
-            let material = root.push(json::Material {
-                double_sided: true,
-                pbr_metallic_roughness: json::material::PbrMetallicRoughness {
-                    base_color_factor: json::material::PbrBaseColorFactor([c[0], c[1], c[2], 1.0]),
-                    metallic_factor: json::material::StrengthFactor(0.0),
-                    roughness_factor: json::material::StrengthFactor(1.0),
-                    ..Default::default()
-                },
-                ..Default::default()
-            });
-            let primitive = json::mesh::Primitive {
-                attributes: [(Valid(json::mesh::Semantic::Positions), pos)].into_iter().collect(),
-                extensions: None,
-                extras: Default::default(),
-                indices: Some(idx),
-                material: Some(material),
-                mode: Valid(json::mesh::Mode::Triangles),
-                targets: None,
-            };
-            let m = root.push(json::Mesh {
-                extensions: None,
-                extras: Default::default(),
-                name: None,
-                primitives: vec![primitive],
-                weights: None,
-            });
-            nodes.push(root.push(json::Node { mesh: Some(m), ..Default::default() }));
+            glb.push_mesh(&positions, &indices, *colour);
             self.report.triangles += mesh.triangle_count() as u64;
         }
-        if nodes.is_empty() {
-            return Ok(None);
-        }
-        root.push(json::Buffer {
-            byte_length: USize64::from(bin.len()),
-            extensions: None,
-            extras: Default::default(),
-            name: None,
-            uri: None,
-        });
-        let scene =
-            root.push(json::Scene { extensions: None, extras: Default::default(), name: None, nodes });
-        root.scene = Some(scene);
-        let text = json::serialize::to_vec(&root).map_err(|e| bad(e.to_string()))?;
-        let glb = gltf::binary::Glb {
-            header: gltf::binary::Header { magic: *b"glTF", version: 2, length: 0 },
-            json: Cow::Owned(text),
-            bin: (!bin.is_empty()).then_some(Cow::Owned(bin)),
-        };
-        let bytes = glb.to_vec().map_err(|e| bad(e.to_string()))?;
+        let bytes = glb.into_bytes().map_err(|detail| TilesError::Gltf { tile: name.into(), detail })?;
+        let Some(bytes) = bytes else { return Ok(None) };
         let path = self.out.join(name);
         self.report.bytes += bytes.len() as u64;
         self.report.glb_files += 1;
         std::fs::write(&path, bytes).map_err(|source| TilesError::Io { path, source })?;
         Ok(Some(bounds))
+    }
+}
+
+/// A tile's .glb being built: its glTF JSON, its binary buffer, and its
+/// scene's nodes, one per mesh.
+struct GlbBuilder {
+    root: json::Root,
+    bin: Vec<u8>,
+    nodes: Vec<json::Index<json::Node>>,
+}
+
+impl GlbBuilder {
+    fn new() -> GlbBuilder {
+        let root = json::Root {
+            asset: json::Asset { generator: Some("mktree".into()), ..Default::default() },
+            ..Default::default()
+        };
+        GlbBuilder { root, bin: Vec::new(), nodes: Vec::new() }
+    }
+
+    /// Adds a node of a mesh of the triangles `indices` over `positions`
+    /// (in glTF's axes), in `colour`.
+    fn push_mesh(&mut self, positions: &[[f32; 3]], indices: &[u32], colour: [u8; 3]) {
+        let (lo, hi) = positions.iter().fold(([f32::MAX; 3], [f32::MIN; 3]), |(lo, hi), p| {
+            (std::array::from_fn(|i| lo[i].min(p[i])), std::array::from_fn(|i| hi[i].max(p[i])))
+        });
+        let pos_view = self.view(bytemuck::cast_slice(positions), json::buffer::Target::ArrayBuffer);
+        let idx_view = self.view(bytemuck::cast_slice(indices), json::buffer::Target::ElementArrayBuffer);
+        let pos = self.root.push(accessor(
+            pos_view,
+            positions.len(),
+            json::accessor::Type::Vec3,
+            json::accessor::ComponentType::F32,
+            Some(jv!(lo)),
+            Some(jv!(hi)),
+        ));
+        let idx = self.root.push(accessor(
+            idx_view,
+            indices.len(),
+            json::accessor::Type::Scalar,
+            json::accessor::ComponentType::U32,
+            None,
+            None,
+        ));
+        let c = colour.map(|v| f32::from(v) / 255.0);
+        let material = self.root.push(json::Material {
+            double_sided: true,
+            pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+                base_color_factor: json::material::PbrBaseColorFactor([c[0], c[1], c[2], 1.0]),
+                metallic_factor: json::material::StrengthFactor(0.0),
+                roughness_factor: json::material::StrengthFactor(1.0),
+                ..Default::default()
+            },
+            ..Default::default()
+        });
+        let primitive = json::mesh::Primitive {
+            attributes: [(Valid(json::mesh::Semantic::Positions), pos)].into_iter().collect(),
+            extensions: None,
+            extras: Default::default(),
+            indices: Some(idx),
+            material: Some(material),
+            mode: Valid(json::mesh::Mode::Triangles),
+            targets: None,
+        };
+        let m = self.root.push(json::Mesh {
+            extensions: None,
+            extras: Default::default(),
+            name: None,
+            primitives: vec![primitive],
+            weights: None,
+        });
+        self.nodes.push(self.root.push(json::Node { mesh: Some(m), ..Default::default() }));
+    }
+
+    /// Appends `bytes` to the buffer, padded to 4 bytes, as a view for `target`.
+    fn view(&mut self, bytes: &[u8], target: json::buffer::Target) -> json::Index<json::buffer::View> {
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(bytes);
+        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
+        self.root.push(json::buffer::View {
+            buffer: json::Index::new(0),
+            byte_length: USize64::from(bytes.len()),
+            byte_offset: Some(USize64::from(offset)),
+            byte_stride: None,
+            extensions: None,
+            extras: Default::default(),
+            name: None,
+            target: Some(Valid(target)),
+        })
+    }
+
+    /// The .glb's bytes; `None` when it has no mesh.
+    fn into_bytes(mut self) -> Result<Option<Vec<u8>>, String> {
+        if self.nodes.is_empty() {
+            return Ok(None);
+        }
+        self.root.push(json::Buffer {
+            byte_length: USize64::from(self.bin.len()),
+            extensions: None,
+            extras: Default::default(),
+            name: None,
+            uri: None,
+        });
+        let scene = self.root.push(json::Scene {
+            extensions: None,
+            extras: Default::default(),
+            name: None,
+            nodes: self.nodes,
+        });
+        self.root.scene = Some(scene);
+        let text = json::serialize::to_vec(&self.root).map_err(|e| e.to_string())?;
+        let glb = gltf::binary::Glb {
+            header: gltf::binary::Header { magic: *b"glTF", version: 2, length: 0 },
+            json: Cow::Owned(text),
+            bin: (!self.bin.is_empty()).then_some(Cow::Owned(self.bin)),
+        };
+        glb.to_vec().map(Some).map_err(|e| e.to_string())
+    }
+}
+
+/// An accessor of `n` elements of type `ty` with components `component`,
+/// read through `view`.
+fn accessor(
+    view: json::Index<json::buffer::View>,
+    n: usize,
+    ty: json::accessor::Type,
+    component: json::accessor::ComponentType,
+    min: Option<Value>,
+    max: Option<Value>,
+) -> json::Accessor {
+    json::Accessor {
+        buffer_view: Some(view),
+        byte_offset: None,
+        count: USize64::from(n),
+        component_type: Valid(json::accessor::GenericComponentType(component)),
+        extensions: None,
+        extras: Default::default(),
+        type_: Valid(ty),
+        min,
+        max,
+        name: None,
+        normalized: false,
+        sparse: None,
     }
 }
 

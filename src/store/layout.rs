@@ -44,8 +44,22 @@ pub fn pack(
     capacity: usize,
     piece: usize,
 ) -> Packing {
+    let cut = cut_pieces(sizes, &children, piece);
+    let pieces = pieces_in_preorder(&cut, &children);
+    let blocks = fill_blocks(&pieces, sizes, capacity);
+    let mut place = vec![(0u32, 0u32); sizes.len()];
+    for (b, members) in blocks.iter().enumerate() {
+        for (s, &m) in members.iter().enumerate() {
+            place[m as usize] = (b as u32, s as u32);
+        }
+    }
+    Packing { place, blocks }
+}
+
+/// Step 1: per node, whether it roots a piece (the root always does).
+fn cut_pieces(sizes: &[usize], children: &impl Fn(usize) -> Option<[usize; 2]>, piece: usize) -> Vec<bool> {
     let n = sizes.len();
-    // Step 1: bottom-up (reverse preorder visits children before parents).
+    // Bottom-up (reverse preorder visits children before parents).
     let mut residual = vec![0usize; n];
     let mut cut = vec![false; n];
     for i in (0..n).rev() {
@@ -66,13 +80,22 @@ pub fn pack(
         residual[i] = w;
     }
     cut[0] = true;
-    // Pieces in preorder of their roots; each piece's nodes in preorder.
+    cut
+}
+
+/// A piece: the piece its root's parent lies in (`usize::MAX` for the
+/// root's piece), and its nodes in preorder.
+type Piece = (usize, Vec<u32>);
+
+/// The pieces the `cut` nodes root, in preorder of their roots.
+fn pieces_in_preorder(cut: &[bool], children: &impl Fn(usize) -> Option<[usize; 2]>) -> Vec<Piece> {
+    let n = cut.len();
     let mut piece_of = vec![usize::MAX; n];
-    let mut pieces: Vec<(usize, Vec<u32>)> = Vec::new(); // (parent piece, nodes)
+    let mut pieces: Vec<Piece> = Vec::new();
     let mut stack = vec![(0usize, usize::MAX)];
     let mut order = Vec::with_capacity(n);
-    while let Some((i, parent_piece)) = stack.pop() {
-        order.push((i, parent_piece));
+    while let Some((i, parent)) = stack.pop() {
+        order.push((i, parent));
         if let Some(kids) = children(i) {
             for &c in kids.iter().rev() {
                 stack.push((c, i));
@@ -89,10 +112,15 @@ pub fn pack(
             pieces[piece_of[i]].1.push(i as u32);
         }
     }
-    // Step 2: fill blocks: the next pieces in preorder that fit, whose
-    // parent pieces are placed, looking a few pieces ahead; a piece whose
-    // parent lies in another block joins only if every such piece of the
-    // block hangs from that same block.
+    pieces
+}
+
+/// Step 2: fills blocks of `capacity` bytes with the next pieces in
+/// preorder that fit, whose parent pieces are placed, looking a few pieces
+/// ahead; a piece whose parent lies in another block joins only if every
+/// such piece of the block hangs from that same block. Returns each
+/// block's nodes, in record order.
+fn fill_blocks(pieces: &[Piece], sizes: &[usize], capacity: usize) -> Vec<Vec<u32>> {
     let bytes: Vec<usize> =
         pieces.iter().map(|(_, nodes)| nodes.iter().map(|&i| sizes[i as usize]).sum()).collect();
     let mut block_of_piece = vec![u32::MAX; pieces.len()];
@@ -137,13 +165,7 @@ pub fn pack(
         }
         blocks.push(members);
     }
-    let mut place = vec![(0u32, 0u32); n];
-    for (b, members) in blocks.iter().enumerate() {
-        for (s, &m) in members.iter().enumerate() {
-            place[m as usize] = (b as u32, s as u32);
-        }
-    }
-    Packing { place, blocks }
+    blocks
 }
 
 #[cfg(test)]

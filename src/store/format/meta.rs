@@ -242,79 +242,39 @@ impl Meta {
             .get(FRAME_LEN..WRITTEN_AT)
             .and_then(|b| MetaRecord::read_from_bytes(b).ok())
             .ok_or_else(|| StorageError::corrupt(id, "meta", "block too small"))?;
-        let bad = |field, detail: String| Err(StorageError::corrupt(id, field, detail));
-        let count = block
-            .get(WRITTEN_AT..WRITTEN_AT + 4)
-            .and_then(|b| b.try_into().ok())
-            .map_or(0, |b| u32::from_le_bytes(b) as usize);
-        if count > written_capacity(block.len() as u32) {
-            return bad("written", format!("{count} blocks listed, a block holds {}", written_capacity(block.len() as u32)));
-        }
-        let list_end = WRITTEN_AT + 4 + 8 * count;
-        let written: Vec<(u32, u32)> = block[WRITTEN_AT + 4..list_end]
-            .chunks_exact(8)
-            .map(|p| (u32::from_le_bytes([p[0], p[1], p[2], p[3]]), u32::from_le_bytes([p[4], p[5], p[6], p[7]])))
-            .collect();
+        let (written, list_end) = decode_written(id, block)?;
         if r.reserved1 != 0 || r.reserved2 != [0; 4] || !all_zero(block.get(list_end..).unwrap_or(&[])) {
             return Err(StorageError::corrupt(id, "reserved", "reserved bytes are not zero"));
         }
-        if r.method > MAX_METHOD {
-            return bad("method", format!("unknown code {}", r.method));
-        }
-        if r.tie_break > MAX_TIE_BREAK {
-            return bad("tie_break", format!("unknown code {}", r.tie_break));
-        }
-        if r.leaf_rule > MAX_LEAF_RULE {
-            return bad("leaf_rule", format!("unknown code {}", r.leaf_rule));
-        }
-        let rate = r.rate.get();
-        if !(0.0..=0.5).contains(&rate) {
-            return bad("rate", format!("{rate} is outside [0, 0.5]"));
-        }
+        let build = decode_build(id, &r)?;
         let (objects, nodes, leaves) = (r.object_count.get(), r.node_count.get(), r.leaf_count.get());
         if objects == 0 || leaves == 0 || u64::from(nodes) != 2 * u64::from(leaves) - 1 || leaves > objects {
             return bad(
+                id,
                 "node_count",
                 format!("{nodes} nodes, {leaves} leaves, {objects} objects is not a binary tree"),
             );
         }
         let object_ids = r.object_ids.get();
         if object_ids < objects {
-            return bad("object_ids", format!("ids below {object_ids} for {objects} objects"));
+            return bad(id, "object_ids", format!("ids below {object_ids} for {objects} objects"));
         }
         let node_ids = r.node_ids.get();
         if node_ids != 0 && node_ids < nodes {
-            return bad("node_ids", format!("ids below {node_ids} for {nodes} nodes"));
+            return bad(id, "node_ids", format!("ids below {node_ids} for {nodes} nodes"));
         }
         let scene_box = r.scene_box.map(|x| x.get());
         if scene_box.iter().any(|x| !x.is_finite()) || (0..3).any(|i| scene_box[i] > scene_box[i + 3]) {
-            return bad("scene_box", format!("{scene_box:?} is not a box"));
+            return bad(id, "scene_box", format!("{scene_box:?} is not a box"));
         }
-        let lattice_origin = r.lattice_origin.map(|x| x.get());
-        let lattice_cell = r.lattice_cell.get();
-        if lattice_origin.iter().any(|x| !x.is_finite()) || !(lattice_cell.is_finite() && lattice_cell >= 0.0)
-        {
-            return bad("lattice", format!("origin {lattice_origin:?}, cell {lattice_cell}"));
-        }
-        let query_extent = r.query_extent.map(|x| x.get());
-        if query_extent.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
-            return bad("query_extent", format!("{query_extent:?}"));
-        }
-        if r.lod_flags.get() != 0 {
-            return bad("lod_flags", format!("unknown bits {:#x}", r.lod_flags.get()));
-        }
-        if r.lod_predicted.iter().flatten().any(|x| !(x.get().is_finite() && x.get() >= 0.0)) {
-            return bad("lod_predicted", "a prediction is negative or not finite".into());
-        }
-        if r.lod_table.iter().flatten().any(|x| !(x.get().is_finite() && x.get() >= 0.0)) {
-            return bad("lod_table", "an error is negative or not finite".into());
-        }
+        let (lod_table, lods) = decode_lods(id, &r)?;
         let (keys_height, keys_blocks) = (r.keys_height.get(), r.keys_blocks.get());
         if r.keys_block.get() == 0
             || !(1..=keys::MAX_HEIGHT).contains(&keys_height)
             || keys_blocks < keys_height
         {
             return bad(
+                id,
                 "keys_height",
                 format!(
                     "a key index of {keys_height} levels in {keys_blocks} blocks at block {}",
@@ -335,31 +295,13 @@ impl Meta {
             triangle_count: r.triangle_count.get(),
             vertex_count: r.vertex_count.get(),
             scene_box,
-            build: BuildCodes {
-                method: r.method,
-                tie_break: r.tie_break,
-                leaf_rule: r.leaf_rule,
-                look_ahead: r.look_ahead.get(),
-                rate,
-                leaf_capacity: r.leaf_capacity.get(),
-                build_seconds: r.build_seconds.get(),
-            },
+            build,
             object_ids,
             node_ids,
             node_bytes: r.node_bytes.get(),
             geometry_bytes: r.geometry_bytes.get(),
-            lod_table: r.lod_table.map(|p| p.map(|x| x.get())),
-            lods: LodCodes {
-                lattice_origin,
-                lattice_cell,
-                flags: r.lod_flags.get(),
-                cuberille_bits: r.cuberille_bits.get(),
-                cuberille_object_bits: r.cuberille_object_bits.get(),
-                grid_level: r.lod_grid_level,
-                usage: r.lod_usage.map(|p| p.map(|x| x.get())),
-                query_extent,
-                predicted: r.lod_predicted.map(|p| p.map(|x| x.get())),
-            },
+            lod_table,
+            lods,
             keys_block: r.keys_block.get(),
             keys_checksum: r.keys_checksum.get(),
             keys_height,
@@ -367,4 +309,91 @@ impl Meta {
             written,
         })
     }
+}
+
+/// A corruption of meta block `id`'s `field`.
+fn bad<T>(id: u32, field: &'static str, detail: String) -> Result<T, StorageError> {
+    Err(StorageError::corrupt(id, field, detail))
+}
+
+/// The blocks meta block `id` lists as written, and the end of the list.
+fn decode_written(id: u32, block: &[u8]) -> Result<(Vec<(u32, u32)>, usize), StorageError> {
+    let count = block
+        .get(WRITTEN_AT..WRITTEN_AT + 4)
+        .and_then(|b| b.try_into().ok())
+        .map_or(0, |b| u32::from_le_bytes(b) as usize);
+    if count > written_capacity(block.len() as u32) {
+        return bad(
+            id,
+            "written",
+            format!("{count} blocks listed, a block holds {}", written_capacity(block.len() as u32)),
+        );
+    }
+    let list_end = WRITTEN_AT + 4 + 8 * count;
+    let written = block[WRITTEN_AT + 4..list_end]
+        .chunks_exact(8)
+        .map(|p| (u32::from_le_bytes([p[0], p[1], p[2], p[3]]), u32::from_le_bytes([p[4], p[5], p[6], p[7]])))
+        .collect();
+    Ok((written, list_end))
+}
+
+/// How the tree of meta block `id` was built, every code a known one.
+fn decode_build(id: u32, r: &MetaRecord) -> Result<BuildCodes, StorageError> {
+    if r.method > MAX_METHOD {
+        return bad(id, "method", format!("unknown code {}", r.method));
+    }
+    if r.tie_break > MAX_TIE_BREAK {
+        return bad(id, "tie_break", format!("unknown code {}", r.tie_break));
+    }
+    if r.leaf_rule > MAX_LEAF_RULE {
+        return bad(id, "leaf_rule", format!("unknown code {}", r.leaf_rule));
+    }
+    let rate = r.rate.get();
+    if !(0.0..=0.5).contains(&rate) {
+        return bad(id, "rate", format!("{rate} is outside [0, 0.5]"));
+    }
+    Ok(BuildCodes {
+        method: r.method,
+        tie_break: r.tie_break,
+        leaf_rule: r.leaf_rule,
+        look_ahead: r.look_ahead.get(),
+        rate,
+        leaf_capacity: r.leaf_capacity.get(),
+        build_seconds: r.build_seconds.get(),
+    })
+}
+
+/// The levels of detail of meta block `id`: the LOD table, and how the
+/// levels below M were built.
+fn decode_lods(id: u32, r: &MetaRecord) -> Result<([[f64; 2]; LOD_TABLE_LEN], LodCodes), StorageError> {
+    let lattice_origin = r.lattice_origin.map(|x| x.get());
+    let lattice_cell = r.lattice_cell.get();
+    if lattice_origin.iter().any(|x| !x.is_finite()) || !(lattice_cell.is_finite() && lattice_cell >= 0.0) {
+        return bad(id, "lattice", format!("origin {lattice_origin:?}, cell {lattice_cell}"));
+    }
+    let query_extent = r.query_extent.map(|x| x.get());
+    if query_extent.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+        return bad(id, "query_extent", format!("{query_extent:?}"));
+    }
+    if r.lod_flags.get() != 0 {
+        return bad(id, "lod_flags", format!("unknown bits {:#x}", r.lod_flags.get()));
+    }
+    if r.lod_predicted.iter().flatten().any(|x| !(x.get().is_finite() && x.get() >= 0.0)) {
+        return bad(id, "lod_predicted", "a prediction is negative or not finite".into());
+    }
+    if r.lod_table.iter().flatten().any(|x| !(x.get().is_finite() && x.get() >= 0.0)) {
+        return bad(id, "lod_table", "an error is negative or not finite".into());
+    }
+    let lods = LodCodes {
+        lattice_origin,
+        lattice_cell,
+        flags: r.lod_flags.get(),
+        cuberille_bits: r.cuberille_bits.get(),
+        cuberille_object_bits: r.cuberille_object_bits.get(),
+        grid_level: r.lod_grid_level,
+        usage: r.lod_usage.map(|p| p.map(|x| x.get())),
+        query_extent,
+        predicted: r.lod_predicted.map(|p| p.map(|x| x.get())),
+    };
+    Ok((r.lod_table.map(|p| p.map(|x| x.get())), lods))
 }
