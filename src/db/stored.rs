@@ -1,6 +1,6 @@
 //! The stored tree read back whole: every object with its mesh, key,
 //! payload and name. A change commit that must write the tree whole (see
-//! `write/cow.rs`) starts from it.
+//! `write/cow/mod.rs`) starts from it.
 
 use std::collections::HashMap;
 use std::sync::Arc;

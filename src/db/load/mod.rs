@@ -11,7 +11,7 @@
 //!
 //! The write transaction lends allocation ([`Sink`]) and writes the meta
 //! block and the commit (format-spec/commit.md); change commits
-//! (`db/write/cow.rs`) reuse the read model and the record helpers.
+//! (`db/write/cow/`) reuse the read model and the record helpers.
 
 mod blocks;
 mod bounds;

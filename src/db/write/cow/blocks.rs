@@ -1,0 +1,403 @@
+//! The node blocks holding changed records written anew (format-spec/commit.md,
+//! "Change commits"), children's blocks before their parent's, since a
+//! block names its children's blocks and has one parent block
+//! (format-spec/node.md, "Packing"). A block its records outgrow moves its
+//! largest leaves out to new blocks.
+
+use std::sync::Arc;
+
+use rustc_hash::FxHashMap as HashMap;
+
+use super::{Deltas, Mod, Step, Structural};
+use crate::db::write::WriteTransaction;
+use crate::store::format::frame::BlockType;
+use crate::store::format::node::{self, NodeView, RecordDraft, RecordPart, RecordRef};
+use crate::store::{Block, StorageError};
+use crate::tree::view;
+
+impl WriteTransaction<'_> {
+    /// Writes every node block holding a changed record, children's blocks
+    /// before their parent's (one parent block each, format-spec/node.md,
+    /// "Packing"); returns where the root went.
+    pub(super) fn rewrite_blocks(
+        &mut self,
+        mods: &mut HashMap<(u32, u32), Mod>,
+        root_at: (u32, u32),
+        bs: u32,
+        deltas: &mut Deltas,
+        freed: &mut Vec<u32>,
+    ) -> Step<RecordRef> {
+        let capacity = node::capacity(bs);
+        let mut rw = Rewrite::of(mods, root_at);
+        for b in rw.order() {
+            let old = rw.blocks[&b].clone();
+            let mut drafts = rw.records(&old, mods)?;
+            let Some(moved) = rw.leaves_to_move(mods, b, &mut drafts, capacity)? else {
+                return Ok(Err(Structural));
+            };
+            let bins = share_blocks(&drafts, &moved, b, capacity);
+            self.write_moved(&bins, &drafts, b, bs, deltas, &mut rw.relocated)?;
+            drafts.retain(|(o, _)| !moved.contains(o));
+            self.write_block_anew(&old, drafts, &mut rw.relocated, bs, deltas, freed)?;
+        }
+        let root = rw
+            .relocated
+            .get(&root_at)
+            .copied()
+            .ok_or_else(|| StorageError::Invalid("the root's block was not rewritten".into()))?;
+        Ok(Ok(root))
+    }
+
+    /// Writes the new blocks `bins` of the leaves moved out of block `b`
+    /// (their records in `drafts`), and notes where each went.
+    fn write_moved(
+        &mut self,
+        bins: &[(usize, Vec<u32>)],
+        drafts: &[(u32, Rec)],
+        b: u32,
+        bs: u32,
+        deltas: &mut Deltas,
+        relocated: &mut HashMap<(u32, u32), RecordRef>,
+    ) -> Result<(), StorageError> {
+        for (used, records) in bins {
+            let parts: Vec<RecordPart> = records
+                .iter()
+                .filter_map(|o| drafts.iter().find(|(x, _)| x == o))
+                .map(|(_, d)| d.part())
+                .collect();
+            let (id, checksum, offsets) = self.write_node_block(&parts, bs)?;
+            deltas.node_bytes += *used as i64;
+            deltas.node_blocks += 1;
+            for (&o, offset) in records.iter().zip(offsets) {
+                relocated.insert((b, o), RecordRef { block: id, checksum, offset });
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes the records `drafts` block `old` keeps in a new block, each
+    /// reference they hold led to where its record went, and frees the old
+    /// block; notes where each record went.
+    fn write_block_anew(
+        &mut self,
+        old: &Block,
+        mut drafts: Vec<(u32, Rec)>,
+        relocated: &mut HashMap<(u32, u32), RecordRef>,
+        bs: u32,
+        deltas: &mut Deltas,
+        freed: &mut Vec<u32>,
+    ) -> Result<(), StorageError> {
+        let b = old.id();
+        let new_offset = renumber(&mut drafts, b, relocated)?;
+        let records: Vec<RecordPart> = drafts.iter().map(|(_, d)| d.part()).collect();
+        freed.push(b);
+        // Its group bounds go with it: the subtrees below a rewritten
+        // block changed, and the block written anew names no group block.
+        if let Some((g, _)) = node::group_ref(old.bytes()) {
+            freed.push(g);
+        }
+        if records.is_empty() {
+            // Its records left the tree with a merge, and no record names the block.
+            deltas.node_blocks -= 1;
+            deltas.node_bytes -= old_used(old);
+            return Ok(());
+        }
+        let (id, checksum, _) = self.write_node_block(&records, bs)?;
+        let used = records.iter().map(RecordPart::encoded_len).sum::<usize>() as i64;
+        deltas.node_bytes += used - old_used(old);
+        for (o, _) in &drafts {
+            relocated.insert((b, *o), RecordRef { block: id, checksum, offset: new_offset[o] });
+        }
+        Ok(())
+    }
+
+    /// Writes a new node block of `records`; returns its id, its checksum
+    /// and the records' offsets.
+    fn write_node_block(
+        &mut self,
+        records: &[RecordPart],
+        bs: u32,
+    ) -> Result<(u32, u32, Vec<u32>), StorageError> {
+        let id = self.allocate(1)?;
+        let mut bytes = vec![0u8; bs as usize];
+        let offsets = node::encode_block_parts(records, &mut bytes).map_err(StorageError::Invalid)?;
+        let checksum = self.put(id, &mut bytes, BlockType::Node)?;
+        Ok((id, checksum, offsets))
+    }
+}
+
+/// The changed node blocks, and what rewriting them has settled so far.
+struct Rewrite {
+    /// Each changed block by id.
+    blocks: HashMap<u32, Arc<Block>>,
+    /// A changed block's parent block, when it is another block.
+    parent_block: HashMap<u32, u32>,
+    /// The root record's place.
+    root_at: (u32, u32),
+    /// Where each record of a block written so far went.
+    relocated: HashMap<(u32, u32), RecordRef>,
+    /// Node blocks records outside the changed paths gain below them (leaves moved out).
+    extra: HashMap<(u32, u32), [u32; 2]>,
+}
+
+impl Rewrite {
+    /// The blocks holding the records of `mods`, none written yet.
+    fn of(mods: &HashMap<(u32, u32), Mod>, root_at: (u32, u32)) -> Self {
+        let mut blocks: HashMap<u32, Arc<Block>> = HashMap::default();
+        let mut parent_block: HashMap<u32, u32> = HashMap::default();
+        for md in mods.values() {
+            blocks.insert(md.block.id(), md.block.clone());
+            if let Some((p, _)) = md.parent
+                && p.0 != md.block.id()
+            {
+                parent_block.insert(md.block.id(), p.0);
+            }
+        }
+        Rewrite { blocks, parent_block, root_at, relocated: HashMap::default(), extra: HashMap::default() }
+    }
+
+    /// The changed blocks, children blocks first: deeper blocks (more
+    /// parent blocks above) first.
+    fn order(&self) -> Vec<u32> {
+        let depth = |mut b: u32| {
+            let mut d = 0;
+            while let Some(&p) = self.parent_block.get(&b) {
+                b = p;
+                d += 1;
+                if d > self.blocks.len() {
+                    break;
+                }
+            }
+            d
+        };
+        let mut order: Vec<u32> = self.blocks.keys().copied().collect();
+        order.sort_by_key(|&b| (std::cmp::Reverse(depth(b)), b));
+        order
+    }
+
+    /// The records of block `old` as they will be written, but those a
+    /// merge took out of the tree: changed ones and internal ones (whose
+    /// child offsets may move) as drafts, the unchanged leaves as their
+    /// stored bytes.
+    fn records<'a>(
+        &self,
+        old: &'a Block,
+        mods: &HashMap<(u32, u32), Mod>,
+    ) -> Result<Vec<(u32, Rec<'a>)>, StorageError> {
+        let b = old.id();
+        let mut drafts: Vec<(u32, Rec)> = Vec::with_capacity(old.records.len());
+        for &o in &old.records {
+            if mods.get(&(b, o)).is_some_and(|x| x.gone) {
+                continue;
+            }
+            let d = match mods.get(&(b, o)).and_then(|x| x.draft.clone()) {
+                Some(d) => Rec::Draft(d),
+                None => match view(old, o)? {
+                    v @ NodeView::Leaf(_) => Rec::Stored(
+                        v.stored_bytes(old.bytes(), o).map_err(|d| StorageError::corrupt(b, "record", d))?,
+                    ),
+                    v @ NodeView::Internal(_) => {
+                        let mut d = v.to_draft();
+                        if let (Some(more), RecordDraft::Internal { children, .. }) =
+                            (self.extra.get(&(b, o)), &mut d)
+                        {
+                            for (c, m) in children.iter_mut().zip(more) {
+                                c.node_blocks = c.node_blocks.saturating_add(*m);
+                            }
+                        }
+                        Rec::Draft(d)
+                    }
+                },
+            };
+            drafts.push((o, d));
+        }
+        Ok(drafts)
+    }
+
+    /// The leaves block `b` moves out, largest first, until its records
+    /// `drafts` fit `capacity`; `None` when no leaf is left to move. A
+    /// block that no longer holds its records (a leaf grew, records took
+    /// frames of their own) moves leaves out, to new blocks they share: a
+    /// leaf has no children, so no other block's parent block changes.
+    fn leaves_to_move(
+        &mut self,
+        mods: &mut HashMap<(u32, u32), Mod>,
+        b: u32,
+        drafts: &mut [(u32, Rec)],
+        capacity: usize,
+    ) -> Result<Option<Vec<u32>>, StorageError> {
+        let mut moved: Vec<u32> = Vec::new();
+        let mut total: usize = drafts.iter().map(|(_, d)| d.part().encoded_len()).sum();
+        while total > capacity {
+            let candidate = drafts
+                .iter()
+                .filter(|(o, d)| d.is_leaf() && !moved.contains(o))
+                .max_by_key(|(_, d)| d.part().encoded_len())
+                .map(|(o, d)| (*o, d.part().encoded_len()));
+            let Some((o, len)) = candidate else { return Ok(None) };
+            moved.push(o);
+            total -= len;
+            self.count_moved_leaf(mods, (b, o), drafts)?;
+        }
+        // The counts above changed drafts of this block too: take them again.
+        for (o, d) in drafts.iter_mut() {
+            if let Some(x) = mods.get(&(b, *o)).and_then(|x| x.draft.clone()) {
+                *d = Rec::Draft(x);
+            }
+        }
+        Ok(Some(moved))
+    }
+
+    /// Counts the node block leaf `leaf` moves to in every entry above it:
+    /// in the changed records' drafts, in those of the leaf's block
+    /// (`drafts`), or for a record outside the changed paths in `extra`.
+    fn count_moved_leaf(
+        &mut self,
+        mods: &mut HashMap<(u32, u32), Mod>,
+        leaf: (u32, u32),
+        drafts: &mut [(u32, Rec)],
+    ) -> Result<(), StorageError> {
+        let b = leaf.0;
+        let mut at = leaf;
+        while let Some((p, c)) = match mods.get(&at) {
+            Some(x) => x.parent,
+            None if at == self.root_at => None,
+            None => Some(parent_record(&self.blocks, &self.parent_block, at)?),
+        } {
+            // A child of a merged sibling counts under the record in its parent's place.
+            let p = mods.get(&p).and_then(|x| x.merged_into).unwrap_or(p);
+            if let Some(RecordDraft::Internal { children, .. }) =
+                mods.get_mut(&p).and_then(|x| x.draft.as_mut())
+            {
+                children[c].node_blocks = children[c].node_blocks.saturating_add(1);
+            } else if p.0 == b {
+                if let Some((_, Rec::Draft(RecordDraft::Internal { children, .. }))) =
+                    drafts.iter_mut().find(|(x, _)| *x == p.1)
+                {
+                    children[c].node_blocks = children[c].node_blocks.saturating_add(1);
+                }
+            } else {
+                self.extra.entry(p).or_insert([0; 2])[c] += 1;
+            }
+            at = p;
+        }
+        Ok(())
+    }
+}
+
+/// The leaves `moved` out of block `b` (their records in `drafts`) in new
+/// blocks of `capacity`, as (bytes used, records): those whose parents
+/// stay in this block share new blocks, first fit, so that each new block
+/// is named from this one only (format-spec/node.md, "Packing"); a leaf
+/// named from another block moves alone. The counts of
+/// `Rewrite::leaves_to_move` took one block per leaf, which stays an
+/// upper bound.
+fn share_blocks(drafts: &[(u32, Rec)], moved: &[u32], b: u32, capacity: usize) -> Vec<(usize, Vec<u32>)> {
+    let named_here = |o: u32| {
+        drafts.iter().any(|(_, d)| match d {
+            Rec::Draft(RecordDraft::Internal { children, .. }) => {
+                children.iter().any(|c| c.at.offset == o && (c.at.block == 0 || c.at.block == b))
+            }
+            _ => false,
+        })
+    };
+    let mut bins: Vec<(usize, Vec<u32>)> = Vec::new();
+    for &o in moved {
+        let Some((_, d)) = drafts.iter().find(|(x, _)| *x == o) else { continue };
+        let len = d.part().encoded_len();
+        let shared = named_here(o);
+        match bins.iter_mut().find(|(used, records)| {
+            shared && used + len <= capacity && records.iter().all(|&r| named_here(r))
+        }) {
+            Some((used, records)) => {
+                *used += len;
+                records.push(o);
+            }
+            None => bins.push((len, vec![o])),
+        }
+    }
+    bins
+}
+
+/// The offsets of the records `drafts` in block `b` written anew, and
+/// every reference they hold led there: within the block, to moved
+/// records, and to the children's rewritten blocks (`relocated`).
+fn renumber(
+    drafts: &mut [(u32, Rec)],
+    b: u32,
+    relocated: &HashMap<(u32, u32), RecordRef>,
+) -> Result<HashMap<u32, u32>, StorageError> {
+    let mut new_offset: HashMap<u32, u32> = HashMap::default();
+    let mut at = node::RECORDS_START as u32;
+    for (o, d) in drafts.iter() {
+        new_offset.insert(*o, at);
+        at += d.part().encoded_len() as u32;
+    }
+    for (_, d) in drafts.iter_mut() {
+        let Rec::Draft(RecordDraft::Internal { children, .. }) = d else { continue };
+        for c in children.iter_mut() {
+            let target = if c.at.block == 0 { (b, c.at.offset) } else { (c.at.block, c.at.offset) };
+            if let Some(r) = relocated.get(&target) {
+                c.at = *r;
+            } else if c.at.block == 0 {
+                let o = new_offset.get(&c.at.offset).ok_or_else(|| {
+                    StorageError::corrupt(b, "child_offset", "a child that is no record of its block")
+                })?;
+                c.at = RecordRef { block: 0, checksum: 0, offset: *o };
+            }
+        }
+    }
+    Ok(new_offset)
+}
+
+/// A record of a node block being rewritten: a draft, or an unchanged
+/// leaf's stored bytes (in the old block, which the caller holds).
+enum Rec<'a> {
+    Draft(RecordDraft),
+    Stored(&'a [u8]),
+}
+
+impl Rec<'_> {
+    fn part(&self) -> RecordPart<'_> {
+        match self {
+            Rec::Draft(d) => RecordPart::Draft(d),
+            Rec::Stored(b) => RecordPart::StoredLeaf(b),
+        }
+    }
+
+    fn is_leaf(&self) -> bool {
+        matches!(self, Rec::Stored(_) | Rec::Draft(RecordDraft::Leaf { .. }))
+    }
+}
+
+/// The record naming record `at` (not the root) as its child, and which
+/// child: in `at`'s block, or in that block's parent block.
+fn parent_record(
+    blocks: &HashMap<u32, Arc<Block>>,
+    parent_block: &HashMap<u32, u32>,
+    at: (u32, u32),
+) -> Result<((u32, u32), usize), StorageError> {
+    let same = blocks.get(&at.0).map(|b| (b, RecordRef { block: 0, checksum: 0, offset: at.1 }));
+    let above = parent_block
+        .get(&at.0)
+        .and_then(|p| blocks.get(p))
+        .map(|b| (b, RecordRef { block: at.0, checksum: 0, offset: at.1 }));
+    for (block, want) in same.into_iter().chain(above) {
+        for &o in &block.records {
+            if let NodeView::Internal(n) = view(block, o)? {
+                for c in 0..2 {
+                    let r = n.child_ref(c);
+                    if (r.block, r.offset) == (want.block, want.offset) {
+                        return Ok(((block.id(), o), c));
+                    }
+                }
+            }
+        }
+    }
+    Err(StorageError::corrupt(at.0, "child_block", format!("no record names record {} of the block", at.1)))
+}
+
+/// Bytes of the records of node block `block`.
+fn old_used(block: &Block) -> i64 {
+    node::used_bytes(&block.bytes) as i64
+}
