@@ -55,7 +55,7 @@ pub struct ObjectLevel {
     pub proof: Proof,
 }
 
-/// An object a query accepted, as [`Select`] yields it.
+/// An object a query accepted, as [`Select`](super::Select) yields it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Hit {
     /// The object.
