@@ -793,17 +793,11 @@ impl Inner {
         }
         load_from(&self.pager, slots)
     }
-
-    pub(crate) fn pager(&self) -> &Pager {
-        &self.pager
-    }
-
-    pub(crate) fn cache(&self) -> &BlockCache {
-        &self.cache
-    }
 }
 
-impl crate::tree::Owner for Inner {
+/// The pager and cache a reader reads through are the ones the writer
+/// uses: db's own code reaches them through this too.
+impl Owner for Inner {
     fn pager(&self) -> &Pager {
         &self.pager
     }

@@ -19,6 +19,7 @@ use crate::store::format::freelist::{FreeListBlock, FreeRange, ranges_per_block}
 use crate::store::format::geometry;
 use crate::store::format::header::{self, Commit, Slot, SlotState};
 use crate::store::format::meta::{Meta, written_capacity};
+use crate::tree::Owner;
 
 mod cow;
 mod hosted;

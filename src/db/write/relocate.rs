@@ -17,6 +17,7 @@ use crate::store::format::keys::{self, KeyBlock};
 use crate::store::format::meta::Meta;
 use crate::store::format::node::{self, Limits};
 use crate::store::{Pager, ReadStats, StorageError};
+use crate::tree::Owner;
 
 /// Where the blocks of one kind go: old id -> new id, and the checksum
 /// each carries once written.

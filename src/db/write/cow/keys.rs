@@ -12,6 +12,7 @@ use crate::store::StorageError;
 use crate::store::format::frame::BlockType;
 use crate::store::format::keys::{self, ChildRef, KeyBlock, KeyEntry};
 use crate::store::format::meta::Meta;
+use crate::tree::Owner;
 
 /// The key index as a change commit leaves it.
 pub(super) struct NewKeys {

@@ -24,6 +24,7 @@ use crate::store::format::geometry::{self, Placement};
 use crate::store::format::keys::KeyEntry;
 use crate::store::format::node::{self, BoundEntry, LeafView, NodeView, ObjectEntry, RecordDraft};
 use crate::store::format::quant::{QuantBox, quantize};
+use crate::tree::Owner;
 use crate::tree::view;
 
 /// An object added to a leaf: its id, key and the object.

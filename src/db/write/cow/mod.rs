@@ -48,6 +48,7 @@ use crate::scene::{Key, Object};
 use crate::store::format::meta::Meta;
 use crate::store::format::node::{RecordDraft, RecordRef};
 use crate::store::{Block, StorageError};
+use crate::tree::Owner;
 use keys::NewKeys;
 use plan::{Plan, plan_leaves};
 

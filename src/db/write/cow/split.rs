@@ -21,6 +21,7 @@ use crate::store::format::frame::BlockType;
 use crate::store::format::node::{self, ChildEntry, RecordDraft, RecordRef};
 use crate::store::format::quant::{QuantBox, quantize};
 use crate::store::layout::{self, Packing};
+use crate::tree::Owner;
 
 /// What a leaf split needs besides its entries.
 pub(super) struct SplitLeaf<'a> {

@@ -21,7 +21,7 @@ pub use encode::{
     BoundEntry, ChildEntry, GroupRef, ObjectEntry, RecordDraft, RecordPart, SplitInfo, bounds_len, capacity,
     encode_block, encode_block_parts, encode_block_with_groups, keys_len,
 };
-pub use relocate::{MoveChild, MoveSpan, relocate_block};
+pub use relocate::relocate_block;
 pub use validate::{Limits, validate_block};
 
 /// Offset of the first record in a node block.
