@@ -30,6 +30,10 @@ pub enum Error {
     /// A query.
     #[error(transparent)]
     Query(#[from] crate::query::QueryError),
+    /// A transaction asked to write two trees: a bulk load, and changes to
+    /// objects (or a second bulk load). One transaction writes one tree.
+    #[error("a transaction writes one tree: a bulk load, or changes to objects")]
+    OneTree,
     /// An object's key or payload.
     #[error(transparent)]
     Key(#[from] crate::scene::KeyError),

@@ -28,7 +28,7 @@ use serde_json::{Value, json as jv};
 use crate::bulk::Hierarchy;
 use crate::db::{Piece, ReadTransaction, read_hierarchy};
 use crate::geom::{Aabb, Point};
-use crate::query::{Bound, Shape};
+use crate::query::{Bound, QueryError, Shape};
 use crate::render::level_colour;
 use crate::scene::Mesh;
 use crate::store::{ReadStats, StorageError};
@@ -40,6 +40,9 @@ pub enum TilesError {
     /// The file could not be read.
     #[error(transparent)]
     Storage(#[from] StorageError),
+    /// A node or level the file does not hold, as the tree named it.
+    #[error(transparent)]
+    Query(#[from] QueryError),
     /// A file or folder of the export could not be written.
     #[error("{path}: {source}")]
     Io {

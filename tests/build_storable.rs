@@ -45,7 +45,7 @@ fn build_then_read(scene: &Scene, store_all: bool) -> Result<(), mktree::Error> 
         let db = Database::create(&path, CreateOptions::default()).unwrap();
         let mut w = db.begin_write().unwrap();
         w.set_lod_params(LodParams { store_all, ..LodParams::default() });
-        w.bulk_load(scene, &params(), &|_| {}).and_then(|_| Ok(w.commit()?))
+        w.bulk_load(scene, &params(), &|_| {}).and_then(|_| w.commit())
     };
     let db = Database::open(&path).expect("the file opens");
     if built.is_err() {

@@ -25,7 +25,7 @@ fn change(db: &Database) -> Result<ChangeStats, mktree::Error> {
     w.update(moved)?;
     w.remove(&Key::Int(40))?;
     w.insert(Object::new("new", box_mesh([100.0, 100.0, 100.0], [104.0, 104.0, 104.0])).with_key(1_000u64))?;
-    Ok(w.commit_with_stats()?)
+    w.commit_with_stats()
 }
 
 /// Every object's key and the box a query over everything finds.
@@ -44,7 +44,7 @@ fn split(db: &Database) -> Result<ChangeStats, mktree::Error> {
         let x = 3.0 + i as f64 * 0.5;
         w.insert(Object::new("s", box_mesh([x, 5.0, 7.0], [x + 0.3, 5.3, 7.3])).with_key(2_000 + i))?;
     }
-    Ok(w.commit_with_stats()?)
+    w.commit_with_stats()
 }
 
 /// The two objects of the first leaf removed: it merges with its sibling leaf.
@@ -52,7 +52,7 @@ fn merge(db: &Database) -> Result<ChangeStats, mktree::Error> {
     let mut w = db.begin_write()?;
     w.remove(&Key::Int(0))?;
     w.remove(&Key::Int(1))?;
-    Ok(w.commit_with_stats()?)
+    w.commit_with_stats()
 }
 
 /// The lone object at the row's start removed: its leaf merges with the
@@ -60,7 +60,7 @@ fn merge(db: &Database) -> Result<ChangeStats, mktree::Error> {
 fn merge_beside_subtree(db: &Database) -> Result<ChangeStats, mktree::Error> {
     let mut w = db.begin_write()?;
     w.remove(&Key::Int(0))?;
-    Ok(w.commit_with_stats()?)
+    w.commit_with_stats()
 }
 
 /// Bulk-loads `scene` in 1 KiB blocks, then runs the crash loop over `change`.

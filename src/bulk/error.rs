@@ -21,6 +21,18 @@ pub enum BuildError {
     /// The leaf rule allows no object (`mem_page` = 0) or no byte.
     #[error("the leaf capacity is zero")]
     ZeroCapacity,
+    /// A node whose record, with the bounds chosen for it, does not fit a
+    /// node block (format-spec/node.md): larger blocks, or fewer objects
+    /// per leaf, hold it.
+    #[error("node {node}'s record with its bounds takes {len} bytes and a node block holds {capacity}")]
+    NodeTooLarge {
+        /// The node's id.
+        node: usize,
+        /// The record's length, bytes.
+        len: usize,
+        /// What a node block holds, bytes.
+        capacity: usize,
+    },
     /// No object boxes were given.
     #[error("there are no objects to build from")]
     EmptyInput,

@@ -1,8 +1,8 @@
 //! db's own passes over a stored tree (`check`, `stats`, `scene`, group
-//! summaries) walk it through the one traversal here, which turns the
-//! walk's error back into the file's in one place.
+//! summaries) walk it through the one traversal here, at level 1, which
+//! every file holds: only the file can fail them.
 
-use crate::query::{Everything, QueryError, QueryOptions, Visitor, walk};
+use crate::query::{Everything, QueryOptions, Visitor, walk_level};
 use crate::store::StorageError;
 use crate::tree::{NodeRef, ReadTransaction, Reads};
 
@@ -18,9 +18,5 @@ pub(crate) fn walk_everything(
     visitor: &mut dyn Visitor,
 ) -> Result<(), StorageError> {
     let all = QueryOptions { lod: Some(1), budget: None, ..Default::default() };
-    match walk(txn, root, &Everything, &all, reads, visitor) {
-        Ok(_) => Ok(()),
-        Err(QueryError::Storage(s)) => Err(s),
-        Err(other) => Err(StorageError::Invalid(format!("the tree's walk: {other}"))),
-    }
+    walk_level(txn, root, &Everything, 1, &all, reads, visitor).map(|_| ())
 }

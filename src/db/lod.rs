@@ -12,7 +12,7 @@ use std::sync::Arc;
 use super::{NodeRef, ReadTransaction, Reads, view};
 use crate::geom::Aabb;
 use crate::lod::{LodParams, LodPlan, Voxels};
-use crate::query::{QueryOptions, Seen, Selection, Visitor, walk};
+use crate::query::{QueryError, QueryOptions, Seen, Selection, Visitor, walk_level};
 use crate::scene::{Mesh, ObjectId};
 use crate::store::format::frame::BlockType;
 use crate::store::format::meta::LOD_TABLE_LEN;
@@ -84,17 +84,14 @@ impl ReadTransaction {
     /// preorder numbers, one path from the root finds it; after a change
     /// commit split or merged a leaf (format-spec/meta.md, `node_ids`), a
     /// walk of the node records does. The reads to find it are not counted.
-    pub fn locate(&self, node: u32) -> Result<(NodeRef, (u64, u64)), StorageError> {
-        let meta = self
-            .snapshot
-            .meta
-            .as_ref()
-            .ok_or_else(|| StorageError::Invalid("the file holds no tree".into()))?;
+    pub fn locate(&self, node: u32) -> Result<(NodeRef, (u64, u64)), QueryError> {
+        let (Some(meta), Some(root)) = (self.snapshot.meta.as_ref(), self.root()) else {
+            return Err(QueryError::NoTree);
+        };
         let bound = if meta.node_ids == 0 { meta.node_count } else { meta.node_ids };
         if node >= bound {
-            return Err(StorageError::Invalid(format!("no node {node}: the tree's ids lie below {bound}")));
+            return Err(QueryError::NoNode { id: node, bound });
         }
-        let root = self.root().ok_or_else(|| StorageError::Invalid("the file holds no tree".into()))?;
         // With the root's record in hand, its subtree is every other node block.
         let below = (u64::from(meta.node_blocks).saturating_sub(1), meta.geometry_blocks);
         let mut reads = Reads::new(None);
@@ -130,7 +127,7 @@ impl ReadTransaction {
                 }
             }
         }
-        Err(StorageError::Invalid(format!("no node {node} in the tree")))
+        Err(QueryError::NoNode { id: node, bound })
     }
 
     /// Fetches level `k` (1-based) of node `node` as the paper's queries do:
@@ -145,10 +142,10 @@ impl ReadTransaction {
         k: u8,
         objects: bool,
         stats: &mut ReadStats,
-    ) -> Result<Level, StorageError> {
+    ) -> Result<Level, QueryError> {
         let m = self.pager().lod_levels();
         if k == 0 || k > m {
-            return Err(StorageError::Invalid(format!("level {k} is not in 1..={m}")));
+            return Err(QueryError::Level { k, m });
         }
         let (at, (node_blocks, geometry_blocks)) = self.locate(node)?;
         // b(S_n,1) is the node's box, unless level 1 is M (the exact objects).
@@ -176,10 +173,7 @@ impl ReadTransaction {
         reads.hold(held);
         let mut gather = Gather::default();
         let opts = QueryOptions { lod: Some(k), budget: None, ..Default::default() };
-        walk(self, at, &Gathering, &opts, &mut reads, &mut gather).map_err(|e| match e {
-            crate::query::QueryError::Storage(s) => s,
-            other => StorageError::Invalid(other.to_string()),
-        })?;
+        walk_level(self, at, &Gathering, k, &opts, &mut reads, &mut gather)?;
         *stats += reads.stats;
         let mut level = Level {
             predicted_reads: node_blocks.saturating_add(if k == m { geometry_blocks } else { 0 }),

@@ -252,7 +252,7 @@ impl Database {
         let file =
             open_file(path.as_ref(), OpenOptions::new().read(true).write(true).create(true).truncate(false))?;
         if !file.metadata()?.is_file() {
-            return Err(StorageError::Invalid("not a regular file".into()));
+            return Err(StorageError::NotAFile { path: path.as_ref().to_path_buf() });
         }
         let locks = FileLocks::new(file.try_clone()?);
         let device = Arc::new(FileDevice::new(file));
@@ -449,7 +449,7 @@ impl Database {
     /// Commits without changes until the file stops shrinking: each commit
     /// cuts off the free end, or moves the free list below it so that the
     /// next one can.
-    fn trim_end(&self, wait: WriterWait) -> Result<(), StorageError> {
+    fn trim_end(&self, wait: WriterWait) -> Result<(), crate::Error> {
         let end = |db: &Database| -> Result<u32, StorageError> {
             let w = db.begin_write_with(wait)?;
             let end = w.base_space().0;
@@ -486,9 +486,7 @@ impl Database {
             }
             inner.release_reader(snapshot.txn);
         }
-        Err(StorageError::Invalid(format!(
-            "no snapshot held still through {PIN_ATTEMPTS} commits by other processes"
-        )))
+        Err(StorageError::Contended { attempts: PIN_ATTEMPTS })
     }
 
     pub(crate) fn pager(&self) -> &Pager {
@@ -547,7 +545,7 @@ fn open_file(path: &Path, options: &OpenOptions) -> Result<std::fs::File, Storag
 }
 
 /// Times a reader retries when commits keep landing between its reads.
-const PIN_ATTEMPTS: usize = 1000;
+const PIN_ATTEMPTS: u32 = 1000;
 
 /// The writer's lock between processes, held for the transaction's life.
 pub(crate) struct WriterLock<'a>(&'a FileLocks);
@@ -622,7 +620,7 @@ fn initialize(device: &dyn BlockDevice, options: CreateOptions) -> Result<(), St
     let block_size = validate_block_size(options.block_size.into())?;
     let lod_levels = validate_lod_levels(options.lod_levels.into())?;
     if !device.is_empty()? {
-        return Err(StorageError::Invalid("create needs an empty device".into()));
+        return Err(StorageError::NotEmpty);
     }
     let mut block0 = header::encode_block0(block_size, lod_levels);
     let first = Commit { txn: 1, block_count: 1, ..Commit::default() };

@@ -11,6 +11,7 @@ use std::borrow::Cow;
 use std::path::Path;
 
 use super::source::{ObjectSource, check_object};
+use crate::bulk::BuildError;
 use crate::geom::Aabb;
 use crate::scene::import::{ImportOptions, load_each};
 use crate::scene::{Key, KeyTooLong, Mesh, Object, ObjectId};
@@ -64,10 +65,10 @@ impl StagedScene {
     /// the format's range and a payload over its limit, as a bulk load of
     /// a [`Scene`](crate::Scene) does (duplicate keys are found by the load).
     pub fn push(&mut self, object: Object) -> Result<ObjectId, crate::Error> {
-        let id = ObjectId(
-            u32::try_from(self.objects.len())
-                .map_err(|_| StorageError::Invalid("a scene holds at most 2^32 objects".into()))?,
-        );
+        let id = ObjectId(u32::try_from(self.objects.len()).map_err(|_| BuildError::TooManyObjects {
+            objects: self.objects.len(),
+            max: u32::MAX as usize,
+        })?);
         check_object(id, &object)?;
         let mut record = Vec::with_capacity(geometry::record_len(&object.mesh) as usize);
         geometry::encode_object(id, &object.mesh, &mut record);

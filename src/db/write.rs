@@ -305,11 +305,9 @@ impl<'db> WriteTransaction<'db> {
         self.write(scene, tree, params, build_seconds, &|_| {})
     }
 
-    fn may_write_tree(&self) -> Result<(), StorageError> {
+    fn may_write_tree(&self) -> Result<(), crate::Error> {
         if self.meta.is_some() || self.edits.is_some() {
-            return Err(StorageError::Invalid(
-                "a transaction writes one tree: a bulk load, or changes to objects".into(),
-            ));
+            return Err(crate::Error::OneTree);
         }
         Ok(())
     }
@@ -317,10 +315,7 @@ impl<'db> WriteTransaction<'db> {
     /// The transaction's changes; refuses them after a bulk load.
     fn edits(&mut self) -> Result<&mut Edits, crate::Error> {
         if self.meta.is_some() {
-            return Err(StorageError::Invalid(
-                "a transaction writes one tree: a bulk load, or changes to objects".into(),
-            )
-            .into());
+            return Err(crate::Error::OneTree);
         }
         Ok(self.edits.get_or_insert_with(Edits::default))
     }
@@ -333,10 +328,7 @@ impl<'db> WriteTransaction<'db> {
         let len = crate::store::format::keys::entry_len(key, object.payload.len(), object.name.len());
         let capacity = crate::store::format::keys::capacity(self.inner.pager().block_size());
         if len > capacity {
-            return Err(StorageError::Invalid(format!(
-                "the key {key} with its payload and name takes {len} bytes and a key block holds {capacity}: use larger blocks"
-            ))
-            .into());
+            return Err(KeyError::EntryTooLarge { key: key.clone(), len, capacity }.into());
         }
         Ok(())
     }
@@ -365,9 +357,7 @@ impl<'db> WriteTransaction<'db> {
             None => {
                 let next = match self.largest_int_key()? {
                     None => 0,
-                    Some(i) => {
-                        i.checked_add(1).ok_or(StorageError::Invalid("integer keys are exhausted".into()))?
-                    }
+                    Some(i) => i.checked_add(1).ok_or(KeyError::IntegersExhausted)?,
                 };
                 Key::Int(next)
             }
@@ -396,8 +386,7 @@ impl<'db> WriteTransaction<'db> {
     /// leaf it now fits best; returns the old object. A key not in the tree
     /// is [`KeyError::NotFound`](crate::scene::KeyError::NotFound).
     pub fn update(&mut self, object: Object) -> Result<Object, crate::Error> {
-        let key =
-            object.key.clone().ok_or(StorageError::Invalid("an update names its object by key".into()))?;
+        let key = object.key.clone().ok_or(KeyError::Unnamed)?;
         self.edits()?;
         self.check_change(&key, &object)?;
         let old = self.object(&key)?.ok_or_else(|| KeyError::NotFound { key: key.clone() })?;
@@ -471,10 +460,7 @@ impl<'db> WriteTransaction<'db> {
     /// `mktree optimize` runs it.
     pub fn optimize(&mut self) -> Result<(), crate::Error> {
         if self.meta.is_some() {
-            return Err(StorageError::Invalid(
-                "a transaction writes one tree: a bulk load, or changes to objects".into(),
-            )
-            .into());
+            return Err(crate::Error::OneTree);
         }
         let edits = self.edits.take().unwrap_or_default();
         self.change_stats.changes = edits.ops.len() as u64;
@@ -548,14 +534,14 @@ impl<'db> WriteTransaction<'db> {
 
     /// Makes the transaction durable: writes the free list, syncs, writes the
     /// commit slot, syncs (format-spec/commit.md, steps 3 to 5).
-    pub fn commit(self) -> Result<(), StorageError> {
+    pub fn commit(self) -> Result<(), crate::Error> {
         self.commit_with_stats().map(|_| ())
     }
 
     /// [`commit`](Self::commit), returning what the transaction's changes
     /// wrote: blocks written, freed and read, and whether they went in
     /// place (copy on write) or the tree was written whole.
-    pub fn commit_with_stats(mut self) -> Result<ChangeStats, StorageError> {
+    pub fn commit_with_stats(mut self) -> Result<ChangeStats, crate::Error> {
         let pager = self.inner.pager().clone();
         let mut cleared = false;
         // The committed free list's blocks, when this commit keeps the tree:
@@ -563,14 +549,12 @@ impl<'db> WriteTransaction<'db> {
         let mut old_chain = Vec::new();
         if let Some(edits) = self.edits.take() {
             self.change_stats.changes = edits.ops.len() as u64;
-            cleared = self.apply_edits(edits).map_err(|e| match e {
-                crate::Error::Storage(s) => s,
-                other => StorageError::Invalid(other.to_string()),
-            })?;
+            cleared = self.apply_edits(edits)?;
         }
         if let Some(host) = self.inner.host.clone() {
             let stats = self.change_stats;
-            return self.commit_hosted(host.as_ref(), cleared).map(|()| stats);
+            self.commit_hosted(host.as_ref(), cleared)?;
+            return Ok(stats);
         }
         // The meta block: written with the tree, or (a change commit) to
         // be written after the free list.
@@ -589,7 +573,8 @@ impl<'db> WriteTransaction<'db> {
                 if !shorter && !list_moves {
                     // Nothing to write: the same state under a new transaction id.
                     let c = Commit { txn: self.txn, ..self.base };
-                    return self.finish(c, None).map(|()| self.change_stats);
+                    self.finish(c, None)?;
+                    return Ok(self.change_stats);
                 }
                 // The same tree, and a shorter file.
                 self.keep_base(&chain);
@@ -626,7 +611,10 @@ impl<'db> WriteTransaction<'db> {
         self.finish(c, Some(NewState { meta, free, chain: list_blocks }))?;
         if end < self.avail.end() {
             // After the commit: a crash before this leaves a longer file, which the next writer truncates.
-            pager.device().set_len(u64::from(end) * u64::from(pager.block_size()))?;
+            pager
+                .device()
+                .set_len(u64::from(end) * u64::from(pager.block_size()))
+                .map_err(StorageError::from)?;
         }
         Ok(self.change_stats)
     }

@@ -32,6 +32,15 @@ pub enum QueryError {
         /// The number of objects the file holds.
         objects: u32,
     },
+    /// A node id the tree does not hold (ids lie below `bound`; after a
+    /// change commit split or merged a leaf, some below it are gone too).
+    #[error("node {id} is not in the tree (its ids lie below {bound})")]
+    NoNode {
+        /// The id asked for.
+        id: u32,
+        /// The bound below which the tree's ids lie.
+        bound: u32,
+    },
     /// A clearance (mm) that is negative, NaN or infinite.
     #[error("clearance {0} is not a finite distance >= 0")]
     Clearance(f64),

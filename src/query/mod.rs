@@ -52,8 +52,8 @@ pub use select::{Everything, Region, Selection, Triangles};
 pub use tradeoff::{
     LevelBenefit, TRADEOFF_SHIFT_MM, TradeoffRow, collision_workload, level_benefit, tradeoff,
 };
-pub(crate) use traverse::walk;
 pub use traverse::{Select, traverse};
+pub(crate) use traverse::{walk, walk_level};
 pub use visit::NodeName;
 internal_use!(visit::Seen);
 pub use view::{Bound, CutNode, Shape, Shown, View, ViewCut, ViewOptions};

@@ -43,7 +43,10 @@ impl Iterator for Nearest<'_> {
 
     fn next(&mut self) -> Option<Self::Item> {
         let d = self.select.next_accepted()?;
-        Some(d.map(|d| Near { object: d.hit.object, key: d.hit.key, distance: d.distance.unwrap_or(0.0) }))
+        Some(
+            d.map(|d| Near { object: d.hit.object, key: d.hit.key, distance: d.distance.unwrap_or(0.0) })
+                .map_err(QueryError::from),
+        )
     }
 }
 

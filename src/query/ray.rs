@@ -47,7 +47,10 @@ impl Iterator for RayHits<'_> {
 
     fn next(&mut self) -> Option<Self::Item> {
         let d = self.select.next_accepted()?;
-        Some(d.map(|d| hit(&self.ray, (d.hit.object, d.hit.key), d.distance.unwrap_or(0.0))))
+        Some(
+            d.map(|d| hit(&self.ray, (d.hit.object, d.hit.key), d.distance.unwrap_or(0.0)))
+                .map_err(QueryError::from),
+        )
     }
 }
 

@@ -204,6 +204,26 @@ pub enum KeyError {
         /// The key.
         key: Key,
     },
+    /// An object whose key, payload and name together do not fit one key
+    /// block (format-spec/keys.md): larger blocks hold it.
+    #[error(
+        "the key {key} with its payload and name takes {len} bytes and a key block holds {capacity}: use larger blocks"
+    )]
+    EntryTooLarge {
+        /// The key.
+        key: Key,
+        /// The entry's length, bytes.
+        len: usize,
+        /// What a key block holds, bytes.
+        capacity: usize,
+    },
+    /// An insert that asks for the next integer key when the largest the
+    /// tree holds is `u64::MAX`.
+    #[error("integer keys are exhausted")]
+    IntegersExhausted,
+    /// An update of an object that carries no key to name the one it replaces.
+    #[error("an update names its object by key")]
+    Unnamed,
     /// A key longer than [`Key::MAX_BYTES`].
     #[error(transparent)]
     TooLong(#[from] super::key::KeyTooLong),

@@ -77,7 +77,25 @@ pub enum StorageError {
     /// A write would make the file longer than 2^32 blocks.
     #[error("the file would exceed 2^32 blocks")]
     FileTooLarge,
-    /// Anything else: a bad argument, or a file whose contents contradict each other.
+    /// A path that names a directory, a device or anything but a regular file.
+    #[error("{path}: not a regular file")]
+    NotAFile {
+        /// The path.
+        path: std::path::PathBuf,
+    },
+    /// A create on a device (a file, an application's table) that already
+    /// holds bytes.
+    #[error("create needs an empty device")]
+    NotEmpty,
+    /// Other processes committed so fast that no snapshot held still
+    /// through `attempts` tries to pin one.
+    #[error("no snapshot held still through {attempts} commits by other processes")]
+    Contended {
+        /// The tries.
+        attempts: u32,
+    },
+    /// A file whose contents contradict each other, or that this version
+    /// cannot hold (ids or counts exhausted).
     #[error("{0}")]
     Invalid(String),
     /// The application's redb database failed (the `redb` feature).

@@ -174,7 +174,7 @@ pub fn check(db: &Database) -> Result<CheckReport, StorageError> {
 /// free ranges and header warnings. Other processes' commits may land
 /// between the pin and the look at the committed state: then pin again.
 fn pinned(db: &Database) -> Result<(ReadTransaction, Commit, Vec<FreeRange>, Vec<Warning>), StorageError> {
-    const ATTEMPTS: usize = 100;
+    const ATTEMPTS: u32 = 100;
     for _ in 0..ATTEMPTS {
         let txn = db.begin_read()?;
         let (commit, free, warnings) = db.committed()?;
@@ -182,9 +182,7 @@ fn pinned(db: &Database) -> Result<(ReadTransaction, Commit, Vec<FreeRange>, Vec
             return Ok((txn, commit, free, warnings));
         }
     }
-    Err(StorageError::Invalid(format!(
-        "no snapshot held still through {ATTEMPTS} commits by other processes"
-    )))
+    Err(StorageError::Contended { attempts: ATTEMPTS })
 }
 
 /// Free block `id` of `commit` failed its checksum (or could not be read)

@@ -9,7 +9,7 @@ use std::collections::HashMap;
 use super::Sink;
 use super::plan::{Plan, object_ids};
 use super::read_model::choose_packing;
-use crate::bulk::{Hierarchy, LoadProgress, NodeId, Order, Split, Stage, StageMeter};
+use crate::bulk::{BuildError, Hierarchy, LoadProgress, NodeId, Order, Split, Stage, StageMeter};
 use crate::db::source::ObjectSource;
 use crate::geom::Aabb;
 use crate::lod::{GroupRule, Voxels, leaf_group, lift_group};
@@ -64,7 +64,7 @@ pub(crate) fn write(
     bounds: &[Vec<BoundEntry>],
     groups: Option<&GroupRule>,
     progress: &(dyn Fn(LoadProgress) + Sync),
-) -> Result<Written, StorageError> {
+) -> Result<Written, crate::Error> {
     let Sink { pager, txn, allocate } = sink;
     let bs = pager.block_size();
     let n = tree.nodes.len();
@@ -72,10 +72,7 @@ pub(crate) fn write(
     let sizes = plan.sizes(tree, |i| node::bounds_len(&bounds[i]));
     let capacity = node::capacity(bs);
     if let Some(i) = (0..n).find(|&i| sizes[i] > capacity) {
-        return Err(StorageError::Invalid(format!(
-            "node {i}'s record with its bounds takes {} bytes and a node block holds {capacity}",
-            sizes[i]
-        )));
+        return Err(BuildError::NodeTooLarge { node: i, len: sizes[i], capacity }.into());
     }
     let (packing, _) = choose_packing(tree, &sizes, capacity, &plan.samples);
     let block_count = u32::try_from(packing.blocks.len()).map_err(|_| StorageError::FileTooLarge)?;
@@ -388,10 +385,9 @@ fn group_entries(
     packing: &Packing,
     offset: &[u32],
     block_size: u32,
-) -> Result<Vec<Vec<GroupEntry>>, StorageError> {
+) -> Result<Vec<Vec<GroupEntry>>, crate::Error> {
     let nodes = &tree.nodes;
     let levels: Vec<u8> = rule.group_levels().collect();
-    let lod = |e: crate::lod::LodError| StorageError::Invalid(format!("a group bound: {e}"));
     // Per node, per level: the encoded bound (None: not stored, the level
     // answers as the coarser one, or the bound is empty).
     let mut blobs: Vec<Vec<Option<Vec<u8>>>> = vec![Vec::new(); nodes.len()];
@@ -412,10 +408,10 @@ fn group_entries(
         let mut out = Vec::with_capacity(levels.len());
         let mut last_level = None;
         for (li, &k) in levels.iter().enumerate() {
-            let grid = rule.grid(k, &plan.frames[i]).map_err(lod)?;
+            let grid = rule.grid(k, &plan.frames[i])?;
             let lattice_level = grid.level();
             let v = match &kids {
-                Some(kids) => lift_group(grid, kids.iter().filter_map(|k| k.get(li))).map_err(lod)?,
+                Some(kids) => lift_group(grid, kids.iter().filter_map(|k| k.get(li)))?,
                 None => leaf_group(grid, meshes.iter().map(|m| m.as_ref())),
             };
             // A level on the same grid as the coarser one holds the same bound.

@@ -3,7 +3,7 @@
 
 use super::{Sink, Written};
 use crate::db::source::ObjectSource;
-use crate::scene::{Key, ObjectId};
+use crate::scene::{Key, KeyError, ObjectId};
 use crate::store::StorageError;
 use crate::store::format::frame::BlockType;
 use crate::store::format::keys::{self, ChildRef, KeyEntry};
@@ -25,14 +25,15 @@ pub(super) fn write(
     Sink { pager, txn, allocate }: Sink,
     objects: &dyn ObjectSource,
     written: &Written,
-) -> Result<WrittenKeys, StorageError> {
+) -> Result<WrittenKeys, crate::Error> {
     let bs = pager.block_size();
     let capacity = keys::capacity(bs);
     let mut order: Vec<(Key, ObjectId)> =
         (0..objects.len()).map(|i| (objects.key(ObjectId(i as u32)), ObjectId(i as u32))).collect();
     order.sort_unstable();
     if let Some(w) = order.windows(2).find(|w| w[0].0 == w[1].0) {
-        return Err(StorageError::Invalid(format!("the key {} is not unique", w[0].0)));
+        let (first, second) = (w[0].1.min(w[1].1), w[0].1.max(w[1].1));
+        return Err(KeyError::Duplicate { key: w[0].0.clone(), first, second }.into());
     }
     let entry = |&(ref key, id): &(Key, ObjectId)| KeyEntry {
         key: key.clone(),
@@ -47,10 +48,7 @@ pub(super) fn write(
         .map(|(key, id)| keys::entry_len(key, objects.payload(*id).len(), objects.name(*id).len()))
         .collect();
     if let Some(at) = sizes.iter().position(|&len| len > capacity) {
-        return Err(StorageError::Invalid(format!(
-            "the key {} with its payload and name takes {} bytes and a key block holds {capacity}: use larger blocks",
-            order[at].0, sizes[at]
-        )));
+        return Err(KeyError::EntryTooLarge { key: order[at].0.clone(), len: sizes[at], capacity }.into());
     }
     let mut block = vec![0u8; bs as usize];
     let mut blocks = 0u32;

@@ -54,7 +54,7 @@ impl Load<'_> {
         let Load { objects, tree, params, lod_params, .. } = *self;
         let (bs, m) = (pager.block_size(), pager.lod_levels());
         if tree.nodes.is_empty() {
-            return Err(StorageError::Invalid("a tree holds at least one object".into()).into());
+            return Err(crate::bulk::BuildError::EmptyInput.into());
         }
         // What needs every object's box at once, before anything else is held.
         let (mix, lod_plan) = {

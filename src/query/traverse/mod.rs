@@ -187,9 +187,28 @@ impl<'a, S: Selection> Select<'a, S> {
         reads: Reads<'a>,
         rank: Option<Rank>,
     ) -> Result<Select<'a, S>, QueryError> {
-        let (k, m) = levels(txn, opts.lod)?;
+        let (k, _) = levels(txn, opts.lod)?;
+        if start.is_some() {
+            txn.info().ok_or(QueryError::NoTree)?;
+        }
+        Ok(Select::at_level(txn, start, sel, k, opts, reads, rank)?)
+    }
+
+    /// [`new`](Self::new) at level `k`, which the caller has checked is
+    /// one of the file's (1..=M), from a `start` of the file's tree: what
+    /// is left to fail is the file.
+    fn at_level(
+        txn: &'a ReadTransaction,
+        start: Option<NodeRef>,
+        sel: S,
+        k: u8,
+        opts: &QueryOptions,
+        reads: Reads<'a>,
+        rank: Option<Rank>,
+    ) -> Result<Select<'a, S>, StorageError> {
+        let m = txn.pager().lod_levels();
         let nodes = match start {
-            Some(_) => txn.info().ok_or(QueryError::NoTree)?.nodes,
+            Some(_) => txn.info().map_or(0, |i| i.nodes),
             None => 0,
         };
         let levels = usize::from(m);
@@ -280,7 +299,7 @@ impl<'a, S: Selection> Select<'a, S> {
     }
 
     /// The next object accepted.
-    pub(crate) fn next_accepted(&mut self) -> Option<Result<Decision, QueryError>> {
+    pub(crate) fn next_accepted(&mut self) -> Option<Result<Decision, StorageError>> {
         loop {
             match self.next_decision()? {
                 Ok(d) if !d.accepted => {}
@@ -290,7 +309,7 @@ impl<'a, S: Selection> Select<'a, S> {
     }
 
     /// The next object decided, accepted or not.
-    pub(crate) fn next_decision(&mut self) -> Option<Result<Decision, QueryError>> {
+    pub(crate) fn next_decision(&mut self) -> Option<Result<Decision, StorageError>> {
         loop {
             if let Some(d) = self.out.pop_front() {
                 return Some(Ok(d));
@@ -303,7 +322,7 @@ impl<'a, S: Selection> Select<'a, S> {
                 self.deferred.clear();
                 // Nothing set aside is left to show: the error ends the walk.
                 if let Err(f) = self.finish() {
-                    return Some(Err(f.into()));
+                    return Some(Err(f));
                 }
                 return Some(Err(e));
             }
@@ -311,7 +330,7 @@ impl<'a, S: Selection> Select<'a, S> {
     }
 
     /// Drains the iterator into a sorted answer.
-    pub(crate) fn answer(&mut self) -> Result<QueryAnswer, QueryError> {
+    pub(crate) fn answer(&mut self) -> Result<QueryAnswer, StorageError> {
         let (mut accepted, mut decided) = (Vec::new(), Vec::new());
         while let Some(d) = self.next_decision() {
             let d = d?;
@@ -344,7 +363,7 @@ impl<'a, S: Selection> Select<'a, S> {
     }
 
     /// Runs one step of the queue, or ends the traversal.
-    fn advance(&mut self) -> Result<(), QueryError> {
+    fn advance(&mut self) -> Result<(), StorageError> {
         let Some(q) = self.heap.pop() else {
             // Blocks read since a step was set aside may have made it affordable.
             let waiting = self.deferred.len();
@@ -369,7 +388,7 @@ impl<'a, S: Selection> Select<'a, S> {
             self.deferred.push(q);
             return Ok(());
         }
-        Ok(self.step(q.step)?)
+        self.step(q.step)
     }
 
     /// Ends the traversal: what a budget set aside is the rest, and a query
@@ -663,7 +682,7 @@ impl<S: Selection> Iterator for Select<'_, S> {
     type Item = Result<Hit, QueryError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        Some(self.next_accepted()?.map(|d| d.hit))
+        Some(self.next_accepted()?.map(|d| d.hit).map_err(QueryError::from))
     }
 }
 
@@ -700,7 +719,7 @@ pub fn traverse<S: Selection + ?Sized>(
     opts: &QueryOptions,
     cache: Option<&BlockCache>,
 ) -> Result<QueryAnswer, QueryError> {
-    txn.select(sel, opts, cache)?.answer()
+    Ok(txn.select(sel, opts, cache)?.answer()?)
 }
 
 /// The traversal from record `start` (its block read through `reads`
@@ -714,10 +733,27 @@ pub(crate) fn walk<S: Selection + ?Sized>(
     reads: &mut Reads,
     visitor: &mut dyn Visitor,
 ) -> Result<QueryAnswer, QueryError> {
-    // What Select::new may refuse, refused before `reads` is lent.
-    levels(txn, opts.lod)?;
+    // What the level may refuse, refused before `reads` is lent.
+    let (k, _) = levels(txn, opts.lod)?;
     txn.info().ok_or(QueryError::NoTree)?;
-    let mut select = Select::new(txn, Some(start), sel, opts, reads.lend(), None)?.visited_by(visitor);
+    Ok(walk_level(txn, start, sel, k, opts, reads, visitor)?)
+}
+
+/// [`walk`] at level `k` of the file's 1..=M, which the caller knows it
+/// holds (db's own passes over a stored tree): only the file can fail it.
+/// A `k` outside the file's levels is taken as the nearest one.
+pub(crate) fn walk_level<S: Selection + ?Sized>(
+    txn: &ReadTransaction,
+    start: NodeRef,
+    sel: &S,
+    k: u8,
+    opts: &QueryOptions,
+    reads: &mut Reads,
+    visitor: &mut dyn Visitor,
+) -> Result<QueryAnswer, StorageError> {
+    let k = k.clamp(1, txn.pager().lod_levels().max(1));
+    let mut select =
+        Select::at_level(txn, Some(start), sel, k, opts, reads.lend(), None)?.visited_by(visitor);
     let answer = select.answer();
     reads.take_back(select.reads);
     answer

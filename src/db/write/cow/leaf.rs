@@ -311,7 +311,7 @@ pub(super) fn leaf_draft(
     requantize: bool,
     rules: Option<&(LodPlan, LodParams)>,
     bs: u32,
-) -> Result<LeafDraft, StorageError> {
+) -> Result<LeafDraft, crate::Error> {
     let mut placement = Placement::new(bs);
     let mut objects = Vec::with_capacity(entries.len());
     let mut bounds = Vec::new();
@@ -342,9 +342,7 @@ pub(super) fn leaf_draft(
         let Some(outer) = QuantBox::decode(frame, qbox).map(|q| q.outer) else { continue };
         let mesh = geometry::decode_object(0, &e.record)?.1;
         for level in levels {
-            let grid = bound_grid(plan, params, level, &outer)
-                .map_err(|err| StorageError::Invalid(format!("a bound's grid: {err}")))?
-                .filter(|g| g.cells() <= u64::from(u16::MAX));
+            let grid = bound_grid(plan, params, level, &outer)?.filter(|g| g.cells() <= u64::from(u16::MAX));
             let Some(grid) = grid else { continue };
             let voxels = Voxels::of_surfaces(grid, [&mesh]);
             let blob = lod::encode(&voxels);
