@@ -6,7 +6,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use mktree::bulk::{BuildProgress, Hierarchy, build};
-use mktree::db::{Database, TreeInfo, read_hierarchy};
+use mktree::db::{Database, LayoutDrift, TreeInfo, read_hierarchy, read_tree_and_drift};
 use mktree::scene::Scene;
 use mktree::scene::generate::{GenOptions, Preset, generate_scene};
 use mktree::scene::import::{ImportOptions, load};
@@ -118,13 +118,18 @@ pub fn is_mkt(path: &Path) -> bool {
 }
 
 /// The tree of an .mkt file, or of a scene built in memory with `build`,
-/// with the file's info or the build time.
-pub fn tree_of(input: &Path, build: &BuildArgs) -> Result<(Hierarchy, Source)> {
+/// with the file's info or the build time; a file's layout drift too when
+/// `drift` asks (from the same read of its node blocks).
+pub fn tree_of(input: &Path, build: &BuildArgs, drift: bool) -> Result<(Hierarchy, Source)> {
     if is_mkt(input) {
         let db = open_to_read(input)?;
         let r = db.begin_read()?;
-        let info = r.info().context("the file holds no tree")?;
-        Ok((read_hierarchy(&r)?, Source::File(Box::new(info))))
+        let info = Box::new(r.info().context("the file holds no tree")?);
+        if drift {
+            let (tree, drift) = read_tree_and_drift(&r)?;
+            return Ok((tree, Source::File(info, drift)));
+        }
+        Ok((read_hierarchy(&r)?, Source::File(info, None)))
     } else {
         let scene = read_scene(input, &build.import.options())?;
         let started = std::time::Instant::now();
@@ -135,8 +140,11 @@ pub fn tree_of(input: &Path, build: &BuildArgs) -> Result<(Hierarchy, Source)> {
 
 /// Where a tree came from.
 pub enum Source {
-    File(Box<TreeInfo>),
-    Memory { seconds: f64 },
+    /// A file's info, and its layout drift when asked for.
+    File(Box<TreeInfo>, Option<LayoutDrift>),
+    Memory {
+        seconds: f64,
+    },
 }
 
 /// Builds the tree of `scene` in memory, with a progress bar.

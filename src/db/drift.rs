@@ -8,9 +8,9 @@
 use serde::Serialize;
 
 use super::ReadTransaction;
-use super::hierarchy::read_layout;
+use super::hierarchy::{StoredLayout, read_layout};
 use super::load::{SAMPLES_PER_SCALE, choose_packing, node_reads_per_scale};
-use crate::bulk::QueryMix;
+use crate::bulk::{Hierarchy, QueryMix};
 use crate::store::StorageError;
 use crate::store::format::node;
 use crate::store::layout::Packing;
@@ -64,8 +64,11 @@ impl ReadTransaction {
     /// The snapshot's layout drift, `None` without a tree. Reads every node
     /// block (no geometry), as `stats` does.
     pub fn layout_drift(&self) -> Result<Option<LayoutDrift>, StorageError> {
+        Ok(read_tree_and_drift(self)?.1)
+    }
+
+    fn drift_of(&self, stored: &StoredLayout) -> Result<Option<LayoutDrift>, StorageError> {
         let Some(meta) = self.snapshot.meta.as_ref() else { return Ok(None) };
-        let stored = read_layout(self)?;
         let tree = &stored.tree;
         if tree.nodes.is_empty() {
             return Ok(None);
@@ -91,6 +94,14 @@ impl ReadTransaction {
             fresh_node_blocks: fresh.blocks.len() as u32,
         }))
     }
+}
+
+/// The stored tree of `txn` (as `read_hierarchy` gives it) and its layout
+/// drift, from one read of every node block: what `stats` shows of a file.
+pub fn read_tree_and_drift(txn: &ReadTransaction) -> Result<(Hierarchy, Option<LayoutDrift>), StorageError> {
+    let stored = read_layout(txn)?;
+    let drift = txn.drift_of(&stored)?;
+    Ok((stored.tree, drift))
 }
 
 /// The packing the stored tree has: node `i` in block `blocks[i]`, blocks

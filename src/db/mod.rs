@@ -30,6 +30,7 @@ internal_use!(crate::tree::{method_from_code, method_to_code});
 pub use drift::LayoutDrift;
 pub use group::{GroupLevel, GroupSummary};
 internal_use!(hierarchy::read_hierarchy);
+internal_use!(drift::read_tree_and_drift);
 pub use crate::tree::{LodInfo, ReadTransaction, TreeInfo};
 pub(crate) use crate::tree::{Snapshot, view};
 pub(crate) use everything::walk_everything;

@@ -12,6 +12,6 @@ pub fn run(input: &Path, build: &BuildArgs, as_json: bool) -> Result<()> {
     if !as_json {
         bail!("dump prints JSON only: add --json");
     }
-    let (tree, _) = tree_of(input, build)?;
+    let (tree, _) = tree_of(input, build, false)?;
     output::json(&tree)
 }

@@ -8,7 +8,7 @@ use mktree::bulk::{BuildParams, Report, TreeShape};
 use serde_json::{Value, json};
 
 use crate::args::BuildArgs;
-use crate::input::{Source, open_to_read, tree_of};
+use crate::input::{Source, tree_of};
 use crate::output::{self, opt};
 
 /// A one-line description of the parameters.
@@ -26,16 +26,16 @@ pub fn describe(p: &BuildParams) -> String {
 }
 
 pub fn run(input: &Path, build: &BuildArgs, as_json: bool) -> Result<()> {
-    let (tree, source) = tree_of(input, build)?;
+    let (tree, source) = tree_of(input, build, true)?;
     let report = Report::of(&tree);
     let shape = TreeShape::of(&tree);
     // How far change commits moved the node layout from a fresh one.
     let drift = match &source {
-        Source::File(_) => open_to_read(input)?.begin_read()?.layout_drift()?,
+        Source::File(_, drift) => drift.clone(),
         Source::Memory { .. } => None,
     };
     let (params, seconds, file) = match &source {
-        Source::File(info) => {
+        Source::File(info, _) => {
             (info.params.clone().unwrap_or_else(|| build.params()), info.build_seconds, Some(info))
         }
         Source::Memory { seconds } => (build.params(), *seconds, None),
