@@ -1,5 +1,5 @@
 //! Queries through the paged file. Every query runs the one traversal of
-//! `traverse.rs`, the [`Select`] iterator, with a [`Selection`]
+//! `traverse/`, the [`Select`] iterator, with a [`Selection`]
 //! (`select.rs`): region queries, the posed-mesh collide, clash (the tree
 //! against itself, one probe per object), navigation, the speed-accuracy
 //! trade-off, the view's cut through the levels of detail, and the walks

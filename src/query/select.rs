@@ -2,7 +2,7 @@
 //! here with the second question the MKtree's bounds can answer): may the
 //! shape meet what a bound holds (or is it ruled out), and does the bound
 //! prove that it does (a witness)? Every query kind implements [`Selection`]
-//! and runs the one traversal of `traverse.rs`.
+//! and runs the one traversal of `traverse/`.
 //!
 //! Witnesses hold for the true geometry, not for rounded bounds: a box face
 //! is tested as its quantized slab (which holds the true face), a voxel

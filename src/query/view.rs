@@ -1,7 +1,7 @@
 //! The view query (paper §1, "time-critical rendering"): a cut
 //! through the tree that shows everything a camera sees, each part either
 //! exact or by a stand-in whose error, seen from the camera, is at most τ
-//! pixels. It runs the one traversal (`traverse.rs`) with a [`Selection`]
+//! pixels. It runs the one traversal (`traverse/`) with a [`Selection`]
 //! that takes stand-ins: a node whose box is close enough is settled
 //! unread, an object whose finest stored bound is close enough has no
 //! geometry read, and with a block budget the largest error is refined
