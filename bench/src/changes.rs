@@ -7,12 +7,13 @@
 //! mktree the blocks and syncs its device saw. Then the usual box queries
 //! on the changed mktree file against a fresh bulk load of the same objects.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
 use mktree::bulk::BuildParams;
-use mktree::db::{CreateOptions, Database};
+use mktree::db::{CreateOptions, Database, WriteTransaction};
 use mktree::geom::Vector;
 use mktree::scene::{Key, Mesh, Object, Scene};
 use mktree::store::BlockDevice;
@@ -194,152 +195,268 @@ pub fn bench_changes(
     if scene.is_empty() {
         return Err(BenchError::Invalid("the scene has no objects".into()));
     }
-    let keyed =
-        Scene::new(scene.objects().iter().enumerate().map(|(i, o)| o.clone().with_key(i as u64)).collect());
-    let (phases, mixed) = plan(&keyed, opts);
-    let names = ["insert", "move", "remove"];
-    let mut rows = Vec::new();
+    let run = Run::new(scene, opts, dir);
 
     // mktree, on a file through a counting device.
     let path = dir.join("bench-changes.mkt");
+    let mut mktree = MktreeFile::load(&run.keyed, params, opts.create, &path)?;
+    let mut rows = run.time_phases("mktree", |ops, batch| mktree.phase(ops, batch), || file_len(&path))?;
+    let AgainstFresh { reads, file_blocks } = mktree.against_fresh(params, sets, opts.create, dir)?;
+    // The stream runs on the changed file, from two other processes.
+    let mut streams: Vec<StreamRow> =
+        run.stream_on("mktree", StreamEngine::Mktree, &path)?.into_iter().collect();
     let _ = std::fs::remove_file(&path);
-    let file = std::fs::OpenOptions::new()
-        .read(true)
-        .write(true)
-        .create_new(true)
-        .open(&path)
-        .map_err(|source| BenchError::Io { what: path.display().to_string(), source })?;
-    let dev = Arc::new(CountingDevice::new(FileDevice::new(file)));
-    let db = Database::create_on(dev.clone() as Arc<dyn BlockDevice>, opts.create)?;
-    let mut w = db.begin_write()?;
-    w.bulk_load(&keyed, params, &|_| {})?;
-    w.commit()?;
-    let mut model: std::collections::BTreeMap<Key, Object> =
-        keyed.objects().iter().map(|o| (o.key.clone().unwrap_or(Key::Int(0)), o.clone())).collect();
-    let run = |ops: &[Op],
-               batch: bool,
-               model: &mut std::collections::BTreeMap<Key, Object>|
-     -> Result<Phase, BenchError> {
+
+    // SQLite, with a write-ahead log and with its rollback journal.
+    for (engine, journal) in [("sqlite-wal", "WAL"), ("sqlite-rollback", "DELETE")] {
+        let (sqlite_rows, stream) = run.sqlite(engine, journal)?;
+        rows.extend(sqlite_rows);
+        streams.extend(stream);
+    }
+    Ok(ChangesReport { objects: scene.len(), rows, reads, file_blocks, streams })
+}
+
+/// The single-object phases' names, in [`plan`]'s order.
+const PHASES: [&str; 3] = ["insert", "move", "remove"];
+
+/// What every engine's run shares: the scene, its changes and the options.
+struct Run<'a> {
+    /// The scene, each object keyed by its index.
+    keyed: Scene,
+    /// The single-object changes of each of [`PHASES`].
+    phases: Vec<Vec<Op>>,
+    /// The changes of the one mixed commit.
+    mixed: Vec<Op>,
+    /// How the changes run.
+    opts: &'a ChangeOptions,
+    /// Where the files are made.
+    dir: &'a Path,
+}
+
+impl<'a> Run<'a> {
+    /// `scene` keyed by index, and the changes [`plan`] makes of it.
+    fn new(scene: &Scene, opts: &'a ChangeOptions, dir: &'a Path) -> Run<'a> {
+        let keyed = Scene::new(
+            scene.objects().iter().enumerate().map(|(i, o)| o.clone().with_key(i as u64)).collect(),
+        );
+        let (phases, mixed) = plan(&keyed, opts);
+        Run { keyed, phases, mixed, opts, dir }
+    }
+
+    /// `engine`'s rows: each single-object phase through `phase`, then the
+    /// mixed changes as one commit, each with the `file_bytes` after it.
+    fn time_phases(
+        &self,
+        engine: &str,
+        mut phase: impl FnMut(&[Op], bool) -> Result<Phase, BenchError>,
+        file_bytes: impl Fn() -> u64,
+    ) -> Result<Vec<ChangeRow>, BenchError> {
+        let mut rows = Vec::new();
+        for (ops, name) in self.phases.iter().zip(PHASES) {
+            rows.push(phase(ops, false)?.row(engine, name, file_bytes()));
+        }
+        let mixed = phase(&self.mixed, true)?;
+        rows.push(mixed.row(engine, &format!("mixed {}", self.mixed.len()), file_bytes()));
+        Ok(rows)
+    }
+
+    /// The two-process stream of moves on `file`, as `name`'s row; `None`
+    /// without [`ChangeOptions::worker`].
+    fn stream_on(
+        &self,
+        name: &str,
+        engine: StreamEngine,
+        file: &Path,
+    ) -> Result<Option<StreamRow>, BenchError> {
+        let Some(exe) = &self.opts.worker else { return Ok(None) };
+        let job = StreamJob {
+            engine,
+            role: StreamRole::Writer,
+            file: file.to_path_buf(),
+            keys: self.keyed.len() as u64,
+            commits: self.opts.singles,
+            extent: self.keyed.aabb(),
+            seed: self.opts.seed,
+            stop: PathBuf::new(),
+        };
+        stream(exe, name, job).map(Some)
+    }
+
+    /// SQLite's rows and stream as `engine`, with `journal` as its journal mode.
+    fn sqlite(&self, engine: &str, journal: &str) -> Result<(Vec<ChangeRow>, Option<StreamRow>), BenchError> {
+        let path = self.dir.join(format!("bench-changes-{engine}.sqlite"));
+        remove_sqlite_files(&path);
+        let conn = sqlite_load(&self.keyed, &path, self.opts.create.block_size, journal)?;
+        let rows = self.time_phases(
+            engine,
+            |ops, batch| self.sqlite_phase(&conn, ops, batch),
+            || sqlite_len(&path),
+        )?;
+        drop(conn);
+        let stream = self.stream_on(engine, StreamEngine::Sqlite, &path)?;
+        remove_sqlite_files(&path);
+        Ok((rows, stream))
+    }
+
+    /// Times `ops` on `conn`: one commit per change, or with `batch` one for all.
+    fn sqlite_phase(&self, conn: &Connection, ops: &[Op], batch: bool) -> Result<Phase, BenchError> {
         let mut phase = Phase::default();
-        for chunk in ops.chunks(if batch { ops.len().max(1) } else { 1 }) {
-            let (bytes, counts) = (written_bytes(), dev.counts());
+        for chunk in commits(ops, batch) {
+            let bytes = written_bytes();
             let started = Instant::now();
-            let mut w = db.begin_write()?;
+            conn.execute_batch("BEGIN")?;
             for op in chunk {
-                match op {
-                    Op::Insert(k, o) => {
-                        w.insert(o.clone().with_key(*k))?;
-                        model.insert(Key::Int(*k), o.clone());
-                    }
-                    Op::Move(k, by) => {
-                        w.move_by(&Key::Int(*k), *by)?;
-                        if let Some(o) = model.get(&Key::Int(*k)).map(|o| moved(o, *by)) {
-                            model.insert(Key::Int(*k), o);
-                        }
-                    }
-                    Op::Remove(k) => {
-                        w.remove(&Key::Int(*k))?;
-                        model.remove(&Key::Int(*k));
-                    }
-                }
+                sqlite_apply(conn, &self.keyed, op)?;
+            }
+            conn.execute_batch("COMMIT")?;
+            phase.ms.push(started.elapsed().as_secs_f64() * 1e3);
+            let b = written_bytes() - bytes;
+            phase.bytes += b;
+            phase.blocks += b / u64::from(self.opts.create.block_size);
+        }
+        Ok(phase)
+    }
+}
+
+/// `ops` as commits: one change each, or with `batch` all in one.
+fn commits(ops: &[Op], batch: bool) -> std::slice::Chunks<'_, Op> {
+    ops.chunks(if batch { ops.len().max(1) } else { 1 })
+}
+
+/// The mktree side: a file through a counting device, and the objects it
+/// should hold after the changes so far.
+struct MktreeFile {
+    /// The file's device, whose counts give each commit's blocks and syncs.
+    dev: Arc<CountingDevice<FileDevice>>,
+    /// The database on `dev`.
+    db: Database,
+    /// The objects by key, for the fresh load to compare with.
+    model: BTreeMap<Key, Object>,
+}
+
+impl MktreeFile {
+    /// A new file at `path` (replacing any), bulk loaded with `keyed`.
+    fn load(
+        keyed: &Scene,
+        params: &BuildParams,
+        create: CreateOptions,
+        path: &Path,
+    ) -> Result<Self, BenchError> {
+        let _ = std::fs::remove_file(path);
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create_new(true)
+            .open(path)
+            .map_err(|source| BenchError::Io { what: path.display().to_string(), source })?;
+        let dev = Arc::new(CountingDevice::new(FileDevice::new(file)));
+        let db = Database::create_on(dev.clone() as Arc<dyn BlockDevice>, create)?;
+        let mut w = db.begin_write()?;
+        w.bulk_load(keyed, params, &|_| {})?;
+        w.commit()?;
+        let model =
+            keyed.objects().iter().map(|o| (o.key.clone().unwrap_or(Key::Int(0)), o.clone())).collect();
+        Ok(MktreeFile { dev, db, model })
+    }
+
+    /// Times `ops`: one commit per change, or with `batch` one for all.
+    fn phase(&mut self, ops: &[Op], batch: bool) -> Result<Phase, BenchError> {
+        let mut phase = Phase::default();
+        for chunk in commits(ops, batch) {
+            let (bytes, counts) = (written_bytes(), self.dev.counts());
+            let started = Instant::now();
+            let mut w = self.db.begin_write()?;
+            for op in chunk {
+                mktree_apply(&mut w, &mut self.model, op)?;
             }
             let stats = w.commit_with_stats()?;
             phase.ms.push(started.elapsed().as_secs_f64() * 1e3);
-            let after = dev.counts();
+            let after = self.dev.counts();
             phase.bytes += written_bytes() - bytes;
             phase.blocks += after.writes - counts.writes;
             phase.syncs += after.syncs - counts.syncs;
             phase.in_place += usize::from(stats.in_place);
         }
         Ok(phase)
-    };
-    for (ops, name) in phases.iter().zip(names) {
-        let phase = run(ops, false, &mut model)?;
-        rows.push(phase.row("mktree", name, file_len(&path)));
     }
-    let phase = run(&mixed, true, &mut model)?;
-    rows.push(phase.row("mktree", &format!("mixed {}", mixed.len()), file_len(&path)));
 
-    // The changed file's reads against a fresh load of the same objects.
-    let fresh_path = dir.join("bench-changes-fresh.mkt");
-    let _ = std::fs::remove_file(&fresh_path);
-    let fresh = Database::create(&fresh_path, opts.create)?;
-    let now = Scene::new(model.iter().map(|(k, o)| o.clone().with_key(k.clone())).collect());
-    let mut w = fresh.begin_write()?;
-    w.bulk_load(&now, params, &|_| {})?;
-    w.commit()?;
-    let (changed, clean) = (db.begin_read()?, fresh.begin_read()?);
-    let mut reads = Vec::new();
-    for set in sets {
-        reads.push((set.label.clone(), run_boxes(&changed, &set.boxes)?, run_boxes(&clean, &set.boxes)?));
-    }
-    let file_blocks =
-        (changed.info().map_or(0, |i| i.file_blocks), clean.info().map_or(0, |i| i.file_blocks));
-    drop((changed, clean, fresh, db));
-    let _ = std::fs::remove_file(&fresh_path);
-    // The stream runs on the changed file, from two other processes.
-    let job = |engine, file: &Path| StreamJob {
-        engine,
-        role: StreamRole::Writer,
-        file: file.to_path_buf(),
-        keys: keyed.len() as u64,
-        commits: opts.singles,
-        extent: keyed.aabb(),
-        seed: opts.seed,
-        stop: PathBuf::new(),
-    };
-    let mut streams = Vec::new();
-    if let Some(exe) = &opts.worker {
-        streams.push(stream(exe, "mktree", job(StreamEngine::Mktree, &path))?);
-    }
-    let _ = std::fs::remove_file(&path);
-
-    // SQLite, with a write-ahead log and with its rollback journal.
-    for (engine, journal) in [("sqlite-wal", "WAL"), ("sqlite-rollback", "DELETE")] {
-        let path = dir.join(format!("bench-changes-{engine}.sqlite"));
-        for suffix in ["", "-wal", "-shm", "-journal"] {
-            let _ = std::fs::remove_file(format!("{}{suffix}", path.display()));
+    /// The changed file's reads of each set's boxes against a fresh load of
+    /// the same objects (in `dir`, removed afterwards), and both files' blocks.
+    fn against_fresh(
+        self,
+        params: &BuildParams,
+        sets: &[QuerySet],
+        create: CreateOptions,
+        dir: &Path,
+    ) -> Result<AgainstFresh, BenchError> {
+        let MktreeFile { db, model, .. } = self;
+        let fresh_path = dir.join("bench-changes-fresh.mkt");
+        let _ = std::fs::remove_file(&fresh_path);
+        let fresh = Database::create(&fresh_path, create)?;
+        let now = Scene::new(model.iter().map(|(k, o)| o.clone().with_key(k.clone())).collect());
+        let mut w = fresh.begin_write()?;
+        w.bulk_load(&now, params, &|_| {})?;
+        w.commit()?;
+        let (changed, clean) = (db.begin_read()?, fresh.begin_read()?);
+        let mut reads = Vec::new();
+        for set in sets {
+            reads.push((set.label.clone(), run_boxes(&changed, &set.boxes)?, run_boxes(&clean, &set.boxes)?));
         }
-        let conn = sqlite_load(&keyed, &path, opts.create.block_size, journal)?;
-        let size = |p: &Path| -> u64 {
-            ["", "-wal"]
-                .iter()
-                .filter_map(|s| std::fs::metadata(format!("{}{s}", p.display())).ok())
-                .map(|m| m.len())
-                .sum()
-        };
-        let rows_of = |ops: &[Op], batch: bool| -> Result<Phase, BenchError> {
-            let mut phase = Phase::default();
-            for chunk in ops.chunks(if batch { ops.len().max(1) } else { 1 }) {
-                let bytes = written_bytes();
-                let started = Instant::now();
-                conn.execute_batch("BEGIN")?;
-                for op in chunk {
-                    sqlite_apply(&conn, &keyed, op)?;
-                }
-                conn.execute_batch("COMMIT")?;
-                phase.ms.push(started.elapsed().as_secs_f64() * 1e3);
-                let b = written_bytes() - bytes;
-                phase.bytes += b;
-                phase.blocks += b / u64::from(opts.create.block_size);
+        let file_blocks =
+            (changed.info().map_or(0, |i| i.file_blocks), clean.info().map_or(0, |i| i.file_blocks));
+        drop((changed, clean, fresh, db));
+        let _ = std::fs::remove_file(&fresh_path);
+        Ok(AgainstFresh { reads, file_blocks })
+    }
+}
+
+/// The changed mktree file against a fresh load of its objects.
+struct AgainstFresh {
+    /// [`ChangesReport::reads`].
+    reads: Vec<(String, WorkloadStats, WorkloadStats)>,
+    /// [`ChangesReport::file_blocks`].
+    file_blocks: (u32, u32),
+}
+
+/// `op` in the write transaction `w`, and in `model` as well.
+fn mktree_apply(
+    w: &mut WriteTransaction<'_>,
+    model: &mut BTreeMap<Key, Object>,
+    op: &Op,
+) -> Result<(), BenchError> {
+    match op {
+        Op::Insert(k, o) => {
+            w.insert(o.clone().with_key(*k))?;
+            model.insert(Key::Int(*k), o.clone());
+        }
+        Op::Move(k, by) => {
+            w.move_by(&Key::Int(*k), *by)?;
+            if let Some(o) = model.get(&Key::Int(*k)).map(|o| moved(o, *by)) {
+                model.insert(Key::Int(*k), o);
             }
-            Ok(phase)
-        };
-        for (ops, name) in phases.iter().zip(names) {
-            let phase = rows_of(ops, false)?;
-            rows.push(phase.row(engine, name, size(&path)));
         }
-        let phase = rows_of(&mixed, true)?;
-        rows.push(phase.row(engine, &format!("mixed {}", mixed.len()), size(&path)));
-        drop(conn);
-        if let Some(exe) = &opts.worker {
-            streams.push(stream(exe, engine, job(StreamEngine::Sqlite, &path))?);
-        }
-        for suffix in ["", "-wal", "-shm", "-journal"] {
-            let _ = std::fs::remove_file(format!("{}{suffix}", path.display()));
+        Op::Remove(k) => {
+            w.remove(&Key::Int(*k))?;
+            model.remove(&Key::Int(*k));
         }
     }
-    Ok(ChangesReport { objects: scene.len(), rows, reads, file_blocks, streams })
+    Ok(())
+}
+
+/// A SQLite file's bytes with its write-ahead log.
+fn sqlite_len(path: &Path) -> u64 {
+    ["", "-wal"]
+        .iter()
+        .filter_map(|s| std::fs::metadata(format!("{}{s}", path.display())).ok())
+        .map(|m| m.len())
+        .sum()
+}
+
+/// Removes a SQLite file and any log, shared memory or journal beside it.
+fn remove_sqlite_files(path: &Path) {
+    for suffix in ["", "-wal", "-shm", "-journal"] {
+        let _ = std::fs::remove_file(format!("{}{suffix}", path.display()));
+    }
 }
 
 /// A new SQLite file of `scene`: the R*Tree of boxes and the blob table,

@@ -5,11 +5,11 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use anyhow::{Context, Result, bail};
-use mktree::db::{Database, Piece, ReadTransaction};
+use mktree::db::{Database, GroupSummary, LodInfo, Piece, ReadTransaction, TreeInfo};
 use mktree::query::level_benefit;
 use mktree::scene::{Mesh, ObjWriter, Object};
 use mktree::store::ReadStats;
-use serde_json::json;
+use serde_json::{Value, json};
 
 use crate::output;
 
@@ -19,13 +19,45 @@ fn open(file: &Path) -> Result<(Database, ReadTransaction)> {
     Ok((db, r))
 }
 
+/// `mktree lods`: each level of detail as a row, then the group bounds.
 pub fn table(file: &Path, as_json: bool) -> Result<()> {
     let (_db, r) = open(file)?;
     let (Some(info), Some(tree)) = (r.lod_info(), r.info()) else {
         bail!("{} holds no tree", file.display())
     };
+    let levels = level_rows(&r, &info, &tree)?;
+    // The nodes' group bounds b(S_n,k) (format-spec/group.md), with the root's faces.
+    let groups = r.group_summary()?;
+    if as_json {
+        return output::json(
+            &json!({ "levels": levels, "query_extent": info.query_extent, "group": groups }),
+        );
+    }
+    print_levels(file, &info, &tree, &levels);
+    print_groups(&groups);
+    Ok(())
+}
+
+/// The keys of a level's row, in the order the table shows them.
+const LEVEL_KEYS: [&str; 11] = [
+    "k",
+    "faces_b",
+    "faces_B",
+    "eps",
+    "measured_error",
+    "bytes",
+    "blocks",
+    "stored",
+    "predicted_saving",
+    "predicted_cost",
+    "measured_saving",
+];
+
+/// One JSON row per level of detail: what it stores, what the read model
+/// predicted it saves and costs, and what it saves measured.
+fn level_rows(r: &ReadTransaction, info: &LodInfo, tree: &TreeInfo) -> Result<Vec<Value>> {
     // What each level saves, measured on the file's read model (64 queries per scale).
-    let benefit = level_benefit(&r, 64)?;
+    let benefit = level_benefit(r, 64)?;
     let measured = |k: usize| match (benefit.get(k.wrapping_sub(2)), benefit.get(k - 1)) {
         (Some(a), Some(b)) if k >= 2 => a.mean_reads - b.mean_reads,
         _ => 0.0,
@@ -55,13 +87,11 @@ pub fn table(file: &Path, as_json: bool) -> Result<()> {
             "measured_saving": measured(usize::from(k)),
         }));
     }
-    // The nodes' group bounds b(S_n,k) (format-spec/group.md), with the root's faces.
-    let groups = r.group_summary()?;
-    if as_json {
-        return output::json(
-            &json!({ "levels": levels, "query_extent": info.query_extent, "group": groups }),
-        );
-    }
+    Ok(levels)
+}
+
+/// The file's counts and query extent, then the levels' rows as a table.
+fn print_levels(file: &Path, info: &LodInfo, tree: &TreeInfo, levels: &[Value]) {
     println!(
         "{}: {} objects, {} triangles, M = {}; bounds judged on box queries of {:.0} x {:.0} x {:.0} mm",
         file.display(),
@@ -75,25 +105,13 @@ pub fn table(file: &Path, as_json: bool) -> Result<()> {
     let rows: Vec<Vec<String>> = levels
         .iter()
         .map(|l| {
-            [
-                "k",
-                "faces_b",
-                "faces_B",
-                "eps",
-                "measured_error",
-                "bytes",
-                "blocks",
-                "stored",
-                "predicted_saving",
-                "predicted_cost",
-                "measured_saving",
-            ]
-            .iter()
-            .map(|key| match &l[*key] {
-                serde_json::Value::Number(n) if n.is_f64() => format!("{:.2}", n.as_f64().unwrap_or(0.0)),
-                v => v.to_string(),
-            })
-            .collect()
+            LEVEL_KEYS
+                .iter()
+                .map(|key| match &l[*key] {
+                    Value::Number(n) if n.is_f64() => format!("{:.2}", n.as_f64().unwrap_or(0.0)),
+                    v => v.to_string(),
+                })
+                .collect()
         })
         .collect();
     output::table(
@@ -112,6 +130,10 @@ pub fn table(file: &Path, as_json: bool) -> Result<()> {
         ],
         &rows,
     );
+}
+
+/// The group bounds' totals, then per level what is stored and the root's bound.
+fn print_groups(groups: &GroupSummary) {
     println!(
         "group bounds b(S_n,k): {} group blocks ({} bytes of directory and blobs) over {} nodes",
         groups.blocks, groups.block_bytes, groups.nodes
@@ -135,7 +157,6 @@ pub fn table(file: &Path, as_json: bool) -> Result<()> {
         &["k", "nodes stored", "bytes", "root Faces(b(S,k))", "root triangles", "root eps mm"],
         &rows,
     );
-    Ok(())
 }
 
 pub fn node(file: &Path, id: u32, k: u8, objects: bool, export: Option<&Path>, as_json: bool) -> Result<()> {

@@ -39,8 +39,56 @@ use anyhow::Result;
 
 use crate::args::{Cli, Command};
 
+/// Runs the parsed subcommand through its group's dispatch.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
+        c @ (Command::Gen { .. }
+        | Command::Info { .. }
+        | Command::Stats { .. }
+        | Command::Dump { .. }
+        | Command::Sweep { .. }
+        | Command::Build { .. }
+        | Command::Verify { .. }) => scenes(c),
+        c @ (Command::Lods { .. }
+        | Command::Node { .. }
+        | Command::Query { .. }
+        | Command::Collide { .. }
+        | Command::Clash { .. }
+        | Command::ClashStatus { .. }
+        | Command::Get { .. }
+        | Command::Check { .. }) => reads(c),
+        c @ (Command::View { .. }
+        | Command::Export3dTiles { .. }
+        | Command::Serve { .. }
+        | Command::Render { .. }
+        | Command::Navigate { .. }) => views(c),
+        c @ (Command::Batch { .. }
+        | Command::Insert { .. }
+        | Command::Move { .. }
+        | Command::Remove { .. }
+        | Command::Compact { .. }
+        | Command::Optimize { .. }) => writes(c),
+        c @ (Command::Tradeoff { .. }
+        | Command::Demo { .. }
+        | Command::BenchQueries { .. }
+        | Command::BenchBuild(_)
+        | Command::BenchPeers(_)
+        | Command::BenchReplace(_)
+        | Command::BenchChanges(_)
+        | Command::BenchChangesWorker(_)
+        | Command::BenchView(_)
+        | Command::BenchImport { .. }) => benches(c),
+    }
+}
+
+/// A subcommand `run` sent to another group's dispatch: a bug in `run`.
+fn misrouted(command: &Command) -> ! {
+    unreachable!("run dispatched {command:?} to the wrong group")
+}
+
+/// Scenes: generate, describe, build into a file (or in memory) and verify.
+fn scenes(command: Command) -> Result<()> {
+    match command {
         Command::Gen { preset, objects, seed, output } => gen_info::generate(&preset, objects, seed, &output),
         Command::Info { scene, json, import } => gen_info::info(&scene, &import.options(), json),
         Command::Stats { input, build, json } => stats::run(&input, &build, json),
@@ -54,6 +102,13 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Verify { file, scene, queries, json, import } => {
             verify::run(&file, &scene, queries, &import.options(), json)
         }
+        other => misrouted(&other),
+    }
+}
+
+/// Reads of a file: its levels and nodes, queries, clashes, a key's object, its check.
+fn reads(command: Command) -> Result<()> {
+    match command {
         Command::Lods { file, json } => lods::table(&file, json),
         Command::Node { file, node, lod, objects, export, json } => {
             lods::node(&file, node, lod, objects, export.as_deref(), json)
@@ -78,9 +133,17 @@ pub fn run(cli: Cli) -> Result<()> {
             let pair = clash_status::Pair { a, b, kind, set, text };
             clash_status::run(&file, &test, &pair, store.as_deref(), json)
         }
-        Command::Batch { file, queries, max_line, commit_every, wait } => {
-            batch::run(&file, queries.as_deref(), max_line, commit_every, wait)
+        Command::Get { file, key, text, mesh, json } => {
+            get::run(&file, &crate::input::parse_key(&key, text)?, mesh, json)
         }
+        Command::Check { file, json } => check::run(&file, json),
+        other => misrouted(&other),
+    }
+}
+
+/// Views of a file: the view's cut, 3D Tiles and their server, pictures, a camera's path.
+fn views(command: Command) -> Result<()> {
+    match command {
         Command::View { file, view } => view::run(&file, &view),
         Command::Export3dTiles { file, out, json } => export_tiles::run(&file, &out, json),
         Command::Serve { tiles, port, vendor } => serve::run(&tiles, port, vendor.as_deref()),
@@ -114,15 +177,16 @@ pub fn run(cli: Cli) -> Result<()> {
                 None => navigate::run(&file, &path, cache_blocks, lens, lod, json),
             }
         }
-        Command::Tradeoff { files, queries, seed, out, json } => {
-            tradeoff::run(&files, queries, seed, &out, json)
+        other => misrouted(&other),
+    }
+}
+
+/// Changes to a file: a batch of requests, inserts, moves, removals, compaction, a new layout.
+fn writes(command: Command) -> Result<()> {
+    match command {
+        Command::Batch { file, queries, max_line, commit_every, wait } => {
+            batch::run(&file, queries.as_deref(), max_line, commit_every, wait)
         }
-        Command::Get { file, key, text, mesh, json } => {
-            get::run(&file, &crate::input::parse_key(&key, text)?, mesh, json)
-        }
-        Command::Check { file, json } => check::run(&file, json),
-        Command::Compact { file, wait, json } => compact::run(&file, wait, json),
-        Command::Optimize { file, wait, json } => optimize::run(&file, wait, json),
         Command::Insert { file, scene, key_names, json } => {
             insert::run_insert(&file, &scene, key_names, json)
         }
@@ -132,6 +196,18 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Remove { file, keys, text, wait, json } => {
             let keys = keys.iter().map(|k| crate::input::parse_key(k, text)).collect::<Result<Vec<_>>>()?;
             remove::run(&file, &keys, wait, json)
+        }
+        Command::Compact { file, wait, json } => compact::run(&file, wait, json),
+        Command::Optimize { file, wait, json } => optimize::run(&file, wait, json),
+        other => misrouted(&other),
+    }
+}
+
+/// Measurements: the benches, the tradeoff over levels, and the demo that runs them.
+fn benches(command: Command) -> Result<()> {
+    match command {
+        Command::Tradeoff { files, queries, seed, out, json } => {
+            tradeoff::run(&files, queries, seed, &out, json)
         }
         Command::Demo { dir } => demo::run(&dir),
         Command::BenchQueries { files, queries, shares, seed, json } => {
@@ -146,5 +222,6 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::BenchImport { files, repeat, json, import } => {
             bench_import::run(&files, repeat, &import, json)
         }
+        other => misrouted(&other),
     }
 }
