@@ -81,9 +81,10 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// A subcommand `run` sent to another group's dispatch: a bug in `run`.
-fn misrouted(command: &Command) -> ! {
-    unreachable!("run dispatched {command:?} to the wrong group")
+/// A subcommand `run` sent to another group's dispatch: a bug in `run`,
+/// reported as an error rather than a panic.
+fn misrouted(command: &Command) -> Result<()> {
+    anyhow::bail!("internal error: the dispatch sent {command:?} to the wrong group")
 }
 
 /// Scenes: generate, describe, build into a file (or in memory) and verify.
