@@ -32,14 +32,19 @@ pub fn table(header: &[&str], rows: &[Vec<String>]) {
             *w = (*w).max(c.len());
         }
     }
-    let line = |cells: Vec<String>| {
+    // One write for the whole table: stdout flushes at every line, and a
+    // clash run's table may have 10^5 rows.
+    let mut text = String::new();
+    let mut line = |cells: &[String]| {
         let s: Vec<String> = cells.iter().zip(&width).map(|(c, w)| format!("{c:>w$}")).collect();
-        println!("{}", s.join("  ").trim_end());
+        text.push_str(s.join("  ").trim_end());
+        text.push('\n');
     };
-    line(header.iter().map(|s| s.to_string()).collect());
+    line(&header.iter().map(|s| s.to_string()).collect::<Vec<_>>());
     for r in rows {
-        line(r.clone());
+        line(r);
     }
+    print!("{text}");
 }
 
 /// A progress bar per stage, with the time left (on stderr, hidden when

@@ -225,18 +225,20 @@ pub fn forge_keys(data: &[u8]) {
 
 /// A clash status store (format-spec/clash-store.md) from arbitrary bytes.
 /// The first byte chooses: even, the bytes after it are the whole file;
-/// odd, they are the JSON body in a valid envelope (right length and
-/// checksum), so mutations reach the body's parser and checks. A store
-/// that reads must write back to bytes that read as the same store.
+/// 1 modulo 4, they are a version 1 (JSON) body in a valid envelope (right
+/// length and checksum), 3 modulo 4 a version 2 (binary) body, so
+/// mutations reach each body's parser and checks. A store that reads must
+/// write back to bytes that read as the same store.
 pub fn clash_store(data: &[u8]) {
-    use mktree::clash::{ClashStore, HEADER_LEN, MAGIC, VERSION};
+    use mktree::clash::{ClashStore, HEADER_LEN, MAGIC, OLDEST_VERSION, VERSION};
     let Some((&mode, rest)) = data.split_first() else { return };
     let bytes = if mode % 2 == 0 {
         rest.to_vec()
     } else {
+        let version = if mode % 4 == 1 { OLDEST_VERSION } else { VERSION };
         let mut b = Vec::with_capacity(HEADER_LEN + rest.len());
         b.extend_from_slice(&MAGIC);
-        b.extend_from_slice(&VERSION.to_le_bytes());
+        b.extend_from_slice(&version.to_le_bytes());
         b.extend_from_slice(&0u32.to_le_bytes());
         b.extend_from_slice(&(rest.len() as u64).to_le_bytes());
         b.extend_from_slice(&crc32fast::hash(rest).to_le_bytes());

@@ -1,7 +1,8 @@
 //! The clash store (format-spec/clash-store.md): saved tests and the last
 //! recorded run of each, with statuses and each object's fingerprint, in a
 //! sidecar file beside the .mkt file (`FILE.mkt.clash`). A versioned,
-//! checksummed envelope around a JSON body; written whole to a new file,
+//! checksummed envelope around the body (`store_body.rs`; version 1's
+//! JSON body is still read); written whole to a new file,
 //! synced and renamed over the old one, so a crash leaves the old store
 //! or the new one. Reading bounds the size before it allocates, checks
 //! the envelope, the checksum and every field.
@@ -21,8 +22,11 @@ use crate::scene::Key;
 
 /// The envelope's first 8 bytes.
 pub const MAGIC: [u8; 8] = *b"MKTCLASH";
-/// The store version this build reads and writes.
-pub const VERSION: u32 = 1;
+/// The store version this build writes; it reads this and version 1
+/// (a JSON body), whose statuses a re-run then carries into version 2.
+pub const VERSION: u32 = 2;
+/// The oldest store version this build reads.
+pub const OLDEST_VERSION: u32 = 1;
 /// The envelope's length, bytes.
 pub const HEADER_LEN: usize = 32;
 /// The largest store read, bytes (1 GiB): larger is refused before any allocation.
@@ -94,18 +98,11 @@ pub fn store_path(file: &Path) -> PathBuf {
 }
 
 impl ClashStore {
-    /// The store's bytes: the envelope, then the JSON body.
+    /// The store's bytes: the envelope, then the body.
     pub fn to_bytes(&self) -> Result<Vec<u8>, ClashError> {
-        let body = serde_json::to_vec(self).map_err(|e| ClashError::Test(format!("the store: {e}")))?;
-        let mut out = Vec::with_capacity(HEADER_LEN + body.len());
-        out.extend_from_slice(&MAGIC);
-        out.extend_from_slice(&VERSION.to_le_bytes());
-        out.extend_from_slice(&0u32.to_le_bytes());
-        out.extend_from_slice(&(body.len() as u64).to_le_bytes());
-        out.extend_from_slice(&crc32fast::hash(&body).to_le_bytes());
-        out.extend_from_slice(&0u32.to_le_bytes());
-        out.extend_from_slice(&body);
-        Ok(out)
+        let body =
+            super::store_body::encode(self).map_err(|e| ClashError::Test(format!("the store: {e}")))?;
+        Ok(envelope(VERSION, &body))
     }
 
     /// A store from its bytes; any damage or forgery is an error naming it.
@@ -118,8 +115,10 @@ impl ClashStore {
         }
         let u32_at = |i: usize| u32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
         let version = u32_at(8);
-        if version != VERSION {
-            return Err(format!("version {version}; this build reads version {VERSION}"));
+        if !(OLDEST_VERSION..=VERSION).contains(&version) {
+            return Err(format!(
+                "version {version}; this build reads versions {OLDEST_VERSION} to {VERSION}"
+            ));
         }
         if u32_at(12) != 0 || u32_at(28) != 0 {
             return Err("reserved header bytes are not zero".into());
@@ -137,7 +136,10 @@ impl ClashStore {
         if crc32fast::hash(body) != u32_at(24) {
             return Err("checksum mismatch: the body is damaged".into());
         }
-        let store: ClashStore = serde_json::from_slice(body).map_err(|e| format!("body: {e}"))?;
+        let store: ClashStore = match version {
+            1 => serde_json::from_slice(body).map_err(|e| format!("body: {e}"))?,
+            _ => super::store_body::decode(body).map_err(|e| format!("body: {e}"))?,
+        };
         store.validate()?;
         Ok(store)
     }
@@ -199,6 +201,19 @@ impl ClashStore {
     }
 }
 
+/// The header of a store of `version` around `body`, then the body.
+fn envelope(version: u32, body: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(HEADER_LEN + body.len());
+    out.extend_from_slice(&MAGIC);
+    out.extend_from_slice(&version.to_le_bytes());
+    out.extend_from_slice(&0u32.to_le_bytes());
+    out.extend_from_slice(&(body.len() as u64).to_le_bytes());
+    out.extend_from_slice(&crc32fast::hash(body).to_le_bytes());
+    out.extend_from_slice(&0u32.to_le_bytes());
+    out.extend_from_slice(body);
+    out
+}
+
 /// A grouping as its text.
 mod group_text {
     use super::GroupBy;
@@ -243,6 +258,20 @@ mod tests {
         }
         assert!(ClashStore::from_bytes(&bytes[..bytes.len() - 1]).is_err());
         assert!(ClashStore::from_bytes(&bytes[..10]).is_err());
+    }
+
+    #[test]
+    fn a_version_1_store_reads_and_writes_back_as_version_2() {
+        let s = sample();
+        let v1 = envelope(1, &serde_json::to_vec(&s).unwrap());
+        assert_eq!(ClashStore::from_bytes(&v1).unwrap(), s);
+        let v2 = s.to_bytes().unwrap();
+        assert_eq!(u32::from_le_bytes(v2[8..12].try_into().unwrap()), VERSION);
+        assert_eq!(ClashStore::from_bytes(&v2).unwrap(), s);
+        for version in [0, VERSION + 1] {
+            let e = ClashStore::from_bytes(&envelope(version, &v2[HEADER_LEN..])).unwrap_err();
+            assert!(e.contains(&format!("version {version}")), "{e}");
+        }
     }
 
     #[test]
