@@ -173,6 +173,7 @@ pub(crate) fn unique_keys(mut keys: Vec<(Key, ObjectId)>) -> Result<(), KeyError
 
 /// Keys a scene cannot be stored with.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
 pub enum KeyError {
     /// Two objects share a key.
     #[error("objects {first} and {second} share the key {key}: keys are unique")]
