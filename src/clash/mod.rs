@@ -56,7 +56,6 @@ mod run;
 mod select;
 mod status;
 mod store;
-mod store_body;
 mod test;
 #[cfg(feature = "bcf")]
 mod zip;

@@ -7,9 +7,9 @@
 
 use std::collections::BTreeMap;
 
-use super::status::{Status, Tracked};
-use super::store::{ClashStore, Fingerprint, RecordedRun, SavedTest};
-use super::test::{Clash, ClashKind, ClashTest};
+use super::{ClashStore, Fingerprint, RecordedRun, SavedTest};
+use crate::clash::status::{Status, Tracked};
+use crate::clash::test::{Clash, ClashKind, ClashTest};
 use crate::geom::{Aabb, Point};
 use crate::scene::Key;
 

@@ -1,11 +1,13 @@
 //! The clash store (format-spec/clash-store.md): saved tests and the last
 //! recorded run of each, with statuses and each object's fingerprint, in a
 //! sidecar file beside the .mkt file (`FILE.mkt.clash`). A versioned,
-//! checksummed envelope around the body (`store_body.rs`; version 1's
+//! checksummed envelope around the body (`body.rs`; version 1's
 //! JSON body is still read); written whole to a new file,
 //! synced and renamed over the old one, so a crash leaves the old store
 //! or the new one. Reading bounds the size before it allocates, checks
 //! the envelope, the checksum and every field.
+
+mod body;
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -100,8 +102,7 @@ pub fn store_path(file: &Path) -> PathBuf {
 impl ClashStore {
     /// The store's bytes: the envelope, then the body.
     pub fn to_bytes(&self) -> Result<Vec<u8>, ClashError> {
-        let body =
-            super::store_body::encode(self).map_err(|e| ClashError::Test(format!("the store: {e}")))?;
+        let body = body::encode(self).map_err(|e| ClashError::Test(format!("the store: {e}")))?;
         Ok(envelope(VERSION, &body))
     }
 
@@ -138,7 +139,7 @@ impl ClashStore {
         }
         let store: ClashStore = match version {
             1 => serde_json::from_slice(body).map_err(|e| format!("body: {e}"))?,
-            _ => super::store_body::decode(body).map_err(|e| format!("body: {e}"))?,
+            _ => body::decode(body).map_err(|e| format!("body: {e}"))?,
         };
         store.validate()?;
         Ok(store)
