@@ -1,5 +1,6 @@
-//! A clash status store from arbitrary bytes: the whole file, or a JSON
-//! body in a valid envelope (format-spec/clash-store.md).
+//! A clash status store from arbitrary bytes: the whole file, or a
+//! version 1 (JSON) or version 2 (binary) body in a valid envelope
+//! (format-spec/clash-store.md).
 #![no_main]
 
 #[path = "../alloc_limit.rs"]
