@@ -59,10 +59,10 @@ pub enum Command {
     /// The grid of the paper's Tables 39-44: MOA and LAA over R and MemPage.
     Sweep {
         scene: PathBuf,
-        /// MemPage values (default: 10,20,30 below 1,000 objects, else 100,200,500).
+        /// MemPage values, comma-separated (default: 10,20,30 below 1,000 objects, else 100,200,500).
         #[arg(long, value_delimiter = ',')]
         pages: Option<Vec<u32>>,
-        /// R values.
+        /// R values, comma-separated.
         #[arg(long, value_delimiter = ',', default_values_t = vec![0.01, 0.2, 0.3])]
         rates: Vec<f64>,
         /// LAA's look-ahead level in the grid.
@@ -440,7 +440,7 @@ pub enum Command {
         files: Vec<PathBuf>,
         #[arg(long, default_value_t = 100)]
         queries: usize,
-        /// Box sides as shares of the scene extent.
+        /// Box sides as shares of the scene extent, comma-separated.
         #[arg(long, value_delimiter = ',', default_values_t = vec![0.01, 0.05, 0.2])]
         shares: Vec<f64>,
         #[arg(long, default_value_t = 0)]
@@ -578,7 +578,7 @@ pub struct LodArgs {
     /// triangles [default: 4]. A bound is stored only where it pays.
     #[arg(long)]
     pub lods: Option<u8>,
-    /// eps_k of the voxel levels 3 .. M-1 in mm, coarse to fine (default: from the median object's sides).
+    /// eps_k of the voxel levels 3 .. M-1 in mm, coarse to fine, comma-separated (default: from the median object's sides).
     #[arg(long, value_delimiter = ',')]
     pub lod_eps: Option<Vec<f64>>,
     /// Store every object's bound at every level below M, whether it pays or not.
@@ -622,7 +622,7 @@ pub struct BenchBuildArgs {
     /// R of MOA, LAA and refine's candidate cuts, in [0, 0.5].
     #[arg(long, default_value_t = 0.2)]
     pub rate: f64,
-    /// Methods to run (default: all; LAA with look-ahead max).
+    /// Methods to run, comma-separated (default: all; LAA with look-ahead max).
     #[arg(long, value_delimiter = ',')]
     pub methods: Option<Vec<Method>>,
     #[arg(long)]
@@ -881,10 +881,10 @@ pub struct BenchViewArgs {
     /// Blocks the pool holds.
     #[arg(long, default_value_t = 256)]
     pub cache_blocks: usize,
-    /// The tolerances τ to sweep, pixels.
+    /// The tolerances τ to sweep, pixels, comma-separated (`--taus 1,16`).
     #[arg(long, value_delimiter = ',', default_values_t = [0.0, 1.0, 4.0, 16.0, 64.0, 256.0])]
     pub taus: Vec<f64>,
-    /// The block budgets per frame to sweep (at τ = 1 px).
+    /// The block budgets per frame to sweep (at τ = 1 px), comma-separated (`--budgets 50,100`).
     #[arg(long, value_delimiter = ',', default_values_t = [25, 50, 100, 200, 400])]
     pub budgets: Vec<u64>,
     /// The viewport's height in pixels (its width is 1.5 times that).
