@@ -230,21 +230,12 @@ pub fn forge_keys(data: &[u8]) {
 /// mutations reach each body's parser and checks. A store that reads must
 /// write back to bytes that read as the same store.
 pub fn clash_store(data: &[u8]) {
-    use mktree::clash::{ClashStore, HEADER_LEN, MAGIC, OLDEST_VERSION, VERSION};
+    use mktree::clash::{ClashStore, OLDEST_VERSION, VERSION, envelope};
     let Some((&mode, rest)) = data.split_first() else { return };
     let bytes = if mode % 2 == 0 {
         rest.to_vec()
     } else {
-        let version = if mode % 4 == 1 { OLDEST_VERSION } else { VERSION };
-        let mut b = Vec::with_capacity(HEADER_LEN + rest.len());
-        b.extend_from_slice(&MAGIC);
-        b.extend_from_slice(&version.to_le_bytes());
-        b.extend_from_slice(&0u32.to_le_bytes());
-        b.extend_from_slice(&(rest.len() as u64).to_le_bytes());
-        b.extend_from_slice(&crc32fast::hash(rest).to_le_bytes());
-        b.extend_from_slice(&0u32.to_le_bytes());
-        b.extend_from_slice(rest);
-        b
+        envelope(if mode % 4 == 1 { OLDEST_VERSION } else { VERSION }, rest)
     };
     if let Ok(store) = ClashStore::from_bytes(&bytes) {
         let again = store.to_bytes().expect("a store that reads writes");

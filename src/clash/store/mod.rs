@@ -203,7 +203,7 @@ impl ClashStore {
 }
 
 /// The header of a store of `version` around `body`, then the body.
-fn envelope(version: u32, body: &[u8]) -> Vec<u8> {
+pub fn envelope(version: u32, body: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(HEADER_LEN + body.len());
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&version.to_le_bytes());
