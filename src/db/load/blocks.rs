@@ -3,17 +3,14 @@
 //! boxes in the chosen packing, each child entry's counts of the blocks
 //! below it, and the group bounds' blocks.
 
-use std::borrow::Cow;
-use std::collections::HashMap;
-
 use super::Sink;
 use super::plan::{Plan, object_ids};
 use super::read_model::choose_packing;
 use crate::bulk::{BuildError, Hierarchy, LoadProgress, NodeId, Order, Split, Stage, StageMeter};
 use crate::db::source::ObjectSource;
 use crate::geom::Aabb;
-use crate::lod::{GroupRule, Voxels, leaf_group, lift_group};
-use crate::scene::{Mesh, ObjectId};
+use crate::lod::GroupRule;
+use crate::scene::ObjectId;
 use crate::store::format::frame::{BlockType, FRAME_LEN};
 use crate::store::format::geometry;
 use crate::store::format::group::{self, GroupEntry};
@@ -88,7 +85,7 @@ pub(crate) fn write(
     }
     // The group bounds, each node block's in a group block of its own.
     let group_entries = match groups {
-        Some(rule) => group_entries(rule, objects, tree, plan, &packing, &offset, bs)?,
+        Some(rule) => super::groups::group_entries(rule, objects, tree, plan, &packing, &offset, bs)?,
         None => vec![Vec::new(); packing.blocks.len()],
     };
     let group_refs = write_groups(Sink { pager, txn, allocate }, &group_entries, &packing)?;
@@ -371,82 +368,6 @@ fn object_paths(tree: &Hierarchy, plan: &Plan, objects: usize) -> (Vec<TreePath>
     }
     split_boxes.sort_unstable_by_key(|&(id, _)| id);
     (paths, split_boxes)
-}
-
-/// Every node's group bounds b(S_n,k) (`lod/group.rs`), built bottom up
-/// over the boxes the records hold, and per node block the entries its
-/// group block holds: level by level, coarse first, and within a level in
-/// the block's record order (a piece's root first), each that still fits.
-fn group_entries(
-    rule: &GroupRule,
-    objects: &dyn ObjectSource,
-    tree: &Hierarchy,
-    plan: &Plan,
-    packing: &Packing,
-    offset: &[u32],
-    block_size: u32,
-) -> Result<Vec<Vec<GroupEntry>>, crate::Error> {
-    let nodes = &tree.nodes;
-    let levels: Vec<u8> = rule.group_levels().collect();
-    // Per node, per level: the encoded bound (None: not stored, the level
-    // answers as the coarser one, or the bound is empty).
-    let mut blobs: Vec<Vec<Option<Vec<u8>>>> = vec![Vec::new(); nodes.len()];
-    // The bounds of nodes whose parent is not built yet (preorder: children
-    // come after their parent, so walking ids down builds children first).
-    let mut held: HashMap<usize, Vec<Voxels>> = HashMap::new();
-    for i in (0..nodes.len()).rev() {
-        let mut mine: Vec<Voxels> = Vec::with_capacity(levels.len());
-        let kids: Option<Vec<Vec<Voxels>>> = nodes[i]
-            .children()
-            .map(|c| c.iter().map(|c| held.remove(&c.index()).unwrap_or_default()).collect());
-        let meshes: Vec<Cow<Mesh>> = match &kids {
-            Some(_) => Vec::new(),
-            None => (0..plan.entries[i].len())
-                .map(|j| plan.entry_mesh(objects, i, j))
-                .collect::<Result<_, _>>()?,
-        };
-        let mut out = Vec::with_capacity(levels.len());
-        let mut last_level = None;
-        for (li, &k) in levels.iter().enumerate() {
-            let grid = rule.grid(k, &plan.frames[i])?;
-            let lattice_level = grid.level();
-            let v = match &kids {
-                Some(kids) => lift_group(grid, kids.iter().filter_map(|k| k.get(li)))?,
-                None => leaf_group(grid, meshes.iter().map(|m| m.as_ref())),
-            };
-            // A level on the same grid as the coarser one holds the same bound.
-            let same = last_level == Some(lattice_level);
-            last_level = Some(lattice_level);
-            out.push((!same && !v.is_empty()).then(|| crate::lod::encode(&v)));
-            mine.push(v);
-        }
-        blobs[i] = out;
-        if i > 0 {
-            held.insert(i, mine);
-        }
-    }
-    let capacity = group::capacity(block_size);
-    let mut per_block = Vec::with_capacity(packing.blocks.len());
-    for members in &packing.blocks {
-        let mut chosen: Vec<GroupEntry> = Vec::new();
-        let mut used = group::entries_len(&[]);
-        for (li, &k) in levels.iter().enumerate() {
-            for &m in members {
-                let Some(Some(blob)) = blobs[m as usize].get_mut(li) else { continue };
-                if used + group::ENTRY_LEN + blob.len() <= capacity {
-                    used += group::ENTRY_LEN + blob.len();
-                    chosen.push(GroupEntry {
-                        record: offset[m as usize],
-                        level: k,
-                        blob: std::mem::take(blob),
-                    });
-                }
-            }
-        }
-        chosen.sort_by_key(|e| (e.record, e.level));
-        per_block.push(chosen);
-    }
-    Ok(per_block)
 }
 
 /// A node's split as its record stores it.

@@ -5,7 +5,7 @@
 //!    (chosen by the read model of `read_model.rs`);
 //! 2. `bounds.rs`: which levels of detail pay to store (format-spec/lod.md);
 //! 3. `blocks.rs`: geometry, node and group blocks (format-spec/node.md,
-//!    geometry.md, group.md);
+//!    geometry.md, group.md), with the group bounds built by `groups.rs`;
 //! 4. the key index, bottom up (`keys.rs`, format-spec/keys.md);
 //! 5. `meta.rs`: the meta block's fields (format-spec/meta.md).
 //!
@@ -15,6 +15,7 @@
 
 mod blocks;
 mod bounds;
+mod groups;
 mod keys;
 mod meta;
 mod plan;

@@ -1,0 +1,185 @@
+//! The group bounds b(S_n,k) of a bulk load (paper §1.4-1.5, `lod/group.rs`,
+//! format-spec/group.md): every node's, built bottom up over the boxes the
+//! records hold, and per node block the entries its group block holds.
+//!
+//! Subtrees build in parallel: a node's bounds need only its children's,
+//! so the two halves of a large subtree are independent. Below
+//! [`PARALLEL_NODES`] nodes, or [`PARALLEL_DEPTH`] joins deep, a subtree
+//! builds on one thread, children first, holding only the bounds of nodes
+//! whose parent is not built yet.
+
+use std::borrow::Cow;
+use std::collections::HashMap;
+use std::sync::OnceLock;
+
+use super::plan::Plan;
+use crate::bulk::Hierarchy;
+use crate::db::source::ObjectSource;
+use crate::lod::{GroupRule, Voxels, leaf_group, lift_group};
+use crate::scene::Mesh;
+use crate::store::format::group::{self, GroupEntry};
+use crate::store::layout::Packing;
+
+/// A subtree of at least this many nodes builds its two halves in parallel.
+const PARALLEL_NODES: usize = 2048;
+
+/// At most this many joins deep (a skewed tree would otherwise recurse once
+/// per node).
+const PARALLEL_DEPTH: u32 = 12;
+
+/// Per node block of `packing`, the group entries its group block holds:
+/// level by level, coarse first, and within a level in the block's record
+/// order (a piece's root first), each that still fits; sorted by record
+/// and level.
+pub(super) fn group_entries(
+    rule: &GroupRule,
+    objects: &dyn ObjectSource,
+    tree: &Hierarchy,
+    plan: &Plan,
+    packing: &Packing,
+    offset: &[u32],
+    block_size: u32,
+) -> Result<Vec<Vec<GroupEntry>>, crate::Error> {
+    let levels: Vec<u8> = rule.group_levels().collect();
+    let build =
+        Build { rule, objects, tree, plan, levels: &levels, ends: subtree_ends(tree), blobs: Vec::new() };
+    let build = Build { blobs: (0..tree.nodes.len()).map(|_| OnceLock::new()).collect(), ..build };
+    if !tree.nodes.is_empty() {
+        build.subtree(0, 0)?;
+    }
+    let mut blobs: Vec<Vec<Option<Vec<u8>>>> =
+        build.blobs.into_iter().map(|b| b.into_inner().unwrap_or_default()).collect();
+    let capacity = group::capacity(block_size);
+    let mut per_block = Vec::with_capacity(packing.blocks.len());
+    for members in &packing.blocks {
+        let mut chosen: Vec<GroupEntry> = Vec::new();
+        let mut used = group::entries_len(&[]);
+        for (li, &k) in levels.iter().enumerate() {
+            for &m in members {
+                let Some(Some(blob)) = blobs[m as usize].get_mut(li) else { continue };
+                if used + group::ENTRY_LEN + blob.len() <= capacity {
+                    used += group::ENTRY_LEN + blob.len();
+                    chosen.push(GroupEntry {
+                        record: offset[m as usize],
+                        level: k,
+                        blob: std::mem::take(blob),
+                    });
+                }
+            }
+        }
+        chosen.sort_by_key(|e| (e.record, e.level));
+        per_block.push(chosen);
+    }
+    Ok(per_block)
+}
+
+/// Per node (preorder ids, so a subtree is a range of ids), one past the
+/// last id of its subtree.
+fn subtree_ends(tree: &Hierarchy) -> Vec<usize> {
+    let mut ends = vec![0; tree.nodes.len()];
+    for i in (0..tree.nodes.len()).rev() {
+        ends[i] = match tree.nodes[i].children() {
+            Some(kids) => {
+                kids.iter().map(|c| ends.get(c.index()).copied().unwrap_or(0)).fold(i + 1, usize::max)
+            }
+            None => i + 1,
+        };
+    }
+    ends
+}
+
+/// One load's group bounds in the making.
+struct Build<'a> {
+    rule: &'a GroupRule,
+    objects: &'a dyn ObjectSource,
+    tree: &'a Hierarchy,
+    plan: &'a Plan,
+    levels: &'a [u8],
+    ends: Vec<usize>,
+    /// Per node, per level: the encoded bound (None: not stored, the level
+    /// answers as the coarser one, or the bound is empty).
+    blobs: Vec<OnceLock<Vec<Option<Vec<u8>>>>>,
+}
+
+impl Build<'_> {
+    /// Builds the bounds of node `top`'s subtree; returns `top`'s per level.
+    fn subtree(&self, top: usize, depth: u32) -> Result<Vec<Voxels>, crate::Error> {
+        match self.tree.nodes[top].children() {
+            Some([a, b]) if self.ends[top] - top >= PARALLEL_NODES && depth < PARALLEL_DEPTH => {
+                let (a, b) =
+                    rayon::join(|| self.subtree(a.index(), depth + 1), || self.subtree(b.index(), depth + 1));
+                self.node(top, Some(vec![a?, b?]))
+            }
+            _ => self.in_order(top),
+        }
+    }
+
+    /// Builds node `top`'s subtree on this thread, children first.
+    fn in_order(&self, top: usize) -> Result<Vec<Voxels>, crate::Error> {
+        // Preorder: children come after their parent, so walking ids down
+        // builds children first.
+        let mut held: HashMap<usize, Vec<Voxels>> = HashMap::new();
+        for i in (top + 1..self.ends[top]).rev() {
+            let kids = self.held_children(i, &mut held);
+            held.insert(i, self.node(i, kids)?);
+        }
+        let kids = self.held_children(top, &mut held);
+        self.node(top, kids)
+    }
+
+    fn held_children(&self, i: usize, held: &mut HashMap<usize, Vec<Voxels>>) -> Option<Vec<Vec<Voxels>>> {
+        self.tree.nodes[i]
+            .children()
+            .map(|c| c.iter().map(|c| held.remove(&c.index()).unwrap_or_default()).collect())
+    }
+
+    /// Node `i`'s bounds per level: a leaf's from its objects' surfaces, an
+    /// internal node's lifted from its children's (`kids`). Records the
+    /// encoded ones and returns them all.
+    fn node(&self, i: usize, kids: Option<Vec<Vec<Voxels>>>) -> Result<Vec<Voxels>, crate::Error> {
+        let grids = self
+            .levels
+            .iter()
+            .map(|&k| self.rule.grid(k, &self.plan.frames[i]))
+            .collect::<Result<Vec<_>, _>>()?;
+        let mine = match &kids {
+            Some(kids) => grids
+                .iter()
+                .enumerate()
+                .map(|(li, grid)| lift_group(grid.clone(), kids.iter().filter_map(|k| k.get(li))))
+                .collect::<Result<Vec<_>, _>>()?,
+            None => {
+                // Voxelizing is the build's cost; a leaf voxelizes its meshes
+                // once, on its finest level's grid, and lifts each coarser
+                // level from the next finer one (levels nest on one lattice).
+                let meshes: Vec<Cow<Mesh>> = (0..self.plan.entries[i].len())
+                    .map(|j| self.plan.entry_mesh(self.objects, i, j))
+                    .collect::<Result<_, _>>()?;
+                let mut fine_first: Vec<Voxels> = Vec::with_capacity(grids.len());
+                for grid in grids.iter().rev() {
+                    let v = match fine_first.last() {
+                        Some(finer) => lift_group(grid.clone(), [finer])?,
+                        None => leaf_group(grid.clone(), meshes.iter().map(|m| m.as_ref())),
+                    };
+                    fine_first.push(v);
+                }
+                fine_first.reverse();
+                fine_first
+            }
+        };
+        let mut last_level = None;
+        let out = grids
+            .iter()
+            .zip(&mine)
+            .map(|(grid, v)| {
+                // A level on the same grid as the coarser one holds the same bound.
+                let same = last_level == Some(grid.level());
+                last_level = Some(grid.level());
+                (!same && !v.is_empty()).then(|| crate::lod::encode(v))
+            })
+            .collect();
+        // Each node is built once: by its own subtree's call.
+        let _ = self.blobs[i].set(out);
+        Ok(mine)
+    }
+}
