@@ -289,6 +289,27 @@ fn a_budgeted_cut_fits_covers_everything_and_a_budget_that_suffices_changes_noth
     assert_eq!(enough.stats.reads.total(), need);
 }
 
+/// Refining a group bound reads the children's records and then their
+/// group blocks; a budget that paid for the first but not the second would
+/// show a child by its box, coarser than the bound it replaced, so a larger
+/// budget could show a larger error (ship 10^6 at 50 reads did, before the
+/// refinement reserved both).
+#[test]
+fn a_larger_budget_never_shows_a_larger_error() {
+    let scene = generate_scene(&GenOptions { preset: Preset::Tanker1, objects: None, seed: 4 }).unwrap();
+    let db = lod_db(&scene, 4, 4096, 10, LodParams::default());
+    let r = db.begin_read().unwrap();
+    for view in views_of(&scene.aabb()) {
+        let need = r.view(&view, &shapes(1.0, Some(u64::MAX)), None).unwrap().stats.reads.total();
+        let errors: Vec<f64> = (0..=need)
+            .map(|budget| r.view(&view, &shapes(1.0, Some(budget)), None).unwrap().max_error_px)
+            .collect();
+        let rises: Vec<(usize, f64, f64)> =
+            errors.windows(2).enumerate().filter(|(_, w)| w[1] > w[0]).map(|(b, w)| (b + 1, w[0], w[1])).collect();
+        assert!(rises.is_empty(), "budget, error before, error at that budget: {rises:?} of {need} reads");
+    }
+}
+
 #[test]
 fn a_walk_with_a_tolerance_reads_less_than_exact_and_its_pool_saves_reads() {
     let scene = generate_scene(&GenOptions { preset: Preset::Tanker1, objects: None, seed: 5 }).unwrap();

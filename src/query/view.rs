@@ -7,17 +7,20 @@
 //! geometry read, and with a block budget the largest error is refined
 //! first and what the budget leaves stands in at the level reached.
 //!
-//! What a level is in this file (format-spec/lod.md): level 1 is a box (a
-//! node's, held by its parent's entry; an object's, in its leaf record),
-//! levels 2 .. M-1 are voxel bounds B(o,k) stored inline in leaf records,
-//! and only for the objects where they pay, and level M is the exact
-//! geometry. No group bound b(S_n,k) above level 1 is stored (gathering one
-//! reads every node block of the subtree, which the descent reads anyway),
-//! so the cut holds:
+//! What a level is in this file (format-spec/lod.md, group.md): level 1 is
+//! a box (a node's, held by its parent's entry; an object's, in its leaf
+//! record), levels 2 .. M-1 are voxel bounds, and level M is the exact
+//! geometry. The cut holds:
 //!
 //! - a node at level 1, b(S_n,1): its box, read from its parent (no read of
 //!   its own); its error is the box's diagonal, which bounds both ways the
 //!   distance between the box and the objects inside it;
+//! - a node at a level k < M by its group bound b(S_n,k), where the file
+//!   stores one (`tree/group.rs`): the coarsest within τ settles the node,
+//!   and with a budget a node is shown by its finest and refined from there
+//!   only while the budget pays for its children's records and their group
+//!   bounds together: a child the budget left unread would be shown by its
+//!   box, coarser than the bound it replaced;
 //! - a leaf's visible objects at level k < M, B(S_n,k): each by its finest
 //!   bound stored up to k, its voxel set (error: the largest cell's
 //!   diagonal grown by the voxelization tolerance, lod.md) or else its box

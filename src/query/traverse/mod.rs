@@ -173,6 +173,11 @@ pub struct Select<'a, S> {
     /// Stand-ins: how the file's group bounds are gridded (their errors
     /// are known from a record's box before its bound is read).
     groups: Option<crate::lod::GroupRule>,
+    /// Set while a group bound is refined: its children's records are read
+    /// next, with the budget its cost reserved for them. A child the budget
+    /// left unread would be shown by its box, coarser than the bound it
+    /// replaced, and a larger budget could show a larger error.
+    refining: bool,
 }
 
 impl<'a, S: Selection> Select<'a, S> {
@@ -241,6 +246,7 @@ impl<'a, S: Selection> Select<'a, S> {
             started: Instant::now(),
             rest: None,
             groups: None,
+            refining: false,
         };
         if s.sel.tolerance().is_some() {
             s.groups = txn.group_rule();
@@ -369,7 +375,7 @@ impl<'a, S: Selection> Select<'a, S> {
             let waiting = self.deferred.len();
             let mut still = Vec::new();
             for q in std::mem::take(&mut self.deferred) {
-                if self.over_budget(self.cost(&q.step)?) {
+                if self.over_budget(self.cost(&q.step)? + self.reserve(&q.step)?) {
                     still.push(q);
                 } else {
                     self.heap.push(q);
@@ -384,7 +390,7 @@ impl<'a, S: Selection> Select<'a, S> {
         if self.settled(&q.step)? {
             return Ok(());
         }
-        if self.budget.is_some() && self.over_budget(self.cost(&q.step)?) {
+        if self.budget.is_some() && self.over_budget(self.cost(&q.step)? + self.reserve(&q.step)?) {
             self.deferred.push(q);
             return Ok(());
         }
@@ -525,10 +531,7 @@ impl<'a, S: Selection> Select<'a, S> {
                     if self.children_error(block, &n, frame)? <= shown {
                         0
                     } else {
-                        (0..2)
-                            .map(|i| n.child_ref(i).block)
-                            .filter(|&b| b != 0 && !self.reads.holds(b))
-                            .count() as u64
+                        self.child_blocks(&n, frame)
                     }
                 }
                 NodeView::Leaf(leaf) => {
@@ -553,6 +556,34 @@ impl<'a, S: Selection> Select<'a, S> {
                     .filter(|b| !self.reads.holds(first.saturating_add(*b as u32)))
                     .count() as u64
             }
+        })
+    }
+
+    /// The child blocks not held of an internal record's children that may
+    /// meet the query (what refining the record reads).
+    fn child_blocks(&self, n: &InternalView, frame: &Aabb) -> u64 {
+        let mut blocks: Vec<u32> = (0..2)
+            .filter(|&i| n.child_box(i, frame).is_some_and(|qb| self.sel.may_meet_box(&qb.outer)))
+            .map(|i| n.child_ref(i).block)
+            .filter(|&b| b != 0 && !self.reads.holds(b))
+            .collect();
+        blocks.dedup();
+        blocks.len() as u64
+    }
+
+    /// What a step must leave of the budget besides its own cost: refining
+    /// an internal record's group bound reads its children's records, and
+    /// then each child block's group block (at most one each, counted
+    /// unread), which shows the children by their own bounds. A child the
+    /// budget left without its bound would be shown by its box, coarser
+    /// than the bound it replaced.
+    fn reserve(&self, step: &Step) -> Result<u64, StorageError> {
+        if self.groups.is_none() {
+            return Ok(0);
+        }
+        Ok(match step {
+            Step::Group { .. } => self.cost(step)?,
+            _ => 0,
         })
     }
 
@@ -626,6 +657,7 @@ impl<'a, S: Selection> Select<'a, S> {
             // hand cost nothing.
             (None, Some(_)) if self.sel.tolerance().is_some() => {
                 let error = match &step {
+                    Step::Unread { .. } if self.refining => f64::INFINITY,
                     Step::Unread { frame, .. } => self.sel.stand_in_error(frame, frame.extent().norm()),
                     Step::Exact { part, eps, .. } => self.sel.stand_in_error(part, *eps),
                     Step::Group { frame, eps, .. } => self.sel.stand_in_error(frame, *eps),

@@ -45,7 +45,12 @@ impl<S: Selection> Select<'_, S> {
                 }
                 self.node(block, offset, frame, inside)
             }
-            Step::Group { block, offset, frame, .. } => self.node(block, offset, frame, false),
+            Step::Group { block, offset, frame, .. } => {
+                self.refining = true;
+                let done = self.node(block, offset, frame, false);
+                self.refining = false;
+                done
+            }
             Step::Exact { block, offset, index, part, whole, key, .. } => {
                 let NodeView::Leaf(leaf) = view(&block, offset)? else { return Ok(()) };
                 let Some(o) = leaf.object(index) else { return Ok(()) };
