@@ -304,8 +304,12 @@ fn a_larger_budget_never_shows_a_larger_error() {
         let errors: Vec<f64> = (0..=need)
             .map(|budget| r.view(&view, &shapes(1.0, Some(budget)), None).unwrap().max_error_px)
             .collect();
-        let rises: Vec<(usize, f64, f64)> =
-            errors.windows(2).enumerate().filter(|(_, w)| w[1] > w[0]).map(|(b, w)| (b + 1, w[0], w[1])).collect();
+        let rises: Vec<(usize, f64, f64)> = errors
+            .windows(2)
+            .enumerate()
+            .filter(|(_, w)| w[1] > w[0])
+            .map(|(b, w)| (b + 1, w[0], w[1]))
+            .collect();
         assert!(rises.is_empty(), "budget, error before, error at that budget: {rises:?} of {need} reads");
     }
 }

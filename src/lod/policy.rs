@@ -32,7 +32,7 @@ use std::collections::HashMap;
 use rayon::prelude::*;
 
 use super::compact::{aligned_grid, decode, encode};
-use super::{ErrorProbe, Grid, Lattice, LodError, LodParams, LodPlan, Voxels};
+use super::{ErrorProbe, Grid, GroupRule, Lattice, LodError, LodParams, LodPlan, Voxels};
 use crate::bulk::{Hierarchy, LoadProgress, QueryMix, Stage, StageMeter};
 use crate::geom::Aabb;
 use crate::scene::Mesh;
@@ -239,9 +239,18 @@ struct Picked {
     worth: Worth,
 }
 
+/// Per node, for a leaf: its entries' surfaces on the grid of its finest
+/// group level (`GroupRule`), as encoded voxel blobs (lod.md), one per
+/// geometry block of the leaf, whose union is the leaf's; what its group
+/// bounds are built from (`db/load/groups.rs`).
+pub type LeafShells = Vec<Vec<Vec<u8>>>;
+
 /// Decides and encodes the bounds of `tree` for M = `m` levels on the
 /// grids of `plan` (`None` when M < 3: no level between the box and the
-/// exact geometry), judged on `mix` over `layout`.
+/// exact geometry), judged on `mix` over `layout`. With `group`, also each
+/// leaf's shell for its group bounds, lifted from the entries' candidates
+/// (each entry's surfaces are voxelized once for both).
+#[allow(clippy::too_many_arguments)]
 pub fn plan_bounds(
     plan: Option<&LodPlan>,
     tree: &Hierarchy,
@@ -249,8 +258,9 @@ pub fn plan_bounds(
     params: &LodParams,
     mix: &QueryMix,
     layout: &Layout,
+    group: Option<&GroupRule>,
     progress: &(dyn Fn(LoadProgress) + Sync),
-) -> Result<StoredBounds, LodError> {
+) -> Result<(StoredBounds, LeafShells), LodError> {
     let levels = usize::from(m);
     let mut out = StoredBounds {
         bounds: vec![Vec::new(); tree.nodes.len()],
@@ -262,12 +272,14 @@ pub fn plan_bounds(
         predicted: vec![[0.0; 2]; levels],
         worth: vec![Vec::new(); tree.nodes.len()],
     };
+    let mut shells: LeafShells = vec![Vec::new(); tree.nodes.len()];
     let Some(plan) = plan.filter(|_| m >= 3) else {
-        return Ok(out);
+        return Ok((out, shells));
     };
     out.grid_level = plan.grid_level.clone();
     out.lattice = Some(plan.lattice);
     let ctx = Ctx { plan, params, layout };
+    let rule = group;
     // Entries by the geometry block they start in: runs in leaf order.
     let mut groups: Vec<Vec<(usize, usize)>> = Vec::new();
     let mut block = None;
@@ -283,7 +295,8 @@ pub fn plan_bounds(
     let node_capacity = capacity(layout.block_size) as f64;
     // Block by block: its entries' candidates, level by level, judged
     // together; only the chosen ones outlive their block.
-    let picked: Vec<Vec<(usize, u16, Picked)>> = {
+    type Block = (Vec<(usize, u16, Picked)>, Option<(usize, Vec<u8>)>);
+    let picked: Vec<Block> = {
         let meter = StageMeter::new(progress, Stage::Levels, groups.len() as u64);
         groups
             .par_iter()
@@ -291,8 +304,12 @@ pub fn plan_bounds(
                 meter.add(1);
                 let mut cands: Vec<Vec<Candidate>> =
                     group.iter().map(|&(i, j)| ctx.candidates(m, i, j)).collect::<Result<_, LodError>>()?;
+                let shell = match rule {
+                    Some(rule) => ctx.shell(rule, group, &cands)?,
+                    None => None,
+                };
                 let judged = judge(group, &cands, layout, mix, params, m, node_capacity);
-                Ok(judged
+                let picked = judged
                     .into_iter()
                     .filter_map(|(x, k, saving, cost, value)| {
                         let list = &mut cands[x];
@@ -301,14 +318,20 @@ pub fn plan_bounds(
                         let worth = Worth { value, saving, cost, eps };
                         Some((group[x].0, group[x].1 as u16, Picked { level: k, blob: c.blob, worth }))
                     })
-                    .collect())
+                    .collect();
+                Ok((picked, shell))
             })
             .collect::<Result<_, LodError>>()?
     };
     let mut chosen: Vec<(usize, Vec<(u16, Picked)>)> = Vec::new();
     let mut by_leaf: HashMap<usize, Vec<(u16, Picked)>> = HashMap::new();
-    for (i, j, c) in picked.into_iter().flatten() {
-        by_leaf.entry(i).or_default().push((j, c));
+    for (list, shell) in picked {
+        for (i, j, c) in list {
+            by_leaf.entry(i).or_default().push((j, c));
+        }
+        if let Some((i, blob)) = shell {
+            shells[i].push(blob);
+        }
     }
     for (i, mut list) in by_leaf {
         list.sort_by_key(|(j, c)| (*j, c.level));
@@ -320,7 +343,7 @@ pub fn plan_bounds(
             out.push(i, BoundEntry { target: j, level: c.level, blob: c.blob }, c.worth);
         }
     }
-    Ok(out)
+    Ok((out, shells))
 }
 
 impl Candidate {
@@ -336,6 +359,32 @@ struct Ctx<'a, 'm> {
 }
 
 impl Ctx<'_, '_> {
+    /// The surfaces of one geometry block's entries `group` (all of one
+    /// leaf) on their leaf's finest group grid, encoded: each entry's
+    /// finest candidate lifted (levels nest on one lattice, and a lifted
+    /// cell holds a cell that touches the surface), or, where none lifts
+    /// (no candidate, or one coarser than the grid), its mesh voxelized.
+    fn shell(
+        &self,
+        rule: &GroupRule,
+        group: &[(usize, usize)],
+        cands: &[Vec<Candidate>],
+    ) -> Result<Option<(usize, Vec<u8>)>, LodError> {
+        let (Some(&(leaf, _)), Some(k)) = (group.first(), rule.group_levels().last()) else {
+            return Ok(None);
+        };
+        let grid = rule.grid(k, &self.layout.frames[leaf])?;
+        let mut shell = Voxels::empty(grid.clone());
+        for (&(i, j), list) in group.iter().zip(cands) {
+            // `lift_into` checks the nesting before it sets a cell.
+            if list.last().is_none_or(|c| c.voxels.lift_into(&mut shell).is_err()) {
+                let mesh = (self.layout.mesh)(i, j)?;
+                Voxels::of_surfaces(grid.clone(), [&*mesh]).lift_into(&mut shell)?;
+            }
+        }
+        Ok(Some((leaf, encode(&shell))))
+    }
+
     /// Entry `e` of leaf `i` bounded at levels 2 .. M-1, each `None` when
     /// its grid is too large or its blob too long for an inline bound. A
     /// level on the same grid as the level before is the same bound: it is

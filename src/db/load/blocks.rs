@@ -9,7 +9,7 @@ use super::read_model::choose_packing;
 use crate::bulk::{BuildError, Hierarchy, LoadProgress, NodeId, Order, Split, Stage, StageMeter};
 use crate::db::source::ObjectSource;
 use crate::geom::Aabb;
-use crate::lod::GroupRule;
+use crate::lod::{GroupRule, LeafShells};
 use crate::scene::ObjectId;
 use crate::store::format::frame::{BlockType, FRAME_LEN};
 use crate::store::format::geometry;
@@ -59,7 +59,7 @@ pub(crate) fn write(
     tree: &Hierarchy,
     plan: &Plan,
     bounds: &[Vec<BoundEntry>],
-    groups: Option<&GroupRule>,
+    groups: Option<(&GroupRule, &LeafShells)>,
     progress: &(dyn Fn(LoadProgress) + Sync),
 ) -> Result<Written, crate::Error> {
     let Sink { pager, txn, allocate } = sink;
@@ -85,7 +85,9 @@ pub(crate) fn write(
     }
     // The group bounds, each node block's in a group block of its own.
     let group_entries = match groups {
-        Some(rule) => super::groups::group_entries(rule, objects, tree, plan, &packing, &offset, bs)?,
+        Some((rule, shells)) => {
+            super::groups::group_entries((rule, shells), objects, tree, plan, &packing, &offset, bs)?
+        }
         None => vec![Vec::new(); packing.blocks.len()],
     };
     let group_refs = write_groups(Sink { pager, txn, allocate }, &group_entries, &packing)?;

@@ -6,10 +6,12 @@
 use super::Load;
 use super::plan::Plan;
 use crate::bulk::{Hierarchy, LoadProgress, QueryMix, Stage, StageMeter};
-use crate::lod::{EntryMesh, Layout, LodError, LodPlan, StoredBounds, plan_bounds};
+use crate::lod::{EntryMesh, GroupRule, Layout, LeafShells, LodError, LodPlan, StoredBounds, plan_bounds};
 
 /// The bounds to store for `load`'s tree laid out by `plan`, with M = `m`
-/// levels on the grids of `lod_plan`, judged on `mix`.
+/// levels on the grids of `lod_plan`, judged on `mix`; with `group`, also
+/// the leaves' shells its group bounds are built from.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn choose_bounds(
     load: &Load,
     plan: &Plan,
@@ -17,21 +19,22 @@ pub(super) fn choose_bounds(
     m: u8,
     mix: &QueryMix,
     block_size: u32,
+    group: Option<&GroupRule>,
     progress: &(dyn Fn(LoadProgress) + Sync),
-) -> Result<StoredBounds, LodError> {
+) -> Result<(StoredBounds, LeafShells), LodError> {
     let Load { objects, tree, lod_params: params, .. } = *load;
     let entries = plan.leaf_entries();
     let mesh: &EntryMesh = &|i, j| plan.entry_mesh(objects, i, j).map_err(|e| LodError::Mesh(e.to_string()));
     let layout =
         Layout { frames: &plan.frames, read_share: &plan.read_share, entries: &entries, mesh, block_size };
-    let mut stored = plan_bounds(lod_plan, tree, m, params, mix, &layout, progress)?;
+    let (mut stored, shells) = plan_bounds(lod_plan, tree, m, params, mix, &layout, group, progress)?;
     let choose = StageMeter::new(progress, Stage::Choose, 2);
     if !params.store_all && !stored.is_empty() {
         stored = worth_keeping(plan, tree, stored, block_size);
     }
     choose.add(1);
     stored.measure_errors(&layout, params.error_samples)?;
-    Ok(stored)
+    Ok((stored, shells))
 }
 
 /// The bounds to store: chosen block by block, they may still not pay as a

@@ -2,6 +2,10 @@
 //! format-spec/group.md): every node's, built bottom up over the boxes the
 //! records hold, and per node block the entries its group block holds.
 //!
+//! A leaf's bounds come from its shell: its entries' surfaces on its finest
+//! group grid, lifted from the candidates the levels of detail voxelized
+//! (`lod/policy.rs`, [`LeafShells`]), so a mesh is voxelized once for both.
+//!
 //! Subtrees build in parallel: a node's bounds need only its children's,
 //! so the two halves of a large subtree are independent. Below
 //! [`PARALLEL_NODES`] nodes, or [`PARALLEL_DEPTH`] joins deep, a subtree
@@ -15,7 +19,7 @@ use std::sync::OnceLock;
 use super::plan::Plan;
 use crate::bulk::Hierarchy;
 use crate::db::source::ObjectSource;
-use crate::lod::{GroupRule, Voxels, leaf_group, lift_group};
+use crate::lod::{Grid, GroupRule, LeafShells, Voxels, leaf_group, lift_group};
 use crate::scene::Mesh;
 use crate::store::format::group::{self, GroupEntry};
 use crate::store::layout::Packing;
@@ -32,7 +36,7 @@ const PARALLEL_DEPTH: u32 = 12;
 /// order (a piece's root first), each that still fits; sorted by record
 /// and level.
 pub(super) fn group_entries(
-    rule: &GroupRule,
+    (rule, shells): (&GroupRule, &LeafShells),
     objects: &dyn ObjectSource,
     tree: &Hierarchy,
     plan: &Plan,
@@ -41,9 +45,8 @@ pub(super) fn group_entries(
     block_size: u32,
 ) -> Result<Vec<Vec<GroupEntry>>, crate::Error> {
     let levels: Vec<u8> = rule.group_levels().collect();
-    let build =
-        Build { rule, objects, tree, plan, levels: &levels, ends: subtree_ends(tree), blobs: Vec::new() };
-    let build = Build { blobs: (0..tree.nodes.len()).map(|_| OnceLock::new()).collect(), ..build };
+    let blobs = (0..tree.nodes.len()).map(|_| OnceLock::new()).collect();
+    let build = Build { rule, shells, objects, tree, plan, levels: &levels, ends: subtree_ends(tree), blobs };
     if !tree.nodes.is_empty() {
         build.subtree(0, 0)?;
     }
@@ -91,6 +94,7 @@ fn subtree_ends(tree: &Hierarchy) -> Vec<usize> {
 /// One load's group bounds in the making.
 struct Build<'a> {
     rule: &'a GroupRule,
+    shells: &'a LeafShells,
     objects: &'a dyn ObjectSource,
     tree: &'a Hierarchy,
     plan: &'a Plan,
@@ -149,17 +153,14 @@ impl Build<'_> {
                 .map(|(li, grid)| lift_group(grid.clone(), kids.iter().filter_map(|k| k.get(li))))
                 .collect::<Result<Vec<_>, _>>()?,
             None => {
-                // Voxelizing is the build's cost; a leaf voxelizes its meshes
-                // once, on its finest level's grid, and lifts each coarser
-                // level from the next finer one (levels nest on one lattice).
-                let meshes: Vec<Cow<Mesh>> = (0..self.plan.entries[i].len())
-                    .map(|j| self.plan.entry_mesh(self.objects, i, j))
-                    .collect::<Result<_, _>>()?;
+                // A leaf's finest level is its shell (or its meshes
+                // voxelized, without one); each coarser level is lifted
+                // from the next finer one (levels nest on one lattice).
                 let mut fine_first: Vec<Voxels> = Vec::with_capacity(grids.len());
                 for grid in grids.iter().rev() {
                     let v = match fine_first.last() {
                         Some(finer) => lift_group(grid.clone(), [finer])?,
-                        None => leaf_group(grid.clone(), meshes.iter().map(|m| m.as_ref())),
+                        None => self.leaf(i, grid)?,
                     };
                     fine_first.push(v);
                 }
@@ -181,5 +182,24 @@ impl Build<'_> {
         // Each node is built once: by its own subtree's call.
         let _ = self.blobs[i].set(out);
         Ok(mine)
+    }
+
+    /// Leaf `i`'s surfaces on `grid`: the union of its shell's blobs when
+    /// they lie on that grid, else its meshes voxelized.
+    fn leaf(&self, i: usize, grid: &Grid) -> Result<Voxels, crate::Error> {
+        let blobs = self.shells.get(i).map_or(&[][..], Vec::as_slice);
+        let mut shell = Voxels::empty(grid.clone());
+        let lifted = !blobs.is_empty()
+            && blobs.iter().all(|b| {
+                crate::lod::decode(b, &self.rule.lattice, grid.bounds())
+                    .is_ok_and(|v| v.grid() == grid && v.lift_into(&mut shell).is_ok())
+            });
+        if lifted {
+            return Ok(shell);
+        }
+        let meshes: Vec<Cow<Mesh>> = (0..self.plan.entries[i].len())
+            .map(|j| self.plan.entry_mesh(self.objects, i, j))
+            .collect::<Result<_, _>>()?;
+        Ok(leaf_group(grid.clone(), meshes.iter().map(|m| m.as_ref())))
     }
 }

@@ -3,7 +3,8 @@
 //!
 //! 1. `plan.rs`: where every record goes, and how node records pack
 //!    (chosen by the read model of `read_model.rs`);
-//! 2. `bounds.rs`: which levels of detail pay to store (format-spec/lod.md);
+//! 2. `bounds.rs`: which levels of detail pay to store (format-spec/lod.md),
+//!    and the leaves' shells the group bounds are built from;
 //! 3. `blocks.rs`: geometry, node and group blocks (format-spec/node.md,
 //!    geometry.md, group.md), with the group bounds built by `groups.rs`;
 //! 4. the key index, bottom up (`keys.rs`, format-spec/keys.md);
@@ -68,7 +69,6 @@ impl Load<'_> {
             let _layout = StageMeter::new(progress, Stage::Layout, 1);
             plan::Plan::new(objects, tree, bs, &mix)?
         };
-        let mut stored = bounds::choose_bounds(self, &plan, lod_plan.as_ref(), m, &mix, bs, progress)?;
         let group_rule = match (&lod_plan, lod_params.group_bounds) {
             (Some(p), true) => Some(GroupRule {
                 lattice: p.lattice,
@@ -78,17 +78,27 @@ impl Load<'_> {
             }),
             _ => None,
         };
+        let (mut stored, shells) = bounds::choose_bounds(
+            self,
+            &plan,
+            lod_plan.as_ref(),
+            m,
+            &mix,
+            bs,
+            group_rule.as_ref(),
+            progress,
+        )?;
         let written = blocks::write(
             Sink { pager, txn, allocate: &mut *allocate },
             objects,
             tree,
             &plan,
             &stored.bounds,
-            group_rule.as_ref(),
+            group_rule.as_ref().map(|rule| (rule, &shells)),
             progress,
         )?;
         // Written: only the tables of the bounds are left to record.
-        drop(plan);
+        drop((plan, shells));
         stored.release_bounds();
         let keys = keys::write(Sink { pager, txn, allocate }, objects, &written)?;
         Ok(meta::assemble(self, &written, &stored, &keys))
