@@ -48,5 +48,5 @@ pub use query_sets::{
 pub use redb_backend::{RedbRow, bench_redb, redb_table};
 pub use replace::{ReplaceOptions, ReplaceReport, ReplaceRow, bench_replace};
 pub use verify::{Verification, verify_tree};
-pub use view::{BudgetRow, TauRow, ViewBench, ViewBenchOptions, bench_view, flight, triangles, views};
+pub use view::{BudgetRow, TauRow, ViewBench, ViewBenchOptions, bench_view, flight, orbit, triangles, views};
 pub use workload::{WorkloadStats, random_boxes, run_boxes};

@@ -99,6 +99,23 @@ pub fn flight(scene: &Aabb, steps: usize) -> Vec<(Point, Point)> {
         .collect()
 }
 
+/// An orbit around `scene`: `steps` eyes evenly spaced on a horizontal
+/// circle about its centre, half as far again from it as its horizontal
+/// half-diagonal and a quarter of that above its centre, each looking at
+/// the centre: the whole scene seen from outside, far, as a viewer's first
+/// frames see it. Pairs of (eye, target), mm.
+pub fn orbit(scene: &Aabb, steps: usize) -> Vec<(Point, Point)> {
+    let e = scene.extent();
+    let c = scene.center();
+    let r = 1.5 * 0.5 * e.x.hypot(e.y).max(1.0);
+    (0..steps)
+        .map(|i| {
+            let a = std::f64::consts::TAU * i as f64 / steps.max(1) as f64;
+            (Point::new(c.x + r * a.cos(), c.y + r * a.sin(), c.z + r / 4.0), c)
+        })
+        .collect()
+}
+
 /// The views of `path` with `opts`' lens, seeing as far as the scene reaches.
 pub fn views(path: &[(Point, Point)], scene: &Aabb, opts: &ViewBenchOptions) -> Vec<View> {
     let e = scene.extent();
@@ -206,6 +223,25 @@ mod tests {
         }
         let v = views(&path, &scene, &ViewBenchOptions::default());
         assert!(v.iter().all(|v| v.near_mm > 0.0 && v.far_mm > 2.0 * v.near_mm && v.width_px == 1080));
+    }
+
+    #[test]
+    fn an_orbit_circles_the_scene_from_outside_looking_at_its_centre() {
+        let scene = Aabb::from_array([0.0, 0.0, 0.0, 100_000.0, 16_000.0, 15_000.0]);
+        let path = orbit(&scene, 8);
+        assert_eq!(path.len(), 8);
+        let c = scene.center();
+        let r = (path[0].0.x - c.x).hypot(path[0].0.y - c.y);
+        for (eye, target) in &path {
+            assert!(!scene.contains_point(eye), "{eye:?} is outside");
+            assert_eq!(*target, c);
+            assert!(((eye.x - c.x).hypot(eye.y - c.y) - r).abs() < 1e-6 * r, "one radius");
+            assert!(eye.z > c.z, "above the centre");
+        }
+        // Opposite eyes: the circle goes all the way round.
+        assert!((path[0].0.x + path[4].0.x - 2.0 * c.x).abs() < 1e-6 * r);
+        let v = views(&path, &scene, &ViewBenchOptions::default());
+        assert!(v.iter().all(|v| v.near_mm > 0.0 && v.far_mm > 2.0 * v.near_mm));
     }
 
     #[test]

@@ -869,15 +869,28 @@ pub struct StreamWorkerArgs {
     pub stop: PathBuf,
 }
 
+/// `bench-view`'s walks.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Walk {
+    /// Through the scene along its x axis, looking ahead and slightly down.
+    Length,
+    /// Round the scene from outside, looking at its centre.
+    Orbit,
+}
+
 /// `bench-view`'s arguments.
 #[derive(Args, Debug, Clone)]
 pub struct BenchViewArgs {
-    /// .mkt files (each walked through along its scene's x axis).
+    /// .mkt files (each walked through along its scene's x axis, or orbited).
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
     /// Frames along the walk.
     #[arg(long, default_value_t = 20)]
     pub steps: usize,
+    /// The walk: `length` (through the scene along x, looking ahead) or
+    /// `orbit` (round it from outside, looking at its centre).
+    #[arg(long, value_enum, default_value_t = Walk::Length)]
+    pub walk: Walk,
     /// Blocks the pool holds.
     #[arg(long, default_value_t = 256)]
     pub cache_blocks: usize,

@@ -8,10 +8,10 @@ use anyhow::{Context, Result, bail};
 use mktree::ViewOptions;
 use mktree::geom::{Aabb, Point};
 use mktree::render::{Image, draw_cut, framing};
-use mktree_bench::{ViewBench, ViewBenchOptions, bench_view, flight, views};
+use mktree_bench::{ViewBench, ViewBenchOptions, bench_view, flight, orbit, views};
 use serde_json::json;
 
-use crate::args::BenchViewArgs;
+use crate::args::{BenchViewArgs, Walk};
 use crate::output;
 
 pub fn run(args: &BenchViewArgs) -> Result<()> {
@@ -36,7 +36,11 @@ pub fn run(args: &BenchViewArgs) -> Result<()> {
         let db = crate::input::open_to_read(file)?;
         let r = db.begin_read()?;
         let scene = r.root().with_context(|| format!("{} holds no tree", file.display()))?.aabb;
-        let walk = views(&flight(&scene, args.steps), &scene, &opts);
+        let path = match args.walk {
+            Walk::Length => flight(&scene, args.steps),
+            Walk::Orbit => orbit(&scene, args.steps),
+        };
+        let walk = views(&path, &scene, &opts);
         let bench = bench_view(&r, &walk, &opts).with_context(|| format!("{}", file.display()))?;
         let m = r.info().map_or(1, |i| i.lod_levels);
         // The middle section of the scene from above (a walk's frame sees
