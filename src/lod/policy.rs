@@ -247,7 +247,7 @@ pub type LeafShells = Vec<Vec<Vec<u8>>>;
 
 /// Decides and encodes the bounds of `tree` for M = `m` levels on the
 /// grids of `plan` (`None` when M < 3: no level between the box and the
-/// exact geometry), judged on `mix` over `layout`. With `group`, also each
+/// exact geometry), judged on `mix` over `layout`. With `group_rule`, also each
 /// leaf's shell for its group bounds, lifted from the entries' candidates
 /// (each entry's surfaces are voxelized once for both).
 #[allow(clippy::too_many_arguments)]
@@ -258,7 +258,7 @@ pub fn plan_bounds(
     params: &LodParams,
     mix: &QueryMix,
     layout: &Layout,
-    group: Option<&GroupRule>,
+    group_rule: Option<&GroupRule>,
     progress: &(dyn Fn(LoadProgress) + Sync),
 ) -> Result<(StoredBounds, LeafShells), LodError> {
     let levels = usize::from(m);
@@ -279,7 +279,6 @@ pub fn plan_bounds(
     out.grid_level = plan.grid_level.clone();
     out.lattice = Some(plan.lattice);
     let ctx = Ctx { plan, params, layout };
-    let rule = group;
     // Entries by the geometry block they start in: runs in leaf order.
     let mut groups: Vec<Vec<(usize, usize)>> = Vec::new();
     let mut block = None;
@@ -304,7 +303,7 @@ pub fn plan_bounds(
                 meter.add(1);
                 let mut cands: Vec<Vec<Candidate>> =
                     group.iter().map(|&(i, j)| ctx.candidates(m, i, j)).collect::<Result<_, LodError>>()?;
-                let shell = match rule {
+                let shell = match group_rule {
                     Some(rule) => ctx.shell(rule, group, &cands)?,
                     None => None,
                 };

@@ -375,7 +375,7 @@ impl<'a, S: Selection> Select<'a, S> {
             let waiting = self.deferred.len();
             let mut still = Vec::new();
             for q in std::mem::take(&mut self.deferred) {
-                if self.over_budget(self.cost(&q.step)? + self.reserve(&q.step)?) {
+                if self.over_budget(self.charge(&q.step)?) {
                     still.push(q);
                 } else {
                     self.heap.push(q);
@@ -390,7 +390,7 @@ impl<'a, S: Selection> Select<'a, S> {
         if self.settled(&q.step)? {
             return Ok(());
         }
-        if self.budget.is_some() && self.over_budget(self.cost(&q.step)? + self.reserve(&q.step)?) {
+        if self.budget.is_some() && self.over_budget(self.charge(&q.step)?) {
             self.deferred.push(q);
             return Ok(());
         }
@@ -571,20 +571,19 @@ impl<'a, S: Selection> Select<'a, S> {
         blocks.len() as u64
     }
 
-    /// What a step must leave of the budget besides its own cost: refining
-    /// an internal record's group bound reads its children's records, and
-    /// then each child block's group block (at most one each, counted
-    /// unread), which shows the children by their own bounds. A child the
-    /// budget left without its bound would be shown by its box, coarser
-    /// than the bound it replaced.
-    fn reserve(&self, step: &Step) -> Result<u64, StorageError> {
-        if self.groups.is_none() {
-            return Ok(0);
-        }
-        Ok(match step {
-            Step::Group { .. } => self.cost(step)?,
+    /// What a step must find left of the budget: its cost, and for
+    /// refining an internal record's group bound as much again, since after
+    /// its children's records it reads each child block's group block (at
+    /// most one each, counted unread), which shows the children by their
+    /// own bounds. A child the budget left without its bound would be shown
+    /// by its box, coarser than the bound it replaced.
+    fn charge(&self, step: &Step) -> Result<u64, StorageError> {
+        let cost = self.cost(step)?;
+        let group_blocks = match step {
+            Step::Group { .. } if self.groups.is_some() => cost,
             _ => 0,
-        })
+        };
+        Ok(cost + group_blocks)
     }
 
     /// The largest error, in the query's unit, of an internal record's
