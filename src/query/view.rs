@@ -19,8 +19,9 @@
 //!   stores one (`tree/group.rs`): the coarsest within τ settles the node,
 //!   and with a budget a node is shown by its finest and refined from there
 //!   only while the budget pays for its children's records and their group
-//!   bounds together: a child the budget left unread would be shown by its
-//!   box, coarser than the bound it replaced;
+//!   bounds together, and for refining in turn a child of the same block
+//!   that would show coarser: a child the budget left unread would be shown
+//!   by its box, or at a coarser level, than the bound it replaced;
 //! - a leaf's visible objects at level k < M, B(S_n,k): each by its finest
 //!   bound stored up to k, its voxel set (error: the largest cell's
 //!   diagonal grown by the voxelization tolerance, lod.md) or else its box

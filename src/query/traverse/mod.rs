@@ -47,7 +47,7 @@ use crate::geom::Aabb;
 use crate::lod::Voxels;
 use crate::scene::{Key, Mesh, ObjectId};
 use crate::store::format::geometry;
-use crate::store::format::node::{BoundView, InternalView, LeafView, NodeView, RecordRef};
+use crate::store::format::node::{BoundView, LeafView, NodeView, RecordRef};
 use crate::store::format::quant::QuantBox;
 use crate::store::{Block, BlockCache, ReadStats, StorageError};
 use crate::tree::{NodeRef, ReadTransaction, Reads, view};
@@ -521,30 +521,12 @@ impl<'a, S: Selection> Select<'a, S> {
         Ok(match step {
             Step::Unread { at, .. } => u64::from(!self.reads.holds(at.block)),
             Step::Node { .. } | Step::Found { .. } => 0,
-            // Refining a group bound reads its children's records; a leaf's
-            // objects are in hand, and refining it costs nothing when their
-            // own stand-ins are no coarser than the group bound, else the
-            // geometry blocks that make them exact.
-            Step::Group { block, offset, frame, eps, .. } => match view(block, *offset)? {
-                NodeView::Internal(n) => {
-                    let shown = self.sel.stand_in_error(frame, *eps);
-                    if self.children_error(block, &n, frame)? <= shown {
-                        0
-                    } else {
-                        self.child_blocks(&n, frame)
-                    }
-                }
-                NodeView::Leaf(leaf) => {
-                    let shown = self.sel.stand_in_error(frame, *eps);
-                    if self.objects_error(block.id(), &leaf, frame)? <= shown {
-                        0
-                    } else {
-                        let (first, sums) = leaf.geometry();
-                        (0..sums.len() as u32).filter(|i| !self.reads.holds(first.saturating_add(*i))).count()
-                            as u64
-                    }
-                }
-            },
+            // Refining a group bound costs what `refinement` finds.
+            Step::Group { block, offset, frame, eps, .. } => {
+                let (blocks, geometry) =
+                    self.refinement(block, *offset, frame, self.sel.stand_in_error(frame, *eps))?;
+                blocks + geometry
+            }
             Step::Exact { block, offset, index, .. } => {
                 let NodeView::Leaf(leaf) = view(block, *offset)? else { return Ok(0) };
                 let Some(o) = leaf.object(*index) else { return Ok(0) };
@@ -559,57 +541,84 @@ impl<'a, S: Selection> Select<'a, S> {
         })
     }
 
-    /// The child blocks not held of an internal record's children that may
-    /// meet the query (what refining the record reads).
-    fn child_blocks(&self, n: &InternalView, frame: &Aabb) -> u64 {
-        let mut blocks: Vec<u32> = (0..2)
-            .filter(|&i| n.child_box(i, frame).is_some_and(|qb| self.sel.may_meet_box(&qb.outer)))
-            .map(|i| n.child_ref(i).block)
-            .filter(|&b| b != 0 && !self.reads.holds(b))
-            .collect();
-        blocks.dedup();
-        blocks.len() as u64
-    }
-
-    /// What a step must find left of the budget: its cost, and for
-    /// refining an internal record's group bound as much again, since after
-    /// its children's records it reads each child block's group block (at
-    /// most one each, counted unread), which shows the children by their
-    /// own bounds. A child the budget left without its bound would be shown
-    /// by its box, coarser than the bound it replaced.
-    fn charge(&self, step: &Step) -> Result<u64, StorageError> {
-        let cost = self.cost(step)?;
-        let group_blocks = match step {
-            Step::Group { .. } if self.groups.is_some() => cost,
-            _ => 0,
+    /// What refining record `offset` of `block` (its box `frame`, shown
+    /// with error `shown`) reads before nothing that replaces it shows a
+    /// larger error: (node blocks, geometry blocks). It is free when its
+    /// children, shown without a read, are no coarser. Else it reads the
+    /// child blocks not held of its children that may meet the query; a
+    /// child in this block that would show coarser (its finer group bound
+    /// did not fit the group block) costs its own refinement in turn, so a
+    /// budget near its end keeps the record whole rather than show a
+    /// coarser child it cannot refine. A leaf's objects, in hand, cost the
+    /// geometry blocks that make them exact when their own stand-ins are
+    /// coarser.
+    fn refinement(
+        &self,
+        block: &Block,
+        offset: u32,
+        frame: &Aabb,
+        shown: f64,
+    ) -> Result<(u64, u64), StorageError> {
+        let n = match view(block, offset)? {
+            NodeView::Internal(n) => n,
+            NodeView::Leaf(leaf) => {
+                if self.objects_error(block.id(), &leaf, frame)? <= shown {
+                    return Ok((0, 0));
+                }
+                let (first, sums) = leaf.geometry();
+                let unread = (0..sums.len() as u32).filter(|i| !self.reads.holds(first.saturating_add(*i)));
+                return Ok((0, unread.count() as u64));
+            }
         };
-        Ok(cost + group_blocks)
-    }
-
-    /// The largest error, in the query's unit, of an internal record's
-    /// children that may meet the query, shown without a read: by their
-    /// group bounds when in this block and its group block is held, else
-    /// by their boxes.
-    fn children_error(&self, block: &Block, n: &InternalView, frame: &Aabb) -> Result<f64, StorageError> {
-        let mut worst = 0.0f64;
+        let mut blocks: Vec<u32> = Vec::new();
+        let mut coarser = false;
+        let mut in_block = (0, 0);
         for i in 0..2 {
             let Some(qb) = n.child_box(i, frame) else { continue };
             if !self.sel.may_meet_box(&qb.outer) {
                 continue;
             }
-            let mut error = self.sel.stand_in_error(&qb.outer, qb.outer.extent().norm());
+            let box_error = self.sel.stand_in_error(&qb.outer, qb.outer.extent().norm());
             let at = n.child_ref(i);
-            if at.block == 0 {
-                let (levels, cost) = self.group_levels(block, at.offset, &qb.outer)?;
-                if let Some(&(_, eps)) = levels.last()
-                    && cost == 0
-                {
-                    error = error.min(self.sel.stand_in_error(&qb.outer, eps));
+            if at.block != 0 {
+                coarser |= box_error > shown;
+                if !self.reads.holds(at.block) && !blocks.contains(&at.block) {
+                    blocks.push(at.block);
                 }
+                continue;
             }
-            worst = worst.max(error);
+            let (levels, cost) = self.group_levels(block, at.offset, &qb.outer)?;
+            let error = match levels.last() {
+                Some(&(_, eps)) if cost == 0 => box_error.min(self.sel.stand_in_error(&qb.outer, eps)),
+                _ => box_error,
+            };
+            if error > shown {
+                coarser = true;
+                let (b, g) = self.refinement(block, at.offset, &qb.outer, shown)?;
+                in_block = (in_block.0 + b, in_block.1 + g);
+            }
         }
-        Ok(worst)
+        if !coarser {
+            return Ok((0, 0));
+        }
+        Ok((blocks.len() as u64 + in_block.0, in_block.1))
+    }
+
+    /// What a step must find left of the budget: its cost, and for
+    /// refining a group bound one more read per node block it reads: after
+    /// a child block's records, the traversal reads its group block (at
+    /// most one each, counted unread), which shows the children by their
+    /// own bounds. A child the budget left without its bound would be shown
+    /// by its box, coarser than the bound it replaced.
+    fn charge(&self, step: &Step) -> Result<u64, StorageError> {
+        match step {
+            Step::Group { block, offset, frame, eps, .. } if self.groups.is_some() => {
+                let (blocks, geometry) =
+                    self.refinement(block, *offset, frame, self.sel.stand_in_error(frame, *eps))?;
+                Ok(2 * blocks + geometry)
+            }
+            _ => self.cost(step),
+        }
     }
 
     /// The largest error, in the query's unit, of a leaf's objects that
