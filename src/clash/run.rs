@@ -2,13 +2,15 @@
 //! the key index is read once for every object's key, name, payload and
 //! exact box; the sets are chosen by their selectors; candidate pairs are
 //! the boxes within the test's reach of one another (a sweep along x);
-//! the meshes of the objects in a candidate pair are read in one walk of
-//! the tree, each once; then each pair is measured (`geom::solid`) on
-//! every core. The answer is a function of the pairs' meshes and the
+//! the pairs are measured (`geom::solid`) a chunk at a time in the sweep's
+//! order, on every core, each object's mesh read through its key entry's
+//! path when a chunk first names it and dropped after the last chunk that
+//! does, so a run holds the meshes its sweep spans, not every candidate's.
+//! The answer is a function of the pairs' meshes and the
 //! test, so any subset of pairs measured again gives the same clashes:
 //! what the incremental re-run relies on.
 
-use std::collections::HashSet;
+use std::collections::HashMap;
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -17,10 +19,9 @@ use serde::Serialize;
 use super::ClashError;
 use super::select::{Candidate, Selector, in_set};
 use super::test::{Clash, ClashKind, ClashTest, TestKind};
-use crate::db::ReadTransaction;
+use crate::db::{ReadTransaction, Reads};
 use crate::geom::{Aabb, Point, closest, overlap, same_within};
-use crate::query::fetch_meshes;
-use crate::scene::{Key, ObjectId};
+use crate::scene::Key;
 use crate::store::format::keys::KeyEntry;
 
 /// What a run did and how long each step took.
@@ -34,8 +35,10 @@ pub struct RunStats {
     pub in_b: usize,
     /// Pairs whose boxes lie within the test's reach.
     pub candidates: usize,
-    /// Objects whose meshes were read.
+    /// Objects whose meshes were read (each once).
     pub meshes_read: usize,
+    /// The most objects' meshes held at once.
+    pub peak_meshes: usize,
     /// Seconds listing the key index and choosing the sets.
     pub list_seconds: f64,
     /// Seconds reading meshes.
@@ -137,6 +140,19 @@ pub(crate) fn run_on(
     changed: Option<&[bool]>,
     started: Instant,
 ) -> Result<(Vec<Clash>, RunStats), ClashError> {
+    run_chunked(txn, test, entries, changed, started, CHUNK_PAIRS)
+}
+
+/// [`run_on`], measuring `chunk` pairs at a time.
+fn run_chunked(
+    txn: &ReadTransaction,
+    test: &ClashTest,
+    entries: &[KeyEntry],
+    changed: Option<&[bool]>,
+    started: Instant,
+    chunk: usize,
+) -> Result<(Vec<Clash>, RunStats), ClashError> {
+    let chunk = chunk.max(1);
     let (in_a, in_b) = membership(test, entries);
     let pairs = candidates(entries, &in_a, &in_b, test.reach(), changed);
     let mut stats = RunStats {
@@ -147,36 +163,73 @@ pub(crate) fn run_on(
         list_seconds: started.elapsed().as_secs_f64(),
         ..Default::default()
     };
-    let t = Instant::now();
-    let wanted: HashSet<ObjectId> =
-        pairs.iter().flat_map(|&(i, j)| [i, j]).map(|i| ObjectId(entries[i].object_id)).collect();
-    stats.meshes_read = wanted.len();
-    let meshes = fetch_meshes(txn, wanted)?;
-    let triangles: std::collections::HashMap<ObjectId, Vec<[Point; 3]>> =
-        meshes.into_iter().map(|(id, m)| (id, m.triangle_points().collect())).collect();
-    stats.read_seconds = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let mut clashes = pairs
-        .par_iter()
-        .map(|&(i, j)| {
+    // Pairs are measured a chunk at a time, in the sweep's order: an
+    // object's triangles are read for the first chunk that names it and
+    // dropped after the last, so each is read once and a run holds about
+    // the objects its sweep spans, not every candidate's.
+    let last = last_chunks(&pairs, chunk, entries.len());
+    let mut held: HashMap<usize, Vec<[Point; 3]>> = HashMap::new();
+    let mut clashes = Vec::new();
+    for (c, part) in pairs.chunks(chunk).enumerate() {
+        held.retain(|&o, _| last[o] >= c);
+        let t = Instant::now();
+        read_missing(txn, entries, part, &mut held, &mut stats)?;
+        stats.read_seconds += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let held = &held;
+        clashes.par_extend(part.par_iter().filter_map(|&(i, j)| {
             let (ea, eb) = (&entries[i], &entries[j]);
-            let mesh = |e: &KeyEntry| {
-                triangles.get(&ObjectId(e.object_id)).ok_or_else(|| {
-                    ClashError::Storage(crate::store::StorageError::Invalid(format!(
-                        "the key index names object {} (key {}), which the tree does not hold",
-                        e.object_id, e.key
-                    )))
-                })
-            };
-            Ok(measure(test, (&ea.key, &ea.aabb, mesh(ea)?), (&eb.key, &eb.aabb, mesh(eb)?)))
-        })
-        .collect::<Result<Vec<Option<Clash>>, ClashError>>()?
-        .into_iter()
-        .flatten()
-        .collect::<Vec<Clash>>();
+            measure(test, (&ea.key, &ea.aabb, &held[&i]), (&eb.key, &eb.aabb, &held[&j]))
+        }));
+        stats.measure_seconds += t.elapsed().as_secs_f64();
+    }
+    let t = Instant::now();
     sort(&mut clashes);
-    stats.measure_seconds = t.elapsed().as_secs_f64();
+    stats.measure_seconds += t.elapsed().as_secs_f64();
     Ok((clashes, stats))
+}
+
+/// Candidate pairs measured at a time: the meshes a run holds are those of
+/// one chunk's pairs and of the objects a later chunk still needs.
+const CHUNK_PAIRS: usize = 1 << 14;
+
+/// Per object (entry index, `objects` of them): the last chunk of `size`
+/// pairs of `pairs` that names it (0 for one no pair names).
+fn last_chunks(pairs: &[(usize, usize)], size: usize, objects: usize) -> Vec<usize> {
+    let mut last = vec![0; objects];
+    for (n, &(i, j)) in pairs.iter().enumerate() {
+        last[i] = n / size;
+        last[j] = n / size;
+    }
+    last
+}
+
+/// Reads the triangles of the objects `pairs` name that `held` lacks (on
+/// every core, each through its own reads and the snapshot's shared cache).
+fn read_missing(
+    txn: &ReadTransaction,
+    entries: &[KeyEntry],
+    pairs: &[(usize, usize)],
+    held: &mut HashMap<usize, Vec<[Point; 3]>>,
+    stats: &mut RunStats,
+) -> Result<(), ClashError> {
+    let mut missing: Vec<usize> = pairs.iter().flat_map(|&(i, j)| [i, j]).filter(|o| !held.contains_key(o)).collect();
+    missing.sort_unstable();
+    missing.dedup();
+    let read: Vec<(usize, Vec<[Point; 3]>)> = missing
+        .par_iter()
+        .map_init(
+            || Reads::new(Some(txn.cache())),
+            |reads, &o| {
+                let mesh = txn.mesh_of_entry(&entries[o], reads)?;
+                Ok((o, mesh.triangle_points().collect()))
+            },
+        )
+        .collect::<Result<_, ClashError>>()?;
+    stats.meshes_read += read.len();
+    held.extend(read);
+    stats.peak_meshes = stats.peak_meshes.max(held.len());
+    Ok(())
 }
 
 /// Sorts clashes by (a, b, type): the order every run gives.
@@ -231,4 +284,35 @@ pub fn measure(
         return Some(clash(ClashKind::Clearance, 0.0, d, nalgebra::center(&p, &q), Some([p, q]), None));
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::db::{Database, Reads};
+    use crate::scene::generate::{GenOptions, Preset, generate_scene};
+    use crate::store::device::MemDevice;
+
+    #[test]
+    fn chunks_of_any_size_find_the_same_clashes_reading_each_mesh_once() {
+        let scene = generate_scene(&GenOptions { preset: Preset::Tanker1, objects: None, seed: 3 }).unwrap();
+        let db = Database::create_on(Arc::new(MemDevice::new()), Default::default()).unwrap();
+        let mut w = db.begin_write().unwrap();
+        w.bulk_load(&scene, &Default::default(), &|_| {}).unwrap();
+        w.commit().unwrap();
+        let r = db.begin_read().unwrap();
+        let entries = r.key_entries(&mut Reads::new(None)).unwrap();
+        let test = ClashTest { kind: TestKind::Clearance, distance: 50.0, touch: true, ..Default::default() };
+        let run = |chunk| run_chunked(&r, &test, &entries, None, Instant::now(), chunk).unwrap();
+        let (whole, ws) = run(usize::MAX);
+        assert!(ws.candidates > 1000 && whole.len() > 100, "{} pairs, {} clashes", ws.candidates, whole.len());
+        for chunk in [1, 7, 500] {
+            let (clashes, s) = run(chunk);
+            assert_eq!(clashes, whole, "chunks of {chunk}");
+            assert_eq!(s.meshes_read, ws.meshes_read, "each mesh once, chunks of {chunk}");
+            assert!(s.peak_meshes < ws.peak_meshes, "chunks of {chunk} hold {} of {}", s.peak_meshes, ws.peak_meshes);
+        }
+    }
 }

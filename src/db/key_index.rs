@@ -143,6 +143,13 @@ impl ReadTransaction {
     /// object's geometry blocks (counted in `reads`).
     pub fn mesh_with(&self, key: &Key, reads: &mut Reads) -> Result<Option<Mesh>, StorageError> {
         let Some(e) = self.key_entry(key, reads)? else { return Ok(None) };
+        self.mesh_of_entry(&e, reads).map(Some)
+    }
+
+    /// The exact mesh of the object of key entry `e` (the snapshot's own):
+    /// the node blocks from the root to its leaf record and its geometry
+    /// blocks (counted in `reads`).
+    pub(crate) fn mesh_of_entry(&self, e: &KeyEntry, reads: &mut Reads) -> Result<Mesh, StorageError> {
         let steps = self.path_to(e.object_id, e.path, &e.aabb, reads)?;
         let leaf_step = steps.last().ok_or_else(|| StorageError::Invalid("an empty path".into()))?;
         let b: &Arc<Block> = &leaf_step.block;
@@ -171,7 +178,6 @@ impl ReadTransaction {
             ));
         }
         geometry::join(&parts)
-            .map(Some)
             .ok_or_else(|| StorageError::corrupt(b.id(), "parts", "an object's parts do not join"))
     }
 

@@ -218,7 +218,7 @@ fn print(
         None => String::new(),
     };
     println!(
-        "{} clashes in {} groups on commit {}; A {} and B {} of {} objects, {} candidate pairs, {} meshes read; \
+        "{} clashes in {} groups on commit {}; A {} and B {} of {} objects, {} candidate pairs, {} meshes read ({} held at most); \
          {:.1} ms (list {:.1}, read {:.1}, measure {:.1}){how}",
         clashes.len(),
         groups.len(),
@@ -228,6 +228,7 @@ fn print(
         s.objects,
         s.candidates,
         s.meshes_read,
+        s.peak_meshes,
         s.seconds * 1e3,
         s.list_seconds * 1e3,
         s.read_seconds * 1e3,
