@@ -33,16 +33,25 @@ pub fn table(header: &[&str], rows: &[Vec<String>]) {
         }
     }
     // One write for the whole table: stdout flushes at every line, and a
-    // clash run's table may have 10^5 rows.
+    // clash run's table may have 10^6 rows; cells are padded in place.
     let mut text = String::new();
-    let mut line = |cells: &[String]| {
-        let s: Vec<String> = cells.iter().zip(&width).map(|(c, w)| format!("{c:>w$}")).collect();
-        text.push_str(s.join("  ").trim_end());
+    let mut line = |cells: &mut dyn Iterator<Item = &str>| {
+        let start = text.len();
+        for (n, (c, w)) in cells.zip(&width).enumerate() {
+            if n > 0 {
+                text.push_str("  ");
+            }
+            let pad = w.saturating_sub(c.chars().count());
+            text.extend(std::iter::repeat_n(' ', pad));
+            text.push_str(c);
+        }
+        let kept = text[start..].trim_end().len();
+        text.truncate(start + kept);
         text.push('\n');
     };
-    line(&header.iter().map(|s| s.to_string()).collect::<Vec<_>>());
+    line(&mut header.iter().copied());
     for r in rows {
-        line(r);
+        line(&mut r.iter().map(String::as_str));
     }
     print!("{text}");
 }

@@ -213,7 +213,8 @@ fn read_missing(
     held: &mut HashMap<usize, Vec<[Point; 3]>>,
     stats: &mut RunStats,
 ) -> Result<(), ClashError> {
-    let mut missing: Vec<usize> = pairs.iter().flat_map(|&(i, j)| [i, j]).filter(|o| !held.contains_key(o)).collect();
+    let mut missing: Vec<usize> =
+        pairs.iter().flat_map(|&(i, j)| [i, j]).filter(|o| !held.contains_key(o)).collect();
     missing.sort_unstable();
     missing.dedup();
     let read: Vec<(usize, Vec<[Point; 3]>)> = missing
@@ -307,12 +308,22 @@ mod tests {
         let test = ClashTest { kind: TestKind::Clearance, distance: 50.0, touch: true, ..Default::default() };
         let run = |chunk| run_chunked(&r, &test, &entries, None, Instant::now(), chunk).unwrap();
         let (whole, ws) = run(usize::MAX);
-        assert!(ws.candidates > 1000 && whole.len() > 100, "{} pairs, {} clashes", ws.candidates, whole.len());
+        assert!(
+            ws.candidates > 1000 && whole.len() > 100,
+            "{} pairs, {} clashes",
+            ws.candidates,
+            whole.len()
+        );
         for chunk in [1, 7, 500] {
             let (clashes, s) = run(chunk);
             assert_eq!(clashes, whole, "chunks of {chunk}");
             assert_eq!(s.meshes_read, ws.meshes_read, "each mesh once, chunks of {chunk}");
-            assert!(s.peak_meshes < ws.peak_meshes, "chunks of {chunk} hold {} of {}", s.peak_meshes, ws.peak_meshes);
+            assert!(
+                s.peak_meshes < ws.peak_meshes,
+                "chunks of {chunk} hold {} of {}",
+                s.peak_meshes,
+                ws.peak_meshes
+            );
         }
     }
 }

@@ -6,8 +6,6 @@
 //! person sets, persist while the clash does; a clash that comes back
 //! after being resolved is New again.
 
-use std::collections::HashMap;
-
 use serde::{Deserialize, Serialize};
 
 use super::test::{Clash, ClashKind};
@@ -81,30 +79,43 @@ pub struct Tracked {
 
 /// The statuses after a run on commit `txn` found `clashes` (sorted), given
 /// those recorded before (`previous`). Resolved clashes stay listed.
+///
+/// Both lists are in (a, b, type) order, as runs and this function leave
+/// them, so one merge pairs each clash with its record: no table of ids, and
+/// the answer comes out in that order. A `previous` out of order (a store
+/// written by something else) is sorted first.
 pub fn update(previous: &[Tracked], clashes: &[Clash], txn: u64) -> Vec<Tracked> {
-    let before: HashMap<(Key, Key, ClashKind), &Tracked> =
-        previous.iter().map(|t| (t.clash.id(), t)).collect();
-    let mut out: Vec<Tracked> = clashes
-        .iter()
-        .map(|c| {
-            let (status, first_txn) = match before.get(&c.id()) {
-                None => (Status::New, txn),
-                Some(t) => match t.status {
-                    Status::Resolved => (Status::New, txn),
-                    Status::Reviewed | Status::Approved => (t.status, t.first_txn),
-                    Status::New | Status::Active => (Status::Active, t.first_txn),
-                },
-            };
-            Tracked { clash: c.clone(), status, first_txn, last_txn: txn }
-        })
-        .collect();
-    let now: std::collections::HashSet<(Key, Key, ClashKind)> = clashes.iter().map(Clash::id).collect();
-    for t in previous {
-        if !now.contains(&t.clash.id()) {
+    let order = |x: &Clash, y: &Clash| (&x.a, &x.b, x.kind).cmp(&(&y.a, &y.b, y.kind));
+    let sorted_previous;
+    let mut previous = previous;
+    if !previous.is_sorted_by(|x, y| order(&x.clash, &y.clash).is_le()) {
+        let mut v = previous.to_vec();
+        v.sort_by(|x, y| order(&x.clash, &y.clash));
+        sorted_previous = v;
+        previous = &sorted_previous;
+    }
+    let mut out = Vec::with_capacity(clashes.len() + previous.len());
+    let mut old = previous.iter().peekable();
+    for c in clashes {
+        // Records before this clash are gone from the run: resolved.
+        while let Some(t) = old.next_if(|t| order(&t.clash, c).is_lt()) {
             out.push(Tracked { status: Status::Resolved, ..t.clone() });
         }
+        let mut seen = None;
+        while let Some(t) = old.next_if(|t| order(&t.clash, c).is_eq()) {
+            seen = Some(t);
+        }
+        let (status, first_txn) = match seen {
+            None => (Status::New, txn),
+            Some(t) => match t.status {
+                Status::Resolved => (Status::New, txn),
+                Status::Reviewed | Status::Approved => (t.status, t.first_txn),
+                Status::New | Status::Active => (Status::Active, t.first_txn),
+            },
+        };
+        out.push(Tracked { clash: c.clone(), status, first_txn, last_txn: txn });
     }
-    out.sort_by(|x, y| (&x.clash.a, &x.clash.b, x.clash.kind).cmp(&(&y.clash.a, &y.clash.b, y.clash.kind)));
+    out.extend(old.map(|t| Tracked { status: Status::Resolved, ..t.clone() }));
     out
 }
 
@@ -160,5 +171,44 @@ mod tests {
         let r4 = update(&r3, &[c(1, 2)], 13);
         assert_eq!((st(&r4, 1), st(&r4, 3)), (Some(Status::New), Some(Status::Resolved)));
         assert_eq!(r4.iter().find(|t| t.clash.a == Key::Int(1)).map(|t| t.first_txn), Some(13));
+    }
+
+    proptest::proptest! {
+        /// The merge gives what a lookup by id would: every clash once, with
+        /// its record's status carried; every record the run lost, resolved;
+        /// all in (a, b, type) order, whatever order the records came in.
+        #[test]
+        fn the_merge_matches_a_lookup_by_id(
+            before in proptest::collection::btree_set((0u64..12, 0u64..12), 0..40),
+            now in proptest::collection::btree_set((0u64..12, 0u64..12), 0..40),
+            statuses in proptest::collection::vec(0u8..5, 40),
+            reverse in proptest::bool::ANY,
+        ) {
+            let status = |i: usize| match statuses[i % statuses.len()] {
+                0 => Status::New, 1 => Status::Active, 2 => Status::Reviewed, 3 => Status::Approved, _ => Status::Resolved,
+            };
+            let mut previous: Vec<Tracked> = before.iter().enumerate().map(|(i, &(a, b))| {
+                Tracked { clash: c(a, b), status: status(i), first_txn: i as u64, last_txn: 5 }
+            }).collect();
+            if reverse {
+                previous.reverse();
+            }
+            let clashes: Vec<Clash> = now.iter().map(|&(a, b)| c(a, b)).collect();
+            let out = update(&previous, &clashes, 9);
+            let key = |t: &Tracked| (t.clash.a.clone(), t.clash.b.clone(), t.clash.kind);
+            proptest::prop_assert!(out.windows(2).all(|w| key(&w[0]) < key(&w[1])));
+            for t in &out {
+                let old = previous.iter().find(|p| key(p) == key(t));
+                let found = clashes.iter().any(|c| (c.a.clone(), c.b.clone(), c.kind) == key(t));
+                let want = match (found, old.map(|p| p.status)) {
+                    (false, _) => Status::Resolved,
+                    (true, None | Some(Status::Resolved)) => Status::New,
+                    (true, Some(s @ (Status::Reviewed | Status::Approved))) => s,
+                    (true, Some(_)) => Status::Active,
+                };
+                proptest::prop_assert_eq!(t.status, want);
+            }
+            proptest::prop_assert_eq!(out.len(), before.union(&now).count());
+        }
     }
 }
