@@ -22,10 +22,18 @@ const MIN_FINGERPRINT: usize = MIN_KEY + 4 + 48;
 const MIN_TRACKED: usize = 2 * MIN_KEY + 1 + 8 + 8 + 24 + 2 + 96 + 1 + 16;
 
 /// The body of `store`.
+#[cfg(test)]
 pub(super) fn encode(store: &ClashStore) -> Result<Vec<u8>, String> {
+    encode_after(store, Vec::new())
+}
+
+/// `head` followed by the body of `store` (the caller's header goes in
+/// front without copying a body of hundreds of megabytes).
+pub(super) fn encode_after(store: &ClashStore, mut head: Vec<u8>) -> Result<Vec<u8>, String> {
     // Reserved up front: a run of 10^5 clashes is tens of megabytes.
     let records: usize = store.runs.values().map(|r| r.objects.len() * 64 + r.tracked.len() * 256).sum();
-    let mut w = Writer(Vec::with_capacity(records + 4096));
+    head.reserve(records + 4096);
+    let mut w = Writer(head);
     w.json(&store.tests)?;
     w.u32(count(store.runs.len())?);
     for (name, run) in &store.runs {

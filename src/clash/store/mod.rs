@@ -102,8 +102,11 @@ pub fn store_path(file: &Path) -> PathBuf {
 impl ClashStore {
     /// The store's bytes: the envelope, then the body.
     pub fn to_bytes(&self) -> Result<Vec<u8>, ClashError> {
-        let body = body::encode(self).map_err(|e| ClashError::Test(format!("the store: {e}")))?;
-        Ok(envelope(VERSION, &body))
+        let mut out = body::encode_after(self, vec![0; HEADER_LEN])
+            .map_err(|e| ClashError::Test(format!("the store: {e}")))?;
+        let (head, body) = out.split_at_mut(HEADER_LEN);
+        head.copy_from_slice(&header(VERSION, body));
+        Ok(out)
     }
 
     /// A store from its bytes; any damage or forgery is an error naming it.
@@ -205,14 +208,19 @@ impl ClashStore {
 /// The header of a store of `version` around `body`, then the body.
 pub fn envelope(version: u32, body: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(HEADER_LEN + body.len());
-    out.extend_from_slice(&MAGIC);
-    out.extend_from_slice(&version.to_le_bytes());
-    out.extend_from_slice(&0u32.to_le_bytes());
-    out.extend_from_slice(&(body.len() as u64).to_le_bytes());
-    out.extend_from_slice(&crc32fast::hash(body).to_le_bytes());
-    out.extend_from_slice(&0u32.to_le_bytes());
+    out.extend_from_slice(&header(version, body));
     out.extend_from_slice(body);
     out
+}
+
+/// The header of a store of `version` whose body is `body`.
+fn header(version: u32, body: &[u8]) -> [u8; HEADER_LEN] {
+    let mut h = [0u8; HEADER_LEN];
+    h[..8].copy_from_slice(&MAGIC);
+    h[8..12].copy_from_slice(&version.to_le_bytes());
+    h[16..24].copy_from_slice(&(body.len() as u64).to_le_bytes());
+    h[24..28].copy_from_slice(&crc32fast::hash(body).to_le_bytes());
+    h
 }
 
 /// A grouping as its text.
