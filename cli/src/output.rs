@@ -24,11 +24,17 @@ pub fn opt(x: Option<f64>) -> String {
     x.map_or_else(|| "-".to_string(), |v| format!("{v:.6}"))
 }
 
-/// Prints rows as left-aligned columns under a header.
+/// Prints rows as right-aligned columns under a header.
 pub fn table(header: &[&str], rows: &[Vec<String>]) {
+    table_of(header, rows.len(), |r| rows[r].iter().map(String::as_str));
+}
+
+/// [`table`] of `count` rows whose cells `row(r)` gives, so that a table of
+/// 10^6 rows need not hold 10^6 vectors of strings.
+pub fn table_of<'a, I: Iterator<Item = &'a str>>(header: &[&str], count: usize, row: impl Fn(usize) -> I) {
     let mut width: Vec<usize> = header.iter().map(|h| h.len()).collect();
-    for r in rows {
-        for (w, c) in width.iter_mut().zip(r) {
+    for r in 0..count {
+        for (w, c) in width.iter_mut().zip(row(r)) {
             *w = (*w).max(c.len());
         }
     }
@@ -50,8 +56,8 @@ pub fn table(header: &[&str], rows: &[Vec<String>]) {
         text.push('\n');
     };
     line(&mut header.iter().copied());
-    for r in rows {
-        line(&mut r.iter().map(String::as_str));
+    for r in 0..count {
+        line(&mut row(r));
     }
     print!("{text}");
 }

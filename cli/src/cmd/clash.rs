@@ -3,16 +3,18 @@
 //! chosen sets (docs/clash.md), grouped, as a table or JSON lines.
 
 use std::collections::BTreeMap;
+use std::fmt::Write as _;
 use std::io::Write;
 use std::path::Path;
 
 use anyhow::{Result, bail};
-use mktree::clash::key_json::key_text;
+use mktree::clash::key_json::{key_text, plain_text};
 use mktree::clash::{
     BcfOptions, Clash, ClashKind, ClashRun, ClashStore, ClashTest, DEFAULT_TOLERANCE, GroupBy, RunMode,
     SavedTest, Selector, Status, TestKind, export_bcf, group, run_recorded, run_test, store_path,
 };
 use mktree::query::{ClashOptions, clash};
+use mktree::scene::Key;
 use serde_json::json;
 
 use crate::args::ClashArgs;
@@ -184,27 +186,35 @@ fn print(
         writeln!(out, "{summary}")?;
         return Ok(out.flush()?);
     }
-    let rows: Vec<Vec<String>> = clashes
-        .iter()
-        .enumerate()
-        .map(|(i, c)| {
-            let measure = match c.kind {
-                ClashKind::Clearance => format!("{:.3}", c.distance),
-                _ => format!("{:.3}", c.depth),
-            };
-            vec![
-                group_of[i].to_string(),
-                status(i).unwrap_or("-").to_string(),
-                c.kind.name().to_string(),
-                key_text(&c.a),
-                key_text(&c.b),
-                measure,
-                format!("{:.0} {:.0} {:.0}", c.point.x, c.point.y, c.point.z),
-            ]
-        })
-        .collect();
+    // The cells in one buffer, each row's seven ending at `ends`: a run on
+    // 10^6 objects has over a million rows.
+    let mut cells = String::new();
+    let mut ends: Vec<usize> = Vec::with_capacity(clashes.len() * 7);
+    for (i, c) in clashes.iter().enumerate() {
+        let measure = if c.kind == ClashKind::Clearance { c.distance } else { c.depth };
+        write!(cells, "{}", group_of[i])?;
+        ends.push(cells.len());
+        cells.push_str(status(i).unwrap_or("-"));
+        ends.push(cells.len());
+        cells.push_str(c.kind.name());
+        ends.push(cells.len());
+        for key in [&c.a, &c.b] {
+            match (key, plain_text(key)) {
+                (Key::Int(k), _) => write!(cells, "{k}")?,
+                (_, Some(t)) => cells.push_str(t),
+                (_, None) => cells.push_str(&key_text(key)),
+            }
+            ends.push(cells.len());
+        }
+        write!(cells, "{measure:.3}")?;
+        ends.push(cells.len());
+        write!(cells, "{:.0} {:.0} {:.0}", c.point.x, c.point.y, c.point.z)?;
+        ends.push(cells.len());
+    }
     drop(out);
-    output::table(&["group", "status", "type", "a", "b", "depth/distance mm", "point"], &rows);
+    let cell = |k: usize| &cells[if k == 0 { 0 } else { ends[k - 1] }..ends[k]];
+    let header = ["group", "status", "type", "a", "b", "depth/distance mm", "point"];
+    output::table_of(&header, clashes.len(), |r| (7 * r..7 * r + 7).map(cell));
     println!();
     let rows: Vec<Vec<String>> =
         counts.iter().map(|((t, s), n)| vec![t.to_string(), s.to_string(), n.to_string()]).collect();
