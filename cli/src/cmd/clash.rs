@@ -117,8 +117,10 @@ pub fn typed(file: &Path, args: &ClashArgs, as_json: bool) -> Result<()> {
     }
     let rec = run_recorded(&r, &mut store, name, None, !args.full)?;
     store.save(&path)?;
-    let clashes: Vec<Clash> = rec.tracked.iter().map(|t| t.clash.clone()).collect();
-    let statuses: Vec<Status> = rec.tracked.iter().map(|t| t.status).collect();
+    let tracked = store.runs.remove(name).map(|run| run.tracked).unwrap_or_default();
+    drop(store);
+    let (clashes, statuses): (Vec<Clash>, Vec<Status>) =
+        tracked.into_iter().map(|t| (t.clash, t.status)).unzip();
     let groups = group(&clashes, group_by.unwrap_or_default());
     bcf(&r, args, &clashes, Some(&statuses), &groups, Some(name))?;
     print(&clashes, Some(&statuses), &rec.run, Some(&rec.mode), &groups, as_json)
