@@ -551,13 +551,26 @@ impl<'a, S: Selection> Select<'a, S> {
     /// budget near its end keeps the record whole rather than show a
     /// coarser child it cannot refine. A leaf's objects, in hand, cost the
     /// geometry blocks that make them exact when their own stand-ins are
-    /// coarser.
+    /// coarser. The look-ahead visits each record of the block at most once
+    /// in a tree; it stops after as many visits as the block has records,
+    /// since in a hostile file in-block children need not form a tree.
     fn refinement(
         &self,
         block: &Block,
         offset: u32,
         frame: &Aabb,
         shown: f64,
+    ) -> Result<(u64, u64), StorageError> {
+        self.refinement_within(block, offset, frame, shown, &mut block.records.len())
+    }
+
+    fn refinement_within(
+        &self,
+        block: &Block,
+        offset: u32,
+        frame: &Aabb,
+        shown: f64,
+        visits_left: &mut usize,
     ) -> Result<(u64, u64), StorageError> {
         let n = match view(block, offset)? {
             NodeView::Internal(n) => n,
@@ -594,8 +607,11 @@ impl<'a, S: Selection> Select<'a, S> {
             };
             if error > shown {
                 coarser = true;
-                let (b, g) = self.refinement(block, at.offset, &qb.outer, shown)?;
-                in_block = (in_block.0 + b, in_block.1 + g);
+                if let Some(left) = visits_left.checked_sub(1) {
+                    *visits_left = left;
+                    let (b, g) = self.refinement_within(block, at.offset, &qb.outer, shown, visits_left)?;
+                    in_block = (in_block.0 + b, in_block.1 + g);
+                }
             }
         }
         if !coarser {
