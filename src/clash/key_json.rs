@@ -20,7 +20,22 @@ pub fn plain_text(key: &Key) -> Option<&str> {
 /// A key as a person reads it and selectors match it: an integer in
 /// decimal, plain text as is, other bytes as `Key`'s `Display` shows them.
 pub fn key_text(key: &Key) -> String {
-    plain_text(key).map_or_else(|| key.to_string(), str::to_string)
+    let mut text = String::new();
+    write_key_text(&mut text, key);
+    text
+}
+
+/// Appends [`key_text`] of `key` to `out`, with no string of its own (a
+/// table of a million clashes writes two million keys).
+pub fn write_key_text(out: &mut String, key: &Key) {
+    use std::fmt::Write as _;
+    match plain_text(key) {
+        Some(t) => out.push_str(t),
+        // Writing into a String cannot fail.
+        None => {
+            let _ = write!(out, "{key}");
+        }
+    }
 }
 
 fn hex(b: &[u8]) -> String {

@@ -6,6 +6,8 @@
 //! person sets, persist while the clash does; a clash that comes back
 //! after being resolved is New again.
 
+use std::borrow::Cow;
+
 use serde::{Deserialize, Serialize};
 
 use super::test::{Clash, ClashKind};
@@ -86,14 +88,13 @@ pub struct Tracked {
 /// written by something else) is sorted first.
 pub fn update(previous: &[Tracked], clashes: &[Clash], txn: u64) -> Vec<Tracked> {
     let order = |x: &Clash, y: &Clash| (&x.a, &x.b, x.kind).cmp(&(&y.a, &y.b, y.kind));
-    let sorted_previous;
-    let mut previous = previous;
-    if !previous.is_sorted_by(|x, y| order(&x.clash, &y.clash).is_le()) {
+    let previous: Cow<[Tracked]> = if previous.is_sorted_by(|x, y| order(&x.clash, &y.clash).is_le()) {
+        Cow::Borrowed(previous)
+    } else {
         let mut v = previous.to_vec();
         v.sort_by(|x, y| order(&x.clash, &y.clash));
-        sorted_previous = v;
-        previous = &sorted_previous;
-    }
+        Cow::Owned(v)
+    };
     let mut out = Vec::with_capacity(clashes.len() + previous.len());
     let mut old = previous.iter().peekable();
     for c in clashes {

@@ -8,13 +8,12 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::{Result, bail};
-use mktree::clash::key_json::{key_text, plain_text};
+use mktree::clash::key_json::write_key_text;
 use mktree::clash::{
     BcfOptions, Clash, ClashKind, ClashRun, ClashStore, ClashTest, DEFAULT_TOLERANCE, GroupBy, RunMode,
     SavedTest, Selector, Status, TestKind, export_bcf, group, run_recorded, run_test, store_path,
 };
 use mktree::query::{ClashOptions, clash};
-use mktree::scene::Key;
 use serde_json::json;
 
 use crate::args::ClashArgs;
@@ -201,11 +200,7 @@ fn print(
         cells.push_str(c.kind.name());
         ends.push(cells.len());
         for key in [&c.a, &c.b] {
-            match (key, plain_text(key)) {
-                (Key::Int(k), _) => write!(cells, "{k}")?,
-                (_, Some(t)) => cells.push_str(t),
-                (_, None) => cells.push_str(&key_text(key)),
-            }
+            write_key_text(&mut cells, key);
             ends.push(cells.len());
         }
         write!(cells, "{measure:.3}")?;
