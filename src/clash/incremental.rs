@@ -51,9 +51,9 @@ pub enum RunMode {
 }
 
 /// A run, recorded: its clashes and how it was made. Their statuses, with
-/// every clash recorded so far (resolved ones too), are the record's
-/// ([`RecordedRun::tracked`]), not copied here: a run on 10^6 objects
-/// tracks over a million.
+/// every clash recorded so far (resolved ones too), stay in the store's
+/// record of the run ([`ClashStore::runs`]), not copied here: a run on
+/// 10^6 objects tracks over a million.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Recorded {
     /// The run.
