@@ -61,6 +61,34 @@ def test_geometry_is_in_millimetres_where_the_model_places_it(plant: "tuple[Any,
     assert len(walls) == 1  # the wall between rooms (0, 0) and (1, 0) it runs through
 
 
+def test_placed_shapes_equal_ifcopenshells_world_coordinates(plant: "tuple[Any, Path]") -> None:
+    # The loader triangulates each shared representation once and places it
+    # itself; IfcOpenShell's own world-coordinate triangulation is the truth.
+    import ifcopenshell.geom
+    import numpy as np
+
+    model, _ = plant
+    ours = {o.key: o for o in mktree.ifc.shapes(model, threads=2)}
+    settings = ifcopenshell.geom.settings()
+    settings.set("use-world-coords", True)
+    iterator = ifcopenshell.geom.iterator(settings, model, 2, exclude=list(mktree.ifc.DEFAULT_EXCLUDE))
+    assert iterator.initialize()
+    seen, shared = 0, set()
+    while True:
+        shape = iterator.get()
+        o = ours[shape.guid]
+        shared.add(shape.geometry.id)
+        faces = np.asarray(shape.geometry.faces, dtype=np.int64).reshape(-1, 3)
+        vertices = np.asarray(shape.geometry.verts, dtype=np.float64).reshape(-1, 3) * 1000.0
+        assert np.array_equal(o.triangles, faces)
+        assert np.allclose(o.vertices, vertices, rtol=0, atol=1e-6)
+        seen += 1
+        if not iterator.next():
+            break
+    assert seen == len(ours)
+    assert len(shared) < seen / 10  # the model does share representations, so placing is exercised
+
+
 def test_the_example_script_clashes_queries_and_draws(tmp_path: Path) -> None:
     png = tmp_path / "clashes.png"
     run = subprocess.run([sys.executable, str(HERE.parent / "examples" / "clash_report.py"), "-o", str(png)],
