@@ -70,6 +70,8 @@ pub use select::{Candidate, MAX_SELECTOR, Selector, glob, in_set};
 pub use status::{Status, Tracked, set_status, update};
 pub use store::{ClashStore, store_path};
 internal_use!(store::{
-    Fingerprint, HEADER_LEN, MAGIC, MAX_STORE_BYTES, OLDEST_VERSION, RecordedRun, SavedTest, VERSION, envelope,
+    Fingerprint, HEADER_LEN, MAGIC, MAX_STORE_BYTES, OLDEST_VERSION, RecordedRun, SavedTest, VERSION,
 });
+#[cfg(feature = "internals")]
+pub use store::envelope;
 pub use test::{Clash, ClashKind, ClashTest, DEFAULT_TOLERANCE, MAX_DISTANCE, MAX_NAME, TestKind};

@@ -38,6 +38,8 @@ pub use brute_force::{
     brute_force_region,
 };
 pub use clash::{ClashAnswer, ClashOptions, clash};
+// For BCF snapshots, the one user outside this module.
+#[cfg(feature = "bcf")]
 pub(crate) use collide::fetch_meshes;
 pub use collide::{CollideOptions, collide, object_mesh, object_meshes};
 pub use error::QueryError;

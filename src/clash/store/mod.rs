@@ -205,7 +205,9 @@ impl ClashStore {
     }
 }
 
-/// The header of a store of `version` around `body`, then the body.
+/// The header of a store of `version` around `body`, then the body (for
+/// tests and fuzzing: a store is written with its header in front).
+#[cfg(any(test, feature = "internals"))]
 pub fn envelope(version: u32, body: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(HEADER_LEN + body.len());
     out.extend_from_slice(&header(version, body));
