@@ -74,19 +74,17 @@ pub fn run_test(txn: &ReadTransaction, test: &ClashTest) -> Result<ClashRun, Cla
 pub(crate) fn membership(test: &ClashTest, entries: &[KeyEntry]) -> (Vec<bool>, Vec<bool>) {
     let reads = |s: &[Selector]| s.iter().any(Selector::reads_payload);
     let parse = reads(&test.a) || test.b.as_deref().is_some_and(reads);
-    let mut in_a = Vec::with_capacity(entries.len());
-    let mut in_b = Vec::with_capacity(entries.len());
-    for e in entries {
-        let payload = if parse { serde_json::from_slice::<serde_json::Value>(&e.payload).ok() } else { None };
-        let c = Candidate { key: &e.key, name: &e.name, payload: payload.as_ref() };
-        let a = in_set(&test.a, &c);
-        in_a.push(a);
-        in_b.push(match &test.b {
-            Some(b) => in_set(b, &c),
-            None => a,
-        });
-    }
-    (in_a, in_b)
+    // On every core: with payload selectors, each object's payload is
+    // parsed (a re-run of 50,288 IFC objects spent 15% of its time here).
+    entries
+        .par_iter()
+        .map(|e| {
+            let payload = if parse { serde_json::from_slice::<serde_json::Value>(&e.payload).ok() } else { None };
+            let c = Candidate { key: &e.key, name: &e.name, payload: payload.as_ref() };
+            let a = in_set(&test.a, &c);
+            (a, test.b.as_ref().map_or(a, |b| in_set(b, &c)))
+        })
+        .unzip()
 }
 
 /// The pairs (i, j) of `entries` a test may find a clash in, i from A and
@@ -101,31 +99,50 @@ pub(crate) fn candidates(
 ) -> Vec<(usize, usize)> {
     let mut order: Vec<usize> = (0..entries.len()).filter(|&i| in_a[i] || in_b[i]).collect();
     order.sort_by(|&x, &y| entries[x].aabb.min.x.total_cmp(&entries[y].aabb.min.x));
+    let pair = |i: usize, j: usize| -> Option<(usize, usize)> {
+        if !entries[i].aabb.within(&entries[j].aabb, reach) {
+            return None;
+        }
+        match (in_a[i] && in_b[j], in_a[j] && in_b[i]) {
+            (true, true) if entries[j].key < entries[i].key => Some((j, i)),
+            (true, _) => Some((i, j)),
+            (false, true) => Some((j, i)),
+            (false, false) => None,
+        }
+    };
+    // The sweep from the n-th object of `order` on: the later objects whose
+    // boxes begin within reach of its end.
+    let later = |n: usize, out: &mut Vec<(usize, usize)>| {
+        let i = order[n];
+        let end = entries[i].aabb.max.x + reach;
+        for &j in order[n + 1..].iter().take_while(|&&j| entries[j].aabb.min.x <= end) {
+            out.extend(pair(i, j));
+        }
+    };
     let mut out = Vec::new();
-    for (n, &i) in order.iter().enumerate() {
-        let bi = &entries[i].aabb;
-        for &j in &order[n + 1..] {
-            let bj = &entries[j].aabb;
-            if bj.min.x > bi.max.x + reach {
-                break;
+    let Some(changed) = changed else {
+        (0..order.len()).for_each(|n| later(n, &mut out));
+        return out;
+    };
+    // From each changed object only, so a re-run after a few changes does
+    // not sweep every object: forward as the sweep, and back over the
+    // earlier objects while any of them still ends within reach (the
+    // running largest end), skipping changed ones, whose own forward
+    // sweep finds the pair.
+    let mut reach_back = Vec::with_capacity(order.len());
+    let mut furthest = f64::NEG_INFINITY;
+    for &i in &order {
+        furthest = furthest.max(entries[i].aabb.max.x);
+        reach_back.push(furthest);
+    }
+    for (n, &i) in order.iter().enumerate().filter(|&(_, &i)| changed[i]) {
+        later(n, &mut out);
+        let start = entries[i].aabb.min.x - reach;
+        for m in (0..n).rev().take_while(|&m| reach_back[m] >= start) {
+            let k = order[m];
+            if !changed[k] {
+                out.extend(pair(k, i));
             }
-            if let Some(c) = changed
-                && !c[i]
-                && !c[j]
-            {
-                continue;
-            }
-            if !bi.within(bj, reach) {
-                continue;
-            }
-            let (ij, ji) = (in_a[i] && in_b[j], in_a[j] && in_b[i]);
-            let pair = match (ij, ji) {
-                (true, true) if entries[j].key < entries[i].key => (j, i),
-                (true, _) => (i, j),
-                (false, true) => (j, i),
-                (false, false) => continue,
-            };
-            out.push(pair);
         }
     }
     out
@@ -295,6 +312,7 @@ mod tests {
     use crate::db::{Database, Reads};
     use crate::scene::generate::{GenOptions, Preset, generate_scene};
     use crate::store::device::MemDevice;
+    use proptest::prelude::*;
 
     #[test]
     fn chunks_of_any_size_find_the_same_clashes_reading_each_mesh_once() {
@@ -324,6 +342,36 @@ mod tests {
                 s.peak_meshes,
                 ws.peak_meshes
             );
+        }
+    }
+
+    proptest! {
+        /// Candidates from the changed objects only are exactly the full
+        /// sweep's pairs that name a changed object, whatever the boxes
+        /// (long ones that reach far back in the sweep included), the sets
+        /// and the reach.
+        #[test]
+        fn changed_candidates_are_the_sweeps_pairs_with_a_change(
+            boxes in proptest::collection::vec((0.0..100.0f64, 0.0..100.0f64, 0.0..60.0f64, 0.0..60.0f64, 0u8..4, any::<bool>()), 0..60),
+            reach in 0.0..5.0f64,
+        ) {
+            let entries: Vec<KeyEntry> = boxes.iter().enumerate().map(|(n, &(x, y, w, h, _, _))| KeyEntry {
+                key: Key::Int(n as u64 * 7 % 61),
+                payload: Vec::new(),
+                name: String::new(),
+                object_id: n as u32,
+                path: Default::default(),
+                aabb: Aabb::new(Point::new(x, y, 0.0), Point::new(x + w, y + h / 4.0, 1.0)),
+            }).collect();
+            let in_a: Vec<bool> = boxes.iter().map(|b| b.4 & 1 == 1).collect();
+            let in_b: Vec<bool> = boxes.iter().map(|b| b.4 & 2 == 2 || b.4 == 0).collect();
+            let changed: Vec<bool> = boxes.iter().map(|b| b.5).collect();
+            let mut all = candidates(&entries, &in_a, &in_b, reach, None);
+            all.retain(|&(i, j)| changed[i] || changed[j]);
+            all.sort_unstable();
+            let mut some = candidates(&entries, &in_a, &in_b, reach, Some(&changed));
+            some.sort_unstable();
+            prop_assert_eq!(some, all);
         }
     }
 }

@@ -136,28 +136,47 @@ pub fn in_set(set: &[Selector], c: &Candidate) -> bool {
 
 /// `text` matches the glob `pattern`: `*` any run of characters (none
 /// too), `?` one character, anything else itself. Linear in the text for
-/// each `*` (the classic backtracking to the last star).
+/// each `*` (the classic backtracking to the last star). Runs on the
+/// bytes, a character at a time, without allocating: a run tests every
+/// object against every selector (50,288 objects and 6 selectors spent 14%
+/// of an IFC re-run collecting characters).
 pub fn glob(pattern: &str, text: &str) -> bool {
-    let p: Vec<char> = pattern.chars().collect();
-    let t: Vec<char> = text.chars().collect();
+    let (p, t) = (pattern.as_bytes(), text.as_bytes());
     let (mut i, mut j) = (0, 0);
     let mut star: Option<(usize, usize)> = None;
     while j < t.len() {
-        if i < p.len() && (p[i] == '?' || (p[i] != '*' && p[i] == t[j])) {
+        // Both indices stay on character boundaries, so equal lead bytes
+        // mean equal lengths, and equal bytes equal characters.
+        let len = utf8_len(t[j]);
+        if i < p.len() && p[i] == b'?' {
             i += 1;
-            j += 1;
-        } else if i < p.len() && p[i] == '*' {
+            j += len;
+        } else if i < p.len() && p[i] != b'*' && p[i..].starts_with(&t[j..j + len]) {
+            i += len;
+            j += len;
+        } else if i < p.len() && p[i] == b'*' {
             star = Some((i, j));
             i += 1;
         } else if let Some((si, sj)) = star {
+            let next = sj + utf8_len(t[sj]);
             i = si + 1;
-            j = sj + 1;
-            star = Some((si, sj + 1));
+            j = next;
+            star = Some((si, next));
         } else {
             return false;
         }
     }
-    p[i..].iter().all(|&c| c == '*')
+    p[i..].iter().all(|&c| c == b'*')
+}
+
+/// The length of the UTF-8 character whose first byte is `lead`.
+fn utf8_len(lead: u8) -> usize {
+    match lead {
+        0..0xC0 => 1,
+        0xC0..0xE0 => 2,
+        0xE0..0xF0 => 3,
+        _ => 4,
+    }
 }
 
 #[cfg(test)]
@@ -210,6 +229,24 @@ mod tests {
             prop_assert_eq!(glob(&format!("{prefix}*"), &text), text.starts_with(&prefix));
             prop_assert_eq!(glob(&prefix, &text), prefix == text);
             prop_assert_eq!(glob(&format!("*{prefix}*"), &text), text.contains(&prefix));
+        }
+
+        /// The byte-wise glob answers as a plain match over characters,
+        /// with wildcards anywhere and characters of every UTF-8 length.
+        #[test]
+        fn globs_match_as_characters_do(pattern in "[aé€𝄞*?]{0,6}", text in "[aé€𝄞]{0,8}") {
+            prop_assert_eq!(glob(&pattern, &text), by_chars(&pattern.chars().collect::<Vec<_>>(), &text.chars().collect::<Vec<_>>()));
+        }
+    }
+
+    /// The glob's meaning, by recursion over characters.
+    fn by_chars(p: &[char], t: &[char]) -> bool {
+        match p.split_first() {
+            None => t.is_empty(),
+            Some(('*', rest)) => (0..=t.len()).any(|k| by_chars(rest, &t[k..])),
+            Some((&c, rest)) => {
+                t.split_first().is_some_and(|(&x, tail)| (c == '?' || c == x) && by_chars(rest, tail))
+            }
         }
     }
 }

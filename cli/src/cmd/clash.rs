@@ -165,26 +165,67 @@ fn print(
     let out = std::io::stdout();
     let mut out = std::io::BufWriter::new(out.lock());
     if as_json {
-        for (i, c) in clashes.iter().enumerate() {
-            let mut v = serde_json::to_value(c)?;
-            if let Some(o) = v.as_object_mut() {
-                o.insert("group".into(), json!(group_of[i]));
-                o.insert("status".into(), json!(status(i)));
-            }
-            writeln!(out, "{v}")?;
+        // Written straight from the clash, not through a JSON value: a
+        // value's map of owned strings per row was 15% of an IFC re-run.
+        #[derive(serde::Serialize)]
+        struct Row<'a> {
+            #[serde(flatten)]
+            clash: &'a Clash,
+            group: usize,
+            status: Option<&'a str>,
         }
-        let by_type_status: Vec<_> =
-            counts.iter().map(|((t, s), n)| json!({"type": t, "status": s, "clashes": n})).collect();
-        let summary = json!({"summary": {
-            "txn": run.txn,
-            "clashes": clashes.len(),
-            "groups": groups.iter().map(|g| json!({"id": g.id, "name": g.name, "clashes": g.members.len(),
-                "point": [g.point.x, g.point.y, g.point.z]})).collect::<Vec<_>>(),
-            "by_type_status": by_type_status,
-            "mode": mode,
-            "stats": run.stats,
-        }});
-        writeln!(out, "{summary}")?;
+        for (i, clash) in clashes.iter().enumerate() {
+            serde_json::to_writer(&mut out, &Row { clash, group: group_of[i], status: status(i) })?;
+            out.write_all(b"\n")?;
+        }
+        #[derive(serde::Serialize)]
+        struct Count<'a> {
+            #[serde(rename = "type")]
+            kind: &'a str,
+            status: &'a str,
+            clashes: usize,
+        }
+        #[derive(serde::Serialize)]
+        struct GroupRow<'a> {
+            id: usize,
+            name: &'a str,
+            clashes: usize,
+            point: [f64; 3],
+        }
+        #[derive(serde::Serialize)]
+        struct Summary<'a> {
+            txn: u64,
+            clashes: usize,
+            groups: Vec<GroupRow<'a>>,
+            by_type_status: Vec<Count<'a>>,
+            mode: Option<&'a RunMode>,
+            stats: &'a mktree::clash::RunStats,
+        }
+        let summary = Summary {
+            txn: run.txn,
+            clashes: clashes.len(),
+            groups: groups
+                .iter()
+                .map(|g| GroupRow {
+                    id: g.id,
+                    name: &g.name,
+                    clashes: g.members.len(),
+                    point: [g.point.x, g.point.y, g.point.z],
+                })
+                .collect(),
+            by_type_status: counts
+                .iter()
+                .map(|(&(kind, status), &clashes)| Count { kind, status, clashes })
+                .collect(),
+            mode,
+            stats: &run.stats,
+        };
+        #[derive(serde::Serialize)]
+        struct Line<'a> {
+            summary: Summary<'a>,
+        }
+        serde_json::to_writer(&mut out, &Line { summary })?;
+        out.write_all(b"\n")?;
         return Ok(out.flush()?);
     }
     // The cells in one buffer, each row's seven ending at `ends`: a run on
