@@ -79,7 +79,8 @@ pub(crate) fn membership(test: &ClashTest, entries: &[KeyEntry]) -> (Vec<bool>, 
     entries
         .par_iter()
         .map(|e| {
-            let payload = if parse { serde_json::from_slice::<serde_json::Value>(&e.payload).ok() } else { None };
+            let payload =
+                if parse { serde_json::from_slice::<serde_json::Value>(&e.payload).ok() } else { None };
             let c = Candidate { key: &e.key, name: &e.name, payload: payload.as_ref() };
             let a = in_set(&test.a, &c);
             (a, test.b.as_ref().map_or(a, |b| in_set(b, &c)))
