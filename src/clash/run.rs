@@ -98,6 +98,19 @@ pub(crate) fn candidates(
     reach: f64,
     changed: Option<&[bool]>,
 ) -> Vec<(usize, usize)> {
+    candidates_by(entries, in_a, in_b, reach, changed, FEW_CHANGES)
+}
+
+/// [`candidates`], sweeping from the changed objects alone when they are
+/// at most one in `few` of the test's objects.
+fn candidates_by(
+    entries: &[KeyEntry],
+    in_a: &[bool],
+    in_b: &[bool],
+    reach: f64,
+    changed: Option<&[bool]>,
+    few: usize,
+) -> Vec<(usize, usize)> {
     let mut order: Vec<usize> = (0..entries.len()).filter(|&i| in_a[i] || in_b[i]).collect();
     order.sort_by(|&x, &y| entries[x].aabb.min.x.total_cmp(&entries[y].aabb.min.x));
     let pair = |i: usize, j: usize| -> Option<(usize, usize)> {
@@ -121,8 +134,16 @@ pub(crate) fn candidates(
         }
     };
     let mut out = Vec::new();
-    let Some(changed) = changed else {
+    let changes = changed.map(|c| order.iter().filter(|&&i| c[i]).count());
+    let Some(changed) = changed.filter(|_| changes.is_some_and(|n| n <= order.len() / few)) else {
+        // Everything, or so many changes that a walk back from each could
+        // cost more than the sweep (a long box early in the order is
+        // reached from every later one): the sweep, keeping pairs with a
+        // change.
         (0..order.len()).for_each(|n| later(n, &mut out));
+        if let Some(c) = changed {
+            out.retain(|&(i, j)| c[i] || c[j]);
+        }
         return out;
     };
     // From each changed object only, so a re-run after a few changes does
@@ -148,6 +169,10 @@ pub(crate) fn candidates(
     }
     out
 }
+
+/// Changed objects, at most one in this many of a test's objects, are
+/// swept from alone; more, and the whole sweep runs.
+const FEW_CHANGES: usize = 64;
 
 /// Runs `test` over `entries` (the snapshot's key index): every candidate
 /// pair, or with `changed` those with a changed object.
@@ -347,8 +372,9 @@ mod tests {
     }
 
     proptest! {
-        /// Candidates from the changed objects only are exactly the full
-        /// sweep's pairs that name a changed object, whatever the boxes
+        /// Candidates from the changed objects only, or from the whole
+        /// sweep kept to them, are exactly the full sweep's pairs that name
+        /// a changed object, whatever the boxes
         /// (long ones that reach far back in the sweep included), the sets
         /// and the reach.
         #[test]
@@ -370,9 +396,12 @@ mod tests {
             let mut all = candidates(&entries, &in_a, &in_b, reach, None);
             all.retain(|&(i, j)| changed[i] || changed[j]);
             all.sort_unstable();
-            let mut some = candidates(&entries, &in_a, &in_b, reach, Some(&changed));
-            some.sort_unstable();
-            prop_assert_eq!(some, all);
+            // From the changed objects alone (any share of them), and the whole sweep kept to them.
+            for few in [1, usize::MAX] {
+                let mut some = candidates_by(&entries, &in_a, &in_b, reach, Some(&changed), few);
+                some.sort_unstable();
+                prop_assert_eq!(&some, &all, "few = {}", few);
+            }
         }
     }
 }
