@@ -95,9 +95,12 @@ pub fn group(clashes: &[Clash], by: GroupBy) -> Vec<Group> {
         GroupBy::Proximity(g) => proximity(clashes, g),
     };
     let mut groups: Vec<Group> = Vec::new();
-    let mut at: HashMap<usize, usize> = HashMap::new();
+    // Every label is a clash's index, so a group's place is found by
+    // indexing, not hashing (1.5 million groups for a run on 10^6 objects).
+    let mut at = vec![usize::MAX; clashes.len()];
     for (i, c) in clashes.iter().enumerate() {
-        let n = *at.entry(label[i]).or_insert_with(|| {
+        if at[label[i]] == usize::MAX {
+            at[label[i]] = groups.len();
             groups.push(Group {
                 id: groups.len(),
                 name: String::new(),
@@ -105,9 +108,8 @@ pub fn group(clashes: &[Clash], by: GroupBy) -> Vec<Group> {
                 aabb: Aabb::EMPTY,
                 point: Point::origin(),
             });
-            groups.len() - 1
-        });
-        let g = &mut groups[n];
+        }
+        let g = &mut groups[at[label[i]]];
         g.members.push(i);
         g.aabb = g.aabb.including(&c.point).union(&c.overlap.unwrap_or(Aabb::new(c.point, c.point)));
     }
