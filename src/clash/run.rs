@@ -125,12 +125,14 @@ fn candidates_by(
         }
     };
     // The sweep from the n-th object of `order` on: the later objects whose
-    // boxes begin within reach of its end.
-    let later = |n: usize, out: &mut Vec<(usize, usize)>| {
+    // boxes begin within reach of its end; with `only`, pairs with a change.
+    let later = |n: usize, only: Option<&[bool]>, out: &mut Vec<(usize, usize)>| {
         let i = order[n];
         let end = entries[i].aabb.max.x + reach;
         for &j in order[n + 1..].iter().take_while(|&&j| entries[j].aabb.min.x <= end) {
-            out.extend(pair(i, j));
+            if only.is_none_or(|c| c[i] || c[j]) {
+                out.extend(pair(i, j));
+            }
         }
     };
     let mut out = Vec::new();
@@ -138,12 +140,8 @@ fn candidates_by(
     let Some(changed) = changed.filter(|_| changes.is_some_and(|n| n <= order.len() / few)) else {
         // Everything, or so many changes that a walk back from each could
         // cost more than the sweep (a long box early in the order is
-        // reached from every later one): the sweep, keeping pairs with a
-        // change.
-        (0..order.len()).for_each(|n| later(n, &mut out));
-        if let Some(c) = changed {
-            out.retain(|&(i, j)| c[i] || c[j]);
-        }
+        // reached from every later one): the sweep.
+        (0..order.len()).for_each(|n| later(n, changed, &mut out));
         return out;
     };
     // From each changed object only, so a re-run after a few changes does
@@ -158,7 +156,7 @@ fn candidates_by(
         reach_back.push(furthest);
     }
     for (n, &i) in order.iter().enumerate().filter(|&(_, &i)| changed[i]) {
-        later(n, &mut out);
+        later(n, None, &mut out);
         let start = entries[i].aabb.min.x - reach;
         for m in (0..n).rev().take_while(|&m| reach_back[m] >= start) {
             let k = order[m];
