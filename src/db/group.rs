@@ -44,6 +44,9 @@ pub struct GroupSummary {
     pub block_bytes: u64,
     /// Nodes of the tree (each could hold one per level).
     pub nodes: u64,
+    /// Cells of a level-2 group grid at most (the meta block's
+    /// `cuberille_bits`; level k's: 4^(k-2) times more), 0 without a rule.
+    pub cuberille_bits: u32,
 }
 
 impl ReadTransaction {
@@ -53,6 +56,7 @@ impl ReadTransaction {
         let mut out = GroupSummary::default();
         let (Some(rule), Some(root)) = (self.group_rule(), self.root()) else { return Ok(out) };
         out.levels = rule.group_levels().map(|level| GroupLevel { level, ..GroupLevel::default() }).collect();
+        out.cuberille_bits = rule.cuberille_bits;
         let mut tally =
             Tally { txn: self, rule: &rule, out: &mut out, blocks: HashSet::new(), root: true, err: None };
         walk_everything(self, root, &mut Reads::new(None), &mut tally)?;

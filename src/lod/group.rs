@@ -81,6 +81,13 @@ impl GroupRule {
         Err(LodError::TooLarge { level, dims: [0; 3], cells: budget.saturating_add(1) })
     }
 
+    /// The same rule with twice the cells per level: a grid as fine or one
+    /// lattice level finer, never coarser, so bounds built under it lift
+    /// into this rule's grids.
+    pub fn finer(&self) -> GroupRule {
+        GroupRule { cuberille_bits: self.cuberille_bits.max(1).saturating_mul(2), ..self.clone() }
+    }
+
     /// The guaranteed error of b(S_n,k) over `frame`, mm: its grid's largest
     /// cell diagonal (grown by the voxelization tolerance).
     pub fn eps(&self, k: u8, frame: &Aabb) -> Option<f64> {
@@ -94,7 +101,7 @@ pub fn leaf_group<'a>(grid: Grid, meshes: impl IntoIterator<Item = &'a Mesh>) ->
 }
 
 /// b(S_n,k) of an internal node: its children's bounds lifted into `grid`.
-/// Refuses children on another lattice, finer than the grid or outside it.
+/// Refuses children on another lattice, coarser than the grid or outside it.
 pub fn lift_group<'a>(
     grid: Grid,
     children: impl IntoIterator<Item = &'a Voxels>,
@@ -145,6 +152,26 @@ mod tests {
     }
 
     proptest! {
+        /// The finer rule's grid over any box is the same lattice level or
+        /// one finer, so its bounds lift into the rule's own grid.
+        #[test]
+        fn a_finer_rules_grids_lift_into_the_rules_own(
+            lo in prop::array::uniform3(-50.0f64..50.0),
+            size in prop::array::uniform3(0.01f64..300.0),
+            k in 2u8..=3,
+        ) {
+            let r = rule();
+            let b = Aabb::from_array([lo[0], lo[1], lo[2], lo[0] + size[0], lo[1] + size[1], lo[2] + size[2]]);
+            let (g, f) = (r.grid(k, &b).unwrap(), r.finer().grid(k, &b).unwrap());
+            prop_assert!(f.level() <= g.level() && g.level() <= f.level() + 1, "{} then {}", f.level(), g.level());
+            let d = f.dims();
+            let mut corners = Voxels::empty(f.clone());
+            corners.set_cell([0, 0, 0]);
+            corners.set_cell([d[0] - 1, d[1] - 1, d[2] - 1]);
+            let lifted = lift_group(g.clone(), [&corners]);
+            prop_assert!(lifted.is_ok_and(|v| !v.is_empty() && v.count() <= 2));
+        }
+
         /// A parent's lifted bound holds every child cell's surface, and each
         /// of its cells holds a child cell: within its cell diagonal both ways.
         #[test]

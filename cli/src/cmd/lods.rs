@@ -135,8 +135,9 @@ fn print_levels(file: &Path, info: &LodInfo, tree: &TreeInfo, levels: &[Value]) 
 /// The group bounds' totals, then per level what is stored and the root's bound.
 fn print_groups(groups: &GroupSummary) {
     println!(
-        "group bounds b(S_n,k): {} group blocks ({} bytes of directory and blobs) over {} nodes",
-        groups.blocks, groups.block_bytes, groups.nodes
+        "group bounds b(S_n,k): {} group blocks ({} bytes of directory and blobs) over {} nodes, \
+         level-2 grids of at most {} cells",
+        groups.blocks, groups.block_bytes, groups.nodes, groups.cuberille_bits
     );
     let rows: Vec<Vec<String>> = groups
         .levels

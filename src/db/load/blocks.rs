@@ -36,6 +36,9 @@ pub(crate) struct Written {
     /// The objects stored in parts, by id, with the union of their parts'
     /// boxes (any other object's box as the tree holds it is its source's).
     pub split_boxes: Vec<(ObjectId, Aabb)>,
+    /// The cells per level-2 grid the group bounds were built under, when
+    /// they were (`groups::group_entries` chooses).
+    pub group_cuberille_bits: Option<u32>,
 }
 
 impl Written {
@@ -84,11 +87,12 @@ pub(crate) fn write(
         }
     }
     // The group bounds, each node block's in a group block of its own.
-    let group_entries = match groups {
+    let (group_entries, group_cuberille_bits) = match groups {
         Some((rule, shells)) => {
-            super::groups::group_entries((rule, shells), objects, tree, plan, &packing, &offset, bs)?
+            let e = super::groups::group_entries((rule, shells), objects, tree, plan, &packing, &offset, bs)?;
+            (e.per_block, Some(e.cuberille_bits))
         }
-        None => vec![Vec::new(); packing.blocks.len()],
+        None => (vec![Vec::new(); packing.blocks.len()], None),
     };
     let group_refs = write_groups(Sink { pager, txn, allocate }, &group_entries, &packing)?;
     let nodes = NodeBlocks {
@@ -114,6 +118,7 @@ pub(crate) fn write(
         vertices: geometry.vertices,
         paths,
         split_boxes,
+        group_cuberille_bits,
     })
 }
 

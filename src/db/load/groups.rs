@@ -31,10 +31,26 @@ const PARALLEL_NODES: usize = 2048;
 /// per node).
 const PARALLEL_DEPTH: u32 = 12;
 
-/// Per node block of `packing`, the group entries its group block holds:
-/// level by level, coarse first, and within a level in the block's record
-/// order (a piece's root first), each that still fits; sorted by record
-/// and level.
+/// A finer group grid is kept when the group blocks still hold the level-2
+/// bound of at least this share of the nodes that have one. A node left
+/// without it shows as its box, or costs the reads below it, so finer
+/// bounds pay only while they cost almost none; measured on the ship,
+/// plant and tanker scenes in docs/viewing.md.
+const KEPT_SHARE: f64 = 0.99;
+
+/// Group entries per node block, and the rule they were built under.
+pub(super) struct GroupEntries {
+    /// Per node block of the packing, its group block's entries.
+    pub per_block: Vec<Vec<GroupEntry>>,
+    /// The rule's cells per level-2 grid (the meta block's `cuberille_bits`).
+    pub cuberille_bits: u32,
+}
+
+/// Per node block of `packing`, the group entries its group block holds,
+/// under `rule`'s finer rule ([`GroupRule::finer`]) when its level-2 bounds
+/// fit for [`KEPT_SHARE`] of the nodes, else under `rule`. The leaves'
+/// `shells` lie on the finer rule's grids (or coarser ones), so either
+/// rule lifts them.
 pub(super) fn group_entries(
     (rule, shells): (&GroupRule, &LeafShells),
     objects: &dyn ObjectSource,
@@ -43,7 +59,31 @@ pub(super) fn group_entries(
     packing: &Packing,
     offset: &[u32],
     block_size: u32,
-) -> Result<Vec<Vec<GroupEntry>>, crate::Error> {
+) -> Result<GroupEntries, crate::Error> {
+    let finer = rule.finer();
+    let (per_block, kept) =
+        entries_under((&finer, shells), objects, tree, plan, packing, offset, block_size)?;
+    if kept >= KEPT_SHARE {
+        return Ok(GroupEntries { per_block, cuberille_bits: finer.cuberille_bits });
+    }
+    let (per_block, _) = entries_under((rule, shells), objects, tree, plan, packing, offset, block_size)?;
+    Ok(GroupEntries { per_block, cuberille_bits: rule.cuberille_bits })
+}
+
+/// Per node block of `packing`, the group entries its group block holds
+/// under `rule`: level by level, coarse first, and within a level in the
+/// block's record order (a piece's root first), each that still fits;
+/// sorted by record and level. Also the share of the nodes with a level-2
+/// bound whose bound is held (1 when none has one).
+fn entries_under(
+    (rule, shells): (&GroupRule, &LeafShells),
+    objects: &dyn ObjectSource,
+    tree: &Hierarchy,
+    plan: &Plan,
+    packing: &Packing,
+    offset: &[u32],
+    block_size: u32,
+) -> Result<(Vec<Vec<GroupEntry>>, f64), crate::Error> {
     let levels: Vec<u8> = rule.group_levels().collect();
     let blobs = (0..tree.nodes.len()).map(|_| OnceLock::new()).collect();
     let build = Build { rule, shells, objects, tree, plan, levels: &levels, ends: subtree_ends(tree), blobs };
@@ -52,6 +92,8 @@ pub(super) fn group_entries(
     }
     let mut blobs: Vec<Vec<Option<Vec<u8>>>> =
         build.blobs.into_iter().map(|b| b.into_inner().unwrap_or_default()).collect();
+    let coarsest = |b: &Vec<Option<Vec<u8>>>| b.first().is_some_and(Option::is_some);
+    let bounded = blobs.iter().filter(|b| coarsest(b)).count();
     let capacity = group::capacity(block_size);
     let mut per_block = Vec::with_capacity(packing.blocks.len());
     for members in &packing.blocks {
@@ -73,7 +115,10 @@ pub(super) fn group_entries(
         chosen.sort_by_key(|e| (e.record, e.level));
         per_block.push(chosen);
     }
-    Ok(per_block)
+    // A taken blob is left empty; one left in place did not fit.
+    let unheld = blobs.iter().filter(|b| coarsest(b) && b[0].as_ref().is_some_and(|x| !x.is_empty())).count();
+    let kept = if bounded == 0 { 1.0 } else { 1.0 - unheld as f64 / bounded as f64 };
+    Ok((per_block, kept))
 }
 
 /// Per node (preorder ids, so a subtree is a range of ids), one past the
@@ -184,15 +229,16 @@ impl Build<'_> {
         Ok(mine)
     }
 
-    /// Leaf `i`'s surfaces on `grid`: the union of its shell's blobs when
-    /// they lie on that grid, else its meshes voxelized.
+    /// Leaf `i`'s surfaces on `grid`: the union of its shell's blobs lifted
+    /// when they lie on that grid or a finer one nested in it, else its
+    /// meshes voxelized.
     fn leaf(&self, i: usize, grid: &Grid) -> Result<Voxels, crate::Error> {
         let blobs = self.shells.get(i).map_or(&[][..], Vec::as_slice);
         let mut shell = Voxels::empty(grid.clone());
         let lifted = !blobs.is_empty()
             && blobs.iter().all(|b| {
-                crate::lod::decode(b, &self.rule.lattice, grid.bounds())
-                    .is_ok_and(|v| v.grid() == grid && v.lift_into(&mut shell).is_ok())
+                crate::lod::decode(b, &self.rule.lattice, &self.plan.frames[i])
+                    .is_ok_and(|v| v.lift_into(&mut shell).is_ok())
             });
         if lifted {
             return Ok(shell);

@@ -52,7 +52,7 @@ pub(super) fn assemble(load: &Load, written: &Written, stored: &StoredBounds, ke
             lattice_origin: stored.lattice.map_or([0.0; 3], |l| l.origin.coords.into()),
             lattice_cell: stored.lattice.map_or(0.0, |l| l.cell),
             flags: 0,
-            cuberille_bits: lod_params.cuberille_bits,
+            cuberille_bits: written.group_cuberille_bits.unwrap_or(lod_params.cuberille_bits),
             cuberille_object_bits: lod_params.cuberille_object_bits,
             grid_level,
             usage,

@@ -78,6 +78,9 @@ impl Load<'_> {
             }),
             _ => None,
         };
+        // The leaves' shells on the grids of the finer of the two rules the
+        // group bounds may be built under (`groups.rs`): either lifts them.
+        let shell_rule = group_rule.as_ref().map(GroupRule::finer);
         let (mut stored, shells) = bounds::choose_bounds(
             self,
             &plan,
@@ -85,7 +88,7 @@ impl Load<'_> {
             m,
             &mix,
             bs,
-            group_rule.as_ref(),
+            shell_rule.as_ref(),
             progress,
         )?;
         let written = blocks::write(
