@@ -9,7 +9,11 @@
 //! its group bound, or its objects' stand-ins (each object by its finest
 //! stored bound below M or its box, whichever is closer), whichever is
 //! within less (error: the group bound's, or the largest over the
-//! objects), and has one child tile with the exact objects (error 0). Errors are in metres, as 3D Tiles has
+//! objects), and has one child tile with the exact objects (error 0). A
+//! tile's error is at least its children's, as 3D Tiles asks: where a child
+//! stores a coarser bound than its parent (its finer one did not fit its
+//! group block), the parent declares the child's error, an upper bound of
+//! its own. Errors are in metres, as 3D Tiles has
 //! them. Coordinates stay in millimetres relative to an anchor (the scene
 //! box's lower corner), so f32 positions keep the file's precision; the root
 //! tile's transform scales them to metres and moves them to the anchor.
@@ -175,6 +179,10 @@ impl Writer<'_> {
                 (stand_ins, error, vec![(child, bounds)])
             }
         };
+        let error_mm = children
+            .iter()
+            .filter_map(|(t, _)| t["geometricError"].as_f64())
+            .fold(error_mm, |e, child_m| e.max(child_m * 1e3));
         let name = format!("n{id}.glb");
         let own = self.write_glb(&name, &content)?;
         let start = own.unwrap_or(Aabb::EMPTY).union(&self.local(&node.aabb));

@@ -1,15 +1,16 @@
 // The viewer page in headless Chromium: serves an exported tileset with
 // `mktree serve`, loads the page, waits until no tile is loading, and
 // checks that tiles were drawn: more than one tile loaded, no load error,
-// and a share of non-background pixels. Writes a screenshot.
+// a share of non-background pixels, and at least MIN_SHAPED internal tiles
+// drawn as more than a box (their group bounds). Writes a screenshot.
 //
-// usage: node viewer/test.mjs MKTREE_BINARY TILES_DIR SCREENSHOT.png [MIN_COVERAGE]
+// usage: node viewer/test.mjs MKTREE_BINARY TILES_DIR SCREENSHOT.png [MIN_COVERAGE [MIN_SHAPED]]
 import { spawn } from 'node:child_process';
 import { chromium } from 'playwright-core';
 
-const [binary, tiles, shot, minCoverage = '0.05'] = process.argv.slice(2);
+const [binary, tiles, shot, minCoverage = '0.05', minShaped = '0'] = process.argv.slice(2);
 if (!binary || !tiles || !shot) {
-  console.error('usage: node viewer/test.mjs MKTREE_BINARY TILES_DIR SCREENSHOT.png [MIN_COVERAGE]');
+  console.error('usage: node viewer/test.mjs MKTREE_BINARY TILES_DIR SCREENSHOT.png [MIN_COVERAGE [MIN_SHAPED]]');
   process.exit(2);
 }
 
@@ -65,6 +66,7 @@ try {
     error: window.mktree.error,
     tilesLoaded: window.mktree.tilesLoaded,
     triangles: window.mktree.triangles,
+    shapedInternal: window.mktree.shapedInternal,
     coverage: window.mktree.coverage(),
   }));
   await page.screenshot({ path: shot });
@@ -73,6 +75,9 @@ try {
   if (state.tilesLoaded < 2) fail(`only ${state.tilesLoaded} tiles loaded`);
   if (!(state.coverage >= Number(minCoverage))) {
     fail(`the picture is ${(100 * state.coverage).toFixed(2)}% drawn, under ${100 * Number(minCoverage)}%`);
+  }
+  if (state.shapedInternal < Number(minShaped)) {
+    fail(`${state.shapedInternal} internal tiles drawn as more than a box, under ${minShaped}`);
   }
 } finally {
   await browser.close();
