@@ -66,6 +66,8 @@ pub(super) fn group_entries(
     if kept >= KEPT_SHARE {
         return Ok(GroupEntries { per_block, cuberille_bits: finer.cuberille_bits });
     }
+    // Not held beside the second build (a shadowed binding would be).
+    drop(per_block);
     let (per_block, _) = entries_under((rule, shells), objects, tree, plan, packing, offset, block_size)?;
     Ok(GroupEntries { per_block, cuberille_bits: rule.cuberille_bits })
 }
