@@ -60,67 +60,74 @@ pub(super) fn group_entries(
     offset: &[u32],
     block_size: u32,
 ) -> Result<GroupEntries, crate::Error> {
+    let packed =
+        Packed { shells, objects, tree, plan, packing, offset, block_size, ends: subtree_ends(tree) };
     let finer = rule.finer();
-    let (per_block, kept) =
-        entries_under((&finer, shells), objects, tree, plan, packing, offset, block_size)?;
+    let (per_block, kept) = packed.entries_under(&finer)?;
     if kept >= KEPT_SHARE {
         return Ok(GroupEntries { per_block, cuberille_bits: finer.cuberille_bits });
     }
     // Not held beside the second build (a shadowed binding would be).
     drop(per_block);
-    let (per_block, _) = entries_under((rule, shells), objects, tree, plan, packing, offset, block_size)?;
+    let (per_block, _) = packed.entries_under(rule)?;
     Ok(GroupEntries { per_block, cuberille_bits: rule.cuberille_bits })
 }
 
-/// Per node block of `packing`, the group entries its group block holds
-/// under `rule`: level by level, coarse first, and within a level in the
-/// block's record order (a piece's root first), each that still fits;
-/// sorted by record and level. Also the share of the nodes with a level-2
-/// bound whose bound is held (1 when none has one).
-fn entries_under(
-    (rule, shells): (&GroupRule, &LeafShells),
-    objects: &dyn ObjectSource,
-    tree: &Hierarchy,
-    plan: &Plan,
-    packing: &Packing,
-    offset: &[u32],
+/// What the group bounds are built from and packed into, whichever rule.
+struct Packed<'a> {
+    shells: &'a LeafShells,
+    objects: &'a dyn ObjectSource,
+    tree: &'a Hierarchy,
+    plan: &'a Plan,
+    packing: &'a Packing,
+    offset: &'a [u32],
     block_size: u32,
-) -> Result<(Vec<Vec<GroupEntry>>, f64), crate::Error> {
-    let levels: Vec<u8> = rule.group_levels().collect();
-    let blobs = (0..tree.nodes.len()).map(|_| OnceLock::new()).collect();
-    let build = Build { rule, shells, objects, tree, plan, levels: &levels, ends: subtree_ends(tree), blobs };
-    if !tree.nodes.is_empty() {
-        build.subtree(0, 0)?;
-    }
-    let mut blobs: Vec<Vec<Option<Vec<u8>>>> =
-        build.blobs.into_iter().map(|b| b.into_inner().unwrap_or_default()).collect();
-    let coarsest = |b: &Vec<Option<Vec<u8>>>| b.first().is_some_and(Option::is_some);
-    let bounded = blobs.iter().filter(|b| coarsest(b)).count();
-    let capacity = group::capacity(block_size);
-    let mut per_block = Vec::with_capacity(packing.blocks.len());
-    for members in &packing.blocks {
-        let mut chosen: Vec<GroupEntry> = Vec::new();
-        let mut used = group::entries_len(&[]);
-        for (li, &k) in levels.iter().enumerate() {
-            for &m in members {
-                let Some(Some(blob)) = blobs[m as usize].get_mut(li) else { continue };
-                if used + group::ENTRY_LEN + blob.len() <= capacity {
-                    used += group::ENTRY_LEN + blob.len();
-                    chosen.push(GroupEntry {
-                        record: offset[m as usize],
-                        level: k,
-                        blob: std::mem::take(blob),
-                    });
+    ends: Vec<usize>,
+}
+
+impl Packed<'_> {
+    /// Per node block of the packing, the group entries its group block
+    /// holds under `rule`: level by level, coarse first, and within a level
+    /// in the block's record order (a piece's root first), each that still
+    /// fits; sorted by record and level. Also the share of the nodes with a
+    /// level-2 bound whose bound is held (1 when none has one).
+    fn entries_under(&self, rule: &GroupRule) -> Result<(Vec<Vec<GroupEntry>>, f64), crate::Error> {
+        let Packed { shells, objects, tree, plan, packing, offset, block_size, .. } = *self;
+        let levels: Vec<u8> = rule.group_levels().collect();
+        let blobs = (0..tree.nodes.len()).map(|_| OnceLock::new()).collect();
+        let build = Build { rule, shells, objects, tree, plan, levels: &levels, ends: &self.ends, blobs };
+        if !tree.nodes.is_empty() {
+            build.subtree(0, 0)?;
+        }
+        let mut blobs: Vec<Vec<Option<Vec<u8>>>> =
+            build.blobs.into_iter().map(|b| b.into_inner().unwrap_or_default()).collect();
+        let bounded = blobs.iter().filter(|b| b.first().is_some_and(Option::is_some)).count();
+        let mut held = 0usize;
+        let capacity = group::capacity(block_size);
+        let mut per_block = Vec::with_capacity(packing.blocks.len());
+        for members in &packing.blocks {
+            let mut chosen: Vec<GroupEntry> = Vec::new();
+            let mut used = group::entries_len(&[]);
+            for (li, &k) in levels.iter().enumerate() {
+                for &m in members {
+                    let Some(Some(blob)) = blobs[m as usize].get_mut(li) else { continue };
+                    if used + group::ENTRY_LEN + blob.len() <= capacity {
+                        used += group::ENTRY_LEN + blob.len();
+                        held += usize::from(li == 0);
+                        chosen.push(GroupEntry {
+                            record: offset[m as usize],
+                            level: k,
+                            blob: std::mem::take(blob),
+                        });
+                    }
                 }
             }
+            chosen.sort_by_key(|e| (e.record, e.level));
+            per_block.push(chosen);
         }
-        chosen.sort_by_key(|e| (e.record, e.level));
-        per_block.push(chosen);
+        let kept = if bounded == 0 { 1.0 } else { held as f64 / bounded as f64 };
+        Ok((per_block, kept))
     }
-    // A taken blob is left empty; one left in place did not fit.
-    let unheld = blobs.iter().filter(|b| coarsest(b) && b[0].as_ref().is_some_and(|x| !x.is_empty())).count();
-    let kept = if bounded == 0 { 1.0 } else { 1.0 - unheld as f64 / bounded as f64 };
-    Ok((per_block, kept))
 }
 
 /// Per node (preorder ids, so a subtree is a range of ids), one past the
@@ -146,7 +153,7 @@ struct Build<'a> {
     tree: &'a Hierarchy,
     plan: &'a Plan,
     levels: &'a [u8],
-    ends: Vec<usize>,
+    ends: &'a [usize],
     /// Per node, per level: the encoded bound (None: not stored, the level
     /// answers as the coarser one, or the bound is empty).
     blobs: Vec<OnceLock<Vec<Option<Vec<u8>>>>>,
