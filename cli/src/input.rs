@@ -11,6 +11,7 @@ use mktree::scene::Scene;
 use mktree::scene::generate::{GenOptions, Preset, generate_scene};
 use mktree::scene::import::{ImportOptions, load};
 use mktree::store::StorageError;
+use mktree::store::device::{RemoteOptions, is_remote_url};
 
 use crate::args::BuildArgs;
 use crate::memory::release_freed_memory;
@@ -63,7 +64,10 @@ pub fn scene_or_seeded_preset(arg: &str, options: &ImportOptions, seed: u64) -> 
 /// Opens an .mkt file to read, printing what opening noticed (a damaged
 /// slot copy, an interrupted transaction) to stderr.
 pub fn open_to_read(path: &Path) -> Result<Database> {
-    let db = Database::open_read_only(path).map_err(|e| opening(e, path))?;
+    let db = match path.to_str().filter(|name| is_remote_url(name)) {
+        Some(url) => Database::open_url(url, &RemoteOptions::default())?,
+        None => Database::open_read_only(path).map_err(|e| opening(e, path))?,
+    };
     for w in db.warnings() {
         eprintln!("warning: {}: {w}", path.display());
     }

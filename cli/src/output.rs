@@ -10,6 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use mktree::bulk::{BuildParams, Stage, estimate_work};
 use mktree::query::{QueryAnswer, ViewCut};
 use mktree::render::Image;
+use mktree::store::TransferCounts;
 use serde::Serialize;
 use serde_json::{Value, json};
 
@@ -140,6 +141,20 @@ pub fn print_answer(a: &QueryAnswer, as_json: bool) -> Result<()> {
         s.confirmed, s.rejected, s.pruned, s.geometry_tests
     );
     Ok(())
+}
+
+/// What a device fetched between two of its counts.
+pub fn transfer_since(before: &TransferCounts, after: &TransferCounts) -> TransferCounts {
+    TransferCounts {
+        requests: after.requests - before.requests,
+        bytes: after.bytes - before.bytes,
+        round_trips: after.round_trips - before.round_trips,
+    }
+}
+
+/// One line of what a step fetched from object storage.
+pub fn transfer_line(step: &str, t: &TransferCounts) -> String {
+    format!("fetched for {step}: {} requests, {} bytes, {} round trips", t.requests, t.bytes, t.round_trips)
 }
 
 /// A cut as JSON.

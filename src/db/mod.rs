@@ -42,7 +42,7 @@ pub use staged::StagedScene;
 pub use write::{ChangeStats, WriteTransaction};
 pub use write_request::{JsonKey, JsonObject, WriteAnswer, WriteRequest, apply_write};
 
-use crate::store::device::FileDevice;
+use crate::store::device::{FileDevice, TransferCounts};
 use crate::store::format::frame;
 use crate::store::format::freelist::FreeRange;
 use crate::store::format::header::{self, Commit, PREFIX_LEN, SlotPair, SlotState};
@@ -305,6 +305,35 @@ impl Database {
     /// meta block (format-spec/commit.md).
     pub fn open_on(device: Arc<dyn BlockDevice>) -> Result<Database, StorageError> {
         Database::open_with(device, None, false)
+    }
+
+    /// Opens a database on a device to read only: no write transaction, and
+    /// nothing is written to the device (a crash's leftovers stay for a
+    /// writer to clean up).
+    pub fn open_on_read_only(device: Arc<dyn BlockDevice>) -> Result<Database, StorageError> {
+        Database::open_with(device, None, true)
+    }
+
+    /// Opens, to read only, a committed file where it lies in object storage
+    /// (`s3://`, `gs://`, `az://`, `http(s)://`, `file://`; the store's
+    /// settings and credentials come from the environment and `options`).
+    /// The reader is pinned to the object it opened: if the object is
+    /// replaced, a later read fails with [`StorageError::ObjectChanged`].
+    /// [`Database::transfer_counts`] says what it fetched.
+    #[cfg(feature = "object-store")]
+    pub fn open_url(
+        url: &str,
+        options: &crate::store::device::RemoteOptions,
+    ) -> Result<Database, StorageError> {
+        let device = crate::store::device::ObjectStoreDevice::open(url, options)?;
+        Database::open_on_read_only(Arc::new(device))
+    }
+
+    /// Requests, bytes and round trips the database's device has made over a
+    /// network since it opened (a file in object storage); `None` for local
+    /// storage.
+    pub fn transfer_counts(&self) -> Option<TransferCounts> {
+        self.inner.pager.device().transfer_counts()
     }
 
     fn open_with(

@@ -8,7 +8,23 @@ use std::io;
 pub enum StorageError {
     /// Reading, writing or syncing the file failed.
     #[error("I/O error")]
-    Io(#[from] io::Error),
+    Io(#[source] io::Error),
+    /// An object store could not be reached, or refused the object (the
+    /// URL, the store's settings or credentials, a missing object).
+    #[error("{url}: {detail}")]
+    Remote {
+        /// The URL.
+        url: String,
+        /// What the store said.
+        detail: String,
+    },
+    /// The object a reader opened in an object store was replaced or
+    /// removed after it was opened: its answers would mix two files.
+    #[error("{url} changed after it was opened: open it again to read the new file")]
+    ObjectChanged {
+        /// The URL.
+        url: String,
+    },
     /// The file could not be opened or created (the reason is in the message,
     /// not a source, so that printing the error alone says why).
     #[error("cannot open {}: {error}", path.display())]
@@ -130,5 +146,15 @@ impl StorageError {
                 | StorageError::InvalidBlockSize(_)
                 | StorageError::InvalidLodLevels(_)
         )
+    }
+}
+
+impl From<io::Error> for StorageError {
+    fn from(e: io::Error) -> Self {
+        #[cfg(feature = "object-store")]
+        if let Some(changed) = e.get_ref().and_then(|inner| inner.downcast_ref::<super::device::Changed>()) {
+            return StorageError::ObjectChanged { url: changed.url.clone() };
+        }
+        StorageError::Io(e)
     }
 }

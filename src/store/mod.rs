@@ -20,7 +20,7 @@ pub(crate) mod lock;
 internal_mods!(alloc, format, layout, pager);
 
 pub use cache::{Block, BlockCache};
-pub use device::BlockDevice;
+pub use device::{BlockDevice, TransferCounts};
 pub use error::StorageError;
 internal_use!(pager::Pager);
 pub use pager::ReadStats;

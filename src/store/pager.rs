@@ -117,7 +117,7 @@ impl Pager {
             std::io::ErrorKind::UnexpectedEof => {
                 StorageError::Truncated { detail: format!("block {id} lies past the end of the file") }
             }
-            _ => StorageError::Io(e),
+            _ => StorageError::from(e),
         })?;
         Ok(buf)
     }

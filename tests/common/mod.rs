@@ -4,6 +4,10 @@
 
 pub mod crash;
 pub mod forge;
+#[cfg(feature = "object-store")]
+pub mod remote;
+#[cfg(feature = "object-store")]
+pub mod servers;
 
 use std::sync::Arc;
 

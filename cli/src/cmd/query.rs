@@ -30,5 +30,20 @@ pub fn shape(aabb: Option<[f64; 6]>, sphere: Option<[f64; 4]>, frustum: Option<[
 pub fn run(file: &Path, region: &Region, opts: &QueryOptions, as_json: bool) -> Result<()> {
     let db = crate::input::open_to_read(file)?;
     let r = db.begin_read()?;
-    output::print_answer(&query_region(&r, region, opts, None)?, as_json)
+    let opened = db.transfer_counts();
+    let answer = query_region(&r, region, opts, None)?;
+    // A file in object storage: what opening it and what the query fetched.
+    let Some((open, all)) = opened.zip(db.transfer_counts()) else {
+        return output::print_answer(&answer, as_json);
+    };
+    let query = output::transfer_since(&open, &all);
+    if as_json {
+        let mut value = output::answer_json(&answer);
+        value["transfer"] = serde_json::json!({ "open": open, "query": query });
+        return output::json(&value);
+    }
+    output::print_answer(&answer, false)?;
+    println!("{}", output::transfer_line("open", &open));
+    println!("{}", output::transfer_line("query", &query));
+    Ok(())
 }

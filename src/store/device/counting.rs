@@ -104,4 +104,7 @@ impl<D: BlockDevice> BlockDevice for CountingDevice<D> {
     fn writes_are_atomic(&self) -> bool {
         self.inner.writes_are_atomic()
     }
+    fn transfer_counts(&self) -> Option<super::TransferCounts> {
+        self.inner.transfer_counts()
+    }
 }

@@ -9,6 +9,8 @@ mod crash;
 mod fault;
 mod file;
 mod mem;
+#[cfg(feature = "object-store")]
+mod object;
 
 use std::io;
 
@@ -21,6 +23,21 @@ pub use crash::{CrashDevice, CrashImage};
 pub use fault::{FaultDevice, FaultOp};
 pub use file::FileDevice;
 pub use mem::MemDevice;
+#[cfg(feature = "object-store")]
+pub(crate) use object::Changed;
+#[cfg(feature = "object-store")]
+pub use object::{ObjectStoreDevice, RemoteOptions, is_remote_url};
+
+/// What a device that fetches over a network has fetched since it opened.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct TransferCounts {
+    /// Range requests made.
+    pub requests: u64,
+    /// Bytes received.
+    pub bytes: u64,
+    /// Waits for the network: requests made together count once.
+    pub round_trips: u64,
+}
 
 /// Positioned byte storage with a durability barrier. The pager only ever
 /// reads and writes whole blocks (and the header's slots); implementations
@@ -47,6 +64,11 @@ pub trait BlockDevice: Send + Sync {
     fn writes_are_atomic(&self) -> bool {
         false
     }
+    /// What the device has fetched over a network, for a device that does
+    /// (an object store); `None` for local storage.
+    fn transfer_counts(&self) -> Option<TransferCounts> {
+        None
+    }
 }
 
 impl<D: BlockDevice + ?Sized> BlockDevice for std::sync::Arc<D> {
@@ -67,5 +89,8 @@ impl<D: BlockDevice + ?Sized> BlockDevice for std::sync::Arc<D> {
     }
     fn writes_are_atomic(&self) -> bool {
         (**self).writes_are_atomic()
+    }
+    fn transfer_counts(&self) -> Option<TransferCounts> {
+        (**self).transfer_counts()
     }
 }

@@ -1,0 +1,397 @@
+//! A read-only [`BlockDevice`] over object storage (S3 and S3-compatible
+//! stores, Google Cloud Storage, Azure, plain HTTP servers, local files)
+//! through the `object_store` crate: a block read is a range request, answered
+//! from a bounded in-memory cache of pages when it can be. Format-spec/remote.md
+//! says what a reader fetches and what it pins.
+//!
+//! The device pins the object it opened. Its first request (a range from the
+//! start of the object, which holds the header and both slots) returns the
+//! object's ETag and version, and every later request asks for that version
+//! and only while the ETag matches. An object replaced under the reader then
+//! fails with [`StorageError::ObjectChanged`] instead of answering from a
+//! mixture of two files.
+
+use std::collections::{BTreeMap, HashMap};
+use std::io;
+use std::ops::Range;
+use std::sync::{Arc, Mutex, OnceLock};
+
+use object_store::path::Path;
+use object_store::{GetOptions, GetRange, ObjectStore};
+
+use super::{BlockDevice, TransferCounts};
+use crate::store::StorageError;
+use crate::store::format::header;
+
+/// How an [`ObjectStoreDevice`] reads.
+#[derive(Debug, Clone)]
+pub struct RemoteOptions {
+    /// Bytes the first request fetches from the start of the object (the
+    /// header and both slots are in its first block). Default 64 KiB.
+    pub open_bytes: u64,
+    /// Upper bound of the in-memory cache of fetched pages, in bytes.
+    /// Default 64 MiB.
+    pub cache_bytes: u64,
+    /// The store's settings as `object_store` names its configuration keys
+    /// (for example `("aws_endpoint", "http://127.0.0.1:9000")`), applied
+    /// over those of the environment (`AWS_*`, `GOOGLE_*`, `AZURE_*`).
+    pub store_options: Vec<(String, String)>,
+}
+
+impl Default for RemoteOptions {
+    fn default() -> Self {
+        RemoteOptions { open_bytes: 64 << 10, cache_bytes: 64 << 20, store_options: Vec::new() }
+    }
+}
+
+/// A committed `.mkt` file read where it lies in object storage. Writes fail
+/// with [`io::ErrorKind::ReadOnlyFilesystem`].
+pub struct ObjectStoreDevice {
+    store: Arc<dyn ObjectStore>,
+    path: Path,
+    url: String,
+    size: u64,
+    e_tag: Option<String>,
+    version: Option<String>,
+    /// The fetch and cache unit: the file's block size.
+    page: u64,
+    cache_bytes: u64,
+    state: Mutex<Fetched>,
+}
+
+impl std::fmt::Debug for ObjectStoreDevice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ObjectStoreDevice")
+            .field("url", &self.url)
+            .field("size", &self.size)
+            .field("e_tag", &self.e_tag)
+            .field("version", &self.version)
+            .finish()
+    }
+}
+
+/// The pages fetched so far (least recently used first out) and the counts.
+#[derive(Default)]
+struct Fetched {
+    pages: HashMap<u64, (Arc<[u8]>, u64)>,
+    by_use: BTreeMap<u64, u64>,
+    tick: u64,
+    bytes: u64,
+    counts: TransferCounts,
+}
+
+impl Fetched {
+    fn get(&mut self, page: u64) -> Option<Arc<[u8]>> {
+        self.tick += 1;
+        let tick = self.tick;
+        let (bytes, used) = self.pages.get_mut(&page)?;
+        self.by_use.remove(used);
+        *used = tick;
+        self.by_use.insert(tick, page);
+        Some(bytes.clone())
+    }
+
+    fn put(&mut self, page: u64, bytes: Arc<[u8]>, bound: u64) {
+        self.tick += 1;
+        self.bytes += bytes.len() as u64;
+        if let Some((old, used)) = self.pages.insert(page, (bytes, self.tick)) {
+            self.bytes -= old.len() as u64;
+            self.by_use.remove(&used);
+        }
+        self.by_use.insert(self.tick, page);
+        while self.bytes > bound {
+            let Some((_, oldest)) = self.by_use.pop_first() else { break };
+            if let Some((gone, _)) = self.pages.remove(&oldest) {
+                self.bytes -= gone.len() as u64;
+            }
+        }
+    }
+}
+
+/// The runtime every device's requests run on: one per process, so that a
+/// catalog of many files does not start threads per file.
+fn runtime() -> io::Result<&'static tokio::runtime::Runtime> {
+    static RUNTIME: OnceLock<tokio::runtime::Runtime> = OnceLock::new();
+    if let Some(rt) = RUNTIME.get() {
+        return Ok(rt);
+    }
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .thread_name("mktree-remote")
+        .enable_all()
+        .build()?;
+    Ok(RUNTIME.get_or_init(|| rt))
+}
+
+/// Runs `fut` on the shared runtime and waits for it. Spawned rather than
+/// blocked on, so that a caller inside another runtime does not panic.
+fn wait<T: Send + 'static>(fut: impl Future<Output = T> + Send + 'static) -> io::Result<T> {
+    let (tx, rx) = std::sync::mpsc::sync_channel(1);
+    runtime()?.spawn(async move {
+        // The receiver waits below; a send fails only if it is gone.
+        let _ = tx.send(fut.await);
+    });
+    rx.recv().map_err(|_| io::Error::other("the object store's request was dropped"))
+}
+
+/// The environment's store settings (`AWS_*`, `GOOGLE_*`, `AZURE_*`), as
+/// `object_store`'s configuration keys are named (lower case).
+fn environment_options() -> Vec<(String, String)> {
+    std::env::vars()
+        .filter(|(k, _)| ["AWS_", "GOOGLE_", "AZURE_"].iter().any(|p| k.starts_with(p)))
+        .map(|(k, v)| (k.to_ascii_lowercase(), v))
+        .collect()
+}
+
+/// True when `name` reads as a URL this device opens rather than a path:
+/// `s3://`, `s3a://`, `gs://`, `az://`, `abfs://`, `abfss://`, `azure://`,
+/// `adl://`, `http://`, `https://` or `file://`.
+pub fn is_remote_url(name: &str) -> bool {
+    const SCHEMES: [&str; 11] = [
+        "s3://", "s3a://", "gs://", "az://", "abfs://", "abfss://", "azure://", "adl://", "http://",
+        "https://", "file://",
+    ];
+    SCHEMES.iter().any(|s| name.len() > s.len() && name[..s.len()].eq_ignore_ascii_case(s))
+}
+
+impl ObjectStoreDevice {
+    /// Opens the object `url` names, with the store's settings from the
+    /// environment and `options`: one range request from the start of the
+    /// object, which pins its ETag and version.
+    pub fn open(url: &str, options: &RemoteOptions) -> Result<ObjectStoreDevice, StorageError> {
+        let parsed = url::Url::parse(url).map_err(|e| remote(url, format!("not a URL: {e}")))?;
+        let mut settings = environment_options();
+        // A URL that names plain HTTP asks for it.
+        if parsed.scheme() == "http" {
+            settings.push(("allow_http".into(), "true".into()));
+        }
+        settings.extend(options.store_options.iter().cloned());
+        let (store, path) =
+            object_store::parse_url_opts(&parsed, settings).map_err(|e| remote(url, e.to_string()))?;
+        ObjectStoreDevice::on(Arc::from(store), path, url, options)
+    }
+
+    /// Opens `path` in a store the caller built (any `object_store`
+    /// implementation); `name` is what errors call it.
+    pub fn on(
+        store: Arc<dyn ObjectStore>,
+        path: Path,
+        name: &str,
+        options: &RemoteOptions,
+    ) -> Result<ObjectStoreDevice, StorageError> {
+        let first = options.open_bytes.max(header::PREFIX_LEN as u64);
+        let get = {
+            let (store, path) = (store.clone(), path.clone());
+            let options = GetOptions { range: Some(GetRange::Bounded(0..first)), ..GetOptions::default() };
+            async move {
+                let result = store.get_opts(&path, options).await?;
+                let meta = result.meta.clone();
+                let range = result.range.clone();
+                Ok::<_, object_store::Error>((meta, range, result.bytes().await?))
+            }
+        };
+        let (meta, range, bytes) = match wait(get)? {
+            Ok(got) => got,
+            // An empty object has no byte 0 to range from.
+            Err(object_store::Error::NotModified { .. }) => return Err(StorageError::NotMktree),
+            Err(e) if is_empty_range(&e) => return Err(StorageError::NotMktree),
+            Err(e) => return Err(remote(name, e.to_string())),
+        };
+        if range.start != 0 || range.end - range.start != bytes.len() as u64 {
+            return Err(remote(name, format!("asked for bytes 0..{first}, the store answered {range:?}")));
+        }
+        // The block size is in the header; a file with none is refused by
+        // the database's open, which reads the same bytes from the cache.
+        let page = header::decode_prefix(&bytes)
+            .map(|(block_size, _)| u64::from(block_size))
+            .unwrap_or(header::PREFIX_LEN as u64);
+        let mut fetched = Fetched {
+            counts: TransferCounts { requests: 1, bytes: bytes.len() as u64, round_trips: 1 },
+            ..Fetched::default()
+        };
+        // Whole pages only, and the object's last one, which may be short.
+        for (i, chunk) in bytes.chunks(page as usize).enumerate() {
+            let at = i as u64 * page;
+            if chunk.len() as u64 == page || at + chunk.len() as u64 == meta.size {
+                fetched.put(i as u64, Arc::from(chunk), options.cache_bytes);
+            }
+        }
+        Ok(ObjectStoreDevice {
+            store,
+            path,
+            url: name.to_string(),
+            size: meta.size,
+            e_tag: meta.e_tag,
+            version: meta.version,
+            page,
+            cache_bytes: options.cache_bytes,
+            state: Mutex::new(fetched),
+        })
+    }
+
+    /// The URL (or name) the device was opened with.
+    pub fn url(&self) -> &str {
+        &self.url
+    }
+
+    /// The object's ETag as the store gave it at open, when it has one.
+    pub fn e_tag(&self) -> Option<&str> {
+        self.e_tag.as_deref()
+    }
+
+    /// The object's version as the store gave it at open, when the store
+    /// keeps versions.
+    pub fn version(&self) -> Option<&str> {
+        self.version.as_deref()
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Fetched> {
+        // A panic while holding the lock leaves whole pages and counts behind.
+        self.state.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Fetches the byte ranges `ranges` concurrently, in one round trip.
+    fn fetch(&self, ranges: Vec<Range<u64>>) -> io::Result<Vec<bytes::Bytes>> {
+        let options = GetOptions {
+            if_match: self.e_tag.clone(),
+            version: self.version.clone(),
+            ..GetOptions::default()
+        };
+        let (store, path) = (self.store.clone(), self.path.clone());
+        let asked = ranges.clone();
+        let got = wait(async move {
+            let each = ranges.into_iter().map(|r| {
+                let options = GetOptions { range: Some(GetRange::Bounded(r)), ..options.clone() };
+                let (store, path) = (store.clone(), path.clone());
+                async move { store.get_opts(&path, options).await?.bytes().await }
+            });
+            futures::future::try_join_all(each).await
+        })?;
+        let got = got.map_err(|e| match e {
+            object_store::Error::Precondition { .. } | object_store::Error::NotFound { .. } => {
+                io::Error::other(Changed { url: self.url.clone() })
+            }
+            e => io::Error::other(e),
+        })?;
+        for (bytes, range) in got.iter().zip(&asked) {
+            if bytes.len() as u64 != range.end - range.start {
+                return Err(io::Error::new(
+                    io::ErrorKind::UnexpectedEof,
+                    format!("{}: asked for {range:?}, received {} bytes", self.url, bytes.len()),
+                ));
+            }
+        }
+        Ok(got)
+    }
+}
+
+/// The object changed (or went) after the device pinned it: carried in the
+/// `io::Error` of a read, and turned into [`StorageError::ObjectChanged`].
+#[derive(Debug)]
+pub(crate) struct Changed {
+    pub(crate) url: String,
+}
+
+impl std::fmt::Display for Changed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} changed after it was opened", self.url)
+    }
+}
+
+impl std::error::Error for Changed {}
+
+fn remote(url: &str, detail: String) -> StorageError {
+    StorageError::Remote { url: url.to_string(), detail }
+}
+
+/// A range request on an empty object: the store has no byte 0.
+fn is_empty_range(e: &object_store::Error) -> bool {
+    e.to_string().contains("Range") && e.to_string().contains("not satisf")
+}
+
+impl BlockDevice for ObjectStoreDevice {
+    fn read_at(&self, offset: u64, buf: &mut [u8]) -> io::Result<()> {
+        if buf.is_empty() {
+            return Ok(());
+        }
+        let end = offset
+            .checked_add(buf.len() as u64)
+            .filter(|&end| end <= self.size)
+            .ok_or_else(|| io::Error::new(io::ErrorKind::UnexpectedEof, "read past the end of the object"))?;
+        let (first, last) = (offset / self.page, (end - 1) / self.page);
+        let mut have: HashMap<u64, Arc<[u8]>> = HashMap::new();
+        let mut missing: Vec<Range<u64>> = Vec::new();
+        {
+            let mut state = self.lock();
+            for p in first..=last {
+                match state.get(p) {
+                    Some(bytes) => {
+                        have.insert(p, bytes);
+                    }
+                    // Adjacent missing pages make one request.
+                    None => match missing.last_mut() {
+                        Some(run) if run.end == p => run.end = p + 1,
+                        _ => missing.push(p..p + 1),
+                    },
+                }
+            }
+        }
+        if !missing.is_empty() {
+            let byte_ranges: Vec<Range<u64>> =
+                missing.iter().map(|r| r.start * self.page..(r.end * self.page).min(self.size)).collect();
+            let got = self.fetch(byte_ranges)?;
+            let mut state = self.lock();
+            state.counts.requests += got.len() as u64;
+            state.counts.round_trips += 1;
+            for (run, bytes) in missing.iter().zip(got) {
+                state.counts.bytes += bytes.len() as u64;
+                for (i, p) in (run.start..run.end).enumerate() {
+                    let from = i * self.page as usize;
+                    let to = (from + self.page as usize).min(bytes.len());
+                    let page: Arc<[u8]> = Arc::from(&bytes[from..to]);
+                    have.insert(p, page.clone());
+                    state.put(p, page, self.cache_bytes);
+                }
+            }
+        }
+        let mut at = offset;
+        let mut out = 0usize;
+        while out < buf.len() {
+            let p = at / self.page;
+            let within = (at - p * self.page) as usize;
+            let page = have.get(&p).ok_or_else(|| io::Error::other("a fetched page is missing"))?;
+            let n = (page.len().saturating_sub(within)).min(buf.len() - out);
+            if n == 0 {
+                return Err(io::Error::new(io::ErrorKind::UnexpectedEof, "a short page inside the object"));
+            }
+            buf[out..out + n].copy_from_slice(&page[within..within + n]);
+            out += n;
+            at += n as u64;
+        }
+        Ok(())
+    }
+
+    fn write_at(&self, _offset: u64, _data: &[u8]) -> io::Result<()> {
+        Err(read_only())
+    }
+
+    fn sync(&self) -> io::Result<()> {
+        Err(read_only())
+    }
+
+    fn len(&self) -> io::Result<u64> {
+        Ok(self.size)
+    }
+
+    fn set_len(&self, _len: u64) -> io::Result<()> {
+        Err(read_only())
+    }
+
+    fn transfer_counts(&self) -> Option<TransferCounts> {
+        Some(self.lock().counts)
+    }
+}
+
+fn read_only() -> io::Error {
+    io::Error::new(io::ErrorKind::ReadOnlyFilesystem, "an object store is read only here")
+}

@@ -1,0 +1,172 @@
+//! Real servers on 127.0.0.1 for the object-store tests: nginx (Debian's
+//! package) for plain HTTP ranges and moto's S3 server (PyPI `moto[server]`)
+//! for the S3 protocol. `.ci/install-servers.sh` installs both. A server
+//! that is not installed skips its test with a note, unless
+//! `MKTREE_REMOTE_TESTS=required` (set by `.ci/run`) makes that a failure.
+
+use std::io::{Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A server process, killed when dropped.
+pub struct Server {
+    child: Child,
+    /// The port it listens on, on 127.0.0.1.
+    pub port: u16,
+    /// Its working folder (nginx: `www/` is served, `access.log` is its log).
+    pub dir: tempfile::TempDir,
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+impl Server {
+    /// The requests the server logged (nginx's access log), one per line.
+    pub fn logged_requests(&self) -> Vec<String> {
+        std::fs::read_to_string(self.dir.path().join("access.log"))
+            .unwrap_or_default()
+            .lines()
+            .map(str::to_string)
+            .collect()
+    }
+}
+
+/// `None` (and a note) when the program is missing and the tests are not
+/// required; a panic when they are.
+fn missing(what: &str) -> Option<Server> {
+    if std::env::var("MKTREE_REMOTE_TESTS").is_ok_and(|v| v == "required") {
+        panic!("{what} is not installed (bash .ci/install-servers.sh installs it)");
+    }
+    eprintln!("skipped: {what} is not installed (bash .ci/install-servers.sh installs it)");
+    None
+}
+
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).expect("a free port on 127.0.0.1").port()
+}
+
+fn wait_until_listening(port: u16, child: &mut Child, what: &str) {
+    let start = Instant::now();
+    while TcpStream::connect(("127.0.0.1", port)).is_err() {
+        if let Ok(Some(status)) = child.try_wait() {
+            panic!("{what} exited before it listened: {status}");
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "{what} did not listen on port {port} within 30 s"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn find_program(env: &str, names: &[&str]) -> Option<PathBuf> {
+    if let Ok(p) = std::env::var(env) {
+        return Some(PathBuf::from(p));
+    }
+    let path = std::env::var_os("PATH")?;
+    let dirs: Vec<PathBuf> =
+        std::env::split_paths(&path).chain(["/usr/sbin".into(), "/sbin".into()]).collect();
+    names.iter().flat_map(|n| dirs.iter().map(move |d| d.join(n))).find(|p| p.is_file())
+}
+
+/// nginx serving a fresh `www/` folder on 127.0.0.1, logging each request.
+pub fn nginx() -> Option<Server> {
+    let Some(program) = find_program("MKTREE_NGINX", &["nginx"]) else { return missing("nginx") };
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let d = dir.path().display();
+    std::fs::create_dir(dir.path().join("www")).expect("www folder");
+    let port = free_port();
+    let conf = format!(
+        "daemon off;\nmaster_process off;\nworker_processes 1;\npid {d}/nginx.pid;\nerror_log {d}/error.log;\n\
+         events {{ worker_connections 64; }}\n\
+         http {{\n  access_log {d}/access.log;\n  client_body_temp_path {d}/body;\n  proxy_temp_path {d}/proxy;\n  \
+         fastcgi_temp_path {d}/fastcgi;\n  uwsgi_temp_path {d}/uwsgi;\n  scgi_temp_path {d}/scgi;\n  \
+         server {{ listen 127.0.0.1:{port}; root {d}/www; }}\n}}\n"
+    );
+    std::fs::write(dir.path().join("nginx.conf"), conf).expect("nginx.conf");
+    let mut child = Command::new(program)
+        .arg("-p")
+        .arg(dir.path())
+        .arg("-c")
+        .arg(dir.path().join("nginx.conf"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("nginx starts");
+    wait_until_listening(port, &mut child, "nginx");
+    Some(Server { child, port, dir })
+}
+
+/// moto's S3 server on 127.0.0.1 (anything signed is accepted).
+pub fn moto() -> Option<Server> {
+    let Some(program) = find_program("MKTREE_MOTO_SERVER", &["moto_server"]) else {
+        return missing("moto_server (pip install 'moto[server]')");
+    };
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let port = free_port();
+    let mut child = Command::new(program)
+        .args(["-H", "127.0.0.1", "-p", &port.to_string()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("moto_server starts");
+    wait_until_listening(port, &mut child, "moto_server");
+    Some(Server { child, port, dir })
+}
+
+/// One HTTP/1.1 request to 127.0.0.1:`port`; the status code.
+pub fn http(port: u16, method: &str, path: &str, body: &[u8]) -> u16 {
+    let mut s = TcpStream::connect(("127.0.0.1", port)).expect("connect");
+    let head = format!(
+        "{method} {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+        body.len()
+    );
+    s.write_all(head.as_bytes()).and_then(|_| s.write_all(body)).expect("send");
+    let mut answer = Vec::new();
+    s.read_to_end(&mut answer).expect("answer");
+    let text = String::from_utf8_lossy(&answer);
+    text.split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or_else(|| panic!("no status in {text:?}"))
+}
+
+/// The S3 settings that reach moto on `port`.
+pub fn s3_options(port: u16) -> Vec<(String, String)> {
+    [
+        ("aws_endpoint", format!("http://127.0.0.1:{port}")),
+        ("aws_allow_http", "true".into()),
+        ("aws_access_key_id", "test".into()),
+        ("aws_secret_access_key", "test".into()),
+        ("aws_region", "us-east-1".into()),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v))
+    .collect()
+}
+
+/// Puts `bytes` as `key` in `bucket` of the S3 server on `port`, signed
+/// (moto refuses unsigned requests to an object that exists).
+pub fn s3_put(port: u16, bucket: &str, key: &str, bytes: &[u8]) {
+    use object_store::ObjectStore;
+    let mut builder = object_store::aws::AmazonS3Builder::new().with_bucket_name(bucket);
+    for (k, v) in s3_options(port) {
+        builder = builder.with_config(k.parse().expect("an S3 setting"), v);
+    }
+    let store = builder.build().expect("an S3 client");
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().expect("a runtime");
+    rt.block_on(store.put(&key.into(), bytes.to_vec().into())).expect("put");
+}
+
+/// Writes `bytes` as `path`, replacing it in one rename (as a deploy would).
+pub fn replace_file(path: &Path, bytes: &[u8]) {
+    let tmp = path.with_extension("part");
+    std::fs::write(&tmp, bytes).expect("write");
+    std::fs::rename(&tmp, path).expect("rename");
+}
