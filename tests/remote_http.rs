@@ -1,7 +1,9 @@
 //! A committed file served by nginx over plain HTTP range requests answers
 //! as the local file does, block for block; the device counts the requests
-//! the server logs; and a file replaced under a reader fails with
-//! `ObjectChanged`, never with a mixture (issue 36, format-spec/remote.md).
+//! the server logs, and fetches the blocks a query will read ahead, in
+//! fewer round trips than reads; and a file replaced under a reader fails
+//! with `ObjectChanged`, never with a mixture (issue 36,
+//! format-spec/remote.md).
 #![cfg(feature = "object-store")]
 
 mod common;
@@ -24,11 +26,30 @@ fn a_served_file_answers_as_the_local_file_and_counts_what_the_server_logs() {
     assert!(opened.requests <= 3, "{} requests to open", opened.requests);
     let local = Database::open_read_only(&path).expect("local");
     assert!(local.transfer_counts().is_none());
-    assert_same_answers(&local, &remote, &boxes(&scene));
+    let reads = assert_same_answers(&local, &remote, &boxes(&scene));
     let fetched = remote.transfer_counts().expect("counts");
     assert_eq!(fetched.requests as usize, server.logged_requests().len(), "{fetched:?}");
     assert!(fetched.round_trips <= fetched.requests);
+    assert!(reads > 0);
     assert!(fetched.bytes <= std::fs::metadata(&path).expect("size").len());
+}
+
+#[test]
+fn a_query_fetches_the_blocks_it_will_read_ahead_in_fewer_round_trips() {
+    let Some(server) = nginx() else { return };
+    let path = server.dir.path().join("www/t2.mkt");
+    let scene = build_file(&path, Preset::Tanker2);
+    let url = format!("http://127.0.0.1:{}/t2.mkt", server.port);
+    let local = Database::open_read_only(&path).expect("local");
+    let (mut reads, mut waits) = (0, 0);
+    // Each box from a cold reader: a wait per read, but for fetching ahead.
+    for b in boxes(&scene) {
+        let remote = Database::open_url(&url, &RemoteOptions::default()).expect("open");
+        let opened = remote.transfer_counts().expect("counts");
+        reads += assert_same_answers(&local, &remote, &[b]);
+        waits += remote.transfer_counts().expect("counts").round_trips - opened.round_trips;
+    }
+    assert!(waits < reads, "{waits} round trips for {reads} block reads");
 }
 
 #[test]

@@ -110,6 +110,15 @@ impl Pager {
         u64::from(id) * u64::from(self.block_size)
     }
 
+    /// Tells the device that blocks `ids` will be read soon (a device over a
+    /// network fetches them together); nothing is read or counted here.
+    pub fn fetch_ahead(&self, ids: &[u32]) {
+        let bs = u64::from(self.block_size);
+        let spans: Vec<std::ops::Range<u64>> =
+            ids.iter().map(|&id| u64::from(id) * bs..(u64::from(id) + 1) * bs).collect();
+        self.device.fetch_ahead(&spans);
+    }
+
     /// Reads block `id` raw, without verifying it (for `check` and recovery).
     pub fn read_raw(&self, id: u32) -> Result<Vec<u8>, StorageError> {
         let mut buf = vec![0u8; self.block_size as usize];

@@ -337,19 +337,7 @@ impl ReadTransaction {
                 b
             }
             None => {
-                self.check_in_snapshot(id)?;
-                let (bytes, sum) = self.pager().read(id, t, Some(checksum), &mut reads.stats)?;
-                let records = match t {
-                    BlockType::Node => node::validate_block(id, &bytes, &self.limits())?,
-                    BlockType::KeyLeaf => keys::validate(id, &bytes, true)?,
-                    BlockType::KeyBranch => keys::validate(id, &bytes, false)?,
-                    _ => Vec::new(),
-                };
-                let groups = match t {
-                    BlockType::Group => group::validate(id, &bytes, self.pager().lod_levels())?,
-                    _ => Vec::new(),
-                };
-                let b = Arc::new(Block { id, checksum: sum, bytes, records, groups });
+                let b = self.load(id, t, checksum, &mut reads.stats)?;
                 if let Some(c) = reads.shared {
                     c.put(b.clone());
                 }
@@ -358,6 +346,31 @@ impl ReadTransaction {
         };
         reads.put(&b);
         Ok(b)
+    }
+
+    /// Block `id` from the device, verified and validated, its read counted
+    /// in `stats`.
+    fn load(&self, id: u32, t: BlockType, checksum: u32, stats: &mut ReadStats) -> Result<Arc<Block>, StorageError> {
+        self.check_in_snapshot(id)?;
+        let (bytes, sum) = self.pager().read(id, t, Some(checksum), stats)?;
+        let records = match t {
+            BlockType::Node => node::validate_block(id, &bytes, &self.limits())?,
+            BlockType::KeyLeaf => keys::validate(id, &bytes, true)?,
+            BlockType::KeyBranch => keys::validate(id, &bytes, false)?,
+            _ => Vec::new(),
+        };
+        let groups = match t {
+            BlockType::Group => group::validate(id, &bytes, self.pager().lod_levels())?,
+            _ => Vec::new(),
+        };
+        Ok(Arc::new(Block { id, checksum: sum, bytes, records, groups }))
+    }
+
+    /// Node block `id`, fetched ahead, looked into to find what to fetch
+    /// next: not counted as a read (the traversal's read of it is) and not
+    /// kept. `None` when it fails to verify; the read reports why.
+    pub(crate) fn peek_node(&self, id: u32, checksum: u32) -> Option<Arc<Block>> {
+        self.load(id, BlockType::Node, checksum, &mut ReadStats::default()).ok()
     }
 
     fn limits(&self) -> Limits {
@@ -383,6 +396,41 @@ impl ReadTransaction {
         }
     }
 
+    /// Object `i` of `leaf` (in block `block`): its id, and the geometry
+    /// blocks (id, checksum) its record lies in, in order, with the payload
+    /// bytes it takes in each.
+    fn object_span(&self, block: u32, leaf: &LeafView, i: usize) -> Result<(u32, ObjectSpan), StorageError> {
+        let bs = self.pager().block_size();
+        let o = leaf.object(i).ok_or_else(|| StorageError::corrupt(block, "objects", "no such object"))?;
+        let (first, sums) = leaf.geometry();
+        let sums: Vec<u32> = sums.collect();
+        let p = geometry::payload(bs);
+        let (start, end) = o.span;
+        let mut out = Vec::new();
+        for b in geometry::blocks_of(start, end, bs) {
+            let sum = *sums.get(b as usize).ok_or_else(|| {
+                StorageError::corrupt(block, "position", "an object's record lies past its leaf's span")
+            })?;
+            let id = u32::try_from(u64::from(first) + b)
+                .map_err(|_| StorageError::corrupt(block, "first_block", "overflows"))?;
+            let from = if b == start / p { start % p } else { 0 };
+            let to = if b == (end - 1) / p { (end - 1) % p + 1 } else { p };
+            out.push((id, sum, from as usize..to as usize));
+        }
+        Ok((o.object_id, out))
+    }
+
+    /// The geometry blocks (id, checksum) that object `i` of `leaf` (in
+    /// block `block`) lies in.
+    pub(crate) fn object_blocks(
+        &self,
+        block: u32,
+        leaf: &LeafView,
+        i: usize,
+    ) -> Result<Vec<(u32, u32)>, StorageError> {
+        Ok(self.object_span(block, leaf, i)?.1.into_iter().map(|(id, sum, _)| (id, sum)).collect())
+    }
+
     /// The exact object `i` of `leaf` (in block `block`): its geometry
     /// blocks are read through `reads`.
     pub(crate) fn read_object(
@@ -392,36 +440,57 @@ impl ReadTransaction {
         i: usize,
         reads: &mut Reads,
     ) -> Result<(ObjectId, Mesh), StorageError> {
-        let bs = self.pager().block_size();
-        let o = leaf.object(i).ok_or_else(|| StorageError::corrupt(block, "objects", "no such object"))?;
-        let (first, sums) = leaf.geometry();
-        let sums: Vec<u32> = sums.collect();
-        let p = geometry::payload(bs);
-        let (start, end) = o.span;
-        let mut bytes = Vec::with_capacity((end - start) as usize);
-        for b in geometry::blocks_of(start, end, bs) {
-            let sum = *sums.get(b as usize).ok_or_else(|| {
-                StorageError::corrupt(block, "position", "an object's record lies past its leaf's span")
-            })?;
-            let id = u32::try_from(u64::from(first) + b)
-                .map_err(|_| StorageError::corrupt(block, "first_block", "overflows"))?;
+        let (object_id, span) = self.object_span(block, leaf, i)?;
+        let first = leaf.geometry().0;
+        let mut bytes = Vec::new();
+        for (id, sum, within) in span {
             let g = self.block(id, BlockType::Geometry, sum, reads)?;
-            let from = if b == start / p { start % p } else { 0 };
-            let to = if b == (end - 1) / p { (end - 1) % p + 1 } else { p };
             let at = crate::store::format::frame::FRAME_LEN;
-            bytes.extend_from_slice(&g.bytes[at + from as usize..at + to as usize]);
+            bytes.extend_from_slice(&g.bytes[at + within.start..at + within.end]);
         }
         let (id, mesh) = geometry::decode_object(first, &bytes)?;
-        if id.0 != o.object_id {
+        if id.0 != object_id {
             return Err(StorageError::corrupt(
                 first,
                 "object_id",
-                format!("the leaf says {}, the record {id}", o.object_id),
+                format!("the leaf says {object_id}, the record {id}"),
             ));
         }
         Ok((id, mesh))
     }
+
+    /// True when the device fetches over a network, where reading the blocks
+    /// a query will need together saves round trips.
+    pub(crate) fn fetches_ahead(&self) -> bool {
+        self.pager().device().transfer_counts().is_some()
+    }
+
+    /// Of `wanted` (id, checksum), the blocks neither in `reads`' hand nor in
+    /// the shared cache, nor outside the snapshot.
+    pub(crate) fn unread(&self, wanted: &[(u32, u32)], reads: &Reads) -> Vec<u32> {
+        let mut ids: Vec<u32> = wanted
+            .iter()
+            .filter(|&&(id, sum)| {
+                self.check_in_snapshot(id).is_ok()
+                    && !reads.holds(id)
+                    && reads.shared.is_none_or(|c| c.get(id, sum).is_none())
+            })
+            .map(|&(id, _)| id)
+            .collect();
+        ids.sort_unstable();
+        ids.dedup();
+        ids
+    }
+
+    /// Has the device fetch blocks `ids` together, to be read next.
+    pub(crate) fn fetch_ahead(&self, ids: &[u32]) {
+        self.pager().fetch_ahead(ids);
+    }
 }
+
+/// The geometry blocks an object's record lies in: (id, checksum, the
+/// payload bytes it takes there).
+type ObjectSpan = Vec<(u32, u32, std::ops::Range<usize>)>;
 
 /// The record at `offset` of a validated node block.
 pub(crate) fn view(block: &Block, offset: u32) -> Result<NodeView<'_>, StorageError> {

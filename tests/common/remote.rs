@@ -42,12 +42,15 @@ pub fn boxes(scene: &Scene) -> Vec<Aabb> {
 }
 
 /// Asserts that `remote` answers every box as `local` does, with the same
-/// block reads.
-pub fn assert_same_answers(local: &Database, remote: &Database, boxes: &[Aabb]) {
+/// block reads; their sum.
+pub fn assert_same_answers(local: &Database, remote: &Database, boxes: &[Aabb]) -> u64 {
     let (l, r) = (local.begin_read().expect("read"), remote.begin_read().expect("read"));
+    let mut reads = 0;
     for b in boxes {
         let (a, c) = (l.query_box(b).expect("local query"), r.query_box(b).expect("remote query"));
         assert_eq!(a.objects, c.objects, "answers differ for {b:?}");
         assert_eq!(a.stats.reads, c.stats.reads, "block reads differ for {b:?}");
+        reads += c.stats.reads.total();
     }
+    reads
 }

@@ -47,8 +47,20 @@ fn missing(what: &str) -> Option<Server> {
     None
 }
 
+/// A port free on 127.0.0.1 and not given to another server of this
+/// process (tests run in parallel, and the system may offer one port twice
+/// once it is closed again).
 fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).expect("a free port on 127.0.0.1").port()
+    static GIVEN: std::sync::Mutex<Vec<u16>> = std::sync::Mutex::new(Vec::new());
+    let mut given = GIVEN.lock().unwrap_or_else(|p| p.into_inner());
+    loop {
+        let port =
+            TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).expect("a free port on 127.0.0.1").port();
+        if !given.contains(&port) {
+            given.push(port);
+            return port;
+        }
+    }
 }
 
 fn wait_until_listening(port: u16, child: &mut Child, what: &str) {
@@ -62,6 +74,12 @@ fn wait_until_listening(port: u16, child: &mut Child, what: &str) {
             "{what} did not listen on port {port} within 30 s"
         );
         std::thread::sleep(Duration::from_millis(50));
+    }
+    // Another program on the port would have answered the connect: ours
+    // must still be running.
+    std::thread::sleep(Duration::from_millis(100));
+    if let Ok(Some(status)) = child.try_wait() {
+        panic!("{what} exited after port {port} answered (another program holds it): {status}");
     }
 }
 

@@ -178,6 +178,29 @@ pub struct Select<'a, S> {
     /// left unread would be shown by its box, coarser than the bound it
     /// replaced, and a larger budget could show a larger error.
     refining: bool,
+    /// Over a network, without a budget or a ranking: a step that must go to
+    /// the device takes the waiting steps' blocks with it (every waiting
+    /// step of an exhaustive traversal is run), in one round trip.
+    ahead: bool,
+}
+
+/// The most blocks fetched ahead of one read.
+const AHEAD_MAX: usize = 64;
+
+/// A block a waiting step will read: a node block, entered at record `at`
+/// with box `frame`, or a geometry block (id, checksum).
+enum Ahead {
+    Node { at: RecordRef, frame: Aabb, inside: bool },
+    Geometry((u32, u32)),
+}
+
+impl Ahead {
+    fn block(&self) -> (u32, u32) {
+        match self {
+            Ahead::Node { at, .. } => (at.block, at.checksum),
+            Ahead::Geometry(b) => *b,
+        }
+    }
 }
 
 impl<'a, S: Selection> Select<'a, S> {
@@ -247,7 +270,9 @@ impl<'a, S: Selection> Select<'a, S> {
             rest: None,
             groups: None,
             refining: false,
+            ahead: false,
         };
+        s.ahead = txn.fetches_ahead() && s.rank.is_none() && s.budget.is_none();
         if s.sel.tolerance().is_some() {
             s.groups = txn.group_rule();
         }
@@ -394,7 +419,104 @@ impl<'a, S: Selection> Select<'a, S> {
             self.deferred.push(q);
             return Ok(());
         }
+        if self.ahead {
+            self.fetch_ahead(&q)?;
+        }
         self.step(q.step)
+    }
+
+    /// When `next` must read a block from the device, has the device fetch
+    /// the blocks the waiting steps will read too (the soonest first), and
+    /// then, round by round, the node blocks below those fetched that the
+    /// query meets: a round trip per level of node blocks, not per block, up
+    /// to [`AHEAD_MAX`] blocks. Reads are counted as the steps make them,
+    /// the same blocks as without this.
+    fn fetch_ahead(&self, next: &Queued) -> Result<(), StorageError> {
+        let mut ahead = Vec::new();
+        self.blocks_of(&next.step, &mut ahead)?;
+        if self.txn.unread(&ahead.iter().map(Ahead::block).collect::<Vec<_>>(), &self.reads).is_empty() {
+            return Ok(());
+        }
+        let mut waiting: Vec<&Queued> = self.heap.iter().collect();
+        waiting.sort_unstable_by(|a, b| b.cmp(a));
+        for q in waiting {
+            if ahead.len() >= AHEAD_MAX {
+                break;
+            }
+            self.blocks_of(&q.step, &mut ahead)?;
+        }
+        let mut fetched = 0;
+        while !ahead.is_empty() && fetched < AHEAD_MAX {
+            let mut ids = self.txn.unread(&ahead.iter().map(Ahead::block).collect::<Vec<_>>(), &self.reads);
+            ids.truncate(AHEAD_MAX - fetched);
+            if ids.is_empty() {
+                break;
+            }
+            self.txn.fetch_ahead(&ids);
+            fetched += ids.len();
+            let mut below = Vec::new();
+            for a in &ahead {
+                if let Ahead::Node { at, frame, inside } = a
+                    && ids.binary_search(&at.block).is_ok()
+                    && let Some(block) = self.txn.peek_node(at.block, at.checksum)
+                {
+                    self.blocks_below(&block, at.offset, *frame, *inside, &mut below);
+                }
+            }
+            ahead = below;
+        }
+        Ok(())
+    }
+
+    /// What `step` reads: a child's node block, the geometry of an undecided
+    /// object's part, or for a record in hand, the node blocks below it that
+    /// the query meets.
+    fn blocks_of(&self, step: &Step, out: &mut Vec<Ahead>) -> Result<(), StorageError> {
+        match step {
+            Step::Unread { at, frame, inside, .. } if at.block != 0 => {
+                out.push(Ahead::Node { at: *at, frame: *frame, inside: *inside })
+            }
+            Step::Node { block, offset, frame, inside, .. } => self.blocks_below(block, *offset, *frame, *inside, out),
+            Step::Exact { block, offset, index, .. } => {
+                let NodeView::Leaf(leaf) = view(block, *offset)? else { return Ok(()) };
+                let decided = leaf.object(*index).is_none_or(|o| self.done.contains(&o.object_id));
+                if !decided {
+                    out.extend(self.txn.object_blocks(block.id, &leaf, *index)?.into_iter().map(Ahead::Geometry));
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// The node blocks below record `offset` of `block` (box `frame`) that
+    /// the query will read: its descendants in the block are tested as
+    /// [`step`](Self::step) tests them. A record that fails to decode adds
+    /// nothing here; its step reports it.
+    fn blocks_below(&self, block: &Block, offset: u32, frame: Aabb, inside: bool, out: &mut Vec<Ahead>) {
+        let mut stack = vec![(offset, frame, inside)];
+        let mut records = 0;
+        while let Some((offset, frame, inside)) = stack.pop() {
+            // A block's records form a tree, each named once: a forged block
+            // naming one record twice stops here.
+            records += 1;
+            if records > block.records.len() || out.len() >= AHEAD_MAX {
+                return;
+            }
+            let Ok(NodeView::Internal(n)) = view(block, offset) else { continue };
+            let frame = NodeView::Internal(n).frame(frame);
+            for i in 0..2 {
+                let Some(qb) = n.child_box(i, &frame) else { continue };
+                if !inside && !self.sel.may_meet_box(&qb.outer) {
+                    continue;
+                }
+                let (at, inside) = (n.child_ref(i), inside || self.sel.holds_box(&qb.outer));
+                match at.block {
+                    0 => stack.push((at.offset, qb.outer, inside)),
+                    _ => out.push(Ahead::Node { at, frame: qb.outer, inside }),
+                }
+            }
+        }
     }
 
     /// Ends the traversal: what a budget set aside is the rest, and a query

@@ -107,4 +107,7 @@ impl<D: BlockDevice> BlockDevice for CountingDevice<D> {
     fn transfer_counts(&self) -> Option<super::TransferCounts> {
         self.inner.transfer_counts()
     }
+    fn fetch_ahead(&self, spans: &[std::ops::Range<u64>]) {
+        self.inner.fetch_ahead(spans)
+    }
 }

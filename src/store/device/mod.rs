@@ -13,6 +13,7 @@ mod mem;
 mod object;
 
 use std::io;
+use std::ops::Range;
 
 #[cfg(feature = "redb")]
 pub(crate) use counting::Counters;
@@ -69,6 +70,12 @@ pub trait BlockDevice: Send + Sync {
     fn transfer_counts(&self) -> Option<TransferCounts> {
         None
     }
+    /// A hint that the byte ranges `spans` will be read soon: a device that
+    /// fetches over a network fetches them together, in one round trip. A
+    /// failure is left for the read that follows to report.
+    fn fetch_ahead(&self, spans: &[Range<u64>]) {
+        let _ = spans;
+    }
 }
 
 impl<D: BlockDevice + ?Sized> BlockDevice for std::sync::Arc<D> {
@@ -92,5 +99,8 @@ impl<D: BlockDevice + ?Sized> BlockDevice for std::sync::Arc<D> {
     }
     fn transfer_counts(&self) -> Option<TransferCounts> {
         (**self).transfer_counts()
+    }
+    fn fetch_ahead(&self, spans: &[Range<u64>]) {
+        (**self).fetch_ahead(spans)
     }
 }

@@ -309,51 +309,66 @@ fn is_empty_range(e: &object_store::Error) -> bool {
     e.to_string().contains("Range") && e.to_string().contains("not satisf")
 }
 
-impl BlockDevice for ObjectStoreDevice {
-    fn read_at(&self, offset: u64, buf: &mut [u8]) -> io::Result<()> {
-        if buf.is_empty() {
-            return Ok(());
-        }
-        let end = offset
-            .checked_add(buf.len() as u64)
-            .filter(|&end| end <= self.size)
-            .ok_or_else(|| io::Error::new(io::ErrorKind::UnexpectedEof, "read past the end of the object"))?;
-        let (first, last) = (offset / self.page, (end - 1) / self.page);
+impl ObjectStoreDevice {
+    /// Pages `pages` (ascending), from the cache or fetched together:
+    /// adjacent missing pages make one request, and all requests go out at
+    /// once, one round trip.
+    fn pages(&self, pages: impl Iterator<Item = u64>) -> io::Result<HashMap<u64, Arc<[u8]>>> {
         let mut have: HashMap<u64, Arc<[u8]>> = HashMap::new();
         let mut missing: Vec<Range<u64>> = Vec::new();
         {
             let mut state = self.lock();
-            for p in first..=last {
+            for p in pages {
                 match state.get(p) {
                     Some(bytes) => {
                         have.insert(p, bytes);
                     }
-                    // Adjacent missing pages make one request.
                     None => match missing.last_mut() {
                         Some(run) if run.end == p => run.end = p + 1,
+                        Some(run) if run.end > p => {}
                         _ => missing.push(p..p + 1),
                     },
                 }
             }
         }
-        if !missing.is_empty() {
-            let byte_ranges: Vec<Range<u64>> =
-                missing.iter().map(|r| r.start * self.page..(r.end * self.page).min(self.size)).collect();
-            let got = self.fetch(byte_ranges)?;
-            let mut state = self.lock();
-            state.counts.requests += got.len() as u64;
-            state.counts.round_trips += 1;
-            for (run, bytes) in missing.iter().zip(got) {
-                state.counts.bytes += bytes.len() as u64;
-                for (i, p) in (run.start..run.end).enumerate() {
-                    let from = i * self.page as usize;
-                    let to = (from + self.page as usize).min(bytes.len());
-                    let page: Arc<[u8]> = Arc::from(&bytes[from..to]);
-                    have.insert(p, page.clone());
-                    state.put(p, page, self.cache_bytes);
-                }
+        if missing.is_empty() {
+            return Ok(have);
+        }
+        let byte_ranges: Vec<Range<u64>> =
+            missing.iter().map(|r| r.start * self.page..(r.end * self.page).min(self.size)).collect();
+        let got = self.fetch(byte_ranges)?;
+        let mut state = self.lock();
+        state.counts.requests += got.len() as u64;
+        state.counts.round_trips += 1;
+        for (run, bytes) in missing.iter().zip(got) {
+            state.counts.bytes += bytes.len() as u64;
+            for (i, p) in (run.start..run.end).enumerate() {
+                let from = i * self.page as usize;
+                let to = (from + self.page as usize).min(bytes.len());
+                let page: Arc<[u8]> = Arc::from(&bytes[from..to]);
+                have.insert(p, page.clone());
+                state.put(p, page, self.cache_bytes);
             }
         }
+        Ok(have)
+    }
+
+    /// The pages `span` covers, when it lies in the object.
+    fn pages_of(&self, span: &Range<u64>) -> Option<Range<u64>> {
+        (span.start < span.end && span.end <= self.size).then(|| span.start / self.page..(span.end - 1) / self.page + 1)
+    }
+}
+
+impl BlockDevice for ObjectStoreDevice {
+    fn read_at(&self, offset: u64, buf: &mut [u8]) -> io::Result<()> {
+        if buf.is_empty() {
+            return Ok(());
+        }
+        let span = offset..offset.saturating_add(buf.len() as u64);
+        let pages = self
+            .pages_of(&span)
+            .ok_or_else(|| io::Error::new(io::ErrorKind::UnexpectedEof, "read past the end of the object"))?;
+        let have = self.pages(pages)?;
         let mut at = offset;
         let mut out = 0usize;
         while out < buf.len() {
@@ -369,6 +384,14 @@ impl BlockDevice for ObjectStoreDevice {
             at += n as u64;
         }
         Ok(())
+    }
+
+    fn fetch_ahead(&self, spans: &[Range<u64>]) {
+        let mut pages: Vec<u64> = spans.iter().filter_map(|s| self.pages_of(s)).flatten().collect();
+        pages.sort_unstable();
+        pages.dedup();
+        // A hint: the read that follows fetches again and reports a failure.
+        let _ = self.pages(pages.into_iter());
     }
 
     fn write_at(&self, _offset: u64, _data: &[u8]) -> io::Result<()> {
