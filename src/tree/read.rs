@@ -350,7 +350,13 @@ impl ReadTransaction {
 
     /// Block `id` from the device, verified and validated, its read counted
     /// in `stats`.
-    fn load(&self, id: u32, t: BlockType, checksum: u32, stats: &mut ReadStats) -> Result<Arc<Block>, StorageError> {
+    fn load(
+        &self,
+        id: u32,
+        t: BlockType,
+        checksum: u32,
+        stats: &mut ReadStats,
+    ) -> Result<Arc<Block>, StorageError> {
         self.check_in_snapshot(id)?;
         let (bytes, sum) = self.pager().read(id, t, Some(checksum), stats)?;
         let records = match t {

@@ -476,12 +476,16 @@ impl<'a, S: Selection> Select<'a, S> {
             Step::Unread { at, frame, inside, .. } if at.block != 0 => {
                 out.push(Ahead::Node { at: *at, frame: *frame, inside: *inside })
             }
-            Step::Node { block, offset, frame, inside, .. } => self.blocks_below(block, *offset, *frame, *inside, out),
+            Step::Node { block, offset, frame, inside, .. } => {
+                self.blocks_below(block, *offset, *frame, *inside, out)
+            }
             Step::Exact { block, offset, index, .. } => {
                 let NodeView::Leaf(leaf) = view(block, *offset)? else { return Ok(()) };
                 let decided = leaf.object(*index).is_none_or(|o| self.done.contains(&o.object_id));
                 if !decided {
-                    out.extend(self.txn.object_blocks(block.id, &leaf, *index)?.into_iter().map(Ahead::Geometry));
+                    out.extend(
+                        self.txn.object_blocks(block.id, &leaf, *index)?.into_iter().map(Ahead::Geometry),
+                    );
                 }
             }
             _ => {}

@@ -355,7 +355,8 @@ impl ObjectStoreDevice {
 
     /// The pages `span` covers, when it lies in the object.
     fn pages_of(&self, span: &Range<u64>) -> Option<Range<u64>> {
-        (span.start < span.end && span.end <= self.size).then(|| span.start / self.page..(span.end - 1) / self.page + 1)
+        (span.start < span.end && span.end <= self.size)
+            .then(|| span.start / self.page..(span.end - 1) / self.page + 1)
     }
 }
 
