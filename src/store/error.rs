@@ -10,7 +10,8 @@ pub enum StorageError {
     #[error("I/O error")]
     Io(#[source] io::Error),
     /// An object store could not be reached, or refused the object (the
-    /// URL, the store's settings or credentials, a missing object).
+    /// URL, the store's settings or credentials, a missing object), or a
+    /// request failed after its retries (a server error, a short answer).
     #[error("{url}: {detail}")]
     Remote {
         /// The URL.
@@ -152,8 +153,14 @@ impl StorageError {
 impl From<io::Error> for StorageError {
     fn from(e: io::Error) -> Self {
         #[cfg(feature = "object-store")]
-        if let Some(changed) = e.get_ref().and_then(|inner| inner.downcast_ref::<super::device::Changed>()) {
-            return StorageError::ObjectChanged { url: changed.url.clone() };
+        {
+            use super::device::{Changed, Failed};
+            if let Some(changed) = e.get_ref().and_then(|inner| inner.downcast_ref::<Changed>()) {
+                return StorageError::ObjectChanged { url: changed.url.clone() };
+            }
+            if let Some(failed) = e.get_ref().and_then(|inner| inner.downcast_ref::<Failed>()) {
+                return StorageError::Remote { url: failed.url.clone(), detail: failed.detail.clone() };
+            }
         }
         StorageError::Io(e)
     }

@@ -112,11 +112,12 @@ impl Pager {
 
     /// Tells the device that blocks `ids` will be read soon (a device over a
     /// network fetches them together); nothing is read or counted here.
-    pub fn fetch_ahead(&self, ids: &[u32]) {
+    /// True when the device holds them all now.
+    pub fn fetch_ahead(&self, ids: &[u32]) -> bool {
         let bs = u64::from(self.block_size);
         let spans: Vec<std::ops::Range<u64>> =
             ids.iter().map(|&id| u64::from(id) * bs..(u64::from(id) + 1) * bs).collect();
-        self.device.fetch_ahead(&spans);
+        self.device.fetch_ahead(&spans)
     }
 
     /// Reads block `id` raw, without verifying it (for `check` and recovery).

@@ -488,9 +488,10 @@ impl ReadTransaction {
         ids
     }
 
-    /// Has the device fetch blocks `ids` together, to be read next.
-    pub(crate) fn fetch_ahead(&self, ids: &[u32]) {
-        self.pager().fetch_ahead(ids);
+    /// Has the device fetch blocks `ids` together, to be read next; true
+    /// when it holds them all now (looking into them costs no request).
+    pub(crate) fn fetch_ahead(&self, ids: &[u32]) -> bool {
+        self.pager().fetch_ahead(ids)
     }
 }
 

@@ -190,3 +190,76 @@ pub fn replace_file(path: &Path, bytes: &[u8]) {
     std::fs::write(&tmp, bytes).expect("write");
     std::fs::rename(&tmp, path).expect("rename");
 }
+
+/// What [`faulty`] does once it has answered `after` requests well.
+#[derive(Debug, Clone, Copy)]
+pub enum Fault {
+    /// Answers 503 to every request.
+    ServerError,
+    /// Announces the whole range, sends half of it and closes.
+    Truncate,
+    /// Sends the range with one byte changed.
+    Flip,
+}
+
+/// A server on 127.0.0.1 that serves `file` (any path) by HTTP range
+/// requests, with a fixed ETag, and after `after` good answers fails as
+/// `fault` says: a fault injector for the object-store reader, beside the
+/// real servers above. Its thread ends with the process.
+pub fn faulty(file: Vec<u8>, after: usize, fault: Fault) -> u16 {
+    let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+    let port = listener.local_addr().expect("address").port();
+    std::thread::spawn(move || {
+        for (n, stream) in listener.incoming().enumerate() {
+            let Ok(mut s) = stream else { continue };
+            let Some(range) = read_range(&mut s, file.len()) else { continue };
+            let mut body = file[range.clone()].to_vec();
+            let head = |status: &str, len: usize| {
+                format!(
+                    "HTTP/1.1 {status}\r\nContent-Length: {len}\r\nContent-Range: bytes {}-{}/{}\r\n\
+                     ETag: \"fixed\"\r\nAccept-Ranges: bytes\r\nConnection: close\r\n\r\n",
+                    range.start,
+                    range.end - 1,
+                    file.len()
+                )
+            };
+            let _ = match (n >= after).then_some(fault) {
+                None => s
+                    .write_all(head("206 Partial Content", body.len()).as_bytes())
+                    .and_then(|_| s.write_all(&body)),
+                Some(Fault::ServerError) => s.write_all(
+                    b"HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\nConnection: close\r\n\r\n",
+                ),
+                Some(Fault::Truncate) => s
+                    .write_all(head("206 Partial Content", body.len()).as_bytes())
+                    .and_then(|_| s.write_all(&body[..body.len() / 2])),
+                Some(Fault::Flip) => {
+                    let mid = body.len() / 2;
+                    body[mid] ^= 0x5a;
+                    s.write_all(head("206 Partial Content", body.len()).as_bytes())
+                        .and_then(|_| s.write_all(&body))
+                }
+            };
+        }
+    });
+    port
+}
+
+/// The byte range a request asks for (`Range: bytes=a-b`, clipped to the
+/// file), after reading its head.
+fn read_range(s: &mut TcpStream, len: usize) -> Option<std::ops::Range<usize>> {
+    let mut head = Vec::new();
+    let mut byte = [0u8; 1];
+    while !head.ends_with(b"\r\n\r\n") {
+        if s.read(&mut byte).ok()? == 0 {
+            return None;
+        }
+        head.push(byte[0]);
+    }
+    let text = String::from_utf8_lossy(&head).to_ascii_lowercase();
+    let spec = text.lines().find_map(|l| l.strip_prefix("range: bytes="))?;
+    let (a, b) = spec.trim().split_once('-')?;
+    let start: usize = a.parse().ok()?;
+    let end = b.parse::<usize>().map_or(len, |b| (b + 1).min(len));
+    (start < end).then_some(start..end)
+}

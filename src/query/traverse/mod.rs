@@ -452,7 +452,11 @@ impl<'a, S: Selection> Select<'a, S> {
             if ids.is_empty() {
                 break;
             }
-            self.txn.fetch_ahead(&ids);
+            // A device that could not keep them all: looking into them
+            // would fetch them again.
+            if !self.txn.fetch_ahead(&ids) {
+                break;
+            }
             fetched += ids.len();
             let mut below = Vec::new();
             for a in &ahead {

@@ -107,7 +107,7 @@ impl<D: BlockDevice> BlockDevice for CountingDevice<D> {
     fn transfer_counts(&self) -> Option<super::TransferCounts> {
         self.inner.transfer_counts()
     }
-    fn fetch_ahead(&self, spans: &[std::ops::Range<u64>]) {
+    fn fetch_ahead(&self, spans: &[std::ops::Range<u64>]) -> bool {
         self.inner.fetch_ahead(spans)
     }
 }

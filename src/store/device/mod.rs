@@ -25,7 +25,7 @@ pub use fault::{FaultDevice, FaultOp};
 pub use file::FileDevice;
 pub use mem::MemDevice;
 #[cfg(feature = "object-store")]
-pub(crate) use object::Changed;
+pub(crate) use object::{Changed, Failed};
 #[cfg(feature = "object-store")]
 pub use object::{ObjectStoreDevice, RemoteOptions, is_remote_url};
 
@@ -71,10 +71,12 @@ pub trait BlockDevice: Send + Sync {
         None
     }
     /// A hint that the byte ranges `spans` will be read soon: a device that
-    /// fetches over a network fetches them together, in one round trip. A
-    /// failure is left for the read that follows to report.
-    fn fetch_ahead(&self, spans: &[Range<u64>]) {
+    /// fetches over a network fetches them together, in one round trip, and
+    /// returns true when it holds them all (reading them again costs no
+    /// request). A failure is left for the read that follows to report.
+    fn fetch_ahead(&self, spans: &[Range<u64>]) -> bool {
         let _ = spans;
+        false
     }
 }
 
@@ -100,7 +102,7 @@ impl<D: BlockDevice + ?Sized> BlockDevice for std::sync::Arc<D> {
     fn transfer_counts(&self) -> Option<TransferCounts> {
         (**self).transfer_counts()
     }
-    fn fetch_ahead(&self, spans: &[Range<u64>]) {
+    fn fetch_ahead(&self, spans: &[Range<u64>]) -> bool {
         (**self).fetch_ahead(spans)
     }
 }

@@ -36,11 +36,23 @@ pub struct RemoteOptions {
     /// (for example `("aws_endpoint", "http://127.0.0.1:9000")`), applied
     /// over those of the environment (`AWS_*`, `GOOGLE_*`, `AZURE_*`).
     pub store_options: Vec<(String, String)>,
+    /// Times a failed request (a server error, a dropped connection) is
+    /// tried again, with exponential backoff, before the read fails.
+    /// Default 3.
+    pub retries: usize,
+    /// How long a request is tried again at most. Default 30 s.
+    pub retry_timeout: std::time::Duration,
 }
 
 impl Default for RemoteOptions {
     fn default() -> Self {
-        RemoteOptions { open_bytes: 64 << 10, cache_bytes: 64 << 20, store_options: Vec::new() }
+        RemoteOptions {
+            open_bytes: 64 << 10,
+            cache_bytes: 64 << 20,
+            store_options: Vec::new(),
+            retries: 3,
+            retry_timeout: std::time::Duration::from_secs(30),
+        }
     }
 }
 
@@ -161,14 +173,9 @@ impl ObjectStoreDevice {
     pub fn open(url: &str, options: &RemoteOptions) -> Result<ObjectStoreDevice, StorageError> {
         let parsed = url::Url::parse(url).map_err(|e| remote(url, format!("not a URL: {e}")))?;
         let mut settings = environment_options();
-        // A URL that names plain HTTP asks for it.
-        if parsed.scheme() == "http" {
-            settings.push(("allow_http".into(), "true".into()));
-        }
         settings.extend(options.store_options.iter().cloned());
-        let (store, path) =
-            object_store::parse_url_opts(&parsed, settings).map_err(|e| remote(url, e.to_string()))?;
-        ObjectStoreDevice::on(Arc::from(store), path, url, options)
+        let (store, path) = store_for(&parsed, &settings, options).map_err(|e| remote(url, e.to_string()))?;
+        ObjectStoreDevice::on(store, path, url, options)
     }
 
     /// Opens `path` in a store the caller built (any `object_store`
@@ -271,14 +278,12 @@ impl ObjectStoreDevice {
             object_store::Error::Precondition { .. } | object_store::Error::NotFound { .. } => {
                 io::Error::other(Changed { url: self.url.clone() })
             }
-            e => io::Error::other(e),
+            e => io::Error::other(Failed { url: self.url.clone(), detail: e.to_string() }),
         })?;
         for (bytes, range) in got.iter().zip(&asked) {
             if bytes.len() as u64 != range.end - range.start {
-                return Err(io::Error::new(
-                    io::ErrorKind::UnexpectedEof,
-                    format!("{}: asked for {range:?}, received {} bytes", self.url, bytes.len()),
-                ));
+                let detail = format!("asked for bytes {range:?}, received {}", bytes.len());
+                return Err(io::Error::other(Failed { url: self.url.clone(), detail }));
             }
         }
         Ok(got)
@@ -299,6 +304,96 @@ impl std::fmt::Display for Changed {
 }
 
 impl std::error::Error for Changed {}
+
+/// The store `url` names, with `settings` (configuration keys the store
+/// does not know are left out, as `object_store::parse_url_opts` does) and
+/// `options`' retries; the object's path in it.
+fn store_for(
+    url: &url::Url,
+    settings: &[(String, String)],
+    options: &RemoteOptions,
+) -> object_store::Result<(Arc<dyn ObjectStore>, Path)> {
+    use object_store::ObjectStoreScheme as Scheme;
+    let retry = object_store::RetryConfig {
+        max_retries: options.retries,
+        retry_timeout: options.retry_timeout,
+        ..object_store::RetryConfig::default()
+    };
+    /// A builder with every setting it has a key for.
+    fn with_settings<B, K: std::str::FromStr>(
+        builder: B,
+        settings: &[(String, String)],
+        set: impl Fn(B, K, &str) -> B,
+    ) -> B {
+        settings.iter().fold(builder, |b, (k, v)| match k.parse() {
+            Ok(key) => set(b, key, v),
+            Err(_) => b,
+        })
+    }
+    let (scheme, path) = Scheme::parse(url)?;
+    let whole = url.to_string();
+    let store: Arc<dyn ObjectStore> = match scheme {
+        Scheme::Local => Arc::new(object_store::local::LocalFileSystem::new()),
+        Scheme::AmazonS3 => Arc::new(
+            with_settings(object_store::aws::AmazonS3Builder::new().with_url(whole), settings, |b, k, v| {
+                b.with_config(k, v)
+            })
+            .with_retry(retry)
+            .build()?,
+        ),
+        Scheme::GoogleCloudStorage => Arc::new(
+            with_settings(
+                object_store::gcp::GoogleCloudStorageBuilder::new().with_url(whole),
+                settings,
+                |b, k, v| b.with_config(k, v),
+            )
+            .with_retry(retry)
+            .build()?,
+        ),
+        Scheme::MicrosoftAzure => Arc::new(
+            with_settings(
+                object_store::azure::MicrosoftAzureBuilder::new().with_url(whole),
+                settings,
+                |b, k, v| b.with_config(k, v),
+            )
+            .with_retry(retry)
+            .build()?,
+        ),
+        Scheme::Http => {
+            let origin = &url[..url::Position::BeforePath];
+            let builder = object_store::http::HttpBuilder::new()
+                .with_url(origin)
+                // A URL that names plain HTTP asks for it.
+                .with_config(object_store::ClientConfigKey::AllowHttp, (url.scheme() == "http").to_string());
+            Arc::new(
+                with_settings(builder, settings, |b, k, v| b.with_config(k, v)).with_retry(retry).build()?,
+            )
+        }
+        other => {
+            return Err(object_store::Error::NotSupported {
+                source: format!("{other:?} is not a store a file can be read from here").into(),
+            });
+        }
+    };
+    Ok((store, path))
+}
+
+/// A request failed after its retries (a server error, a dropped or short
+/// answer): carried in the `io::Error` of a read, and turned into
+/// [`StorageError::Remote`].
+#[derive(Debug)]
+pub(crate) struct Failed {
+    pub(crate) url: String,
+    pub(crate) detail: String,
+}
+
+impl std::fmt::Display for Failed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.url, self.detail)
+    }
+}
+
+impl std::error::Error for Failed {}
 
 fn remote(url: &str, detail: String) -> StorageError {
     StorageError::Remote { url: url.to_string(), detail }
@@ -387,12 +482,17 @@ impl BlockDevice for ObjectStoreDevice {
         Ok(())
     }
 
-    fn fetch_ahead(&self, spans: &[Range<u64>]) {
+    fn fetch_ahead(&self, spans: &[Range<u64>]) -> bool {
         let mut pages: Vec<u64> = spans.iter().filter_map(|s| self.pages_of(s)).flatten().collect();
         pages.sort_unstable();
         pages.dedup();
-        // A hint: the read that follows fetches again and reports a failure.
-        let _ = self.pages(pages.into_iter());
+        // Pages fetched ahead must stay until they are read: at most half
+        // the cache, the rest keeps what the query holds.
+        let room = usize::try_from(self.cache_bytes / self.page / 2).unwrap_or(usize::MAX);
+        let all = pages.len() <= room;
+        pages.truncate(room);
+        // A failure is for the read that follows to report.
+        self.pages(pages.into_iter()).is_ok() && all
     }
 
     fn write_at(&self, _offset: u64, _data: &[u8]) -> io::Result<()> {
