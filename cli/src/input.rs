@@ -65,7 +65,7 @@ pub fn scene_or_seeded_preset(arg: &str, options: &ImportOptions, seed: u64) -> 
 /// slot copy, an interrupted transaction) to stderr.
 pub fn open_to_read(path: &Path) -> Result<Database> {
     let db = match path.to_str().filter(|name| is_remote_url(name)) {
-        Some(url) => Database::open_url(url, &RemoteOptions::default())?,
+        Some(url) => Database::open_url(url, &RemoteOptions::default()).map_err(|e| opening(e, path))?,
         None => Database::open_read_only(path).map_err(|e| opening(e, path))?,
     };
     for w in db.warnings() {
@@ -116,9 +116,10 @@ fn is_scene_path(path: &Path) -> bool {
         .is_some_and(|e| ["obj", "stl", "gltf", "glb"].iter().any(|s| e.eq_ignore_ascii_case(s)))
 }
 
-/// True when `path` is an .mkt file (by its magic number).
+/// True when `path` is an .mkt file (by its magic number), or a URL, which
+/// only an .mkt file is read from.
 pub fn is_mkt(path: &Path) -> bool {
-    mktree::db::is_mktree_file(path)
+    path.to_str().is_some_and(is_remote_url) || mktree::db::is_mktree_file(path)
 }
 
 /// The tree of an .mkt file, or of a scene built in memory with `build`,

@@ -14,39 +14,10 @@ use std::path::Path;
 use std::process::{Child, Stdio};
 use std::time::Duration;
 
-use common::mktree;
+use common::{mktree, serve};
 
 /// The bound `serve` states (cli/src/cmd/serve.rs, `MEMORY_BOUND`).
 const MEMORY_BOUND: u64 = 96 << 20;
-
-/// Kills the server when the test ends, pass or fail.
-struct Serving(Child);
-
-impl Drop for Serving {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-/// Starts `mktree serve tiles` on a free port with stand-in packages.
-fn serve(dir: &Path) -> (Serving, u16) {
-    let vendor = dir.join("vendor");
-    std::fs::create_dir_all(vendor.join("three")).unwrap();
-    std::fs::create_dir_all(vendor.join("3d-tiles-renderer")).unwrap();
-    let mut child = mktree()
-        .arg("serve")
-        .arg(dir.join("tiles"))
-        .args(["--port", "0", "--vendor"])
-        .arg(&vendor)
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let port = line.trim().rsplit(':').next().unwrap().trim_end_matches('/').parse().unwrap();
-    (Serving(child), port)
-}
 
 /// Sends `GET path` with `extra` header lines; returns the stream and the
 /// response head, the body left unread.

@@ -97,3 +97,34 @@ pub fn batch_with(
         String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
     (out.status, answers, String::from_utf8_lossy(&out.stderr).into_owned())
 }
+
+/// Kills the server when the test ends, pass or fail.
+pub struct Serving(pub std::process::Child);
+
+impl Drop for Serving {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Starts `mktree serve DIR/tiles` on a free port with stand-in packages;
+/// the server and its port.
+pub fn serve(dir: &Path) -> (Serving, u16) {
+    use std::io::BufRead;
+    let vendor = dir.join("vendor");
+    std::fs::create_dir_all(vendor.join("three")).unwrap();
+    std::fs::create_dir_all(vendor.join("3d-tiles-renderer")).unwrap();
+    let mut child = mktree()
+        .arg("serve")
+        .arg(dir.join("tiles"))
+        .args(["--port", "0", "--vendor"])
+        .arg(&vendor)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let port = line.trim().rsplit(':').next().unwrap().trim_end_matches('/').parse().unwrap();
+    (Serving(child), port)
+}
