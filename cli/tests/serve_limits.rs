@@ -11,10 +11,9 @@ mod common;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::Path;
-use std::process::{Child, Stdio};
 use std::time::Duration;
 
-use common::{mktree, serve};
+use common::serve;
 
 /// The bound `serve` states (cli/src/cmd/serve.rs, `MEMORY_BOUND`).
 const MEMORY_BOUND: u64 = 96 << 20;
