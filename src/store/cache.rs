@@ -79,6 +79,12 @@ impl BlockCache {
         self.capacity
     }
 
+    /// True when block `id` is held with checksum `checksum`; unlike
+    /// [`get`](Self::get), it leaves the order of eviction as it was.
+    pub(crate) fn holds(&self, id: u32, checksum: u32) -> bool {
+        self.lock().blocks.get(&id).is_some_and(|(b, _)| b.checksum == checksum)
+    }
+
     /// Block `id` if held with checksum `checksum`.
     pub(crate) fn get(&self, id: u32, checksum: u32) -> Option<Arc<Block>> {
         let mut guard = self.lock();

@@ -151,7 +151,11 @@ impl Pager {
         }
         let buf = self.read_raw(id)?;
         stats.count(expected);
-        let f = frame::verify(id, &buf, expected, parent_checksum)?;
+        let f = frame::verify(id, &buf, expected, parent_checksum).inspect_err(|_| {
+            // A device that keeps what it fetched drops it: a damaged
+            // transfer is fetched again by the next read, not kept.
+            self.device.forget(self.offset(id)..self.offset(id) + u64::from(self.block_size));
+        })?;
         Ok((buf.into(), f.checksum.get()))
     }
 

@@ -471,21 +471,21 @@ impl ReadTransaction {
         self.pager().device().transfer_counts().is_some()
     }
 
-    /// Of `wanted` (id, checksum), the blocks neither in `reads`' hand nor in
-    /// the shared cache, nor outside the snapshot.
+    /// Of `wanted` (id, checksum), in their order, each once: the blocks
+    /// neither in `reads`' hand nor in the shared cache (whose order of
+    /// eviction this leaves as it was), nor outside the snapshot.
     pub(crate) fn unread(&self, wanted: &[(u32, u32)], reads: &Reads) -> Vec<u32> {
-        let mut ids: Vec<u32> = wanted
+        let mut seen = rustc_hash::FxHashSet::default();
+        wanted
             .iter()
             .filter(|&&(id, sum)| {
                 self.check_in_snapshot(id).is_ok()
                     && !reads.holds(id)
-                    && reads.shared.is_none_or(|c| c.get(id, sum).is_none())
+                    && reads.shared.is_none_or(|c| !c.holds(id, sum))
+                    && seen.insert(id)
             })
             .map(|&(id, _)| id)
-            .collect();
-        ids.sort_unstable();
-        ids.dedup();
-        ids
+            .collect()
     }
 
     /// Has the device fetch blocks `ids` together, to be read next; true

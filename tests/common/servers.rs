@@ -67,7 +67,13 @@ fn free_port() -> u16 {
 
 fn wait_until_listening(port: u16, child: &mut Child, what: &str) {
     let start = Instant::now();
-    while TcpStream::connect(("127.0.0.1", port)).is_err() {
+    // A connect to a port nobody listens on can meet itself (the system
+    // may pick that port as the connection's own): that is not the server.
+    let listening = || {
+        TcpStream::connect(("127.0.0.1", port))
+            .is_ok_and(|s| s.local_addr().ok().zip(s.peer_addr().ok()).is_some_and(|(a, b)| a != b))
+    };
+    while !listening() {
         if let Ok(Some(status)) = child.try_wait() {
             panic!("{what} exited before it listened: {status}");
         }

@@ -178,10 +178,12 @@ pub struct Select<'a, S> {
     /// left unread would be shown by its box, coarser than the bound it
     /// replaced, and a larger budget could show a larger error.
     refining: bool,
-    /// Over a network, without a budget or a ranking: a step that must go to
-    /// the device takes the waiting steps' blocks with it (every waiting
-    /// step of an exhaustive traversal is run), in one round trip.
+    /// Over a network, without a budget, a ranking or stand-ins: a step
+    /// that must go to the device takes the waiting steps' blocks with it
+    /// (every waiting step of such a traversal is run), in one round trip.
     ahead: bool,
+    /// Blocks fetched ahead, not to be asked for again.
+    fetched_ahead: rustc_hash::FxHashSet<u32>,
 }
 
 /// The most blocks fetched ahead of one read.
@@ -271,8 +273,10 @@ impl<'a, S: Selection> Select<'a, S> {
             groups: None,
             refining: false,
             ahead: false,
+            fetched_ahead: Default::default(),
         };
-        s.ahead = txn.fetches_ahead() && s.rank.is_none() && s.budget.is_none();
+        s.ahead =
+            txn.fetches_ahead() && s.rank.is_none() && s.budget.is_none() && s.sel.tolerance().is_none();
         if s.sel.tolerance().is_some() {
             s.groups = txn.group_rule();
         }
@@ -420,22 +424,23 @@ impl<'a, S: Selection> Select<'a, S> {
             return Ok(());
         }
         if self.ahead {
-            self.fetch_ahead(&q)?;
+            self.fetch_ahead(&q);
         }
         self.step(q.step)
     }
 
-    /// When `next` must read a block from the device, has the device fetch
-    /// the blocks the waiting steps will read too (the soonest first), and
-    /// then, round by round, the node blocks below those fetched that the
-    /// query meets: a round trip per level of node blocks, not per block, up
-    /// to [`AHEAD_MAX`] blocks. Reads are counted as the steps make them,
-    /// the same blocks as without this.
-    fn fetch_ahead(&self, next: &Queued) -> Result<(), StorageError> {
+    /// When `next` must read a block from the device that was not fetched
+    /// ahead, has the device fetch the blocks the waiting steps will read too
+    /// (the soonest first), and then, round by round, the node blocks below
+    /// those fetched that the query meets: a round trip per level of node
+    /// blocks, not per block, up to [`AHEAD_MAX`] blocks. Reads are counted
+    /// as the steps make them, the same blocks as without this.
+    fn fetch_ahead(&mut self, next: &Queued) {
         let mut ahead = Vec::new();
-        self.blocks_of(&next.step, &mut ahead)?;
-        if self.txn.unread(&ahead.iter().map(Ahead::block).collect::<Vec<_>>(), &self.reads).is_empty() {
-            return Ok(());
+        self.blocks_of(&next.step, &mut ahead);
+        let needed = self.txn.unread(&ahead.iter().map(Ahead::block).collect::<Vec<_>>(), &self.reads);
+        if needed.iter().all(|id| self.fetched_ahead.contains(id)) {
+            return;
         }
         let mut waiting: Vec<&Queued> = self.heap.iter().collect();
         waiting.sort_unstable_by(|a, b| b.cmp(a));
@@ -443,25 +448,26 @@ impl<'a, S: Selection> Select<'a, S> {
             if ahead.len() >= AHEAD_MAX {
                 break;
             }
-            self.blocks_of(&q.step, &mut ahead)?;
+            self.blocks_of(&q.step, &mut ahead);
         }
         let mut fetched = 0;
         while !ahead.is_empty() && fetched < AHEAD_MAX {
-            let mut ids = self.txn.unread(&ahead.iter().map(Ahead::block).collect::<Vec<_>>(), &self.reads);
+            let wanted: Vec<(u32, u32)> = ahead.iter().map(Ahead::block).collect();
+            let mut ids = self.txn.unread(&wanted, &self.reads);
+            ids.retain(|id| !self.fetched_ahead.contains(id));
             ids.truncate(AHEAD_MAX - fetched);
-            if ids.is_empty() {
-                break;
-            }
             // A device that could not keep them all: looking into them
             // would fetch them again.
-            if !self.txn.fetch_ahead(&ids) {
+            if ids.is_empty() || !self.txn.fetch_ahead(&ids) {
                 break;
             }
             fetched += ids.len();
+            self.fetched_ahead.extend(ids.iter().copied());
+            let round: rustc_hash::FxHashSet<u32> = ids.into_iter().collect();
             let mut below = Vec::new();
             for a in &ahead {
                 if let Ahead::Node { at, frame, inside } = a
-                    && ids.binary_search(&at.block).is_ok()
+                    && round.contains(&at.block)
                     && let Some(block) = self.txn.peek_node(at.block, at.checksum)
                 {
                     self.blocks_below(&block, at.offset, *frame, *inside, &mut below);
@@ -469,13 +475,13 @@ impl<'a, S: Selection> Select<'a, S> {
             }
             ahead = below;
         }
-        Ok(())
     }
 
     /// What `step` reads: a child's node block, the geometry of an undecided
     /// object's part, or for a record in hand, the node blocks below it that
-    /// the query meets.
-    fn blocks_of(&self, step: &Step, out: &mut Vec<Ahead>) -> Result<(), StorageError> {
+    /// the query meets. A record that fails to decode adds nothing: its
+    /// step, if it runs, reports it.
+    fn blocks_of(&self, step: &Step, out: &mut Vec<Ahead>) {
         match step {
             Step::Unread { at, frame, inside, .. } if at.block != 0 => {
                 out.push(Ahead::Node { at: *at, frame: *frame, inside: *inside })
@@ -484,17 +490,14 @@ impl<'a, S: Selection> Select<'a, S> {
                 self.blocks_below(block, *offset, *frame, *inside, out)
             }
             Step::Exact { block, offset, index, .. } => {
-                let NodeView::Leaf(leaf) = view(block, *offset)? else { return Ok(()) };
+                let Ok(NodeView::Leaf(leaf)) = view(block, *offset) else { return };
                 let decided = leaf.object(*index).is_none_or(|o| self.done.contains(&o.object_id));
-                if !decided {
-                    out.extend(
-                        self.txn.object_blocks(block.id, &leaf, *index)?.into_iter().map(Ahead::Geometry),
-                    );
+                if !decided && let Ok(blocks) = self.txn.object_blocks(block.id, &leaf, *index) {
+                    out.extend(blocks.into_iter().map(Ahead::Geometry));
                 }
             }
             _ => {}
         }
-        Ok(())
     }
 
     /// The node blocks below record `offset` of `block` (box `frame`) that

@@ -110,4 +110,7 @@ impl<D: BlockDevice> BlockDevice for CountingDevice<D> {
     fn fetch_ahead(&self, spans: &[std::ops::Range<u64>]) -> bool {
         self.inner.fetch_ahead(spans)
     }
+    fn forget(&self, span: std::ops::Range<u64>) {
+        self.inner.forget(span)
+    }
 }

@@ -78,6 +78,11 @@ pub trait BlockDevice: Send + Sync {
         let _ = spans;
         false
     }
+    /// The bytes of `span` failed to verify: a device that keeps what it
+    /// fetched drops them, so that the next read fetches them again.
+    fn forget(&self, span: Range<u64>) {
+        let _ = span;
+    }
 }
 
 impl<D: BlockDevice + ?Sized> BlockDevice for std::sync::Arc<D> {
@@ -104,5 +109,8 @@ impl<D: BlockDevice + ?Sized> BlockDevice for std::sync::Arc<D> {
     }
     fn fetch_ahead(&self, spans: &[Range<u64>]) -> bool {
         (**self).fetch_ahead(spans)
+    }
+    fn forget(&self, span: Range<u64>) {
+        (**self).forget(span)
     }
 }

@@ -63,8 +63,9 @@ pub struct ObjectStoreDevice {
     path: Path,
     url: String,
     size: u64,
-    e_tag: Option<String>,
-    version: Option<String>,
+    /// What the first answer said of the object: every later answer must
+    /// say the same.
+    pinned: object_store::ObjectMeta,
     /// The fetch and cache unit: the file's block size.
     page: u64,
     cache_bytes: u64,
@@ -76,8 +77,8 @@ impl std::fmt::Debug for ObjectStoreDevice {
         f.debug_struct("ObjectStoreDevice")
             .field("url", &self.url)
             .field("size", &self.size)
-            .field("e_tag", &self.e_tag)
-            .field("version", &self.version)
+            .field("e_tag", &self.pinned.e_tag)
+            .field("version", &self.pinned.version)
             .finish()
     }
 }
@@ -103,6 +104,13 @@ impl Fetched {
         Some(bytes.clone())
     }
 
+    fn drop_page(&mut self, page: u64) {
+        if let Some((gone, used)) = self.pages.remove(&page) {
+            self.bytes -= gone.len() as u64;
+            self.by_use.remove(&used);
+        }
+    }
+
     fn put(&mut self, page: u64, bytes: Arc<[u8]>, bound: u64) {
         self.tick += 1;
         self.bytes += bytes.len() as u64;
@@ -112,10 +120,8 @@ impl Fetched {
         }
         self.by_use.insert(self.tick, page);
         while self.bytes > bound {
-            let Some((_, oldest)) = self.by_use.pop_first() else { break };
-            if let Some((gone, _)) = self.pages.remove(&oldest) {
-                self.bytes -= gone.len() as u64;
-            }
+            let Some((_, &oldest)) = self.by_use.first_key_value() else { break };
+            self.drop_page(oldest);
         }
     }
 }
@@ -123,16 +129,19 @@ impl Fetched {
 /// The runtime every device's requests run on: one per process, so that a
 /// catalog of many files does not start threads per file.
 fn runtime() -> io::Result<&'static tokio::runtime::Runtime> {
-    static RUNTIME: OnceLock<tokio::runtime::Runtime> = OnceLock::new();
-    if let Some(rt) = RUNTIME.get() {
-        return Ok(rt);
-    }
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .thread_name("mktree-remote")
-        .enable_all()
-        .build()?;
-    Ok(RUNTIME.get_or_init(|| rt))
+    // Built once, inside the lock: two first opens at once build one.
+    static RUNTIME: OnceLock<Result<tokio::runtime::Runtime, String>> = OnceLock::new();
+    RUNTIME
+        .get_or_init(|| {
+            tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(2)
+                .thread_name("mktree-remote")
+                .enable_all()
+                .build()
+                .map_err(|e| e.to_string())
+        })
+        .as_ref()
+        .map_err(|e| io::Error::other(format!("cannot start the object store's runtime: {e}")))
 }
 
 /// Runs `fut` on the shared runtime and waits for it. Spawned rather than
@@ -163,7 +172,9 @@ pub fn is_remote_url(name: &str) -> bool {
         "s3://", "s3a://", "gs://", "az://", "abfs://", "abfss://", "azure://", "adl://", "http://",
         "https://", "file://",
     ];
-    SCHEMES.iter().any(|s| name.len() > s.len() && name[..s.len()].eq_ignore_ascii_case(s))
+    SCHEMES
+        .iter()
+        .any(|s| name.len() > s.len() && name.get(..s.len()).is_some_and(|p| p.eq_ignore_ascii_case(s)))
 }
 
 impl ObjectStoreDevice {
@@ -200,7 +211,6 @@ impl ObjectStoreDevice {
         let (meta, range, bytes) = match wait(get)? {
             Ok(got) => got,
             // An empty object has no byte 0 to range from.
-            Err(object_store::Error::NotModified { .. }) => return Err(StorageError::NotMktree),
             Err(e) if is_empty_range(&e) => return Err(StorageError::NotMktree),
             Err(e) => return Err(remote(name, e.to_string())),
         };
@@ -228,8 +238,7 @@ impl ObjectStoreDevice {
             path,
             url: name.to_string(),
             size: meta.size,
-            e_tag: meta.e_tag,
-            version: meta.version,
+            pinned: meta,
             page,
             cache_bytes: options.cache_bytes,
             state: Mutex::new(fetched),
@@ -243,13 +252,13 @@ impl ObjectStoreDevice {
 
     /// The object's ETag as the store gave it at open, when it has one.
     pub fn e_tag(&self) -> Option<&str> {
-        self.e_tag.as_deref()
+        self.pinned.e_tag.as_deref()
     }
 
     /// The object's version as the store gave it at open, when the store
     /// keeps versions.
     pub fn version(&self) -> Option<&str> {
-        self.version.as_deref()
+        self.pinned.version.as_deref()
     }
 
     fn lock(&self) -> std::sync::MutexGuard<'_, Fetched> {
@@ -260,8 +269,10 @@ impl ObjectStoreDevice {
     /// Fetches the byte ranges `ranges` concurrently, in one round trip.
     fn fetch(&self, ranges: Vec<Range<u64>>) -> io::Result<Vec<bytes::Bytes>> {
         let options = GetOptions {
-            if_match: self.e_tag.clone(),
-            version: self.version.clone(),
+            // A weak ETag never passes If-Match (RFC 9110): it is compared
+            // with each answer's instead, below.
+            if_match: self.pinned.e_tag.clone().filter(|t| !t.starts_with("W/")),
+            version: self.pinned.version.clone(),
             ..GetOptions::default()
         };
         let (store, path) = (self.store.clone(), self.path.clone());
@@ -270,7 +281,11 @@ impl ObjectStoreDevice {
             let each = ranges.into_iter().map(|r| {
                 let options = GetOptions { range: Some(GetRange::Bounded(r)), ..options.clone() };
                 let (store, path) = (store.clone(), path.clone());
-                async move { store.get_opts(&path, options).await?.bytes().await }
+                async move {
+                    let result = store.get_opts(&path, options).await?;
+                    let meta = result.meta.clone();
+                    Ok::<_, object_store::Error>((meta, result.bytes().await?))
+                }
             });
             futures::future::try_join_all(each).await
         })?;
@@ -280,13 +295,23 @@ impl ObjectStoreDevice {
             }
             e => io::Error::other(Failed { url: self.url.clone(), detail: e.to_string() }),
         })?;
-        for (bytes, range) in got.iter().zip(&asked) {
+        let mut out = Vec::with_capacity(got.len());
+        for ((meta, bytes), range) in got.into_iter().zip(&asked) {
+            // A server that ignores If-Match, or gives no ETag, still names
+            // the object's size, ETag and time with each answer.
+            let pinned = &self.pinned;
+            if (meta.size, &meta.e_tag, meta.last_modified)
+                != (pinned.size, &pinned.e_tag, pinned.last_modified)
+            {
+                return Err(io::Error::other(Changed { url: self.url.clone() }));
+            }
             if bytes.len() as u64 != range.end - range.start {
                 let detail = format!("asked for bytes {range:?}, received {}", bytes.len());
                 return Err(io::Error::other(Failed { url: self.url.clone(), detail }));
             }
+            out.push(bytes);
         }
-        Ok(got)
+        Ok(out)
     }
 }
 
@@ -399,9 +424,11 @@ fn remote(url: &str, detail: String) -> StorageError {
     StorageError::Remote { url: url.to_string(), detail }
 }
 
-/// A range request on an empty object: the store has no byte 0.
+/// A range request on an empty object: the store has no byte 0 (HTTP 416,
+/// "Range Not Satisfiable"; a local file says it is 0 bytes long).
 fn is_empty_range(e: &object_store::Error) -> bool {
-    e.to_string().contains("Range") && e.to_string().contains("not satisf")
+    let text = e.to_string().to_ascii_lowercase();
+    text.contains("416") || text.contains("not satisfiable") || text.contains("only 0 bytes")
 }
 
 impl ObjectStoreDevice {
@@ -495,6 +522,15 @@ impl BlockDevice for ObjectStoreDevice {
         self.pages(pages.into_iter()).is_ok() && all
     }
 
+    fn forget(&self, span: Range<u64>) {
+        if let Some(pages) = self.pages_of(&span) {
+            let mut state = self.lock();
+            for p in pages {
+                state.drop_page(p);
+            }
+        }
+    }
+
     fn write_at(&self, _offset: u64, _data: &[u8]) -> io::Result<()> {
         Err(read_only())
     }
@@ -518,4 +554,47 @@ impl BlockDevice for ObjectStoreDevice {
 
 fn read_only() -> io::Error {
     io::Error::new(io::ErrorKind::ReadOnlyFilesystem, "an object store is read only here")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The page cache holds at most its bound (a page larger than the
+        /// bound is not kept), counts exactly the bytes it holds, and keeps
+        /// one use mark per page, whatever the puts, gets and drops.
+        #[test]
+        fn the_page_cache_keeps_its_bound_and_its_count(
+            ops in prop::collection::vec((0u8..3, 0u64..12, 1usize..40), 1..200),
+            bound in 0u64..200,
+        ) {
+            let mut f = Fetched::default();
+            for (op, page, len) in ops {
+                match op {
+                    0 => f.put(page, Arc::from(vec![page as u8; len]), bound),
+                    1 => {
+                        if let Some(bytes) = f.get(page) {
+                            prop_assert!(bytes.iter().all(|&b| b == page as u8));
+                        }
+                    }
+                    _ => f.drop_page(page),
+                }
+                prop_assert!(f.bytes <= bound);
+                prop_assert_eq!(f.bytes, f.pages.values().map(|(b, _)| b.len() as u64).sum::<u64>());
+                prop_assert_eq!(f.by_use.len(), f.pages.len());
+            }
+        }
+    }
+
+    #[test]
+    fn urls_are_told_from_paths() {
+        assert!(is_remote_url("s3://bucket/ship.mkt"));
+        assert!(is_remote_url("HTTPS://cdn.example.com/ship.mkt"));
+        assert!(!is_remote_url("ship.mkt"));
+        assert!(!is_remote_url("s3://"));
+        // A name whose bytes at a scheme's length cut a character.
+        assert!(!is_remote_url("données.mkt"));
+    }
 }
