@@ -19,14 +19,16 @@ import json
 import random
 import statistics
 import subprocess
+from typing import Any
 
 
-def query(mktree: str, target: str, box: list[float]) -> dict:
+def query(mktree: str, target: str, box: list[float]) -> dict[str, Any]:
     out = subprocess.run(
         [mktree, "query", target, "--box", ",".join(f"{v:.1f}" for v in box), "--json"],
         capture_output=True, text=True, check=True,
     ).stdout
-    return json.loads(out)
+    answer: dict[str, Any] = json.loads(out)
+    return answer
 
 
 def main() -> None:
