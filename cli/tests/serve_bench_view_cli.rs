@@ -7,11 +7,10 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpStream;
-use std::process::{Child, Stdio};
 
-use common::{mktree, tanker1_in};
+use common::{mktree, serve, tanker1_in};
 
 /// The status code and body of `GET path` from the server at `port`.
 fn get(port: u16, path: &str) -> (u16, Vec<u8>) {
@@ -23,16 +22,6 @@ fn get(port: u16, path: &str) -> (u16, Vec<u8>) {
     let head_end = response.windows(4).position(|w| w == b"\r\n\r\n").expect("a response head");
     let status = String::from_utf8_lossy(&response[9..12]).parse().unwrap();
     (status, response[head_end + 4..].to_vec())
-}
-
-/// Kills the server when the test ends, pass or fail.
-struct Serving(Child);
-
-impl Drop for Serving {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
 }
 
 #[test]
@@ -49,19 +38,7 @@ fn serve_answers_the_page_the_tiles_and_the_packages_and_nothing_else() {
     std::fs::write(vendor.join("three/build/three.module.js"), "export const REVISION = '0';").unwrap();
     std::fs::write(dir.path().join("secret.txt"), "not served").unwrap();
 
-    let mut child = mktree()
-        .arg("serve")
-        .arg(&tiles)
-        .args(["--port", "0", "--vendor"])
-        .arg(&vendor)
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let server = Serving(child);
-    let port: u16 = line.trim().rsplit(':').next().unwrap().trim_end_matches('/').parse().unwrap();
-    assert!(line.contains("http://127.0.0.1:"), "{line}");
+    let (server, port) = serve(dir.path());
 
     let (status, page) = get(port, "/");
     assert_eq!(status, 200);

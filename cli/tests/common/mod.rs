@@ -125,6 +125,7 @@ pub fn serve(dir: &Path) -> (Serving, u16) {
         .unwrap();
     let mut line = String::new();
     std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    assert!(line.contains("http://127.0.0.1:"), "{line}");
     let port = line.trim().rsplit(':').next().unwrap().trim_end_matches('/').parse().unwrap();
     (Serving(child), port)
 }

@@ -344,56 +344,31 @@ fn store_for(
         retry_timeout: options.retry_timeout,
         ..object_store::RetryConfig::default()
     };
-    /// A builder with every setting it has a key for.
-    fn with_settings<B, K: std::str::FromStr>(
-        builder: B,
-        settings: &[(String, String)],
-        set: impl Fn(B, K, &str) -> B,
-    ) -> B {
-        settings.iter().fold(builder, |b, (k, v)| match k.parse() {
-            Ok(key) => set(b, key, v),
-            Err(_) => b,
-        })
+    // A builder with every setting it has a key for, and the retries.
+    macro_rules! built {
+        ($builder:expr) => {{
+            let b = settings.iter().fold($builder, |b, (k, v)| match k.parse() {
+                Ok(key) => b.with_config(key, v.as_str()),
+                Err(_) => b,
+            });
+            Arc::new(b.with_retry(retry.clone()).build()?)
+        }};
     }
     let (scheme, path) = Scheme::parse(url)?;
     let whole = url.to_string();
     let store: Arc<dyn ObjectStore> = match scheme {
         Scheme::Local => Arc::new(object_store::local::LocalFileSystem::new()),
-        Scheme::AmazonS3 => Arc::new(
-            with_settings(object_store::aws::AmazonS3Builder::new().with_url(whole), settings, |b, k, v| {
-                b.with_config(k, v)
-            })
-            .with_retry(retry)
-            .build()?,
-        ),
-        Scheme::GoogleCloudStorage => Arc::new(
-            with_settings(
-                object_store::gcp::GoogleCloudStorageBuilder::new().with_url(whole),
-                settings,
-                |b, k, v| b.with_config(k, v),
-            )
-            .with_retry(retry)
-            .build()?,
-        ),
-        Scheme::MicrosoftAzure => Arc::new(
-            with_settings(
-                object_store::azure::MicrosoftAzureBuilder::new().with_url(whole),
-                settings,
-                |b, k, v| b.with_config(k, v),
-            )
-            .with_retry(retry)
-            .build()?,
-        ),
-        Scheme::Http => {
-            let origin = &url[..url::Position::BeforePath];
-            let builder = object_store::http::HttpBuilder::new()
-                .with_url(origin)
-                // A URL that names plain HTTP asks for it.
-                .with_config(object_store::ClientConfigKey::AllowHttp, (url.scheme() == "http").to_string());
-            Arc::new(
-                with_settings(builder, settings, |b, k, v| b.with_config(k, v)).with_retry(retry).build()?,
-            )
+        Scheme::AmazonS3 => built!(object_store::aws::AmazonS3Builder::new().with_url(whole)),
+        Scheme::GoogleCloudStorage => {
+            built!(object_store::gcp::GoogleCloudStorageBuilder::new().with_url(whole))
         }
+        Scheme::MicrosoftAzure => built!(object_store::azure::MicrosoftAzureBuilder::new().with_url(whole)),
+        Scheme::Http => built!(
+            object_store::http::HttpBuilder::new()
+                .with_url(&url[..url::Position::BeforePath])
+                // A URL that names plain HTTP asks for it.
+                .with_config(object_store::ClientConfigKey::AllowHttp, (url.scheme() == "http").to_string())
+        ),
         other => {
             return Err(object_store::Error::NotSupported {
                 source: format!("{other:?} is not a store a file can be read from here").into(),
