@@ -61,8 +61,9 @@
 //!
 //! # Layers
 //!
-//! Each module uses only those below it, in this order: [`render`],
-//! [`tiles`] and [`clash`] (pictures, 3D Tiles, typed clash tests) over
+//! Each module uses only those below it, in this order: [`catalog`] (many
+//! files queried as one), [`tiles`] and [`clash`] (3D Tiles, typed clash
+//! tests), over [`render`] (pictures), over
 //! [`db`] (the database: opening, transactions, the commit protocol,
 //! check, the bulk load's writer in `db/load/` and change commits in
 //! `db/write/`), over [`query`] (every query family, one traversal), over
@@ -88,6 +89,7 @@
 #![deny(missing_docs)]
 
 pub use bulk::{BuildParams, LeafRule, Method};
+pub use catalog::{Catalog, CatalogError};
 pub use clash::{Clash, ClashError, ClashKind, ClashRun, ClashTest, GroupBy, Selector, TestKind};
 pub use db::{
     ChangeStats, CheckReport, Compaction, CreateOptions, Database, LayoutDrift, ReadTransaction, TreeInfo,
@@ -121,6 +123,7 @@ macro_rules! internal_use {
 }
 
 pub mod bulk;
+pub mod catalog;
 pub mod clash;
 pub mod db;
 mod error;

@@ -55,7 +55,7 @@ fn replay(target: &str, body: fn(&[u8])) -> usize {
 type Body = fn(&[u8]);
 
 /// Every fuzz target with its body.
-const TARGETS: [(&str, Body); 10] = [
+const TARGETS: [(&str, Body); 11] = [
     ("decode_block", mktree_fuzz::decode_block),
     ("open_and_query", mktree_fuzz::open_and_query),
     ("forge_header", mktree_fuzz::forge_header),
@@ -66,6 +66,7 @@ const TARGETS: [(&str, Body); 10] = [
     ("forge_keys", mktree_fuzz::forge_keys),
     ("api_sequence", mktree_fuzz::api_sequence),
     ("clash_store", mktree_fuzz::clash_store),
+    ("catalog", mktree_fuzz::catalog),
 ];
 
 #[test]

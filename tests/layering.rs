@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 /// errors of the layers below; `rng` and `spill` are utilities.
 const LAYERS: &[&[&str]] = &[
     &["lib"],
-    &["clash", "tiles", "redb"],
+    &["catalog", "clash", "tiles", "redb"],
     &["render"],
     &["db"],
     &["error"],

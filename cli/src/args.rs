@@ -211,6 +211,11 @@ pub enum Command {
         #[command(flatten)]
         typed: ClashArgs,
     },
+    /// Catalogs: many .mkt files (paths or URLs) queried as one (format-spec/catalog.md).
+    Catalog {
+        #[command(subcommand)]
+        action: CatalogAction,
+    },
     /// Statuses of a recorded clash test: list them, or set Reviewed, Approved or Active on a pair.
     ClashStatus {
         file: PathBuf,
@@ -567,6 +572,47 @@ impl LevelArgs {
     pub fn options(&self) -> mktree::query::QueryOptions {
         mktree::query::QueryOptions { lod: self.lod, budget: self.budget, ..Default::default() }
     }
+}
+
+/// What `mktree catalog` does.
+#[derive(Subcommand, Debug)]
+pub enum CatalogAction {
+    /// Describe files into a catalog: each model's root box, object count and commit.
+    Create {
+        /// The catalog to write (JSON; replaced whole).
+        output: PathBuf,
+        /// The models: KEY=LOCATION, or LOCATION (keyed by its file stem); a path or a URL.
+        #[arg(required = true)]
+        models: Vec<String>,
+        #[arg(long)]
+        json: bool,
+    },
+    /// The models of a catalog.
+    Show {
+        catalog: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
+    /// A box, sphere or frustum query over every model whose root box it may meet, in parallel.
+    Query {
+        catalog: PathBuf,
+        /// x0,y0,z0,x1,y1,z1 in mm.
+        #[arg(long = "box", value_parser = numbers::<6>, allow_hyphen_values = true, group = "shape")]
+        aabb: Option<[f64; 6]>,
+        /// x,y,z,r in mm.
+        #[arg(long, value_parser = numbers::<4>, allow_hyphen_values = true, group = "shape")]
+        sphere: Option<[f64; 4]>,
+        /// A camera: eye x,y,z, target x,y,z, vertical fov (degrees), aspect, near, far (mm); up is +z.
+        #[arg(long, value_parser = numbers::<10>, allow_hyphen_values = true, group = "shape")]
+        frustum: Option<[f64; 10]>,
+        #[command(flatten)]
+        level: LevelArgs,
+        /// Models opened and queried at once.
+        #[arg(long, default_value_t = 16)]
+        concurrency: usize,
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 /// Levels of detail of a new tree.

@@ -143,15 +143,6 @@ pub fn print_answer(a: &QueryAnswer, as_json: bool) -> Result<()> {
     Ok(())
 }
 
-/// What a device fetched between two of its counts.
-pub fn transfer_since(before: &TransferCounts, after: &TransferCounts) -> TransferCounts {
-    TransferCounts {
-        requests: after.requests - before.requests,
-        bytes: after.bytes - before.bytes,
-        round_trips: after.round_trips - before.round_trips,
-    }
-}
-
 /// One line of what a step fetched from object storage.
 pub fn transfer_line(step: &str, t: &TransferCounts) -> String {
     format!("fetched for {step}: {} requests, {} bytes, {} round trips", t.requests, t.bytes, t.round_trips)

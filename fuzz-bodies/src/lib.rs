@@ -242,3 +242,14 @@ pub fn clash_store(data: &[u8]) {
         assert_eq!(ClashStore::from_bytes(&again).as_ref(), Ok(&store), "a store reads back as itself");
     }
 }
+
+/// A catalog document from arbitrary bytes (format-spec/catalog.md): one
+/// that reads must write back to a document that reads as the same
+/// catalog.
+pub fn catalog(data: &[u8]) {
+    use mktree::catalog::Catalog;
+    if let Ok(catalog) = Catalog::from_json(data, None) {
+        let again = Catalog::from_json(catalog.to_json().as_bytes(), None);
+        assert_eq!(again.as_ref().ok(), Some(&catalog), "a catalog reads back as itself");
+    }
+}

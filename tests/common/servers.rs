@@ -35,6 +35,20 @@ impl Server {
             .map(str::to_string)
             .collect()
     }
+
+    /// The logged requests once there are at least `n` (nginx logs a
+    /// request after its answer is sent, so a client can be ahead of the
+    /// log), or after 5 s, whatever they are then.
+    pub fn logged_requests_once(&self, n: usize) -> Vec<String> {
+        let until = Instant::now() + Duration::from_secs(5);
+        loop {
+            let lines = self.logged_requests();
+            if lines.len() >= n || Instant::now() > until {
+                return lines;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
 }
 
 /// `None` (and a note) when the program is missing and the tests are not

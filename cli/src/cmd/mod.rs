@@ -11,6 +11,7 @@ mod bench_queries;
 mod bench_replace;
 mod bench_view;
 mod build;
+mod catalog;
 mod check;
 mod clash;
 mod clash_status;
@@ -37,7 +38,7 @@ mod view;
 
 use anyhow::Result;
 
-use crate::args::{Cli, Command};
+use crate::args::{CatalogAction, Cli, Command};
 
 /// Runs the parsed subcommand through its group's dispatch.
 pub fn run(cli: Cli) -> Result<()> {
@@ -56,6 +57,7 @@ pub fn run(cli: Cli) -> Result<()> {
         | Command::Clash { .. }
         | Command::ClashStatus { .. }
         | Command::Get { .. }
+        | Command::Catalog { .. }
         | Command::Check { .. }) => reads(c),
         c @ (Command::View { .. }
         | Command::Export3dTiles { .. }
@@ -138,6 +140,14 @@ fn reads(command: Command) -> Result<()> {
             get::run(&file, &crate::input::parse_key(&key, text)?, mesh, json)
         }
         Command::Check { file, json } => check::run(&file, json),
+        Command::Catalog { action } => match action {
+            CatalogAction::Create { output, models, json } => catalog::create(&output, &models, json),
+            CatalogAction::Show { catalog, json } => catalog::show(&catalog, json),
+            CatalogAction::Query { catalog, aabb, sphere, frustum, level, concurrency, json } => {
+                let region = query::shape(aabb, sphere, frustum)?;
+                catalog::query(&catalog, &region, &level.options(), concurrency, json)
+            }
+        },
         other => misrouted(&other),
     }
 }

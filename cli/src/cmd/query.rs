@@ -36,7 +36,7 @@ pub fn run(file: &Path, region: &Region, opts: &QueryOptions, as_json: bool) -> 
     let Some((open, all)) = opened.zip(db.transfer_counts()) else {
         return output::print_answer(&answer, as_json);
     };
-    let query = output::transfer_since(&open, &all);
+    let query = all.since(&open);
     if as_json {
         let mut value = output::answer_json(&answer);
         value["transfer"] = serde_json::json!({ "open": open, "query": query });

@@ -27,7 +27,7 @@ pub use mem::MemDevice;
 #[cfg(feature = "object-store")]
 pub(crate) use object::{Changed, Failed};
 #[cfg(feature = "object-store")]
-pub use object::{ObjectStoreDevice, RemoteOptions, is_remote_url};
+pub use object::{ObjectStoreDevice, RemoteOptions};
 
 /// What a device that fetches over a network has fetched since it opened.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
@@ -38,6 +38,32 @@ pub struct TransferCounts {
     pub bytes: u64,
     /// Waits for the network: requests made together count once.
     pub round_trips: u64,
+}
+
+impl TransferCounts {
+    /// What was fetched between `before` and these counts (of one device,
+    /// taken later).
+    pub fn since(&self, before: &TransferCounts) -> TransferCounts {
+        TransferCounts {
+            requests: self.requests.saturating_sub(before.requests),
+            bytes: self.bytes.saturating_sub(before.bytes),
+            round_trips: self.round_trips.saturating_sub(before.round_trips),
+        }
+    }
+}
+
+/// True when `name` reads as a URL [`ObjectStoreDevice`] opens (feature
+/// `object-store`) rather than a path:
+/// `s3://`, `s3a://`, `gs://`, `az://`, `abfs://`, `abfss://`, `azure://`,
+/// `adl://`, `http://`, `https://` or `file://`.
+pub fn is_remote_url(name: &str) -> bool {
+    const SCHEMES: [&str; 11] = [
+        "s3://", "s3a://", "gs://", "az://", "abfs://", "abfss://", "azure://", "adl://", "http://",
+        "https://", "file://",
+    ];
+    SCHEMES
+        .iter()
+        .any(|s| name.len() > s.len() && name.get(..s.len()).is_some_and(|p| p.eq_ignore_ascii_case(s)))
 }
 
 /// Positioned byte storage with a durability barrier. The pager only ever
@@ -112,5 +138,20 @@ impl<D: BlockDevice + ?Sized> BlockDevice for std::sync::Arc<D> {
     }
     fn forget(&self, span: Range<u64>) {
         (**self).forget(span)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn urls_are_told_from_paths() {
+        assert!(is_remote_url("s3://bucket/ship.mkt"));
+        assert!(is_remote_url("HTTPS://cdn.example.com/ship.mkt"));
+        assert!(!is_remote_url("ship.mkt"));
+        assert!(!is_remote_url("s3://"));
+        // A name whose bytes at a scheme's length cut a character.
+        assert!(!is_remote_url("données.mkt"));
     }
 }

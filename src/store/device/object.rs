@@ -164,19 +164,6 @@ fn environment_options() -> Vec<(String, String)> {
         .collect()
 }
 
-/// True when `name` reads as a URL this device opens rather than a path:
-/// `s3://`, `s3a://`, `gs://`, `az://`, `abfs://`, `abfss://`, `azure://`,
-/// `adl://`, `http://`, `https://` or `file://`.
-pub fn is_remote_url(name: &str) -> bool {
-    const SCHEMES: [&str; 11] = [
-        "s3://", "s3a://", "gs://", "az://", "abfs://", "abfss://", "azure://", "adl://", "http://",
-        "https://", "file://",
-    ];
-    SCHEMES
-        .iter()
-        .any(|s| name.len() > s.len() && name.get(..s.len()).is_some_and(|p| p.eq_ignore_ascii_case(s)))
-}
-
 impl ObjectStoreDevice {
     /// Opens the object `url` names, with the store's settings from the
     /// environment and `options`: one range request from the start of the
@@ -561,15 +548,5 @@ mod tests {
                 prop_assert_eq!(f.by_use.len(), f.pages.len());
             }
         }
-    }
-
-    #[test]
-    fn urls_are_told_from_paths() {
-        assert!(is_remote_url("s3://bucket/ship.mkt"));
-        assert!(is_remote_url("HTTPS://cdn.example.com/ship.mkt"));
-        assert!(!is_remote_url("ship.mkt"));
-        assert!(!is_remote_url("s3://"));
-        // A name whose bytes at a scheme's length cut a character.
-        assert!(!is_remote_url("données.mkt"));
     }
 }
