@@ -11,7 +11,8 @@ mod common;
 use common::remote::{assert_same_answers, boxes, build_file};
 use common::servers::{nginx, replace_file};
 use mktree::db::Database;
-use mktree::scene::generate::Preset;
+use mktree::geom::Aabb;
+use mktree::scene::generate::{GenOptions, Preset, generate_scene};
 use mktree::store::StorageError;
 use mktree::store::device::RemoteOptions;
 
@@ -54,6 +55,47 @@ fn a_query_fetches_the_blocks_it_will_read_ahead_in_fewer_round_trips() {
         waits += remote.transfer_counts().expect("counts").round_trips - opened.round_trips;
     }
     assert!(waits < reads, "{waits} round trips for {reads} block reads");
+}
+
+/// Issue 36's bound: a small box from a cold reader waits for the network
+/// at most once per node block on its deepest path, plus once for the
+/// geometry of every undecided object its leaves hold, fetched together.
+#[test]
+fn a_small_box_waits_no_more_than_the_node_block_depth_plus_one() {
+    let Some(server) = nginx() else { return };
+    let path = server.dir.path().join("www/ship.mkt");
+    let scene =
+        generate_scene(&GenOptions { preset: Preset::Ship, objects: Some(20_000), seed: 3 }).expect("ship");
+    let db = Database::create(&path, mktree::db::CreateOptions::default()).expect("create");
+    let mut w = db.begin_write().expect("write");
+    w.bulk_load(&scene, &mktree::BuildParams::default(), &|_| {}).expect("bulk load");
+    w.commit().expect("commit");
+    let depth =
+        db.begin_read().expect("read").layout_drift().expect("layout").expect("a tree").node_block_depth;
+    assert!(depth >= 3, "a tree {depth} node blocks deep tests little");
+    let url = format!("http://127.0.0.1:{}/ship.mkt", server.port);
+    let b = scene.aabb();
+    let side = (b.max - b.min) * 0.01;
+    let (mut waits, mut geometry) = (Vec::new(), 0);
+    for o in scene.objects().iter().step_by(997) {
+        let c = o.aabb().center();
+        let q = Aabb::from_array([
+            c.x - side.x / 2.0,
+            c.y - side.y / 2.0,
+            c.z - side.z / 2.0,
+            c.x + side.x / 2.0,
+            c.y + side.y / 2.0,
+            c.z + side.z / 2.0,
+        ]);
+        let remote = Database::open_url(&url, &RemoteOptions::default()).expect("open");
+        let opened = remote.transfer_counts().expect("counts");
+        let answer = remote.begin_read().expect("read").query_box(&q).expect("query");
+        geometry += answer.stats.reads.geometry;
+        let wait = remote.transfer_counts().expect("counts").since(&opened).round_trips;
+        assert!(wait <= u64::from(depth) + 1, "{wait} round trips, {depth} node blocks deep, for {q:?}");
+        waits.push(wait);
+    }
+    assert!(geometry > waits.len() as u64, "the boxes read geometry: {geometry}");
 }
 
 #[test]

@@ -33,6 +33,10 @@ pub struct LayoutDrift {
     pub stored_node_blocks: u32,
     /// Node blocks of the fresh packing.
     pub fresh_node_blocks: u32,
+    /// Node blocks on the longest path from the root to a leaf as stored:
+    /// over a network, the round trips a cold query needs to reach its
+    /// deepest leaf (docs/object-storage.md).
+    pub node_block_depth: u32,
 }
 
 impl LayoutDrift {
@@ -92,6 +96,10 @@ impl ReadTransaction {
             fresh_reads: node_reads_per_scale(tree, &fresh, &samples),
             stored_node_blocks: as_stored.blocks.len() as u32,
             fresh_node_blocks: fresh.blocks.len() as u32,
+            node_block_depth: block_depth(
+                &tree.nodes.iter().map(|n| n.children().map(|c| c.map(|c| c.index()))).collect::<Vec<_>>(),
+                &stored.blocks,
+            ),
         }))
     }
 }
@@ -102,6 +110,20 @@ pub fn read_tree_and_drift(txn: &ReadTransaction) -> Result<(Hierarchy, Option<L
     let stored = read_layout(txn)?;
     let drift = txn.drift_of(&stored)?;
     Ok((stored.tree, drift))
+}
+
+/// Node blocks on the longest root-to-leaf path of a tree in preorder (a
+/// parent before its children), node `i` with `children[i]`, in block
+/// `blocks[i]`.
+fn block_depth(children: &[Option<[usize; 2]>], blocks: &[u32]) -> u32 {
+    let n = children.len();
+    let mut depth = vec![1u32; n];
+    for (i, kids) in children.iter().enumerate() {
+        for &c in kids.iter().flatten().filter(|&&c| c > i && c < n) {
+            depth[c] = depth[i] + u32::from(blocks.get(c) != blocks.get(i));
+        }
+    }
+    depth.into_iter().max().unwrap_or(0)
 }
 
 /// The packing the stored tree has: node `i` in block `blocks[i]`, blocks
@@ -134,6 +156,16 @@ mod tests {
     }
 
     #[test]
+    fn the_block_depth_counts_the_blocks_a_path_crosses() {
+        // 0 -> (1 -> (2, 3), 4).
+        let tree = [Some([1, 4]), Some([2, 3]), None, None, None];
+        assert_eq!(block_depth(&tree, &[5, 5, 5, 5, 5]), 1);
+        assert_eq!(block_depth(&tree, &[5, 6, 6, 7, 5]), 3);
+        assert_eq!(block_depth(&tree, &[5, 5, 5, 5, 6]), 2);
+        assert_eq!(block_depth(&[], &[]), 0);
+    }
+
+    #[test]
     fn ratios_compare_stored_with_fresh_per_scale() {
         let d = LayoutDrift {
             query_extents: vec![[1.0; 3]; 3],
@@ -141,6 +173,7 @@ mod tests {
             fresh_reads: vec![2.0, 2.0, 0.0],
             stored_node_blocks: 4,
             fresh_node_blocks: 3,
+            node_block_depth: 2,
         };
         assert_eq!(d.ratios(), vec![1.5, 1.0, 1.0]);
         assert_eq!(d.worst_ratio(), 1.5);

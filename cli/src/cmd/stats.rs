@@ -93,12 +93,13 @@ pub fn run(input: &Path, build: &BuildArgs, as_json: bool) -> Result<()> {
     if let Some(d) = &drift {
         let reads = |r: &[f64]| r.iter().map(|x| format!("{x:.2}")).collect::<Vec<_>>().join(" / ");
         println!(
-            "layout drift: node blocks read per query (collision, 1%, 5%, 20% boxes) {} as stored, {} laid out fresh: {:.2}x at worst; {} node blocks, {} fresh{}",
+            "layout drift: node blocks read per query (collision, 1%, 5%, 20% boxes) {} as stored, {} laid out fresh: {:.2}x at worst; {} node blocks, {} fresh, {} deep{}",
             reads(&d.stored_reads),
             reads(&d.fresh_reads),
             d.worst_ratio(),
             d.stored_node_blocks,
             d.fresh_node_blocks,
+            d.node_block_depth,
             if d.worst_ratio() > 1.05 { " (mktree optimize lays it out anew)" } else { "" }
         );
     }

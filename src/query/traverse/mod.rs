@@ -514,8 +514,15 @@ impl<'a, S: Selection> Select<'a, S> {
             if records > block.records.len() || out.len() >= AHEAD_MAX {
                 return;
             }
-            let Ok(NodeView::Internal(n)) = view(block, offset) else { continue };
-            let frame = NodeView::Internal(n).frame(frame);
+            let Ok(record) = view(block, offset) else { continue };
+            let frame = record.frame(frame);
+            let n = match record {
+                NodeView::Internal(n) => n,
+                NodeView::Leaf(leaf) => {
+                    self.geometry_below(block, &leaf, &frame, inside, out);
+                    continue;
+                }
+            };
             for i in 0..2 {
                 let Some(qb) = n.child_box(i, &frame) else { continue };
                 if !inside && !self.sel.may_meet_box(&qb.outer) {
@@ -527,6 +534,52 @@ impl<'a, S: Selection> Select<'a, S> {
                     _ => out.push(Ahead::Node { at, frame: qb.outer, inside }),
                 }
             }
+        }
+    }
+
+    /// The geometry blocks of the objects of `leaf` (in `block`, box
+    /// `frame`) that the traversal will test exactly: those its box and
+    /// bounds leave undecided (`step.rs`'s verdict), at level M. An entry
+    /// that fails to decode adds nothing; its step reports it.
+    fn geometry_below(
+        &self,
+        block: &Block,
+        leaf: &LeafView,
+        frame: &Aabb,
+        inside: bool,
+        out: &mut Vec<Ahead>,
+    ) {
+        if inside || self.k != self.m {
+            return;
+        }
+        let mut j = 0;
+        while j < leaf.len() && out.len() < AHEAD_MAX {
+            let Some(id) = leaf.object(j).map(|o| o.object_id) else { return };
+            let mut end = j + 1;
+            while leaf.object(end).is_some_and(|o| o.object_id == id) {
+                end += 1;
+            }
+            let mut pending = Vec::new();
+            // One part that proves contact decides the object unread.
+            let mut decided = self.done.contains(&id);
+            for i in j..end {
+                let Some(qb) = leaf.object(i).and_then(|o| QuantBox::decode(frame, o.qbox)) else { return };
+                match self.verdict(block.id(), leaf, i, &qb, false) {
+                    Ok(step::Verdict::Pending(..)) => pending.push(i),
+                    Ok(step::Verdict::Inside | step::Verdict::Face | step::Verdict::Cell(..)) => {
+                        decided = true
+                    }
+                    Ok(step::Verdict::Misses | step::Verdict::VoxelsMiss(..)) => {}
+                    Err(_) => return,
+                }
+            }
+            if !decided {
+                for i in pending {
+                    let Ok(blocks) = self.txn.object_blocks(block.id(), leaf, i) else { return };
+                    out.extend(blocks.into_iter().map(Ahead::Geometry));
+                }
+            }
+            j = end;
         }
     }
 

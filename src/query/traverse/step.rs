@@ -6,7 +6,58 @@ use std::sync::Arc;
 
 use super::*;
 
+/// What a leaf record alone says of one entry (an object or a part):
+/// the coarsest proof its box and stored bound give, or that its geometry
+/// must be read (the level and error of the finest bound passed).
+pub(super) enum Verdict {
+    /// A subtree's box holding it lies inside the query.
+    Inside,
+    /// Its box misses the query.
+    Misses,
+    /// The query holds a face of its box.
+    Face,
+    /// Its voxel bound (level) misses the query.
+    VoxelsMiss(u8, Voxels),
+    /// The query holds a surface cell of its voxel bound (level).
+    Cell(u8, Voxels),
+    /// Undecided: level, error and bound of the finest bound passed.
+    Pending(u8, f64, Option<Voxels>),
+}
+
 impl<S: Selection> Select<'_, S> {
+    /// What entry `i` of `leaf` (in block `block`, stored box `qb`) is by
+    /// its box and bounds, without reading anything.
+    pub(super) fn verdict(
+        &self,
+        block: u32,
+        leaf: &LeafView,
+        i: usize,
+        qb: &QuantBox,
+        inside: bool,
+    ) -> Result<Verdict, StorageError> {
+        let aabb = qb.outer;
+        if inside {
+            return Ok(Verdict::Inside);
+        }
+        if !self.sel.may_meet_box(&aabb) {
+            return Ok(Verdict::Misses);
+        }
+        if qb.face_slabs().iter().any(|f| self.sel.holds_box(f)) {
+            return Ok(Verdict::Face);
+        }
+        let Some(b) = finest(leaf.bounds(), i as u16, self.bound_level) else {
+            return Ok(Verdict::Pending(1, aabb.extent().norm(), None));
+        };
+        let v = self.voxels(block, &b, &aabb)?;
+        Ok(if !self.sel.may_meet_voxels(&v) {
+            Verdict::VoxelsMiss(b.level, v)
+        } else if self.sel.confirms_voxels(&v) {
+            Verdict::Cell(b.level, v)
+        } else {
+            Verdict::Pending(b.level, v.grid().max_cell_diagonal(), Some(v))
+        })
+    }
+
     /// The voxel set of bound `b`, whose target's box is `outer`.
     pub(super) fn voxels(&self, block: u32, b: &BoundView, outer: &Aabb) -> Result<Voxels, StorageError> {
         let lattice = self
@@ -217,28 +268,21 @@ impl<S: Selection> Select<'_, S> {
             id = o.object_id;
             let qb = QuantBox::decode(frame, o.qbox).ok_or_else(|| bad("an object box is backwards"))?;
             let aabb = qb.outer;
-            if inside {
-                self.seen((leaf_id, id, aabb), (1, true, Proof::InsideNode), None, None)?;
-                self.decide((id, whole, key.clone()), (1, true, Proof::InsideNode), None);
-                return Ok(());
-            }
-            if !self.sel.may_meet_box(&aabb) {
-                self.seen((leaf_id, id, aabb), (1, false, Proof::BoxMisses), None, None)?;
-                continue;
-            }
-            if qb.face_slabs().iter().any(|f| self.sel.holds_box(f)) {
-                self.seen((leaf_id, id, aabb), (1, true, Proof::Face), None, None)?;
-                self.decide((id, whole, key.clone()), (1, true, Proof::Face), None);
-                return Ok(());
-            }
-            let mut level = 1;
-            let mut eps = aabb.extent().norm();
-            let mut voxels = None;
-            if let Some(b) = finest(leaf.bounds(), i as u16, self.bound_level) {
-                let v = self.voxels(block.id(), &b, &aabb)?;
-                level = b.level;
-                eps = v.grid().max_cell_diagonal();
-                if !self.sel.may_meet_voxels(&v) {
+            match self.verdict(block.id(), leaf, i, &qb, inside)? {
+                Verdict::Inside => {
+                    self.seen((leaf_id, id, aabb), (1, true, Proof::InsideNode), None, None)?;
+                    self.decide((id, whole, key.clone()), (1, true, Proof::InsideNode), None);
+                    return Ok(());
+                }
+                Verdict::Misses => {
+                    self.seen((leaf_id, id, aabb), (1, false, Proof::BoxMisses), None, None)?
+                }
+                Verdict::Face => {
+                    self.seen((leaf_id, id, aabb), (1, true, Proof::Face), None, None)?;
+                    self.decide((id, whole, key.clone()), (1, true, Proof::Face), None);
+                    return Ok(());
+                }
+                Verdict::VoxelsMiss(level, v) => {
                     self.seen(
                         (leaf_id, id, aabb),
                         (level, false, Proof::VoxelsMiss),
@@ -246,16 +290,14 @@ impl<S: Selection> Select<'_, S> {
                         None,
                     )?;
                     (rejected_at, reject_proof) = (rejected_at.max(level), Proof::VoxelsMiss);
-                    continue;
                 }
-                if self.sel.confirms_voxels(&v) {
+                Verdict::Cell(level, v) => {
                     self.seen((leaf_id, id, aabb), (level, true, Proof::Cell), Some((level, &v)), None)?;
                     self.decide((id, whole, key.clone()), (level, true, Proof::Cell), None);
                     return Ok(());
                 }
-                voxels = Some(v);
+                Verdict::Pending(level, eps, voxels) => pending.push((i, level, eps, aabb, voxels)),
             }
-            pending.push((i, level, eps, aabb, voxels));
         }
         // With stand-ins, an object whose every part's bound is close enough is not read.
         let settled = pending.iter().all(|p| self.settles(&p.3, p.2));
