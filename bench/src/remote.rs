@@ -138,13 +138,13 @@ pub struct RemoteRow {
 pub struct RemoteBench {
     /// The local file as named.
     pub file: String,
-    /// The URL as named (the proxy's own address replaces its server's).
+    /// The URL as named (its requests went through the proxy).
     pub url: String,
     /// Objects in the file.
     pub objects: u32,
     /// Bytes per block.
     pub block_size: u32,
-    /// Node levels of the tree (root 0).
+    /// The tree's deepest level (root 0).
     pub depth: u32,
     /// Queries per set.
     pub queries: usize,

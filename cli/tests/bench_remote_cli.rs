@@ -2,8 +2,9 @@
 //! (here over `mktree serve`) through a proxy that adds round trips, checks
 //! every remote answer against the local file's, reports cold rows (the
 //! open apart) and warm rows per set and added round trip, and each added
-//! round trip costs the query at least that much wall time. Bad inputs end
-//! in one line and exit 1.
+//! round trip costs the query at least that much wall time. Bad inputs,
+//! and a URL that holds another file than the local one, end in one line
+//! and exit 1.
 
 mod common;
 
@@ -94,4 +95,16 @@ fn bench_remote_checks_answers_and_adds_the_round_trips_it_is_asked_for() {
     fails(&[obj.to_str().unwrap(), &url], "opening");
     fails(&[mkt, &format!("http://127.0.0.1:{port}/tiles/none.mkt")], "none.mkt");
     fails(&[mkt, &url, "--latency=-5"], "between 0 and");
+    // Another file at the URL: its answers would differ, so it is refused at once.
+    let other = dir.path().join("other.mkt");
+    let out = mktree()
+        .arg("build")
+        .arg(&obj)
+        .arg("-o")
+        .arg(&other)
+        .args(["--block-size", "8192"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    fails(&[other.to_str().unwrap(), &url], "is not the file");
 }
