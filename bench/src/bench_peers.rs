@@ -311,12 +311,12 @@ impl Peers<'_> {
         for (i, q) in set.boxes.iter().enumerate() {
             let at = |what: &str| format!("{scene}, {}, query {i} {q:?} ({what})", set.label);
             let (me, se) = (self.mkt.exact(q)?, self.sql.exact(q)?);
-            agree(&at("exact answer"), &me.objects, &se.objects, "SQLite")?;
+            agree(&at("exact answer"), ("mktree", &me.objects), ("SQLite", &se.objects))?;
             let (mf, sf) = (self.mkt.filter(q)?, self.sql.filter(q)?);
             let r = self.rst.query(q);
             // The R*Tree and rstar hold the same f32 boxes; mktree's are
             // quantized otherwise, so its filter need only hold the exact answer.
-            agree(&at("box filter"), &r.objects, &sf.objects, "SQLite")?;
+            agree(&at("box filter"), ("rstar", &r.objects), ("SQLite", &sf.objects))?;
             holds(&at("mktree's box filter"), &mf.objects, &me.objects)?;
             holds(&at("SQLite's box filter"), &sf.objects, &me.objects)?;
             s.exact_answers += me.objects.len() as u64;
@@ -349,8 +349,8 @@ impl Peers<'_> {
             let started = Instant::now();
             let l = warm.exact(q)?;
             s.sqlite_warm_seconds += started.elapsed().as_secs_f64();
-            agree(&at("warm exact answer"), &m.objects, want, "mktree cold")?;
-            agree(&at("warm exact answer"), &l.objects, want, "SQLite cold")?;
+            agree(&at("warm exact answer"), ("mktree", &m.objects), ("mktree cold", want))?;
+            agree(&at("warm exact answer"), ("SQLite", &l.objects), ("SQLite cold", want))?;
             if m.reads.total > 0 || l.pages > 0 {
                 return Err(BenchError::Invalid(format!(
                     "{}: warm, mktree read {} blocks and SQLite {} pages: a cache does not hold the file",
@@ -374,9 +374,13 @@ fn holds(at: &str, filter: &[u32], exact: &[u32]) -> Result<(), BenchError> {
 }
 
 /// An error naming the query and the objects only one side found, unless
-/// `mktree` and `other` hold the same ids.
-fn agree(at: &str, mktree: &[u32], other: &[u32], name: &str) -> Result<(), BenchError> {
-    if mktree == other {
+/// both sides, each a name and its ids, hold the same ids.
+pub(crate) fn agree(
+    at: &str,
+    (a_name, a): (&str, &[u32]),
+    (b_name, b): (&str, &[u32]),
+) -> Result<(), BenchError> {
+    if a == b {
         return Ok(());
     }
     let only = |a: &[u32], b: &[u32]| -> Vec<u32> { a.iter().filter(|x| !b.contains(x)).copied().collect() };
@@ -386,11 +390,11 @@ fn agree(at: &str, mktree: &[u32], other: &[u32], name: &str) -> Result<(), Benc
         format!("[{}]{more}", shown.join(", "))
     };
     Err(BenchError::Mismatch(format!(
-        "answers differ on {at}: mktree {} objects, {name} {}; only mktree: {}; only {name}: {}",
-        mktree.len(),
-        other.len(),
-        few(only(mktree, other)),
-        few(only(other, mktree)),
+        "answers differ on {at}: {a_name} {} objects, {b_name} {}; only {a_name}: {}; only {b_name}: {}",
+        a.len(),
+        b.len(),
+        few(only(a, b)),
+        few(only(b, a)),
     )))
 }
 
@@ -444,8 +448,8 @@ mod tests {
 
     #[test]
     fn a_disagreement_names_the_objects_one_side_found() {
-        assert!(agree("q", &[1, 2], &[1, 2], "SQLite").is_ok());
-        let e = agree("q", &[1, 2, 3], &[2, 4], "SQLite").unwrap_err().to_string();
+        assert!(agree("q", ("mktree", &[1, 2]), ("SQLite", &[1, 2])).is_ok());
+        let e = agree("q", ("mktree", &[1, 2, 3]), ("SQLite", &[2, 4])).unwrap_err().to_string();
         assert_eq!(
             e,
             "answers differ on q: mktree 3 objects, SQLite 2; only mktree: [1, 3]; only SQLite: [4]"

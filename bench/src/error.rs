@@ -1,5 +1,6 @@
 //! The bench's one error type: what failed in the engine, in SQLite, on
-//! disk, in the inputs, or a disagreement between the peers' answers.
+//! disk, in the inputs, in opening a file or URL, or a disagreement
+//! between the peers' answers (or a URL's and the local file's).
 
 use crate::record::RecordError;
 
@@ -28,6 +29,24 @@ pub enum BenchError {
         rank: u32,
         /// The rule it breaks.
         source: RecordError,
+    },
+    /// A file or URL could not be opened to read (missing, unreachable, not
+    /// an MKtree file).
+    #[error("opening {target}")]
+    Open {
+        /// The path or URL as named.
+        target: String,
+        /// Why.
+        #[source]
+        source: mktree::store::StorageError,
+    },
+    /// A URL the benchmark cannot read or route through its latency proxy.
+    #[error("{url}: {reason}")]
+    Url {
+        /// The URL as named.
+        url: String,
+        /// What is wrong with it.
+        reason: String,
     },
     /// The options or inputs cannot be measured as given.
     #[error("{0}")]

@@ -458,6 +458,8 @@ pub enum Command {
     BenchBuild(BenchBuildArgs),
     /// mktree against SQLite's R*Tree with geometry blobs (and rstar): reads per query, file sizes, warm time.
     BenchPeers(BenchPeersArgs),
+    /// A local .mkt file against the same file at a URL (http(s):// or s3://) through a proxy that adds round trips: requests, bytes, round trips and wall time per query, cold and warm.
+    BenchRemote(BenchRemoteArgs),
     /// A scene replaced by another object by object (deletes and inserts in
     /// write transactions): box-query reads against a fresh bulk load, and compact.
     BenchReplace(BenchReplaceArgs),
@@ -825,6 +827,44 @@ pub struct BenchPeersArgs {
     pub out: Option<PathBuf>,
     #[command(flatten)]
     pub import: ImportArgs,
+}
+
+/// `bench-remote`'s arguments.
+#[derive(Args, Debug, Clone)]
+pub struct BenchRemoteArgs {
+    /// The .mkt file on this machine.
+    pub file: PathBuf,
+    /// The same file at a URL: http(s)://HOST:PORT/PATH, or s3://BUCKET/KEY on an S3-compatible store (its endpoint from AWS_ENDPOINT or --store-option aws_endpoint=URL).
+    pub url: String,
+    /// Queries per set (boxes of 1%, 5% and 20% of the extent, collisions).
+    #[arg(long, default_value_t = 20)]
+    pub queries: usize,
+    /// Seed of the query sets.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Round trips the proxy adds, ms, comma-separated: one pass over the sets each.
+    #[arg(long, value_delimiter = ',', default_values_t = mktree_bench::DEFAULT_LATENCIES_MS)]
+    pub latency: Vec<f64>,
+    /// The remote reader's cache bound (K, M, G suffixes): warm reads hit it.
+    #[arg(long, value_parser = byte_size, default_value = "64M")]
+    pub cache_bytes: u64,
+    /// A store setting KEY=VALUE as object_store names it (aws_endpoint, aws_allow_http, aws_region, ...), over the environment's; repeatable.
+    #[arg(long = "store-option", value_parser = key_value)]
+    pub store_options: Vec<(String, String)>,
+    /// Print the result as JSON instead of tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Write bench-remote.json, bench-remote.svg and bench-remote.png here.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// A `KEY=VALUE` pair, the key not empty.
+fn key_value(s: &str) -> Result<(String, String), String> {
+    match s.split_once('=') {
+        Some((k, v)) if !k.trim().is_empty() => Ok((k.trim().to_string(), v.to_string())),
+        _ => Err(format!("{s:?} is not KEY=VALUE")),
+    }
 }
 
 /// `bench-replace`'s arguments.

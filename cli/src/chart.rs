@@ -2,7 +2,8 @@
 //! legend: `bench-build`'s reads per query by method and query set,
 //! `bench-peers`' ratios to SQLite, `tradeoff`'s block reads against
 //! precision, `bench-view`'s reads, triangles and errors per frame,
-//! `bench-changes`' time per commit against the objects.
+//! `bench-changes`' time per commit against the objects, `bench-remote`'s
+//! time per query against the added round trip.
 //!
 //! The SVG names its font and leaves the glyphs to the viewer; the PNG's
 //! glyphs are drawn by plotters through ab_glyph from DejaVu Sans, embedded
@@ -159,6 +160,61 @@ fn draw_commit_times<DB: DrawingBackend>(
         chart.draw_series(s.points.iter().map(|&p| Circle::new(p, 4, colour.filled()))).map_err(failed)?;
     }
     legend(&mut chart, SeriesLabelPosition::UpperLeft)
+}
+
+/// One line of `bench-remote`'s chart: a query set's (added round trip
+/// in ms, mean ms per query).
+pub struct LatencySeries {
+    pub name: String,
+    pub points: Vec<(f64, f64)>,
+}
+
+/// `bench-remote`'s chart, two panels side by side: the mean wall time per
+/// query against the round trip the proxy added, a line per query set;
+/// cold (each query with its own open) left, warm right.
+pub fn bench_remote(cold: &[LatencySeries], warm: &[LatencySeries], svg: &Path, png: &Path) -> Result<()> {
+    svg_and_png!((1400, 520), svg, png, draw_bench_remote(cold, warm))
+}
+
+fn draw_bench_remote<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    cold: &[LatencySeries],
+    warm: &[LatencySeries],
+) -> Result<()> {
+    root.fill(&WHITE).map_err(failed)?;
+    let panels = root.split_evenly((1, 2));
+    let captions = [
+        "cold: a fresh reader per query, open included",
+        "warm: one reader, its cache filled by a first pass",
+    ];
+    for ((area, caption), series) in panels.iter().zip(captions).zip([cold, warm]) {
+        let points = || series.iter().flat_map(|s| s.points.iter().copied());
+        // Axes from 0, so that the slope reads as the time per added round trip.
+        let x_max = points().map(|p| p.0).fold(1.0f64, f64::max) * 1.05;
+        let y_max = points().map(|p| p.1).fold(1.0f64, f64::max) * 1.25;
+        let mut builder = ChartBuilder::on(area);
+        builder.margin(14).caption(caption, (FAMILY, 17)).x_label_area_size(40).y_label_area_size(64);
+        let mut chart = builder.build_cartesian_2d(0.0..x_max, 0.0..y_max).map_err(failed)?;
+        chart
+            .configure_mesh()
+            .x_desc("round trip added, ms")
+            .y_desc("mean wall time per query, ms")
+            .draw()
+            .map_err(failed)?;
+        for (i, s) in series.iter().enumerate() {
+            let colour = Palette99::pick(i).to_rgba();
+            chart
+                .draw_series(LineSeries::new(s.points.iter().copied(), colour.stroke_width(2)))
+                .map_err(failed)?
+                .label(s.name.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
+            chart
+                .draw_series(s.points.iter().map(|&p| Circle::new(p, 4, colour.filled())))
+                .map_err(failed)?;
+        }
+        legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
+    }
+    Ok(())
 }
 
 /// The chart's legend of labelled series, boxed at `position`.

@@ -82,7 +82,7 @@ impl MktreePeer {
 
     /// The objects whose triangles meet `query` (level M), from a cold cache.
     pub fn exact(&self, query: &Aabb) -> Result<Counted, BenchError> {
-        Ok(counted(self.region(query, None, None)?))
+        exact_answer(&self.txn, query)
     }
 
     /// The objects whose boxes meet `query` (level 1), from a cold cache.
@@ -111,6 +111,13 @@ impl MktreePeer {
         // its own: each block at most once, every read counted.
         Ok(query_region(&self.txn, &Region::Box(*query), &QueryOptions { lod, ..Default::default() }, cache)?)
     }
+}
+
+/// The objects of `txn`'s snapshot whose triangles meet `query` (level M),
+/// read through a pool of the query's own, every block read counted: the
+/// exact answer of any reader, of a local file or of a URL.
+pub fn exact_answer(txn: &ReadTransaction, query: &Aabb) -> Result<Counted, BenchError> {
+    Ok(counted(query_region(txn, &Region::Box(*query), &QueryOptions::default(), None)?))
 }
 
 fn counted(answer: QueryAnswer) -> Counted {

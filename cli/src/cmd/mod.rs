@@ -8,6 +8,7 @@ mod bench_changes;
 mod bench_import;
 mod bench_peers;
 mod bench_queries;
+mod bench_remote;
 mod bench_replace;
 mod bench_view;
 mod build;
@@ -75,6 +76,7 @@ pub fn run(cli: Cli) -> Result<()> {
         | Command::BenchQueries { .. }
         | Command::BenchBuild(_)
         | Command::BenchPeers(_)
+        | Command::BenchRemote(_)
         | Command::BenchReplace(_)
         | Command::BenchChanges(_)
         | Command::BenchChangesWorker(_)
@@ -226,6 +228,7 @@ fn benches(command: Command) -> Result<()> {
         }
         Command::BenchBuild(args) => bench_build::run(&args),
         Command::BenchPeers(args) => bench_peers::run(&args),
+        Command::BenchRemote(args) => bench_remote::run(&args),
         Command::BenchReplace(args) => bench_replace::run(&args),
         Command::BenchChanges(args) => bench_changes::run(&args),
         Command::BenchChangesWorker(args) => bench_changes::worker(&args),

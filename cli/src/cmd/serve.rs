@@ -149,6 +149,11 @@ async fn accept_loop(listener: std::net::TcpListener, roots: Arc<Roots>) -> Resu
                 continue;
             }
         };
+        // hyper writes a response's head and its body's chunks apart; with
+        // Nagle's algorithm the body waits for the head's ACK, which a
+        // client delays by up to 40 ms: a range request costs that much
+        // more (seen by `bench-remote`). A failure only leaves the delay.
+        let _ = stream.set_nodelay(true);
         let roots = roots.clone();
         tokio::spawn(async move {
             let service = hyper::service::service_fn(move |req| answer(req, roots.clone()));
