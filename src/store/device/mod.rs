@@ -5,6 +5,8 @@
 mod counting;
 #[cfg(any(test, feature = "internals"))]
 mod crash;
+#[cfg(feature = "object-store")]
+mod disk_cache;
 #[cfg(any(test, feature = "internals"))]
 mod fault;
 mod file;
@@ -20,6 +22,8 @@ pub(crate) use counting::Counters;
 pub use counting::{CountingDevice, DeviceCounts};
 #[cfg(any(test, feature = "internals"))]
 pub use crash::{CrashDevice, CrashImage};
+#[cfg(feature = "object-store")]
+pub use disk_cache::DiskCacheOptions;
 #[cfg(any(test, feature = "internals"))]
 pub use fault::{FaultDevice, FaultOp};
 pub use file::FileDevice;

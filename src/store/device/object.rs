@@ -19,6 +19,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 use object_store::path::Path;
 use object_store::{GetOptions, GetRange, ObjectStore};
 
+use super::disk_cache::{DiskCache, DiskCacheOptions};
 use super::{BlockDevice, TransferCounts};
 use crate::store::StorageError;
 use crate::store::format::header;
@@ -42,6 +43,9 @@ pub struct RemoteOptions {
     pub retries: usize,
     /// How long a request is tried again at most. Default 30 s.
     pub retry_timeout: std::time::Duration,
+    /// Keep fetched pages in a folder too, for later readers of the same
+    /// object version in any process. Default none.
+    pub disk_cache: Option<DiskCacheOptions>,
 }
 
 impl Default for RemoteOptions {
@@ -52,6 +56,7 @@ impl Default for RemoteOptions {
             store_options: Vec::new(),
             retries: 3,
             retry_timeout: std::time::Duration::from_secs(30),
+            disk_cache: None,
         }
     }
 }
@@ -70,6 +75,7 @@ pub struct ObjectStoreDevice {
     page: u64,
     cache_bytes: u64,
     state: Mutex<Fetched>,
+    disk: Option<DiskCache>,
 }
 
 impl std::fmt::Debug for ObjectStoreDevice {
@@ -220,6 +226,18 @@ impl ObjectStoreDevice {
                 fetched.put(i as u64, Arc::from(chunk), options.cache_bytes);
             }
         }
+        let disk = match &options.disk_cache {
+            Some(d) => {
+                let identity = format!(
+                    "{name} {} {:?} {:?} {}",
+                    meta.size, meta.e_tag, meta.version, meta.last_modified
+                );
+                let cache = DiskCache::open(d, &identity)
+                    .map_err(|error| StorageError::Open { path: d.dir.clone(), error })?;
+                Some(cache)
+            }
+            None => None,
+        };
         Ok(ObjectStoreDevice {
             store,
             path,
@@ -229,6 +247,7 @@ impl ObjectStoreDevice {
             page,
             cache_bytes: options.cache_bytes,
             state: Mutex::new(fetched),
+            disk,
         })
     }
 
@@ -399,7 +418,7 @@ impl ObjectStoreDevice {
     /// once, one round trip.
     fn pages(&self, pages: impl Iterator<Item = u64>) -> io::Result<HashMap<u64, Arc<[u8]>>> {
         let mut have: HashMap<u64, Arc<[u8]>> = HashMap::new();
-        let mut missing: Vec<Range<u64>> = Vec::new();
+        let mut absent: Vec<u64> = Vec::new();
         {
             let mut state = self.lock();
             for p in pages {
@@ -407,12 +426,26 @@ impl ObjectStoreDevice {
                     Some(bytes) => {
                         have.insert(p, bytes);
                     }
-                    None => match missing.last_mut() {
-                        Some(run) if run.end == p => run.end = p + 1,
-                        Some(run) if run.end > p => {}
-                        _ => missing.push(p..p + 1),
-                    },
+                    None => absent.push(p),
                 }
+            }
+        }
+        // The folder's pages, read outside the lock.
+        if let Some(disk) = &self.disk {
+            let found: Vec<(u64, Arc<[u8]>)> =
+                absent.iter().filter_map(|&p| Some((p, Arc::from(disk.get(p)?)))).collect();
+            let mut state = self.lock();
+            for (p, bytes) in found {
+                have.insert(p, bytes.clone());
+                state.put(p, bytes, self.cache_bytes);
+            }
+        }
+        let mut missing: Vec<Range<u64>> = Vec::new();
+        for p in absent.into_iter().filter(|p| !have.contains_key(p)) {
+            match missing.last_mut() {
+                Some(run) if run.end == p => run.end = p + 1,
+                Some(run) if run.end > p => {}
+                _ => missing.push(p..p + 1),
             }
         }
         if missing.is_empty() {
@@ -430,6 +463,9 @@ impl ObjectStoreDevice {
                 let from = i * self.page as usize;
                 let to = (from + self.page as usize).min(bytes.len());
                 let page: Arc<[u8]> = Arc::from(&bytes[from..to]);
+                if let Some(disk) = &self.disk {
+                    disk.put(p, &page);
+                }
                 have.insert(p, page.clone());
                 state.put(p, page, self.cache_bytes);
             }
@@ -489,6 +525,9 @@ impl BlockDevice for ObjectStoreDevice {
             let mut state = self.lock();
             for p in pages {
                 state.drop_page(p);
+                if let Some(disk) = &self.disk {
+                    disk.forget(p);
+                }
             }
         }
     }
