@@ -413,6 +413,14 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Upload the file at its last commit as one object (s3://, gs://, az://, file://), for readers elsewhere.
+    Publish {
+        file: PathBuf,
+        /// Where: the object's URL; the store's settings and credentials come from the environment.
+        url: String,
+        #[arg(long)]
+        json: bool,
+    },
     /// Give the file's free blocks back: rewrite the tree low and cut the free end.
     Compact {
         file: PathBuf,

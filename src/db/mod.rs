@@ -329,6 +329,23 @@ impl Database {
         Database::open_on_read_only(Arc::new(device))
     }
 
+    /// Uploads the file as one object to `url` (`s3://`, `gs://`, `az://`,
+    /// `file://`), holding the writer's lock meanwhile, so that the object is
+    /// the file at one commit: readers of the object see the old upload or
+    /// the new one, never a mixture (format-spec/remote.md, "Publishing").
+    /// Waits for another process's write to end first.
+    #[cfg(feature = "object-store")]
+    pub fn publish(
+        &self,
+        url: &str,
+        options: &crate::store::device::RemoteOptions,
+    ) -> Result<crate::store::device::Published, StorageError> {
+        // No writer may change the file meanwhile; none is started, so
+        // nothing of a transaction is in the file.
+        let _writer = self.writer_seat(WriterWait::Wait)?;
+        crate::store::device::upload(self.inner.pager.device().clone(), url, options)
+    }
+
     /// Requests, bytes and round trips the database's device has made over a
     /// network since it opened (a file in object storage); `None` for local
     /// storage.
@@ -417,6 +434,12 @@ impl Database {
 
     /// Starts the write transaction, meeting another process's write as `wait` says.
     pub fn begin_write_with(&self, wait: WriterWait) -> Result<WriteTransaction<'_>, StorageError> {
+        let (guard, file_lock) = self.writer_seat(wait)?;
+        WriteTransaction::begin(&self.inner, guard, file_lock)
+    }
+
+    /// The writer's seat in this process and its lock over processes.
+    fn writer_seat(&self, wait: WriterWait) -> Result<(SeatGuard<'_>, Option<WriterLock<'_>>), StorageError> {
         if self.inner.read_only {
             return Err(StorageError::ReadOnly);
         }
@@ -426,7 +449,7 @@ impl Database {
             Some(l) => Some(WriterLock(l)),
             None => None,
         };
-        WriteTransaction::begin(&self.inner, guard, file_lock)
+        Ok((guard, file_lock))
     }
 
     /// Gives the file's free blocks back to the file system. The tree is

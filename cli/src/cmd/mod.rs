@@ -27,6 +27,7 @@ mod insert;
 mod lods;
 mod navigate;
 mod optimize;
+mod publish;
 mod query;
 mod remove;
 mod render;
@@ -70,6 +71,7 @@ pub fn run(cli: Cli) -> Result<()> {
         | Command::Move { .. }
         | Command::Remove { .. }
         | Command::Compact { .. }
+        | Command::Publish { .. }
         | Command::Optimize { .. }) => writes(c),
         c @ (Command::Tradeoff { .. }
         | Command::Demo { .. }
@@ -211,6 +213,7 @@ fn writes(command: Command) -> Result<()> {
             remove::run(&file, &keys, wait, json)
         }
         Command::Compact { file, wait, json } => compact::run(&file, wait, json),
+        Command::Publish { file, url, json } => publish::run(&file, &url, json),
         Command::Optimize { file, wait, json } => optimize::run(&file, wait, json),
         other => misrouted(&other),
     }

@@ -13,6 +13,8 @@ mod file;
 mod mem;
 #[cfg(feature = "object-store")]
 mod object;
+#[cfg(feature = "object-store")]
+mod upload;
 
 use std::io;
 use std::ops::Range;
@@ -32,6 +34,10 @@ pub use mem::MemDevice;
 pub(crate) use object::{Changed, Failed};
 #[cfg(feature = "object-store")]
 pub use object::{ObjectStoreDevice, RemoteOptions};
+#[cfg(feature = "object-store")]
+pub use upload::Published;
+#[cfg(feature = "object-store")]
+pub(crate) use upload::upload;
 
 /// What a device that fetches over a network has fetched since it opened.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]

@@ -152,7 +152,7 @@ fn runtime() -> io::Result<&'static tokio::runtime::Runtime> {
 
 /// Runs `fut` on the shared runtime and waits for it. Spawned rather than
 /// blocked on, so that a caller inside another runtime does not panic.
-fn wait<T: Send + 'static>(fut: impl Future<Output = T> + Send + 'static) -> io::Result<T> {
+pub(super) fn wait<T: Send + 'static>(fut: impl Future<Output = T> + Send + 'static) -> io::Result<T> {
     let (tx, rx) = std::sync::mpsc::sync_channel(1);
     runtime()?.spawn(async move {
         // The receiver waits below; a send fails only if it is gone.
@@ -175,10 +175,7 @@ impl ObjectStoreDevice {
     /// environment and `options`: one range request from the start of the
     /// object, which pins its ETag and version.
     pub fn open(url: &str, options: &RemoteOptions) -> Result<ObjectStoreDevice, StorageError> {
-        let parsed = url::Url::parse(url).map_err(|e| remote(url, format!("not a URL: {e}")))?;
-        let mut settings = environment_options();
-        settings.extend(options.store_options.iter().cloned());
-        let (store, path) = store_for(&parsed, &settings, options).map_err(|e| remote(url, e.to_string()))?;
+        let (store, path) = store_for_url(url, options)?;
         ObjectStoreDevice::on(store, path, url, options)
     }
 
@@ -336,6 +333,18 @@ impl std::fmt::Display for Changed {
 
 impl std::error::Error for Changed {}
 
+/// The store `url` names, with the environment's settings and `options`';
+/// the object's path in it.
+pub(super) fn store_for_url(
+    url: &str,
+    options: &RemoteOptions,
+) -> Result<(Arc<dyn ObjectStore>, Path), StorageError> {
+    let parsed = url::Url::parse(url).map_err(|e| remote(url, format!("not a URL: {e}")))?;
+    let mut settings = environment_options();
+    settings.extend(options.store_options.iter().cloned());
+    store_for(&parsed, &settings, options).map_err(|e| remote(url, e.to_string()))
+}
+
 /// The store `url` names, with `settings` (configuration keys the store
 /// does not know are left out, as `object_store::parse_url_opts` does) and
 /// `options`' retries; the object's path in it.
@@ -401,7 +410,7 @@ impl std::fmt::Display for Failed {
 
 impl std::error::Error for Failed {}
 
-fn remote(url: &str, detail: String) -> StorageError {
+pub(super) fn remote(url: &str, detail: String) -> StorageError {
     StorageError::Remote { url: url.to_string(), detail }
 }
 
