@@ -387,7 +387,7 @@ impl Reader<'_> {
             let opened = counts(&db);
             let (fetched, ms) = self.query(&db, &txn, i, q, Cache::Cold)?;
             opens.push((opened, open_ms));
-            queries.push((since(&opened, &fetched), ms));
+            queries.push((fetched.since(&opened), ms));
         }
         Ok(Samples { open: Some(opens), query: queries })
     }
@@ -403,7 +403,7 @@ impl Reader<'_> {
         for (i, q) in self.set.boxes.iter().enumerate() {
             let before = counts(&db);
             let (fetched, ms) = self.query(&db, &txn, i, q, Cache::Warm)?;
-            queries.push((since(&before, &fetched), ms));
+            queries.push((fetched.since(&before), ms));
         }
         Ok(Samples { open: None, query: queries })
     }
@@ -438,15 +438,6 @@ impl Reader<'_> {
 /// What a remote reader fetched since it opened (a local one: nothing).
 fn counts(db: &Database) -> TransferCounts {
     db.transfer_counts().unwrap_or_default()
-}
-
-/// `now - then`, counts that only grow.
-fn since(then: &TransferCounts, now: &TransferCounts) -> TransferCounts {
-    TransferCounts {
-        requests: now.requests.saturating_sub(then.requests),
-        bytes: now.bytes.saturating_sub(then.bytes),
-        round_trips: now.round_trips.saturating_sub(then.round_trips),
-    }
 }
 
 impl Samples {

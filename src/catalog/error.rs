@@ -54,6 +54,25 @@ pub enum CatalogError {
         /// The commit the file holds.
         file: u64,
     },
+    /// A model's file at the catalog's commit holds another tree than its
+    /// entry says (another file at that location, or an edited catalog).
+    #[error("model {model:?} at commit {commit} does not match its entry: {detail}")]
+    Mismatch {
+        /// The model's key.
+        model: String,
+        /// The commit both name.
+        commit: u64,
+        /// What differs.
+        detail: String,
+    },
+    /// A model index past the catalog's models.
+    #[error("no model {index} in a catalog of {models}")]
+    NoModel {
+        /// The index asked for.
+        index: usize,
+        /// The catalog's models.
+        models: usize,
+    },
     /// A URL in a library built without the `object-store` feature.
     #[error(
         "model {model:?}: {location} is a URL, and this build reads URLs only with the object-store feature"

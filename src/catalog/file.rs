@@ -201,8 +201,11 @@ impl Catalog {
         let path = path.as_ref();
         let io = |source| CatalogError::Io { path: path.display().to_string(), source };
         let name = path.file_name().ok_or_else(|| io(std::io::Error::other("not a file name")))?;
+        // Unique to this process and call: two writers never share one.
+        static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let mut temporary = name.to_os_string();
-        temporary.push(format!(".{}.tmp", std::process::id()));
+        temporary.push(format!(".{}.{call}.tmp", std::process::id()));
         let temporary = path.with_file_name(temporary);
         let written = (|| {
             let mut f = std::fs::File::create(&temporary)?;

@@ -98,9 +98,11 @@ impl CatalogReader {
     /// Model `i`'s database, opened and checked against its entry on first
     /// use; whether this call opened it.
     pub fn database(&self, i: usize) -> Result<(&Database, bool), CatalogError> {
-        let model = self.catalog.models().get(i).ok_or_else(|| {
-            CatalogError::Invalid(format!("no model {i} in a catalog of {}", self.opened.len()))
-        })?;
+        let model = self
+            .catalog
+            .models()
+            .get(i)
+            .ok_or(CatalogError::NoModel { index: i, models: self.opened.len() })?;
         if let Some(db) = self.opened[i].get() {
             return Ok((db, false));
         }
@@ -114,10 +116,14 @@ impl CatalogReader {
             });
         }
         if found != *model {
-            return Err(CatalogError::Invalid(format!(
-                "model {:?} at commit {} holds {} objects in {:?}, but the catalog says {} in {:?}",
-                model.key, found.commit, found.objects, found.root_box, model.objects, model.root_box
-            )));
+            return Err(CatalogError::Mismatch {
+                model: model.key.clone(),
+                commit: found.commit,
+                detail: format!(
+                    "the file holds {} objects in {:?}, the catalog says {} in {:?}",
+                    found.objects, found.root_box, model.objects, model.root_box
+                ),
+            });
         }
         // Two queries may open a model at once: one database is kept.
         let kept = self.opened[i].get_or_init(|| db);

@@ -539,7 +539,8 @@ impl<'a, S: Selection> Select<'a, S> {
 
     /// The geometry blocks of the objects of `leaf` (in `block`, box
     /// `frame`) that the traversal will test exactly: those its box and
-    /// bounds leave undecided (`step.rs`'s verdict), at level M. An entry
+    /// bounds leave undecided (`step.rs`'s verdict), at level M, each in
+    /// one part. An entry
     /// that fails to decode adds nothing; its step reports it.
     fn geometry_below(
         &self,
@@ -573,7 +574,9 @@ impl<'a, S: Selection> Select<'a, S> {
                     Err(_) => return,
                 }
             }
-            if !decided {
+            // An object stored as parts is decided by whichever part meets
+            // the query first: which parts are read is known only then.
+            if !decided && pending.len() == 1 {
                 for i in pending {
                     let Ok(blocks) = self.txn.object_blocks(block.id(), leaf, i) else { return };
                     out.extend(blocks.into_iter().map(Ahead::Geometry));

@@ -2,13 +2,14 @@
 //! (format-spec/remote.md, "On-disk cache"): a folder the caller names,
 //! shared by the processes that read the same objects, bounded in bytes.
 //! One file per page, under a folder per object version (its URL, size,
-//! ETag, version and time), each page followed by its CRC-32 so that a
+//! ETag, version and time, and a hash of the header's bytes, which every
+//! commit changes), each page followed by its CRC-32 so that a
 //! damaged or torn file is a miss, never a wrong byte.
 //!
 //! [`ObjectStoreDevice`]: super::ObjectStoreDevice
 
 use std::fs;
-use std::io;
+use std::io::{self, Read};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::SystemTime;
@@ -31,8 +32,8 @@ pub(super) struct DiskCache {
     dir: PathBuf,
     bound: u64,
     /// Bytes of page files in the whole folder, as last counted plus what
-    /// this cache added since.
-    used: AtomicU64,
+    /// this cache added since; counted at the first write, not at open.
+    used: std::sync::OnceLock<AtomicU64>,
 }
 
 /// The file name's suffix of a page.
@@ -52,22 +53,30 @@ impl DiskCache {
             }
             write_whole(&named, identity.as_bytes())?;
         }
-        let used = folder_bytes(&options.dir);
-        Ok(DiskCache { root: options.dir.clone(), dir, bound: options.bytes, used: AtomicU64::new(used) })
+        Ok(DiskCache {
+            root: options.dir.clone(),
+            dir,
+            bound: options.bytes,
+            used: std::sync::OnceLock::new(),
+        })
     }
 
     fn path(&self, page: u64) -> PathBuf {
         self.dir.join(format!("{page}.{PAGE}"))
     }
 
-    /// Page `page`, if the folder holds it whole.
-    pub(super) fn get(&self, page: u64) -> Option<Vec<u8>> {
+    /// Page `page`, `len` bytes long, if the folder holds it whole: a file
+    /// of another length, or that is not a plain file, or whose checksum
+    /// fails, is removed and missed.
+    pub(super) fn get(&self, page: u64, len: usize) -> Option<Vec<u8>> {
         let path = self.path(page);
-        let mut bytes = fs::read(&path).ok()?;
-        let at = bytes.len().checked_sub(4)?;
-        let sum = u32::from_le_bytes(bytes[at..].try_into().ok()?);
-        bytes.truncate(at);
-        if crc32fast::hash(&bytes) != sum {
+        let file = fs::File::open(&path).ok()?;
+        let whole = file.metadata().ok().is_some_and(|m| m.is_file() && m.len() == len as u64 + 4);
+        let mut bytes = Vec::new();
+        let read = whole && file.take(len as u64 + 4).read_to_end(&mut bytes).is_ok_and(|n| n == len + 4);
+        let sum = bytes.get(len..).and_then(|b| <[u8; 4]>::try_from(b).ok()).map(u32::from_le_bytes);
+        bytes.truncate(len);
+        if !read || sum != Some(crc32fast::hash(&bytes)) {
             let _ = fs::remove_file(&path);
             return None;
         }
@@ -84,9 +93,10 @@ impl DiskCache {
         if write_whole(&self.path(page), &file).is_err() {
             return;
         }
-        let used = self.used.fetch_add(file.len() as u64, Ordering::Relaxed) + file.len() as u64;
+        let counter = self.used.get_or_init(|| AtomicU64::new(folder_bytes(&self.root)));
+        let used = counter.fetch_add(file.len() as u64, Ordering::Relaxed) + file.len() as u64;
         if used > self.bound {
-            self.used.store(evict(&self.root, self.bound), Ordering::Relaxed);
+            counter.store(evict(&self.root, self.bound), Ordering::Relaxed);
         }
     }
 
@@ -105,8 +115,11 @@ fn fingerprint(identity: &str) -> u64 {
 /// Writes `path` whole: a temporary file renamed over it, so a reader of
 /// the folder never sees half a file under its name.
 fn write_whole(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    // Unique to this process and call: two threads never share one.
+    static CALLS: AtomicU64 = AtomicU64::new(0);
+    let call = CALLS.fetch_add(1, Ordering::Relaxed);
     let mut temporary = path.as_os_str().to_os_string();
-    temporary.push(format!(".{}.tmp", std::process::id()));
+    temporary.push(format!(".{}.{call}.tmp", std::process::id()));
     let temporary = PathBuf::from(temporary);
     let written = fs::write(&temporary, bytes).and_then(|()| fs::rename(&temporary, path));
     if written.is_err() {
@@ -167,17 +180,19 @@ mod tests {
         let cache =
             DiskCache::open(&options(dir.path(), 1 << 20), "http://h/a.mkt 100 \"e1\"").expect("open");
         cache.put(3, b"sixteen bytes!!!");
-        assert_eq!(cache.get(3).as_deref(), Some(&b"sixteen bytes!!!"[..]));
-        assert_eq!(cache.get(4), None);
+        assert_eq!(cache.get(3, 16).as_deref(), Some(&b"sixteen bytes!!!"[..]));
+        assert_eq!(cache.get(3, 15), None, "a page of another length is a miss");
+        cache.put(3, b"sixteen bytes!!!");
+        assert_eq!(cache.get(4, 16), None);
         let path = cache.path(3);
         let mut bytes = fs::read(&path).expect("page file");
         bytes[0] ^= 1;
         fs::write(&path, &bytes).expect("damage");
-        assert_eq!(cache.get(3), None);
+        assert_eq!(cache.get(3, 16), None);
         assert!(!path.exists(), "a damaged page is removed");
         cache.put(5, b"x");
         cache.forget(5);
-        assert_eq!(cache.get(5), None);
+        assert_eq!(cache.get(5, 1), None);
     }
 
     #[test]
@@ -186,10 +201,10 @@ mod tests {
         let old = DiskCache::open(&options(dir.path(), 1 << 20), "http://h/a.mkt 100 \"e1\"").expect("open");
         old.put(0, b"old");
         let new = DiskCache::open(&options(dir.path(), 1 << 20), "http://h/a.mkt 100 \"e2\"").expect("open");
-        assert_eq!(new.get(0), None);
+        assert_eq!(new.get(0, 3), None);
         let again =
             DiskCache::open(&options(dir.path(), 1 << 20), "http://h/a.mkt 100 \"e1\"").expect("open");
-        assert_eq!(again.get(0).as_deref(), Some(&b"old"[..]));
+        assert_eq!(again.get(0, 3).as_deref(), Some(&b"old"[..]));
     }
 
     #[test]
@@ -209,7 +224,7 @@ mod tests {
                 .expect("time");
         }
         assert!(folder_bytes(dir.path()) <= 5_000, "{} bytes", folder_bytes(dir.path()));
-        assert!(cache.get(9).is_some(), "the newest page stays");
-        assert!(cache.get(0).is_none(), "the oldest page went");
+        assert!(cache.get(9, 1_000).is_some(), "the newest page stays");
+        assert!(cache.get(0, 1_000).is_none(), "the oldest page went");
     }
 }

@@ -225,9 +225,16 @@ impl ObjectStoreDevice {
         }
         let disk = match &options.disk_cache {
             Some(d) => {
+                // The header's bytes (both commit slots) tell two commits of
+                // one size apart where the store's ETag and time do not.
+                let header = &bytes[..bytes.len().min(header::PREFIX_LEN)];
                 let identity = format!(
-                    "{name} {} {:?} {:?} {}",
-                    meta.size, meta.e_tag, meta.version, meta.last_modified
+                    "{name} {} {:?} {:?} {} {:08x}",
+                    meta.size,
+                    meta.e_tag,
+                    meta.version,
+                    meta.last_modified,
+                    crc32fast::hash(header)
                 );
                 let cache = DiskCache::open(d, &identity)
                     .map_err(|error| StorageError::Open { path: d.dir.clone(), error })?;
@@ -442,7 +449,7 @@ impl ObjectStoreDevice {
         // The folder's pages, read outside the lock.
         if let Some(disk) = &self.disk {
             let found: Vec<(u64, Arc<[u8]>)> =
-                absent.iter().filter_map(|&p| Some((p, Arc::from(disk.get(p)?)))).collect();
+                absent.iter().filter_map(|&p| Some((p, Arc::from(disk.get(p, self.page_len(p))?)))).collect();
             let mut state = self.lock();
             for (p, bytes) in found {
                 have.insert(p, bytes.clone());
@@ -463,6 +470,7 @@ impl ObjectStoreDevice {
         let byte_ranges: Vec<Range<u64>> =
             missing.iter().map(|r| r.start * self.page..(r.end * self.page).min(self.size)).collect();
         let got = self.fetch(byte_ranges)?;
+        let mut fresh = Vec::new();
         let mut state = self.lock();
         state.counts.requests += got.len() as u64;
         state.counts.round_trips += 1;
@@ -472,14 +480,24 @@ impl ObjectStoreDevice {
                 let from = i * self.page as usize;
                 let to = (from + self.page as usize).min(bytes.len());
                 let page: Arc<[u8]> = Arc::from(&bytes[from..to]);
-                if let Some(disk) = &self.disk {
-                    disk.put(p, &page);
-                }
+                fresh.push((p, page.clone()));
                 have.insert(p, page.clone());
                 state.put(p, page, self.cache_bytes);
             }
         }
+        drop(state);
+        // Written to the folder outside the lock: other reads go on.
+        if let Some(disk) = &self.disk {
+            for (p, page) in fresh {
+                disk.put(p, &page);
+            }
+        }
         Ok(have)
+    }
+
+    /// The length of page `p` of the object: a page, or the last one's rest.
+    fn page_len(&self, p: u64) -> usize {
+        usize::try_from(self.page.min(self.size.saturating_sub(p * self.page))).unwrap_or(0)
     }
 
     /// The pages `span` covers, when it lies in the object.

@@ -40,27 +40,53 @@ pub(crate) fn upload(
     let len = device.len()?;
     let name = url.to_string();
     let sent = wait(async move {
-        let mut parts = 0u64;
         let mut writer = WriteMultipart::new_with_chunk_size(store.put_multipart(&path).await?, PART);
-        let mut buf = vec![0u8; PART.min(usize::try_from(len).unwrap_or(PART))];
-        let mut at = 0u64;
-        while at < len {
-            let n = buf.len().min(usize::try_from(len - at).unwrap_or(usize::MAX));
-            if let Err(e) = device.read_at(at, &mut buf[..n]) {
-                // Nothing half-written is left behind in the store.
+        let sent = send(&mut writer, device, len).await;
+        // Every part in flight answered, so that a failed one is seen here.
+        let sent = match sent {
+            Ok(parts) => writer.wait_for_capacity(0).await.map(|()| parts),
+            Err(e) => Err(e),
+        };
+        match sent {
+            Ok(parts) => Ok((writer.finish().await?, parts.max(1))),
+            Err(e) => {
+                // Nothing half-written is left in the store.
                 let _ = writer.abort().await;
-                return Err(object_store::Error::Generic { store: "local file", source: Box::new(e) });
+                Err(e)
             }
-            writer.wait_for_capacity(IN_FLIGHT).await?;
-            writer.write(&buf[..n]);
-            parts += 1;
-            at += n as u64;
         }
-        let put = writer.finish().await?;
-        Ok::<_, object_store::Error>((put, parts.max(1)))
     })?;
     let (put, parts) = sent.map_err(|e| remote(&name, e.to_string()))?;
     Ok(Published { bytes: len, parts, e_tag: put.e_tag, version: put.version })
+}
+
+/// Reads `device` in parts (on a thread that may block, not the runtime's)
+/// and hands them to `writer`; the parts sent.
+async fn send(
+    writer: &mut WriteMultipart,
+    device: Arc<dyn BlockDevice>,
+    len: u64,
+) -> object_store::Result<u64> {
+    let mut parts = 0u64;
+    let mut at = 0u64;
+    while at < len {
+        let n = PART.min(usize::try_from(len - at).unwrap_or(usize::MAX));
+        let device = device.clone();
+        let read = tokio::task::spawn_blocking(move || {
+            let mut buf = vec![0u8; n];
+            device.read_at(at, &mut buf).map(|()| buf)
+        })
+        .await
+        .map_err(std::io::Error::other)
+        .and_then(|r| r);
+        let buf =
+            read.map_err(|e| object_store::Error::Generic { store: "local file", source: Box::new(e) })?;
+        writer.wait_for_capacity(IN_FLIGHT).await?;
+        writer.write(&buf);
+        parts += 1;
+        at += n as u64;
+    }
+    Ok(parts)
 }
 
 #[cfg(test)]
