@@ -125,9 +125,17 @@ fn a_missing_object_or_a_bad_url_is_a_clear_error() {
     let Some(server) = nginx() else { return };
     let url = format!("http://127.0.0.1:{}/none.mkt", server.port);
     match Database::open_url(&url, &RemoteOptions::default()) {
-        Err(StorageError::Remote { url: u, detail }) => assert!(u == url && !detail.is_empty()),
+        Err(StorageError::Remote { url: u, detail }) => {
+            assert!(u == url && !detail.is_empty() && !detail.contains('\n'))
+        }
         other => panic!("expected a Remote error, got {other:?}"),
     }
+    std::fs::write(server.dir.path().join("www/empty.mkt"), b"").expect("write");
+    let url = format!("http://127.0.0.1:{}/empty.mkt", server.port);
+    assert!(matches!(Database::open_url(&url, &RemoteOptions::default()), Err(StorageError::NotMktree)));
+    let empty = server.dir.path().join("www/empty.mkt");
+    let local = format!("file://{}", empty.display());
+    assert!(matches!(Database::open_url(&local, &RemoteOptions::default()), Err(StorageError::NotMktree)));
     std::fs::write(server.dir.path().join("www/text.mkt"), b"not an mktree file at all").expect("write");
     let url = format!("http://127.0.0.1:{}/text.mkt", server.port);
     assert!(matches!(

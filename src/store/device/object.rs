@@ -200,9 +200,13 @@ impl ObjectStoreDevice {
         };
         let (meta, range, bytes) = match wait(get)? {
             Ok(got) => got,
-            // An empty object has no byte 0 to range from.
-            Err(e) if is_empty_range(&e) => return Err(StorageError::NotMktree),
-            Err(e) => return Err(remote(name, e.to_string())),
+            Err(e) => {
+                // An empty object has no byte 0 to range from, and stores
+                // say so in their own words: its size tells.
+                let (store, path) = (store.clone(), path.clone());
+                let empty = matches!(wait(async move { store.head(&path).await }), Ok(Ok(m)) if m.size == 0);
+                return Err(if empty { StorageError::NotMktree } else { remote(name, e.to_string()) });
+            }
         };
         if range.start != 0 || range.end - range.start != bytes.len() as u64 {
             return Err(remote(name, format!("asked for bytes 0..{first}, the store answered {range:?}")));
@@ -303,7 +307,7 @@ impl ObjectStoreDevice {
             object_store::Error::Precondition { .. } | object_store::Error::NotFound { .. } => {
                 io::Error::other(Changed { url: self.url.clone() })
             }
-            e => io::Error::other(Failed { url: self.url.clone(), detail: e.to_string() }),
+            e => io::Error::other(Failed { url: self.url.clone(), detail: one_line(&e.to_string()) }),
         })?;
         let mut out = Vec::with_capacity(got.len());
         for ((meta, bytes), range) in got.into_iter().zip(&asked) {
@@ -418,14 +422,12 @@ impl std::fmt::Display for Failed {
 impl std::error::Error for Failed {}
 
 pub(super) fn remote(url: &str, detail: String) -> StorageError {
-    StorageError::Remote { url: url.to_string(), detail }
+    StorageError::Remote { url: url.to_string(), detail: one_line(&detail) }
 }
 
-/// A range request on an empty object: the store has no byte 0 (HTTP 416,
-/// "Range Not Satisfiable"; a local file says it is 0 bytes long).
-fn is_empty_range(e: &object_store::Error) -> bool {
-    let text = e.to_string().to_ascii_lowercase();
-    text.contains("416") || text.contains("not satisfiable") || text.contains("only 0 bytes")
+/// A store's message on one line: servers put pages of HTML in theirs.
+fn one_line(text: &str) -> String {
+    text.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
 impl ObjectStoreDevice {
