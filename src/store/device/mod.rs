@@ -62,7 +62,7 @@ impl TransferCounts {
     }
 }
 
-/// True when `name` reads as a URL [`ObjectStoreDevice`] opens (feature
+/// True when `name` reads as a URL `ObjectStoreDevice` opens (feature
 /// `object-store`) rather than a path:
 /// `s3://`, `s3a://`, `gs://`, `az://`, `abfs://`, `abfss://`, `azure://`,
 /// `adl://`, `http://`, `https://` or `file://`.
