@@ -150,15 +150,7 @@ fn draw_commit_times<DB: DrawingBackend>(
         .y_label_formatter(&|y| format!("{y:.2}"))
         .draw()
         .map_err(failed)?;
-    for (i, s) in series.iter().enumerate() {
-        let colour = Palette99::pick(i).to_rgba();
-        chart
-            .draw_series(LineSeries::new(s.points.iter().copied(), colour.stroke_width(2)))
-            .map_err(failed)?
-            .label(s.name.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
-        chart.draw_series(s.points.iter().map(|&p| Circle::new(p, 4, colour.filled()))).map_err(failed)?;
-    }
+    marked_lines(&mut chart, series.iter().map(|s| (s.name.as_str(), s.points.as_slice())))?;
     legend(&mut chart, SeriesLabelPosition::UpperLeft)
 }
 
@@ -201,18 +193,31 @@ fn draw_bench_remote<DB: DrawingBackend>(
             .y_desc("mean wall time per query, ms")
             .draw()
             .map_err(failed)?;
-        for (i, s) in series.iter().enumerate() {
-            let colour = Palette99::pick(i).to_rgba();
-            chart
-                .draw_series(LineSeries::new(s.points.iter().copied(), colour.stroke_width(2)))
-                .map_err(failed)?
-                .label(s.name.clone())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
-            chart
-                .draw_series(s.points.iter().map(|&p| Circle::new(p, 4, colour.filled())))
-                .map_err(failed)?;
-        }
+        marked_lines(&mut chart, series.iter().map(|s| (s.name.as_str(), s.points.as_slice())))?;
         legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
+    }
+    Ok(())
+}
+
+/// One line per `(name, points)`, its points marked, a colour each,
+/// labelled for the legend.
+fn marked_lines<'a, 'b, DB, X, Y>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    lines: impl Iterator<Item = (&'b str, &'b [(f64, f64)])>,
+) -> Result<()>
+where
+    DB: DrawingBackend + 'a,
+    X: Ranged<ValueType = f64>,
+    Y: Ranged<ValueType = f64>,
+{
+    for (i, (name, points)) in lines.enumerate() {
+        let colour = Palette99::pick(i).to_rgba();
+        chart
+            .draw_series(LineSeries::new(points.iter().copied(), colour.stroke_width(2)))
+            .map_err(failed)?
+            .label(name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
+        chart.draw_series(points.iter().map(|&p| Circle::new(p, 4, colour.filled()))).map_err(failed)?;
     }
     Ok(())
 }
