@@ -315,6 +315,8 @@ proptest! {
 fn forged_golden(b: usize, t: BlockType, forge: impl FnOnce(&mut [u8])) -> Vec<u8> {
     let bytes = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v9.mkt")).unwrap();
     let mut img = forge::Image { bytes, bs: BS };
+    // A layout change must move the forgery, not make it test nothing.
+    assert!(BlockType::from_code(img.bytes[b * BS + 4]).unwrap() == t, "block {b} is not a {t:?} block");
     forge(&mut img.bytes[b * BS..(b + 1) * BS]);
     img.reseal(b, t);
     img.bytes
@@ -322,17 +324,17 @@ fn forged_golden(b: usize, t: BlockType, forge: impl FnOnce(&mut [u8])) -> Vec<u
 
 #[test]
 fn a_forged_far_lattice_origin_is_an_error_not_a_hang() {
-    // format-spec/example.md: block 5 is the meta block, lattice_origin at 416.
-    let f = forged_golden(5, BlockType::Meta, |m| m[416..424].copy_from_slice(&1e300f64.to_le_bytes()));
+    // format-spec/example.md: block 1 is the meta block, lattice_origin at 416.
+    let f = forged_golden(1, BlockType::Meta, |m| m[416..424].copy_from_slice(&1e300f64.to_le_bytes()));
     let run = finishes_within(10, move || mktree_fuzz::open_and_query(&f));
     assert!(run.is_ok(), "{run:?}");
 }
 
 #[test]
 fn a_forged_far_vertex_is_a_fault_not_a_panic() {
-    // Block 1 is the geometry block; the plate (which has a bound) has its
-    // record at payload 0, vertex 1's x offset at 40 + 12 in it.
-    let f = forged_golden(1, BlockType::Geometry, |g| {
+    // Block 3 is the first geometry block; the plate (which has a bound) has
+    // its record at payload 0, vertex 1's x offset at 40 + 12 in it.
+    let f = forged_golden(3, BlockType::Geometry, |g| {
         g[16 + 52..16 + 56].copy_from_slice(&(-1e30f32).to_le_bytes())
     });
     let db = Database::open_on(Arc::new(MemDevice::from_bytes(f)) as Arc<dyn BlockDevice>).unwrap();

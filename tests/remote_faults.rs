@@ -24,8 +24,8 @@ fn answers_or_typed_errors(fault: Fault, expected: fn(&StorageError) -> bool) {
     let path = dir.path().join("t2.mkt");
     let scene = build_file(&path, Preset::Tanker2);
     let local = Database::open_read_only(&path).expect("local");
-    // The open takes two requests (format-spec/remote.md); faults follow.
-    let port = faulty(std::fs::read(&path).expect("file"), 2, fault);
+    // A bulk-loaded file opens in one request (format-spec/remote.md); faults follow.
+    let port = faulty(std::fs::read(&path).expect("file"), 1, fault);
     let options =
         RemoteOptions { retries: 1, retry_timeout: Duration::from_secs(5), ..RemoteOptions::default() };
     let remote = Database::open_url(&format!("http://127.0.0.1:{port}/t2.mkt"), &options).expect("open");

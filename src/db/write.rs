@@ -519,12 +519,14 @@ impl<'db> WriteTransaction<'db> {
     ) -> Result<(), crate::Error> {
         let pager = self.inner.pager().clone();
         let (txn, lod_params) = (self.txn, self.lod_params.clone());
+        // The meta block first: in an empty file it follows the header, and
+        // a remote open's first range holds both (format-spec/remote.md).
+        let meta_block = self.allocate(1)?;
         let meta = {
             let allocate = &mut |count: u32| self.allocate(count);
             let load = Load { objects, tree, params, build_seconds, lod_params: &lod_params };
             load.write(Sink { pager: &pager, txn, allocate }, progress)?
         };
-        let meta_block = self.allocate(1)?;
         let mut block = vec![0u8; pager.block_size() as usize];
         meta.encode(&mut block);
         let sum = pager.write(meta_block, &mut block, BlockType::Meta, self.txn)?;

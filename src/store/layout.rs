@@ -1,5 +1,5 @@
 //! Packing a binary tree's records into node blocks (format-spec/node.md,
-//! "Packing"). Two steps:
+//! "Packing"). Three steps:
 //!
 //! 1. Cut the tree into the fewest connected pieces of at most `piece`
 //!    bytes (Kundu and Misra's bottom-up greedy, 1977: at each node, cut
@@ -20,6 +20,13 @@
 //!    one block: a block is named from one block only, so a change commit
 //!    that rewrites a block rewrites that one parent block with it
 //!    (format-spec/node.md, "Packing").
+//! 3. Order the blocks breadth first over the tree of blocks: the root's
+//!    block, then the blocks it names, then theirs. The top of the tree
+//!    then lies in the first blocks, which a bulk load writes right after
+//!    the header and the meta block, so a remote open fetches it with them
+//!    in one range; and the blocks one block names lie side by side, so
+//!    the fetches of a query's next blocks merge into fewer requests
+//!    (format-spec/remote.md, "Requests").
 
 /// How far ahead a block looks for a piece that fits.
 const LOOK_AHEAD: usize = 64;
@@ -46,7 +53,7 @@ pub fn pack(
 ) -> Packing {
     let cut = cut_pieces(sizes, &children, piece);
     let pieces = pieces_in_preorder(&cut, &children);
-    let blocks = fill_blocks(&pieces, sizes, capacity);
+    let blocks = breadth_first(fill_blocks(&pieces, sizes, capacity), sizes.len(), &children);
     let mut place = vec![(0u32, 0u32); sizes.len()];
     for (b, members) in blocks.iter().enumerate() {
         for (s, &m) in members.iter().enumerate() {
@@ -168,6 +175,46 @@ fn fill_blocks(pieces: &[Piece], sizes: &[usize], capacity: usize) -> Vec<Vec<u3
     blocks
 }
 
+/// Step 3: `blocks` (each block's nodes) reordered breadth first over the
+/// tree of blocks, the root's block first. A block is reached from the one
+/// block that names it (step 2's rule), after it: the order keeps every
+/// child block after its parent's.
+fn breadth_first(
+    blocks: Vec<Vec<u32>>,
+    nodes: usize,
+    children: &impl Fn(usize) -> Option<[usize; 2]>,
+) -> Vec<Vec<u32>> {
+    let mut block_of = vec![0u32; nodes];
+    for (b, members) in blocks.iter().enumerate() {
+        for &m in members {
+            block_of[m as usize] = b as u32;
+        }
+    }
+    let mut seen = vec![false; blocks.len()];
+    let mut order = Vec::with_capacity(blocks.len());
+    if let Some(&root) = block_of.first() {
+        seen[root as usize] = true;
+        order.push(root);
+    }
+    let mut next = 0;
+    while next < order.len() {
+        let b = order[next];
+        next += 1;
+        // In record order, the blocks this block's records name.
+        for &m in &blocks[b as usize] {
+            for c in children(m as usize).into_iter().flatten() {
+                let cb = block_of[c];
+                if !seen[cb as usize] {
+                    seen[cb as usize] = true;
+                    order.push(cb);
+                }
+            }
+        }
+    }
+    let mut blocks: Vec<Option<Vec<u32>>> = blocks.into_iter().map(Some).collect();
+    order.into_iter().filter_map(|b| blocks[b as usize].take()).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -205,8 +252,8 @@ mod tests {
 
     proptest! {
         /// Every node is placed once, blocks hold at most their capacity, a
-        /// child's block never comes before its parent's, and a block is
-        /// named from one other block at most.
+        /// child's block never comes before its parent's, a block is named
+        /// from one other block at most, and blocks are breadth first.
         #[test]
         fn packing_is_complete_bounded_and_ordered(leaves in 1usize..400, seed in any::<u64>(), cap in 500usize..4000) {
             let (kids, sizes) = random_tree(leaves, seed);
@@ -231,6 +278,11 @@ mod tests {
                     }
                 }
             }
+            // Breadth first: the blocks a block names follow one another,
+            // in the order of their parent blocks.
+            prop_assert_eq!(parent_block.len() + 1, p.blocks.len());
+            let parents: Vec<u32> = (1..p.blocks.len() as u32).map(|b| parent_block[&b]).collect();
+            prop_assert!(parents.windows(2).all(|w| w[0] <= w[1]), "not breadth first: {:?}", parents);
         }
     }
 

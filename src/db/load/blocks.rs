@@ -53,7 +53,8 @@ impl Written {
 
 /// Writes `tree` over `objects` as `plan` lays it out, with the inline
 /// `bounds` of each node (internal: its children's group bounds; leaf: its
-/// objects'), into `sink`: geometry blocks, then group blocks, then node
+/// objects'), into `sink`: node blocks placed first (the root's block
+/// leads), then geometry blocks and group blocks written, then the node
 /// blocks last to first (a record names the checksums of its children's
 /// blocks).
 pub(crate) fn write(
@@ -68,7 +69,6 @@ pub(crate) fn write(
     let Sink { pager, txn, allocate } = sink;
     let bs = pager.block_size();
     let n = tree.nodes.len();
-    let geometry = write_geometry(Sink { pager, txn, allocate: &mut *allocate }, objects, plan, progress)?;
     let sizes = plan.sizes(tree, |i| node::bounds_len(&bounds[i]));
     let capacity = node::capacity(bs);
     if let Some(i) = (0..n).find(|&i| sizes[i] > capacity) {
@@ -76,7 +76,11 @@ pub(crate) fn write(
     }
     let (packing, _) = choose_packing(tree, &sizes, capacity, &plan.samples);
     let block_count = u32::try_from(packing.blocks.len()).map_err(|_| StorageError::FileTooLarge)?;
+    // Node blocks before the geometry: in an empty file they follow the
+    // header and the meta block, the top of the tree first, where a
+    // remote open's one range finds them (format-spec/remote.md).
     let first_node = allocate(block_count)?;
+    let geometry = write_geometry(Sink { pager, txn, allocate: &mut *allocate }, objects, plan, progress)?;
     // Offsets of every record in its block.
     let mut offset = vec![0u32; n];
     for members in &packing.blocks {
