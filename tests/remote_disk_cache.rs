@@ -75,7 +75,14 @@ fn a_later_reader_answers_from_the_folder_without_requests() {
     let fourth = Database::open_url(&url, &options).expect("open the new version");
     let opened = fourth.transfer_counts().expect("counts");
     assert_same_answers(&local, &fourth, &queries);
-    assert!(fourth.transfer_counts().expect("counts").since(&opened).requests > 0);
+    // It fetches what a reader with no folder fetches.
+    let bare = Database::open_url(&url, &RemoteOptions::default()).expect("open without a folder");
+    let bare_opened = bare.transfer_counts().expect("counts");
+    assert_same_answers(&local, &bare, &queries);
+    assert_eq!(
+        fourth.transfer_counts().expect("counts").since(&opened),
+        bare.transfer_counts().expect("counts").since(&bare_opened)
+    );
 }
 
 #[test]

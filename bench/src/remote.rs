@@ -154,6 +154,10 @@ pub struct RemoteBench {
     pub latencies_ms: Vec<f64>,
     /// The remote reader's cache bound, bytes.
     pub cache_bytes: u64,
+    /// Bytes each open fetched from the start of the object.
+    pub open_bytes: u64,
+    /// The share of extra bytes a round could fetch to join requests.
+    pub gap_share: f64,
     /// The local answers, per set.
     pub local: Vec<LocalSet>,
     /// Per added round trip, per set: cold, then warm.
@@ -223,6 +227,8 @@ pub fn bench_remote(
         seed: options.seed,
         latencies_ms: options.latencies_ms.clone(),
         cache_bytes: options.remote.cache_bytes,
+        open_bytes: options.remote.open_bytes,
+        gap_share: options.remote.gap_share,
         local: local_sets,
         rows,
     })

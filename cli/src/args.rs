@@ -856,6 +856,12 @@ pub struct BenchRemoteArgs {
     /// The remote reader's cache bound (K, M, G suffixes): warm reads hit it.
     #[arg(long, value_parser = byte_size, default_value = "64M")]
     pub cache_bytes: u64,
+    /// Bytes an open fetches from the start of the object in its one request (K, M suffixes): the header, the meta block and the top of the tree.
+    #[arg(long, value_parser = byte_size, default_value = "256K")]
+    pub open_bytes: u64,
+    /// Bytes a round of fetches may add, as a share of those it needs, to join requests across gaps (0 fetches only the blocks read).
+    #[arg(long, default_value_t = 0.5)]
+    pub gap_share: f64,
     /// A store setting KEY=VALUE as object_store names it (aws_endpoint, aws_allow_http, aws_region, ...), over the environment's; repeatable.
     #[arg(long = "store-option", value_parser = key_value)]
     pub store_options: Vec<(String, String)>,

@@ -30,13 +30,16 @@ fn bench_remote_checks_answers_and_adds_the_round_trips_it_is_asked_for() {
         .arg("bench-remote")
         .arg(&built)
         .arg(&url)
-        .args(["--queries", "3", "--latency", "0,20", "--json", "--out"])
+        // An open of two blocks: tanker1 is small enough for the default's
+        // 256 KiB to hold every block a query reads.
+        .args(["--queries", "3", "--latency", "0,20", "--open-bytes", "8K", "--json", "--out"])
         .arg(&charts)
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let bench: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(bench["latencies_ms"], serde_json::json!([0.0, 20.0]));
+    assert_eq!(bench["open_bytes"], 8192);
     assert_eq!(bench["block_size"], 4096);
     let local = bench["local"].as_array().unwrap();
     assert_eq!(local.iter().map(|l| l["set"].as_str().unwrap()).collect::<Vec<_>>(), SETS);

@@ -22,6 +22,8 @@ pub fn run(o: &BenchRemoteArgs) -> Result<()> {
         latencies_ms: o.latency.clone(),
         remote: RemoteOptions {
             cache_bytes: o.cache_bytes,
+            open_bytes: o.open_bytes,
+            gap_share: o.gap_share,
             store_options: o.store_options.clone(),
             ..RemoteOptions::default()
         },

@@ -27,8 +27,11 @@ use crate::store::format::header;
 /// How an [`ObjectStoreDevice`] reads.
 #[derive(Debug, Clone)]
 pub struct RemoteOptions {
-    /// Bytes the first request fetches from the start of the object (the
-    /// header and both slots are in its first block). Default 64 KiB.
+    /// Bytes the first request fetches from the start of the object: the
+    /// header, both slots, and in a bulk-loaded file the meta block and
+    /// the top of the tree (format-spec/remote.md, "Open"). Default 256
+    /// KiB: 14 node blocks of 16 KiB, which spare a cold query on ship
+    /// 10^6 about one round trip in three sets of four (docs/object-storage.md).
     pub open_bytes: u64,
     /// Upper bound of the in-memory cache of fetched pages, in bytes.
     /// Default 64 MiB.
@@ -46,17 +49,23 @@ pub struct RemoteOptions {
     /// Keep fetched pages in a folder too, for later readers of the same
     /// object version in any process. Default none.
     pub disk_cache: Option<DiskCacheOptions>,
+    /// Bytes a round of fetches may add, as a share of the bytes it needs,
+    /// to join requests across the gaps between them (the smallest gaps
+    /// first): fewer requests for at most `1 + gap_share` times the bytes.
+    /// Default 0.5; 0 fetches only the pages asked for.
+    pub gap_share: f64,
 }
 
 impl Default for RemoteOptions {
     fn default() -> Self {
         RemoteOptions {
-            open_bytes: 64 << 10,
+            open_bytes: 256 << 10,
             cache_bytes: 64 << 20,
             store_options: Vec::new(),
             retries: 3,
             retry_timeout: std::time::Duration::from_secs(30),
             disk_cache: None,
+            gap_share: 0.5,
         }
     }
 }
@@ -74,6 +83,7 @@ pub struct ObjectStoreDevice {
     /// The fetch and cache unit: the file's block size.
     page: u64,
     cache_bytes: u64,
+    gap_share: f64,
     state: Mutex<Fetched>,
     disk: Option<DiskCache>,
 }
@@ -254,6 +264,7 @@ impl ObjectStoreDevice {
             pinned: meta,
             page,
             cache_bytes: options.cache_bytes,
+            gap_share: options.gap_share,
             state: Mutex::new(fetched),
             disk,
         })
@@ -469,6 +480,7 @@ impl ObjectStoreDevice {
         if missing.is_empty() {
             return Ok(have);
         }
+        let missing = join_across_gaps(missing, self.gap_share);
         let byte_ranges: Vec<Range<u64>> =
             missing.iter().map(|r| r.start * self.page..(r.end * self.page).min(self.size)).collect();
         let got = self.fetch(byte_ranges)?;
@@ -507,6 +519,32 @@ impl ObjectStoreDevice {
         (span.start < span.end && span.end <= self.size)
             .then(|| span.start / self.page..(span.end - 1) / self.page + 1)
     }
+}
+
+/// `runs` (ascending, apart) joined across their smallest gaps while the
+/// pages the gaps add stay within `share` of the pages the runs hold.
+fn join_across_gaps(runs: Vec<Range<u64>>, share: f64) -> Vec<Range<u64>> {
+    let needed: u64 = runs.iter().map(|r| r.end - r.start).sum();
+    let budget = if share.is_finite() && share > 0.0 { (needed as f64 * share) as u64 } else { 0 };
+    let mut gaps: Vec<(u64, usize)> = runs.windows(2).enumerate().map(|(i, w)| (w[1].start - w[0].end, i)).collect();
+    gaps.sort_unstable();
+    let mut join = vec![false; runs.len()];
+    let mut spent = 0u64;
+    for (gap, i) in gaps {
+        if spent + gap > budget {
+            break;
+        }
+        spent += gap;
+        join[i] = true;
+    }
+    let mut out: Vec<Range<u64>> = Vec::with_capacity(runs.len());
+    for (i, run) in runs.into_iter().enumerate() {
+        match out.last_mut() {
+            Some(last) if i > 0 && join[i - 1] => last.end = run.end,
+            _ => out.push(run),
+        }
+    }
+    out
 }
 
 impl BlockDevice for ObjectStoreDevice {
@@ -616,5 +654,48 @@ mod tests {
                 prop_assert_eq!(f.by_use.len(), f.pages.len());
             }
         }
+
+        /// Joining runs across gaps covers every page asked for, adds at
+        /// most `share` of them, keeps the runs ascending and apart, and
+        /// takes a smaller gap before a larger one.
+        #[test]
+        fn joined_runs_cover_the_pages_within_the_share(
+            steps in prop::collection::vec((1u64..20, 1u64..6), 1..40),
+            share in 0.0f64..2.0,
+        ) {
+            let mut runs = Vec::new();
+            let mut at = 0;
+            for (gap, len) in steps {
+                at += gap;
+                runs.push(at..at + len);
+                at += len;
+            }
+            let joined = join_across_gaps(runs.clone(), share);
+            let count = |rs: &[Range<u64>]| rs.iter().map(|r| r.end - r.start).sum::<u64>();
+            let (needed, fetched) = (count(&runs), count(&joined));
+            prop_assert!(fetched - needed <= (needed as f64 * share) as u64);
+            prop_assert!(joined.windows(2).all(|w| w[0].end < w[1].start));
+            for r in &runs {
+                prop_assert!(joined.iter().any(|j| j.start <= r.start && r.end <= j.end));
+            }
+            let gaps = |rs: &[Range<u64>]| rs.windows(2).map(|w| w[1].start - w[0].end).collect::<Vec<_>>();
+            let (left, all) = (gaps(&joined), gaps(&runs));
+            if let Some(&smallest_left) = left.iter().min() {
+                // Every gap joined was no larger than every gap left.
+                let joined_gaps = all.len() - left.len();
+                let mut sorted = all.clone();
+                sorted.sort_unstable();
+                prop_assert!(sorted[..joined_gaps].iter().all(|&g| g <= smallest_left));
+            }
+        }
+    }
+
+    #[test]
+    fn no_share_joins_nothing() {
+        let runs = vec![0..1, 2..3, 10..12];
+        assert_eq!(join_across_gaps(runs.clone(), 0.0), runs);
+        assert_eq!(join_across_gaps(runs.clone(), f64::NAN), runs);
+        // 4 pages asked for: a share of a half adds at most 2, so the gap of 1 only.
+        assert_eq!(join_across_gaps(runs, 0.5), vec![0..3, 10..12]);
     }
 }
