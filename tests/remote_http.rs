@@ -47,15 +47,19 @@ fn a_query_fetches_the_blocks_it_will_read_ahead_in_fewer_round_trips() {
     let scene = build_file(&path, Preset::Tanker2);
     let url = format!("http://127.0.0.1:{}/t2.mkt", server.port);
     let local = Database::open_read_only(&path).expect("local");
-    let (mut reads, mut waits) = (0, 0);
+    let (mut reads, mut waits, mut bytes) = (0, 0, 0);
     // Each box from a cold reader: a wait per read, but for fetching ahead.
     for b in boxes(&scene) {
         let remote = Database::open_url(&url, &RemoteOptions::default()).expect("open");
         let opened = remote.transfer_counts().expect("counts");
         reads += assert_same_answers(&local, &remote, &[b]);
-        waits += remote.transfer_counts().expect("counts").round_trips - opened.round_trips;
+        let query = remote.transfer_counts().expect("counts").since(&opened);
+        (waits, bytes) = (waits + query.round_trips, bytes + query.bytes);
     }
     assert!(waits < reads, "{waits} round trips for {reads} block reads");
+    // Requests joined across gaps fetch at most half again the blocks read.
+    let block_size = u64::from(local.block_size());
+    assert!(bytes * 2 <= reads * block_size * 3, "{bytes} bytes fetched for {reads} block reads");
 }
 
 /// Issue 36's bound: a small box from a cold reader waits for the network
