@@ -49,10 +49,11 @@ pub struct RemoteOptions {
     /// Keep fetched pages in a folder too, for later readers of the same
     /// object version in any process. Default none.
     pub disk_cache: Option<DiskCacheOptions>,
-    /// Bytes a round of fetches may add, as a share of the bytes it needs,
-    /// to join requests across the gaps between them (the smallest gaps
-    /// first): fewer requests for at most `1 + gap_share` times the bytes.
-    /// Default 0.5; 0 fetches only the pages asked for.
+    /// Bytes the reader may add to join requests across the gaps between
+    /// the blocks a round asks for (the smallest gaps first), as a share of
+    /// the bytes asked for since the open: fewer requests for at most
+    /// `1 + gap_share` times the bytes. Default 0.5; 0 fetches only the
+    /// blocks asked for.
     pub gap_share: f64,
 }
 
@@ -107,6 +108,11 @@ struct Fetched {
     tick: u64,
     bytes: u64,
     counts: TransferCounts,
+    /// Pages fetched because a read asked for them, and pages fetched only
+    /// to join requests across gaps: the second stays within
+    /// `gap_share` of the first, over the device's life.
+    asked_pages: u64,
+    gap_pages: u64,
 }
 
 impl Fetched {
@@ -480,7 +486,20 @@ impl ObjectStoreDevice {
         if missing.is_empty() {
             return Ok(have);
         }
-        let missing = join_across_gaps(missing, self.gap_share);
+        let missing = {
+            let asked: u64 = missing.iter().map(|r| r.end - r.start).sum();
+            let mut state = self.lock();
+            state.asked_pages += asked;
+            // Credit a round leaves unspent serves a later one.
+            let allowed = if self.gap_share.is_finite() && self.gap_share > 0.0 {
+                (state.asked_pages as f64 * self.gap_share) as u64
+            } else {
+                0
+            };
+            let (joined, spent) = join_across_gaps(missing, allowed.saturating_sub(state.gap_pages));
+            state.gap_pages += spent;
+            joined
+        };
         let byte_ranges: Vec<Range<u64>> =
             missing.iter().map(|r| r.start * self.page..(r.end * self.page).min(self.size)).collect();
         let got = self.fetch(byte_ranges)?;
@@ -522,10 +541,9 @@ impl ObjectStoreDevice {
 }
 
 /// `runs` (ascending, apart) joined across their smallest gaps while the
-/// pages the gaps add stay within `share` of the pages the runs hold.
-fn join_across_gaps(runs: Vec<Range<u64>>, share: f64) -> Vec<Range<u64>> {
-    let needed: u64 = runs.iter().map(|r| r.end - r.start).sum();
-    let budget = if share.is_finite() && share > 0.0 { (needed as f64 * share) as u64 } else { 0 };
+/// pages the gaps add stay within `budget`; returns the runs and the pages
+/// added.
+fn join_across_gaps(runs: Vec<Range<u64>>, budget: u64) -> (Vec<Range<u64>>, u64) {
     let mut gaps: Vec<(u64, usize)> = runs.windows(2).enumerate().map(|(i, w)| (w[1].start - w[0].end, i)).collect();
     gaps.sort_unstable();
     let mut join = vec![false; runs.len()];
@@ -544,7 +562,7 @@ fn join_across_gaps(runs: Vec<Range<u64>>, share: f64) -> Vec<Range<u64>> {
             _ => out.push(run),
         }
     }
-    out
+    (out, spent)
 }
 
 impl BlockDevice for ObjectStoreDevice {
@@ -656,12 +674,12 @@ mod tests {
         }
 
         /// Joining runs across gaps covers every page asked for, adds at
-        /// most `share` of them, keeps the runs ascending and apart, and
-        /// takes a smaller gap before a larger one.
+        /// most the budget and says how many, keeps the runs ascending and
+        /// apart, and takes a smaller gap before a larger one.
         #[test]
         fn joined_runs_cover_the_pages_within_the_share(
             steps in prop::collection::vec((1u64..20, 1u64..6), 1..40),
-            share in 0.0f64..2.0,
+            budget in 0u64..60,
         ) {
             let mut runs = Vec::new();
             let mut at = 0;
@@ -670,10 +688,11 @@ mod tests {
                 runs.push(at..at + len);
                 at += len;
             }
-            let joined = join_across_gaps(runs.clone(), share);
+            let (joined, spent) = join_across_gaps(runs.clone(), budget);
             let count = |rs: &[Range<u64>]| rs.iter().map(|r| r.end - r.start).sum::<u64>();
             let (needed, fetched) = (count(&runs), count(&joined));
-            prop_assert!(fetched - needed <= (needed as f64 * share) as u64);
+            prop_assert_eq!(fetched - needed, spent);
+            prop_assert!(spent <= budget);
             prop_assert!(joined.windows(2).all(|w| w[0].end < w[1].start));
             for r in &runs {
                 prop_assert!(joined.iter().any(|j| j.start <= r.start && r.end <= j.end));
@@ -691,11 +710,11 @@ mod tests {
     }
 
     #[test]
-    fn no_share_joins_nothing() {
+    fn no_budget_joins_nothing() {
         let runs = vec![0..1, 2..3, 10..12];
-        assert_eq!(join_across_gaps(runs.clone(), 0.0), runs);
-        assert_eq!(join_across_gaps(runs.clone(), f64::NAN), runs);
-        // 4 pages asked for: a share of a half adds at most 2, so the gap of 1 only.
-        assert_eq!(join_across_gaps(runs, 0.5), vec![0..3, 10..12]);
+        assert_eq!(join_across_gaps(runs.clone(), 0), (runs.clone(), 0));
+        // A budget of 2 takes the gap of 1 only; 8 takes both.
+        assert_eq!(join_across_gaps(runs.clone(), 2), (vec![0..3, 10..12], 1));
+        assert_eq!(join_across_gaps(runs, 8), (vec![0..12], 8));
     }
 }
