@@ -151,19 +151,10 @@ pub enum Command {
         json: bool,
     },
     /// Objects that meet a box, sphere or view frustum at level k (exact at M), with the block reads it took.
-    #[command(group = clap::ArgGroup::new("shape").required(true).multiple(false))]
     Query {
         file: PathBuf,
-        /// x0,y0,z0,x1,y1,z1 in mm, x0 <= x1, y0 <= y1, z0 <= z1, each in
-        /// [-2^53, 2^53] (the library's rule, as in `batch`).
-        #[arg(long = "box", value_parser = numbers::<6>, allow_hyphen_values = true, group = "shape")]
-        aabb: Option<[f64; 6]>,
-        /// x,y,z,r in mm.
-        #[arg(long, value_parser = numbers::<4>, allow_hyphen_values = true, group = "shape")]
-        sphere: Option<[f64; 4]>,
-        /// A camera: eye x,y,z, target x,y,z, vertical fov (degrees), aspect, near, far (mm); up is +z.
-        #[arg(long, value_parser = numbers::<10>, allow_hyphen_values = true, group = "shape")]
-        frustum: Option<[f64; 10]>,
+        #[command(flatten)]
+        shape: ShapeArgs,
         #[command(flatten)]
         level: LevelArgs,
         #[arg(long)]
@@ -606,15 +597,8 @@ pub enum CatalogAction {
     /// A box, sphere or frustum query over every model whose root box it may meet, in parallel.
     Query {
         catalog: PathBuf,
-        /// x0,y0,z0,x1,y1,z1 in mm.
-        #[arg(long = "box", value_parser = numbers::<6>, allow_hyphen_values = true, group = "shape")]
-        aabb: Option<[f64; 6]>,
-        /// x,y,z,r in mm.
-        #[arg(long, value_parser = numbers::<4>, allow_hyphen_values = true, group = "shape")]
-        sphere: Option<[f64; 4]>,
-        /// A camera: eye x,y,z, target x,y,z, vertical fov (degrees), aspect, near, far (mm); up is +z.
-        #[arg(long, value_parser = numbers::<10>, allow_hyphen_values = true, group = "shape")]
-        frustum: Option<[f64; 10]>,
+        #[command(flatten)]
+        shape: ShapeArgs,
         #[command(flatten)]
         level: LevelArgs,
         /// Models opened and queried at once.
@@ -623,6 +607,22 @@ pub enum CatalogAction {
         #[arg(long)]
         json: bool,
     },
+}
+
+/// A query's shape: exactly one of a box, a sphere and a frustum.
+#[derive(Args, Debug, Clone)]
+#[group(required = true, multiple = false)]
+pub struct ShapeArgs {
+    /// x0,y0,z0,x1,y1,z1 in mm, x0 <= x1, y0 <= y1, z0 <= z1, each in
+    /// [-2^53, 2^53] (the library's rule, as in `batch`).
+    #[arg(long = "box", value_parser = numbers::<6>, allow_hyphen_values = true)]
+    pub aabb: Option<[f64; 6]>,
+    /// x,y,z,r in mm.
+    #[arg(long, value_parser = numbers::<4>, allow_hyphen_values = true)]
+    pub sphere: Option<[f64; 4]>,
+    /// A camera: eye x,y,z, target x,y,z, vertical fov (degrees), aspect, near, far (mm); up is +z.
+    #[arg(long, value_parser = numbers::<10>, allow_hyphen_values = true)]
+    pub frustum: Option<[f64; 10]>,
 }
 
 /// Levels of detail of a new tree.

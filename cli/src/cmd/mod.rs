@@ -120,8 +120,8 @@ fn reads(command: Command) -> Result<()> {
         Command::Node { file, node, lod, objects, export, json } => {
             lods::node(&file, node, lod, objects, export.as_deref(), json)
         }
-        Command::Query { file, aabb, sphere, frustum, level, json } => {
-            query::run(&file, &query::shape(aabb, sphere, frustum)?, &level.options(), json)
+        Command::Query { file, shape, level, json } => {
+            query::run(&file, &query::shape(&shape)?, &level.options(), json)
         }
         Command::Collide { file, mesh, object, translate, rotate_deg, clearance, level, json, import } => {
             let query = collide::Query { mesh, object, translate, rotate_deg, clearance };
@@ -147,8 +147,8 @@ fn reads(command: Command) -> Result<()> {
         Command::Catalog { action } => match action {
             CatalogAction::Create { output, models, json } => catalog::create(&output, &models, json),
             CatalogAction::Show { catalog, json } => catalog::show(&catalog, json),
-            CatalogAction::Query { catalog, aabb, sphere, frustum, level, concurrency, json } => {
-                let region = query::shape(aabb, sphere, frustum)?;
+            CatalogAction::Query { catalog, shape, level, concurrency, json } => {
+                let region = query::shape(&shape)?;
                 catalog::query(&catalog, &region, &level.options(), concurrency, json)
             }
         },

@@ -8,11 +8,12 @@ use anyhow::{Result, bail};
 use mktree::geom::{Aabb, Camera, Frustum, Point, Sphere};
 use mktree::query::{QueryOptions, Region, query_region};
 
+use crate::args::ShapeArgs;
 use crate::output;
 
 /// The region the flags name (clap lets exactly one through).
-pub fn shape(aabb: Option<[f64; 6]>, sphere: Option<[f64; 4]>, frustum: Option<[f64; 10]>) -> Result<Region> {
-    Ok(match (aabb, sphere, frustum) {
+pub fn shape(shape: &ShapeArgs) -> Result<Region> {
+    Ok(match (shape.aabb, shape.sphere, shape.frustum) {
         (Some(b), _, _) => Region::Box(Aabb::from_array(b)),
         (_, Some(s), _) => Region::Sphere(Sphere::new(Point::new(s[0], s[1], s[2]), s[3])?),
         (_, _, Some(f)) => Region::Frustum(Box::new(Frustum::from_camera(&Camera {
