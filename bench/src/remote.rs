@@ -246,6 +246,10 @@ fn check_options(options: &RemoteBenchOptions) -> Result<(), BenchError> {
             "an added round trip of {bad} ms: each is between 0 and {MAX_LATENCY_MS} ms"
         )));
     }
+    let gap = options.remote.gap_share;
+    if !(0.0..=16.0).contains(&gap) {
+        return Err(BenchError::Invalid(format!("a gap share of {gap}: it is between 0 and 16")));
+    }
     Ok(())
 }
 

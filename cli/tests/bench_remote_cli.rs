@@ -98,6 +98,8 @@ fn bench_remote_checks_answers_and_adds_the_round_trips_it_is_asked_for() {
     fails(&[obj.to_str().unwrap(), &url], "opening");
     fails(&[mkt, &format!("http://127.0.0.1:{port}/tiles/none.mkt")], "none.mkt");
     fails(&[mkt, &url, "--latency=-5"], "between 0 and");
+    fails(&[mkt, &url, "--gap-share=-1"], "gap share");
+    fails(&[mkt, &url, "--gap-share=NaN"], "gap share");
     // Another file at the URL: its answers would differ, so it is refused at once.
     let other = dir.path().join("other.mkt");
     let out = mktree()
