@@ -40,6 +40,29 @@ fn a_served_file_answers_as_the_local_file_and_counts_what_the_server_logs() {
     assert!(fetched.bytes <= std::fs::metadata(&path).expect("size").len());
 }
 
+/// A file whose last commit was one change synced once: the open reads
+/// the meta block and the free list together, then every block the commit
+/// lists together, so it waits three times, not once per listed block.
+#[test]
+fn a_file_after_a_change_commit_opens_in_three_round_trips() {
+    let Some(server) = nginx() else { return };
+    let path = server.dir.path().join("www/t2.mkt");
+    let scene = build_file(&path, Preset::Tanker2);
+    let db = Database::open(&path).expect("open to write");
+    let mut w = db.begin_write().expect("write");
+    // Generated objects have no keys: each has its id as an integer key.
+    assert!(w.move_by(&mktree::scene::Key::Int(7), mktree::geom::Vector::new(10.0, 0.0, 0.0)).expect("move"));
+    let stats = w.commit_with_stats().expect("commit");
+    assert!(stats.in_place && stats.syncs == 1 && stats.blocks_written > 3, "{stats:?}");
+    drop(db);
+    let url = format!("http://127.0.0.1:{}/t2.mkt", server.port);
+    let remote = Database::open_url(&url, &RemoteOptions::default()).expect("open over HTTP");
+    let opened = remote.transfer_counts().expect("counts");
+    assert!(opened.round_trips <= 3, "{opened:?}");
+    let local = Database::open_read_only(&path).expect("local");
+    assert_same_answers(&local, &remote, &boxes(&scene));
+}
+
 #[test]
 fn a_query_fetches_the_blocks_it_will_read_ahead_in_fewer_round_trips() {
     let Some(server) = nginx() else { return };

@@ -118,6 +118,13 @@ pub(super) fn load_commit(
             detail: format!("the commit holds {} blocks, the file {blocks_on_disk}", committed.block_count),
         });
     }
+    // Over a network, the meta block and the free list's first block come
+    // in one round trip, not two (a local device ignores this).
+    let heads: Vec<u32> = [committed.meta_block, committed.freelist_block]
+        .into_iter()
+        .filter(|&b| b != 0 && b < committed.block_count)
+        .collect();
+    pager.fetch_ahead(&heads);
     let (free, chain) = free_list_chain(pager, &committed)?;
     let meta = read_meta(pager, &committed)?;
     if committed.listed {
@@ -132,6 +139,10 @@ pub(super) fn verify_written(pager: &Pager, c: &Commit, meta: Option<&Meta>) -> 
     let Some(meta) = meta else {
         return Err(StorageError::corrupt(0, "state", "a commit synced once names no meta block"));
     };
+    // The list is bounded by the meta block's size; over a network its
+    // blocks come in one round trip, not one each.
+    let listed: Vec<u32> = meta.written.iter().map(|&(b, _)| b).filter(|&b| b != 0 && b < c.block_count).collect();
+    pager.fetch_ahead(&listed);
     for &(block, sum) in &meta.written {
         if block == 0 || block >= c.block_count {
             return Err(StorageError::corrupt(
