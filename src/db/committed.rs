@@ -141,7 +141,8 @@ pub(super) fn verify_written(pager: &Pager, c: &Commit, meta: Option<&Meta>) -> 
     };
     // The list is bounded by the meta block's size; over a network its
     // blocks come in one round trip, not one each.
-    let listed: Vec<u32> = meta.written.iter().map(|&(b, _)| b).filter(|&b| b != 0 && b < c.block_count).collect();
+    let listed: Vec<u32> =
+        meta.written.iter().map(|&(b, _)| b).filter(|&b| b != 0 && b < c.block_count).collect();
     pager.fetch_ahead(&listed);
     for &(block, sum) in &meta.written {
         if block == 0 || block >= c.block_count {

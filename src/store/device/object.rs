@@ -544,7 +544,8 @@ impl ObjectStoreDevice {
 /// pages the gaps add stay within `budget`; returns the runs and the pages
 /// added.
 fn join_across_gaps(runs: Vec<Range<u64>>, budget: u64) -> (Vec<Range<u64>>, u64) {
-    let mut gaps: Vec<(u64, usize)> = runs.windows(2).enumerate().map(|(i, w)| (w[1].start - w[0].end, i)).collect();
+    let mut gaps: Vec<(u64, usize)> =
+        runs.windows(2).enumerate().map(|(i, w)| (w[1].start - w[0].end, i)).collect();
     gaps.sort_unstable();
     let mut join = vec![false; runs.len()];
     let mut spent = 0u64;
