@@ -95,7 +95,9 @@ fn a_small_box_waits_no_more_than_the_node_block_depth() {
     let path = server.dir.path().join("www/ship.mkt");
     let scene =
         generate_scene(&GenOptions { preset: Preset::Ship, objects: Some(20_000), seed: 3 }).expect("ship");
-    let db = Database::create(&path, mktree::db::CreateOptions::default()).expect("create");
+    // 4 KiB blocks: at 16 KiB the tree is 2 node blocks deep.
+    let db = Database::create(&path, mktree::db::CreateOptions { block_size: 4096, ..Default::default() })
+        .expect("create");
     let mut w = db.begin_write().expect("write");
     w.bulk_load(&scene, &mktree::BuildParams::default(), &|_| {}).expect("bulk load");
     w.commit().expect("commit");
