@@ -78,7 +78,7 @@ fn cut_pieces(sizes: &[usize], children: &impl Fn(usize) -> Option<[usize; 2]>, 
     for i in (0..n).rev() {
         residual[i] = sizes[i];
         let Some(kids) = children(i) else { continue };
-        let top = kids.iter().map(|&c| rank[c]).max().unwrap_or(1);
+        let top = rank[kids[0]].max(rank[kids[1]]);
         let highest: usize = kids.iter().filter(|&&c| rank[c] == top).map(|&c| residual[c]).sum();
         if sizes[i] + highest <= piece.max(sizes[i]) {
             residual[i] += highest;
