@@ -7,8 +7,8 @@ mod common;
 
 use common::box_mesh;
 use mktree::clash::{
-    ClashKind, ClashStore, ClashTest, RunMode, Status, TestKind, run_recorded, run_test, set_status,
-    store_path,
+    ClashKind, ClashStore, ClashTest, RunMode, Status, StoreLock, TestKind, run_recorded, run_test,
+    set_status, store_path,
 };
 use mktree::geom::Vector;
 use mktree::scene::{Key, Object, Scene};
@@ -56,21 +56,24 @@ fn three_revisions_new_active_resolved_and_a_persisting_approval() {
     let path = store_path(&file);
 
     // Revision 1: everything is New.
-    let mut store = ClashStore::load(&path).unwrap();
+    let lock = StoreLock::acquire(&path).unwrap();
+    let mut store = lock.load().unwrap();
     let rec = run_recorded(&db.begin_read().unwrap(), &mut store, "pipes", Some(&test), true).unwrap();
     assert!(matches!(rec.mode, RunMode::Full { .. }), "no recorded run yet");
     assert_eq!(status_of(&store, "PIPE-1"), vec![(ClashKind::Hard, Status::New)]);
     assert_eq!(status_of(&store, "PIPE-3"), vec![(ClashKind::Clearance, Status::New)]);
     let runs = store.runs.get_mut("pipes").unwrap();
     assert_eq!(set_status(&mut runs.tracked, &key("WALL"), &key("PIPE-3"), None, Status::Approved), 1);
-    store.save(&path).unwrap();
+    lock.save(&store).unwrap();
+    drop(lock);
 
     // Revision 2: PIPE-1 moved clear, PIPE-7 added through the wall.
     let mut w = db.begin_write().unwrap();
     w.move_by(&key("PIPE-1"), Vector::new(0.0, 0.0, 5000.0)).unwrap();
     w.insert(obj("PIPE-7", [-100.0, 2500.0, 500.0], [300.0, 2600.0, 600.0])).unwrap();
     w.commit().unwrap();
-    let mut store = ClashStore::load(&path).unwrap();
+    let lock = StoreLock::acquire(&path).unwrap();
+    let mut store = lock.load().unwrap();
     let r = db.begin_read().unwrap();
     let rec = run_recorded(&r, &mut store, "pipes", None, true).unwrap();
     assert!(matches!(rec.mode, RunMode::Incremental { changed: 2, removed: 0, .. }), "{:?}", rec.mode);
@@ -79,14 +82,16 @@ fn three_revisions_new_active_resolved_and_a_persisting_approval() {
     assert_eq!(status_of(&store, "PIPE-3"), vec![(ClashKind::Clearance, Status::Approved)]);
     assert_eq!(status_of(&store, "PIPE-5"), vec![(ClashKind::Hard, Status::Active)]);
     assert_eq!(status_of(&store, "PIPE-7"), vec![(ClashKind::Hard, Status::New)]);
-    store.save(&path).unwrap();
+    lock.save(&store).unwrap();
+    drop(lock);
 
     // Revision 3: PIPE-3 removed (its approval ends with it), PIPE-1 back.
     let mut w = db.begin_write().unwrap();
     w.remove(&key("PIPE-3")).unwrap();
     w.move_by(&key("PIPE-1"), Vector::new(0.0, 0.0, -5000.0)).unwrap();
     w.commit().unwrap();
-    let mut store = ClashStore::load(&path).unwrap();
+    let lock = StoreLock::acquire(&path).unwrap();
+    let mut store = lock.load().unwrap();
     let r = db.begin_read().unwrap();
     let rec = run_recorded(&r, &mut store, "pipes", None, true).unwrap();
     assert!(matches!(rec.mode, RunMode::Incremental { changed: 1, removed: 1, .. }), "{:?}", rec.mode);
@@ -97,7 +102,8 @@ fn three_revisions_new_active_resolved_and_a_persisting_approval() {
     assert_eq!(status_of(&store, "PIPE-7"), vec![(ClashKind::Hard, Status::Active)]);
     let first = store.runs["pipes"].tracked.iter().find(|t| t.clash.a == key("PIPE-5")).unwrap();
     assert!(first.first_txn < first.last_txn);
-    store.save(&path).unwrap();
+    lock.save(&store).unwrap();
+    drop(lock);
     assert_eq!(ClashStore::load(&path).unwrap(), store);
 
     // A bulk load numbers objects anew: the next run is a full one.

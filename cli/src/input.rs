@@ -74,6 +74,17 @@ pub fn open_to_read(path: &Path) -> Result<Database> {
     Ok(db)
 }
 
+/// The clash store at `path`, locked for a writer; says so on stderr
+/// when it waits for another process that holds it.
+pub fn lock_store(path: &Path) -> Result<mktree::clash::StoreLock> {
+    use mktree::clash::StoreLock;
+    if let Some(lock) = StoreLock::try_acquire(path)? {
+        return Ok(lock);
+    }
+    eprintln!("waiting for another process writing {}", path.display());
+    Ok(StoreLock::acquire(path)?)
+}
+
 /// An error opening `path` to read or change its tree, naming the file
 /// unless the error already does; a scene file passed where an .mkt file
 /// belongs gets the `build` command that makes one.

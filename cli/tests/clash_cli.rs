@@ -1,9 +1,9 @@
 //! Claim (issue 35): `mktree clash` with --a, --b and --type runs a typed
 //! clash test: a table with counts by type and status, or one JSON line
 //! per clash and a summary line; --test records it in FILE.clash with
-//! statuses, which `clash-status` lists and sets; --bcf writes a BCF
-//! archive; the untyped run is unchanged; bad selectors, types and
-//! distances are one line and exit 1.
+//! statuses, which `clash-status` lists and sets, one writing process at a
+//! time; --bcf writes a BCF archive; the untyped run is unchanged; bad
+//! selectors, types and distances are one line and exit 1.
 
 use std::path::Path;
 use std::process::{Command, Output};
@@ -139,6 +139,51 @@ fn a_recorded_test_keeps_statuses_that_clash_status_sets() {
     // A damaged store is one line, not a panic.
     std::fs::write(format!("{mkt}.clash"), b"MKTCLASH garbage").unwrap();
     one_line_error(&mktree(&["clash", &mkt, "--test", "pipes"]), "clash store");
+}
+
+#[test]
+fn a_status_set_while_another_process_writes_the_store_waits_and_both_changes_stay() {
+    use std::io::BufRead;
+    let dir = tempfile::tempdir().unwrap();
+    let mkt = model(dir.path());
+    let run = ["clash", &mkt, "--test", "pipes", "--a", "name:PIPE*", "--b", "name:WALL*", "--type", "hard"];
+    ok(&mktree(&run));
+    let path = mktree::clash::store_path(Path::new(&mkt));
+    // This process writes the store (as a long run would) while another sets a status.
+    let lock = mktree::clash::StoreLock::acquire(&path).unwrap();
+    let mut store = lock.load().unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_mktree"))
+        .args([
+            "clash-status",
+            &mkt,
+            "--test",
+            "pipes",
+            "--a",
+            "PIPE-1",
+            "--b",
+            "WALL-1",
+            "--set",
+            "approved",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut said = String::new();
+    std::io::BufReader::new(child.stderr.take().unwrap()).read_line(&mut said).unwrap();
+    assert!(said.starts_with("waiting for another process writing"), "{said}");
+    let saved = store.tests["pipes"].clone();
+    store.tests.insert("later".into(), saved);
+    lock.save(&store).unwrap();
+    drop(lock);
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stdout).contains("set to approved"));
+    // Unserialized, the status set would have been written over, or this test's entry.
+    let after = mktree::clash::ClashStore::load(&path).unwrap();
+    assert!(after.tests.contains_key("later"));
+    let listed = ok(&mktree(&["clash-status", &mkt, "--test", "pipes"]));
+    assert!(listed.contains("approved") && listed.contains("PIPE-1"), "{listed}");
 }
 
 #[test]

@@ -10,8 +10,9 @@
 //! - `group.rs`: groups by proximity, A object or key prefix.
 //! - `status.rs`: New, Active, Resolved across runs; Reviewed and
 //!   Approved, set by a person, persist.
-//! - `store.rs`: saved tests and recorded runs in a sidecar file
-//!   (format-spec/clash-store.md).
+//! - `store/`: saved tests and recorded runs in a sidecar file
+//!   (format-spec/clash-store.md), changed by one writer at a time
+//!   (`store/lock.rs`).
 //! - `incremental.rs`: a re-run measures only pairs with a changed object.
 //! - `bcf.rs` and `zip.rs` (feature `bcf`): BCF 3.0 export, a topic per
 //!   group with a viewpoint, components and a snapshot.
@@ -68,7 +69,7 @@ pub use incremental::{Recorded, RunMode, rerun, run_recorded};
 pub use run::{AT_D, ClashRun, RunStats, measure, run_test};
 pub use select::{Candidate, MAX_SELECTOR, Selector, glob, in_set};
 pub use status::{Status, Tracked, set_status, update};
-pub use store::{ClashStore, store_path};
+pub use store::{ClashStore, StoreLock, lock_path, store_path};
 internal_use!(store::{
     Fingerprint, HEADER_LEN, MAGIC, MAX_STORE_BYTES, OLDEST_VERSION, RecordedRun, SavedTest, VERSION,
 });

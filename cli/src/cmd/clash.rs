@@ -10,8 +10,8 @@ use std::path::Path;
 use anyhow::{Result, bail};
 use mktree::clash::key_json::write_key_text;
 use mktree::clash::{
-    BcfOptions, Clash, ClashKind, ClashRun, ClashStore, ClashTest, DEFAULT_TOLERANCE, GroupBy, RunMode,
-    SavedTest, Selector, Status, TestKind, export_bcf, group, run_recorded, run_test, store_path,
+    BcfOptions, Clash, ClashKind, ClashRun, ClashTest, DEFAULT_TOLERANCE, GroupBy, RunMode, SavedTest,
+    Selector, Status, TestKind, export_bcf, group, run_recorded, run_test, store_path,
 };
 use mktree::query::{ClashOptions, clash};
 use serde_json::json;
@@ -106,7 +106,10 @@ pub fn typed(file: &Path, args: &ClashArgs, as_json: bool) -> Result<()> {
         return print(&run.clashes, None, &run, None, &groups, as_json);
     };
     let path = args.store.clone().unwrap_or_else(|| store_path(file));
-    let mut store = ClashStore::load(&path)?;
+    // Held from the load to the save: a status another process sets
+    // meanwhile waits, rather than being written over.
+    let lock = crate::input::lock_store(&path)?;
+    let mut store = lock.load()?;
     if let Some(t) = &test {
         let saved = SavedTest { test: t.clone(), group: group_by.unwrap_or_default() };
         store.tests.insert(name.clone(), saved);
@@ -115,7 +118,8 @@ pub fn typed(file: &Path, args: &ClashArgs, as_json: bool) -> Result<()> {
         group_by = store.tests.get(name).map(|s| s.group);
     }
     let rec = run_recorded(&r, &mut store, name, None, !args.full)?;
-    store.save(&path)?;
+    lock.save(&store)?;
+    drop(lock);
     let tracked = store.runs.remove(name).map(|run| run.tracked).unwrap_or_default();
     drop(store);
     let (clashes, statuses): (Vec<Clash>, Vec<Status>) =

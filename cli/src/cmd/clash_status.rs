@@ -23,7 +23,12 @@ pub fn run(file: &Path, test: &str, pair: &Pair, store: Option<&Path>, as_json: 
     // The file must be an mktree file: a mistyped name is an error, not an empty store.
     drop(crate::input::open_to_read(file)?);
     let path = store.map_or_else(|| store_path(file), Path::to_path_buf);
-    let mut s = ClashStore::load(&path)?;
+    // Setting a status writes the store: one writer at a time.
+    let lock = pair.set.is_some().then(|| crate::input::lock_store(&path)).transpose()?;
+    let mut s = match &lock {
+        Some(lock) => lock.load()?,
+        None => ClashStore::load(&path)?,
+    };
     let Some(run) = s.runs.get_mut(test) else {
         bail!("no recorded run of the test {test:?} in {}", path.display())
     };
@@ -46,7 +51,9 @@ pub fn run(file: &Path, test: &str, pair: &Pair, store: Option<&Path>, as_json: 
         if n == 0 {
             bail!("no open clash between {a} and {b} in the test {test:?}");
         }
-        s.save(&path)?;
+        if let Some(lock) = &lock {
+            lock.save(&s)?;
+        }
         if as_json {
             return output::json(&json!({"test": test, "set": status.name(), "clashes": n}));
         }

@@ -4,10 +4,11 @@
 //! checksummed envelope around the body (`body.rs`; version 1's
 //! JSON body is still read); written whole to a new file,
 //! synced and renamed over the old one, so a crash leaves the old store
-//! or the new one. Reading bounds the size before it allocates, checks
+//! or the new one, by one writer at a time (`lock.rs`). Reading bounds the size before it allocates, checks
 //! the envelope, the checksum and every field.
 
 mod body;
+mod lock;
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -21,6 +22,8 @@ use super::status::Tracked;
 use super::test::{ClashTest, MAX_NAME};
 use crate::geom::Aabb;
 use crate::scene::Key;
+
+pub use lock::{StoreLock, lock_path};
 
 /// The envelope's first 8 bytes.
 pub const MAGIC: [u8; 8] = *b"MKTCLASH";
@@ -186,8 +189,10 @@ impl ClashStore {
     }
 
     /// Writes the store to `path`: a new file beside it, synced, renamed
-    /// over it, and the folder synced (a crash leaves the old store or this one).
-    pub fn save(&self, path: &Path) -> Result<(), ClashError> {
+    /// over it, and the folder synced (a crash leaves the old store or this
+    /// one). Only through a [`StoreLock`], so that no other writer's
+    /// changes are written over.
+    fn write_to(&self, path: &Path) -> Result<(), ClashError> {
         let bytes = self.to_bytes()?;
         let mut tmp = path.as_os_str().to_owned();
         tmp.push(".new");
@@ -292,9 +297,10 @@ mod tests {
         let path = store_path(&dir.join("m.mkt"));
         assert_eq!(ClashStore::load(&path).unwrap(), ClashStore::default(), "no file: an empty store");
         let s = sample();
-        s.save(&path).unwrap();
+        let lock = StoreLock::acquire(&path).unwrap();
+        lock.save(&s).unwrap();
         assert_eq!(ClashStore::load(&path).unwrap(), s);
-        ClashStore::default().save(&path).unwrap();
+        lock.save(&ClashStore::default()).unwrap();
         assert_eq!(ClashStore::load(&path).unwrap(), ClashStore::default());
         std::fs::remove_dir_all(&dir).unwrap();
     }
