@@ -79,6 +79,11 @@ pub struct PeerRow {
     pub mktree_exact_node_reads: f64,
     /// Of which geometry blocks.
     pub mktree_exact_geometry_reads: f64,
+    /// The least mktree's exact answers could read on this file: the node
+    /// blocks on the paths to the answer (the root's at least, for a query
+    /// meeting its box), plus the geometry blocks read (of the objects its
+    /// boxes and stored bounds left undecided).
+    pub mktree_exact_lower_bound: f64,
     /// SQLite's page reads for the exact answer (R*Tree, then blobs).
     pub sqlite_exact_reads: f64,
     /// `mktree_exact_reads` / `sqlite_exact_reads`.
@@ -89,6 +94,9 @@ pub struct PeerRow {
     pub sqlite_filter_reads: f64,
     /// `mktree_filter_reads` / `sqlite_filter_reads`.
     pub filter_reads_ratio: Option<f64>,
+    /// The least mktree's box filter could read: the node blocks on the
+    /// paths to its answer.
+    pub mktree_filter_lower_bound: f64,
     /// Bytes mktree reads for the exact answer (reads x block size).
     pub mktree_exact_bytes: f64,
     /// Bytes SQLite reads for the exact answer (pages x page size).
@@ -255,11 +263,13 @@ pub fn bench_scene(
             mktree_exact_reads: mean(m.mktree_exact.total),
             mktree_exact_node_reads: mean(m.mktree_exact.node),
             mktree_exact_geometry_reads: mean(m.mktree_exact.geometry),
+            mktree_exact_lower_bound: mean(m.mktree_exact_lower),
             sqlite_exact_reads: mean(m.sqlite_exact),
             exact_reads_ratio: ratio(m.mktree_exact.total as f64, m.sqlite_exact as f64),
             mktree_filter_reads: mean(m.mktree_filter),
             sqlite_filter_reads: mean(m.sqlite_filter),
             filter_reads_ratio: ratio(m.mktree_filter as f64, m.sqlite_filter as f64),
+            mktree_filter_lower_bound: mean(m.mktree_filter_lower),
             mktree_exact_bytes: mean(m.mktree_exact.total) * block,
             sqlite_exact_bytes: mean(m.sqlite_exact) * page,
             mktree_filter_bytes: mean(m.mktree_filter) * block,
@@ -293,8 +303,10 @@ struct Sums {
     mktree_filter_answers: u64,
     sqlite_filter_answers: u64,
     mktree_exact: crate::peers::mktree::Reads,
+    mktree_exact_lower: u64,
     sqlite_exact: u64,
     mktree_filter: u64,
+    mktree_filter_lower: u64,
     sqlite_filter: u64,
     rstar_nodes: u64,
     rstar_leaves: u64,
@@ -325,6 +337,8 @@ impl Peers<'_> {
             s.mktree_exact.node += me.reads.node;
             s.mktree_exact.geometry += me.reads.geometry;
             s.mktree_exact.total += me.reads.total;
+            s.mktree_exact_lower += self.mkt.answer_node_blocks(q, &me.objects) + me.reads.geometry;
+            s.mktree_filter_lower += self.mkt.answer_node_blocks(q, &mf.objects);
             s.sqlite_exact += se.pages;
             s.mktree_filter += mf.reads.total;
             s.sqlite_filter += sf.pages;

@@ -71,6 +71,14 @@ pub fn read_hierarchy(txn: &ReadTransaction) -> Result<Hierarchy, StorageError> 
     Ok(read_layout(txn)?.tree)
 }
 
+/// Every node of the snapshot's tree (as [`read_hierarchy`] gives it) with
+/// the node block holding its record: what counts the node blocks on the
+/// paths to a query's answer, the part of its reads no traversal avoids.
+pub fn read_hierarchy_blocks(txn: &ReadTransaction) -> Result<(Hierarchy, Vec<u32>), StorageError> {
+    let stored = read_layout(txn)?;
+    Ok((stored.tree, stored.blocks))
+}
+
 /// The stored tree with where its records lie.
 pub(crate) struct StoredLayout {
     /// The tree, in preorder.

@@ -9,7 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use mktree::bulk::BuildParams;
-use mktree::db::{CreateOptions, Database, ReadTransaction};
+use mktree::db::{CreateOptions, Database, ReadTransaction, read_hierarchy_blocks};
 use mktree::geom::Aabb;
 use mktree::lod::LodParams;
 use mktree::query::{QueryAnswer, QueryOptions, Region, query_region};
@@ -23,8 +23,67 @@ pub struct MktreePeer {
     path: PathBuf,
     block_size: u32,
     txn: ReadTransaction,
+    paths: AnswerPaths,
     // Held for its file lock while the snapshot is read.
     _db: Database,
+}
+
+/// Where the stored tree's records lie, to count the node blocks on the
+/// paths from the root to the leaves holding given objects: the node
+/// blocks every traversal reads to report them (a subtree inside the query
+/// still has its leaves read, for the keys), and the root's block for any
+/// query meeting the root's box, even one with no answer.
+struct AnswerPaths {
+    /// The root's box.
+    root: Aabb,
+    /// Per node: its parent (`u32::MAX` at the root).
+    parent: Vec<u32>,
+    /// Per node: the node block holding its record.
+    block: Vec<u32>,
+    /// Per object id: the leaf holding it (`u32::MAX` for none).
+    leaf_of: Vec<u32>,
+}
+
+impl AnswerPaths {
+    fn of(txn: &ReadTransaction) -> Result<AnswerPaths, BenchError> {
+        let (tree, block) = read_hierarchy_blocks(txn)?;
+        let mut parent = vec![u32::MAX; tree.nodes.len()];
+        let mut leaf_of = Vec::new();
+        for (i, node) in tree.nodes.iter().enumerate() {
+            for c in node.children().into_iter().flatten() {
+                if let Some(p) = parent.get_mut(c.index()) {
+                    *p = i as u32;
+                }
+            }
+            for o in node.objects().unwrap_or_default() {
+                let o = o.index();
+                if o >= leaf_of.len() {
+                    leaf_of.resize(o + 1, u32::MAX);
+                }
+                leaf_of[o] = i as u32;
+            }
+        }
+        let root = tree.nodes.first().map_or(Aabb::EMPTY, |n| n.aabb);
+        Ok(AnswerPaths { root, parent, block, leaf_of })
+    }
+
+    /// The distinct node blocks on the paths from the root to the leaves
+    /// holding `objects` (ids), the answer to `query`.
+    fn node_blocks(&self, query: &Aabb, objects: &[u32]) -> u64 {
+        let mut walked = std::collections::HashSet::new();
+        let mut blocks = std::collections::HashSet::new();
+        if self.root.intersects(query) {
+            blocks.extend(self.block.first());
+        }
+        for &o in objects {
+            let mut n = self.leaf_of.get(o as usize).copied().unwrap_or(u32::MAX);
+            while n != u32::MAX && walked.insert(n) {
+                blocks.insert(self.block[n as usize]);
+                n = self.parent[n as usize];
+            }
+        }
+        blocks.len() as u64
+    }
 }
 
 /// Block reads of one query, by kind.
@@ -66,7 +125,8 @@ pub fn build_file(
     w.bulk_load(scene, &params, &|_| {})?;
     w.commit()?;
     let txn = db.begin_read()?;
-    Ok(MktreePeer { path: path.to_path_buf(), block_size, txn, _db: db })
+    let paths = AnswerPaths::of(&txn)?;
+    Ok(MktreePeer { path: path.to_path_buf(), block_size, txn, paths, _db: db })
 }
 
 impl MktreePeer {
@@ -83,6 +143,13 @@ impl MktreePeer {
     /// The objects whose triangles meet `query` (level M), from a cold cache.
     pub fn exact(&self, query: &Aabb) -> Result<Counted, BenchError> {
         exact_answer(&self.txn, query)
+    }
+
+    /// The least node blocks a traversal reads to report `objects` (ids)
+    /// as the answer to `query`: those on the paths from the root to their
+    /// leaves, and the root's when the query meets its box.
+    pub fn answer_node_blocks(&self, query: &Aabb, objects: &[u32]) -> u64 {
+        self.paths.node_blocks(query, objects)
     }
 
     /// The objects whose boxes meet `query` (level 1), from a cold cache.
@@ -156,5 +223,29 @@ mod tests {
             let warm = peer.warm_exact(&cache, &q).unwrap();
             assert_eq!((warm.objects, warm.reads.total), (exact, 0));
         }
+    }
+
+    #[test]
+    fn the_lower_bound_is_never_above_the_reads_and_counts_each_block_once() {
+        let scene = generate_scene(&GenOptions { preset: Preset::Tanker1, objects: None, seed: 0 }).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        // Small blocks: a tree several node blocks deep.
+        let peer = build_file(&scene, &dir.path().join("t1.mkt"), 2048, DEFAULT_LOD_LEVELS).unwrap();
+        let mut below = 0;
+        for share in [0.01, 0.05, 0.2, 1.0] {
+            for q in crate::random_boxes(&scene.aabb(), 20, share, 2) {
+                let (e, f) = (peer.exact(&q).unwrap(), peer.filter(&q).unwrap());
+                let exact = peer.answer_node_blocks(&q, &e.objects) + e.reads.geometry;
+                let filter = peer.answer_node_blocks(&q, &f.objects);
+                assert!(exact <= e.reads.total && filter <= f.reads.total, "{q:?}");
+                assert!(filter >= 1, "a query inside the scene reads the root's block at least");
+                below += usize::from(filter < f.reads.node);
+            }
+        }
+        assert!(below > 0, "some queries read node blocks that lead to no answer");
+        // The whole scene's answer: every node block, once.
+        let all: Vec<u32> = (0..scene.len() as u32).collect();
+        let whole = peer.filter(&scene.aabb()).unwrap();
+        assert_eq!(peer.answer_node_blocks(&scene.aabb(), &all), whole.reads.node);
     }
 }
