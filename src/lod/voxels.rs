@@ -102,12 +102,40 @@ impl Voxels {
                 m.push(t);
             }
         }
+        // Row by row (x fastest): a row's target row is found once, and
+        // each set cell is its word's next bit, with no division per cell.
+        let [dx, dy, dz] = from.dims().map(|d| d as usize);
         let to_grid = to.clone();
-        for i in self.set_cells() {
-            let c = from.coords(i);
-            target.set(to_grid.index([map[0][c[0] as usize], map[1][c[1] as usize], map[2][c[2] as usize]]));
+        for z in 0..dz {
+            for y in 0..dy {
+                let row = dx * (y + dy * z);
+                let base = to_grid.index([0, map[1][y], map[2][z]]);
+                for i in self.set_cells_in(row..row + dx) {
+                    target.set(base + map[0][i - row] as usize);
+                }
+            }
         }
         Ok(())
+    }
+
+    /// Linear indices of the set cells within `range`, in increasing order.
+    fn set_cells_in(&self, range: std::ops::Range<usize>) -> impl Iterator<Item = usize> + '_ {
+        let words = range.start / 64..range.end.div_ceil(64);
+        words.flat_map(move |wi| {
+            let lo = range.start.max(wi * 64) - wi * 64;
+            let hi = range.end.min(wi * 64 + 64) - wi * 64;
+            // Bits lo..hi of word wi (hi - lo is 1 to 64).
+            let mask = (u64::MAX >> (64 - (hi - lo))) << lo;
+            let mut w = self.bits[wi] & mask;
+            std::iter::from_fn(move || {
+                if w == 0 {
+                    return None;
+                }
+                let b = w.trailing_zeros() as usize;
+                w &= w - 1;
+                Some(wi * 64 + b)
+            })
+        })
     }
 
     /// True when every cell of this set, lifted into `other`'s grid, is set there.
@@ -219,5 +247,33 @@ mod tests {
         let p = |x, y, z| Point::new(x, y, z);
         assert!(v.intersects_triangle(&[p(0.9, 0.5, 0.5), p(1.9, 0.5, 0.5), p(1.9, 0.6, 0.5)]));
         assert!(!v.intersects_triangle(&[p(1.2, 0.5, 0.5), p(1.9, 0.5, 0.5), p(1.9, 0.6, 0.5)]));
+    }
+
+    proptest::proptest! {
+        /// Lifting row by row sets exactly the coarse cells holding the
+        /// centres of the fine set cells, on grids whose rows straddle words.
+        #[test]
+        fn lifting_sets_the_coarse_cells_holding_each_fine_cell(
+            lo in proptest::array::uniform3(0u8..20),
+            size in proptest::array::uniform3(1u8..24),
+            level in 1u8..4,
+            seeds in proptest::collection::vec(proptest::num::u64::ANY, 1..40),
+        ) {
+            let b = [lo[0], lo[1], lo[2], lo[0] + size[0], lo[1] + size[1], lo[2] + size[2]].map(f64::from);
+            let mut fine = Voxels::empty(grid(0, b));
+            let cells = fine.grid.cells() as usize;
+            for s in &seeds {
+                fine.set((*s % cells as u64) as usize);
+            }
+            let mut coarse = Voxels::empty(grid(level, [0.0, 0.0, 0.0, 48.0, 48.0, 48.0]));
+            fine.lift_into(&mut coarse).unwrap();
+            let mut want = Voxels::empty(coarse.grid.clone());
+            for i in fine.set_cells() {
+                let c = fine.grid.coords(i);
+                let centre = |a: usize| 0.5 * (fine.grid.plane(a, c[a]) + fine.grid.plane(a, c[a] + 1));
+                want.set_cell([0, 1, 2].map(|a| coarse.grid.cell_of(a, centre(a))));
+            }
+            proptest::prop_assert_eq!(coarse, want);
+        }
     }
 }
