@@ -24,6 +24,11 @@ fn one_line_error(out: &Output, says: &str) {
     assert!(stderr.contains(says), "{stderr}");
 }
 
+/// `clash-status` setting `status` on test "pipes"'s PIPE-1 / WALL-1 clash.
+fn set_pipe_1<'a>(mkt: &'a str, status: &'a str) -> [&'a str; 10] {
+    ["clash-status", mkt, "--test", "pipes", "--a", "PIPE-1", "--b", "WALL-1", "--set", status]
+}
+
 /// A wall, a pipe through it, a pipe 30 mm from it, a duct far away: as OBJ boxes keyed by name.
 fn model(dir: &Path) -> String {
     let boxes = [
@@ -104,37 +109,12 @@ fn a_recorded_test_keeps_statuses_that_clash_status_sets() {
     let first = ok(&mktree(&run));
     assert!(first.contains("\"status\":\"new\"") && first.contains("no recorded run"), "{first}");
     assert!(Path::new(&format!("{mkt}.clash")).exists());
-    ok(&mktree(&[
-        "clash-status",
-        &mkt,
-        "--test",
-        "pipes",
-        "--a",
-        "PIPE-1",
-        "--b",
-        "WALL-1",
-        "--set",
-        "approved",
-    ]));
+    ok(&mktree(&set_pipe_1(&mkt, "approved")));
     let again = ok(&mktree(&["clash", &mkt, "--test", "pipes", "--json"]));
     assert!(again.contains("\"status\":\"approved\"") && again.contains("incremental"), "{again}");
     let listed = ok(&mktree(&["clash-status", &mkt, "--test", "pipes"]));
     assert!(listed.contains("approved") && listed.contains("PIPE-1"), "{listed}");
-    one_line_error(
-        &mktree(&[
-            "clash-status",
-            &mkt,
-            "--test",
-            "pipes",
-            "--a",
-            "PIPE-1",
-            "--b",
-            "WALL-1",
-            "--set",
-            "resolved",
-        ]),
-        "a person sets",
-    );
+    one_line_error(&mktree(&set_pipe_1(&mkt, "resolved")), "a person sets");
     one_line_error(&mktree(&["clash-status", &mkt, "--test", "nothing"]), "no recorded run");
     // A damaged store is one line, not a panic.
     std::fs::write(format!("{mkt}.clash"), b"MKTCLASH garbage").unwrap();
@@ -153,18 +133,7 @@ fn a_status_set_while_another_process_writes_the_store_waits_and_both_changes_st
     let lock = mktree::clash::StoreLock::acquire(&path).unwrap();
     let mut store = lock.load().unwrap();
     let mut child = Command::new(env!("CARGO_BIN_EXE_mktree"))
-        .args([
-            "clash-status",
-            &mkt,
-            "--test",
-            "pipes",
-            "--a",
-            "PIPE-1",
-            "--b",
-            "WALL-1",
-            "--set",
-            "approved",
-        ])
+        .args(set_pipe_1(&mkt, "approved"))
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()

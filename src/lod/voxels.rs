@@ -62,17 +62,7 @@ impl Voxels {
 
     /// Linear indices of the set cells, in increasing order.
     pub(crate) fn set_cells(&self) -> impl Iterator<Item = usize> + '_ {
-        self.bits.iter().enumerate().flat_map(|(wi, &w)| {
-            let mut w = w;
-            std::iter::from_fn(move || {
-                if w == 0 {
-                    return None;
-                }
-                let b = w.trailing_zeros() as usize;
-                w &= w - 1;
-                Some(wi * 64 + b)
-            })
-        })
+        self.set_cells_in(0..self.bits.len() * 64)
     }
 
     /// ORs every set cell into the cell of `target`'s grid that contains it.
