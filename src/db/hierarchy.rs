@@ -74,6 +74,7 @@ pub fn read_hierarchy(txn: &ReadTransaction) -> Result<Hierarchy, StorageError> 
 /// Every node of the snapshot's tree (as [`read_hierarchy`] gives it) with
 /// the node block holding its record: what counts the node blocks on the
 /// paths to a query's answer, the part of its reads no traversal avoids.
+#[cfg(feature = "internals")]
 pub fn read_hierarchy_blocks(txn: &ReadTransaction) -> Result<(Hierarchy, Vec<u32>), StorageError> {
     let stored = read_layout(txn)?;
     Ok((stored.tree, stored.blocks))

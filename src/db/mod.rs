@@ -29,7 +29,9 @@ pub use check::{CheckReport, check};
 internal_use!(crate::tree::{method_from_code, method_to_code});
 pub use drift::LayoutDrift;
 pub use group::{GroupLevel, GroupSummary};
-internal_use!(hierarchy::{read_hierarchy, read_hierarchy_blocks});
+internal_use!(hierarchy::read_hierarchy);
+#[cfg(feature = "internals")]
+pub use hierarchy::read_hierarchy_blocks;
 internal_use!(drift::read_tree_and_drift);
 pub use crate::tree::{LodInfo, ReadTransaction, TreeInfo};
 pub(crate) use crate::tree::{Snapshot, view};
