@@ -2,10 +2,10 @@
 //! recorded run of each, with statuses and each object's fingerprint, in a
 //! sidecar file beside the .mkt file (`FILE.mkt.clash`). A versioned,
 //! checksummed envelope around the body (`body.rs`; version 1's
-//! JSON body is still read); written whole to a new file,
-//! synced and renamed over the old one, so a crash leaves the old store
-//! or the new one, by one writer at a time (`lock.rs`). Reading bounds the size before it allocates, checks
-//! the envelope, the checksum and every field.
+//! JSON body is still read); written whole to a new file, synced and
+//! renamed over the old one, so a crash leaves the old store or the new
+//! one, by one writer at a time (`lock.rs`). Reading bounds the size
+//! before it allocates, checks the envelope, the checksum and every field.
 
 mod body;
 mod lock;
