@@ -234,9 +234,8 @@ pub fn bench_scene(
         remove_if_present(path)?;
     }
     progress(&format!("{name}: building the mktree file"));
-    let started = Instant::now();
     let mkt = build_file(scene, &mkt_path, options.block_size, options.lod_levels)?;
-    let mktree_build_seconds = started.elapsed().as_secs_f64();
+    let mktree_build_seconds = mkt.build_seconds();
     progress(&format!("{name}: loading the SQLite file"));
     let started = Instant::now();
     let sql = SqlitePeer::load(scene, &sql_path, options.block_size)?;

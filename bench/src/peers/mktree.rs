@@ -7,6 +7,7 @@
 //! place the bench adapts to it.
 
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use mktree::bulk::BuildParams;
 use mktree::db::{CreateOptions, Database, ReadTransaction, read_hierarchy_blocks};
@@ -22,6 +23,7 @@ use crate::error::{BenchError, io};
 pub struct MktreePeer {
     path: PathBuf,
     block_size: u32,
+    build_seconds: f64,
     txn: ReadTransaction,
     paths: AnswerPaths,
     // Held for its file lock while the snapshot is read.
@@ -118,18 +120,26 @@ pub fn build_file(
     block_size: u32,
     lod_levels: u8,
 ) -> Result<MktreePeer, BenchError> {
+    let started = Instant::now();
     let db = Database::create(path, CreateOptions { block_size, lod_levels })?;
     let params = BuildParams::for_blocks(block_size);
     let mut w = db.begin_write()?;
     w.set_lod_params(LodParams::default());
     w.bulk_load(scene, &params, &|_| {})?;
     w.commit()?;
+    let build_seconds = started.elapsed().as_secs_f64();
     let txn = db.begin_read()?;
     let paths = AnswerPaths::of(&txn)?;
-    Ok(MktreePeer { path: path.to_path_buf(), block_size, txn, paths, _db: db })
+    Ok(MktreePeer { path: path.to_path_buf(), block_size, build_seconds, txn, paths, _db: db })
 }
 
 impl MktreePeer {
+    /// Seconds from creating the file to its build's commit (the bench's
+    /// own reading of the tree's paths left out).
+    pub fn build_seconds(&self) -> f64 {
+        self.build_seconds
+    }
+
     /// Bytes per block.
     pub fn block_size(&self) -> u32 {
         self.block_size
