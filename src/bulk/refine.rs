@@ -28,9 +28,11 @@
 //! of an axis often pick the same cut, and a cut can match the `vsah`
 //! one) are scored once: a score depends only on the two sides' objects.
 //!
-//! Measured and not kept (README, "Build methods and bench-build"): a cost
-//! mixing several query sizes, page-aligned cuts as extra options for
-//! fuller leaves, and one level of look-ahead below each option.
+//! Measured and not kept (docs/build-methods.md, "Tried and dropped"): a
+//! cost mixing several query sizes, page-aligned cuts as extra options for
+//! fuller leaves, one level of look-ahead below each option, and scoring a
+//! large node's options on a sample of its objects, which misses how full
+//! the leaves come out.
 
 use rayon::prelude::*;
 
