@@ -114,8 +114,9 @@ impl Voxels {
         words.flat_map(move |wi| {
             let lo = range.start.max(wi * 64) - wi * 64;
             let hi = range.end.min(wi * 64 + 64) - wi * 64;
-            // Bits lo..hi of word wi (hi - lo is 1 to 64).
-            let mask = (u64::MAX >> (64 - (hi - lo))) << lo;
+            // Bits lo..hi of word wi: none for an empty range, where the
+            // shift by 64 has no value.
+            let mask = u64::MAX.checked_shr((64 - (hi - lo)) as u32).unwrap_or(0) << lo;
             let mut w = self.bits[wi] & mask;
             std::iter::from_fn(move || {
                 if w == 0 {
@@ -264,6 +265,18 @@ mod tests {
                 want.set_cell([0, 1, 2].map(|a| coarse.grid.cell_of(a, centre(a))));
             }
             proptest::prop_assert_eq!(coarse, want);
+        }
+    }
+
+    #[test]
+    fn an_empty_range_has_no_set_cells_wherever_it_starts() {
+        let mut v = Voxels::empty(grid(0, [0.0, 0.0, 0.0, 20.0, 20.0, 1.0]));
+        for i in 0..v.grid.cells() as usize {
+            v.set(i);
+        }
+        for start in [0, 5, 63, 64, 70] {
+            assert_eq!(v.set_cells_in(start..start).count(), 0, "at {start}");
+            assert_eq!(v.set_cells_in(start..start + 1).collect::<Vec<_>>(), [start]);
         }
     }
 }
