@@ -1,5 +1,5 @@
 //! One writer of a clash store at a time (format-spec/clash-store.md,
-//! "Writers"). A run loads the store, measures for minutes on a large file,
+//! "Writing and crashes"). A run loads the store, measures for minutes on a large file,
 //! and writes the store back whole; a status set by another process in
 //! between would be lost under it. So a writer holds an exclusive lock on
 //! `STORE.lock` from before it loads until after it has saved.
