@@ -5,7 +5,8 @@
 //! transaction reads at most its path, the key index's and 2 blocks more;
 //! the file does not grow with the number of commits, nor much under a
 //! reader held through them; a leaf past its capacity splits and an emptied
-//! one merges in place ("Splits", "Merges"), and `optimize` lays the result
+//! one merges in place ("Splits", "Merges"), a block its records outgrow
+//! moves leaves or whole subtrees out, and `optimize` lays the result
 //! out as a bulk load does; and after each commit `check` passes and box
 //! queries answer as brute force does.
 
@@ -283,6 +284,38 @@ fn a_leaf_past_its_capacity_splits_in_place() {
         assert!(r.fetch_level(id, 1, true, &mut stats).is_ok(), "node {id} is not found");
     }
     assert!(r.fetch_level(after.nodes, 1, true, &mut stats).is_err());
+}
+
+#[test]
+fn an_upper_block_its_records_outgrow_moves_subtrees_out_in_place() {
+    // Moves of up to 2.5 m in 4 KiB blocks: the records on a moved
+    // object's path take frames of their own, until a block of internal
+    // records outgrows its block (5 of these 150 commits wrote the tree
+    // whole when only leaves could move out).
+    let scene =
+        generate_scene(&GenOptions { preset: Preset::Tanker2, objects: Some(3000), seed: 1 }).unwrap();
+    let options = CreateOptions { block_size: 4096, ..Default::default() };
+    let db = Database::create_on(Arc::new(MemDevice::new()), options).unwrap();
+    let mut w = db.begin_write().unwrap();
+    w.bulk_load(&scene, &BuildParams::for_blocks(4096), &|_| {}).unwrap();
+    w.commit().unwrap();
+    let mut model: Model =
+        scene.objects().iter().enumerate().map(|(i, o)| (Key::Int(i as u64), o.clone())).collect();
+    let mut s = 12345u64;
+    for i in 0..150 {
+        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        let key = Key::Int((s >> 33) % model.len() as u64);
+        let d = ((s >> 20) % 5000) as f64 - 2500.0;
+        let moved = shifted(&model[&key], [d, -d * 0.5, d * 0.3]);
+        let mut w = db.begin_write().unwrap();
+        w.update(moved.clone().with_key(key.clone())).unwrap();
+        let stats = w.commit_with_stats().unwrap();
+        assert!(stats.in_place, "commit {i} wrote the tree whole: {stats:?}");
+        model.insert(key, moved);
+        if i % 30 == 29 {
+            agrees(&db, &model);
+        }
+    }
 }
 
 #[test]

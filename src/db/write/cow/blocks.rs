@@ -32,13 +32,13 @@ impl WriteTransaction<'_> {
         for b in rw.order() {
             let old = rw.blocks[&b].clone();
             let mut drafts = rw.records(&old, mods)?;
-            let Some(moved) = rw.leaves_to_move(mods, b, &mut drafts, capacity)? else {
+            let Some(bins) = rw.records_to_move(mods, b, &mut drafts, capacity)? else {
                 return Ok(Err(Structural));
             };
-            let bins = share_blocks(&drafts, &moved, b, capacity);
-            self.write_moved(&bins, &drafts, b, bs, deltas, &mut rw.relocated)?;
-            drafts.retain(|(o, _)| !moved.contains(o));
-            self.write_block_anew(&old, drafts, &mut rw.relocated, bs, deltas, freed)?;
+            let (moving, kept): (Vec<_>, Vec<_>) =
+                drafts.into_iter().partition(|(o, _)| bins.iter().any(|(_, records)| records.contains(o)));
+            self.write_moved(&bins, moving, b, bs, deltas, &mut rw.relocated)?;
+            self.write_block_anew(&old, kept, &mut rw.relocated, bs, deltas, freed)?;
         }
         let root = rw
             .relocated
@@ -48,28 +48,29 @@ impl WriteTransaction<'_> {
         Ok(Ok(root))
     }
 
-    /// Writes the new blocks `bins` of the leaves moved out of block `b`
-    /// (their records in `drafts`), and notes where each went.
+    /// Writes the new blocks `bins` of the records moved out of block `b`
+    /// (`moving`), each reference they hold led to where its record went,
+    /// and notes where each went.
     fn write_moved(
         &mut self,
-        bins: &[(usize, Vec<u32>)],
-        drafts: &[(u32, Rec)],
+        bins: &[Bin],
+        mut moving: Vec<(u32, Rec)>,
         b: u32,
         bs: u32,
         deltas: &mut Deltas,
         relocated: &mut HashMap<(u32, u32), RecordRef>,
     ) -> Result<(), StorageError> {
         for (used, records) in bins {
-            let parts: Vec<RecordPart> = records
-                .iter()
-                .filter_map(|o| drafts.iter().find(|(x, _)| x == o))
-                .map(|(_, d)| d.part())
-                .collect();
-            let (id, checksum, offsets) = self.write_node_block(&parts, bs)?;
+            let (mut group, rest): (Vec<_>, Vec<_>) =
+                moving.into_iter().partition(|(o, _)| records.contains(o));
+            moving = rest;
+            let new_offset = renumber(&mut group, b, relocated)?;
+            let parts: Vec<RecordPart> = group.iter().map(|(_, d)| d.part()).collect();
+            let (id, checksum, _) = self.write_node_block(&parts, bs)?;
             deltas.node_bytes += *used as i64;
             deltas.node_blocks += 1;
-            for (&o, offset) in records.iter().zip(offsets) {
-                relocated.insert((b, o), RecordRef { block: id, checksum, offset });
+            for (o, _) in &group {
+                relocated.insert((b, *o), RecordRef { block: id, checksum, offset: new_offset[o] });
             }
         }
         Ok(())
@@ -214,30 +215,53 @@ impl Rewrite {
         Ok(drafts)
     }
 
-    /// The leaves block `b` moves out, largest first, until its records
-    /// `drafts` fit `capacity`; `None` when no leaf is left to move. A
-    /// block that no longer holds its records (a leaf grew, records took
-    /// frames of their own) moves leaves out, to new blocks they share: a
-    /// leaf has no children, so no other block's parent block changes.
-    fn leaves_to_move(
+    /// What block `b` moves out so that the rest of its records `drafts`
+    /// fit `capacity`, as new blocks of (bytes used, records); `None` when
+    /// nothing can. Leaves go while they can make room, largest first: a
+    /// leaf has no children, so no other block's parent block changes. A
+    /// block whose internal records alone outgrow it (an upper block whose
+    /// records took frames of their own) moves whole subtrees of its
+    /// records instead ([`pieces`]).
+    fn records_to_move(
         &mut self,
         mods: &mut HashMap<(u32, u32), Mod>,
         b: u32,
         drafts: &mut [(u32, Rec)],
         capacity: usize,
-    ) -> Result<Option<Vec<u32>>, StorageError> {
-        let mut moved: Vec<u32> = Vec::new();
-        let mut total: usize = drafts.iter().map(|(_, d)| d.part().encoded_len()).sum();
-        while total > capacity {
-            let candidate = drafts
+    ) -> Result<Option<Vec<Bin>>, StorageError> {
+        let len = |d: &Rec| d.part().encoded_len();
+        let mut total: usize = drafts.iter().map(|(_, d)| len(d)).sum();
+        if total <= capacity {
+            return Ok(Some(Vec::new()));
+        }
+        let leaves: usize = drafts.iter().filter(|(_, d)| d.is_leaf()).map(|(_, d)| len(d)).sum();
+        // The records whose subtrees move: the leaves, or each piece's root.
+        let (bins, tops) = if total - leaves <= capacity {
+            // Largest first; of equal ones, the last in the block.
+            let mut by_size: Vec<(usize, usize, u32)> = drafts
                 .iter()
-                .filter(|(o, d)| d.is_leaf() && !moved.contains(o))
-                .max_by_key(|(_, d)| d.part().encoded_len())
-                .map(|(o, d)| (*o, d.part().encoded_len()));
-            let Some((o, len)) = candidate else { return Ok(None) };
-            moved.push(o);
-            total -= len;
-            self.count_moved_leaf(mods, (b, o), drafts)?;
+                .enumerate()
+                .filter(|(_, (_, d))| d.is_leaf())
+                .map(|(i, (o, d))| (len(d), i, *o))
+                .collect();
+            by_size.sort_by_key(|&(len, i, _)| std::cmp::Reverse((len, i)));
+            let mut moved = Vec::new();
+            for (size, _, o) in by_size {
+                if total <= capacity {
+                    break;
+                }
+                moved.push(o);
+                total -= size;
+            }
+            (share_blocks(drafts, &moved, b, capacity), moved)
+        } else {
+            let Some(pieces) = pieces(drafts, b, capacity) else { return Ok(None) };
+            let (bins, tops): (Vec<Bin>, Vec<Vec<u32>>) =
+                pieces.into_iter().map(|p| ((p.bytes, p.records), p.tops)).unzip();
+            (bins, tops.concat())
+        };
+        for &top in &tops {
+            self.count_moved(mods, (b, top), drafts)?;
         }
         // The counts above changed drafts of this block too: take them again.
         for (o, d) in drafts.iter_mut() {
@@ -245,20 +269,21 @@ impl Rewrite {
                 *d = Rec::Draft(x);
             }
         }
-        Ok(Some(moved))
+        Ok(Some(bins))
     }
 
-    /// Counts the node block leaf `leaf` moves to in every entry above it:
-    /// in the changed records' drafts, in those of the leaf's block
-    /// (`drafts`), or for a record outside the changed paths in `extra`.
-    fn count_moved_leaf(
+    /// Counts the node block record `moved` (with its subtree in the block)
+    /// moves to in every entry above it: in the changed records' drafts, in
+    /// those of its block (`drafts`), or for a record outside the changed
+    /// paths in `extra`.
+    fn count_moved(
         &mut self,
         mods: &mut HashMap<(u32, u32), Mod>,
-        leaf: (u32, u32),
+        moved: (u32, u32),
         drafts: &mut [(u32, Rec)],
     ) -> Result<(), StorageError> {
-        let b = leaf.0;
-        let mut at = leaf;
+        let b = moved.0;
+        let mut at = moved;
         while let Some((p, c)) = match mods.get(&at) {
             Some(x) => x.parent,
             None if at == self.root_at => None,
@@ -292,7 +317,7 @@ impl Rewrite {
 /// named from another block moves alone. The counts of
 /// `Rewrite::leaves_to_move` took one block per leaf, which stays an
 /// upper bound.
-fn share_blocks(drafts: &[(u32, Rec)], moved: &[u32], b: u32, capacity: usize) -> Vec<(usize, Vec<u32>)> {
+fn share_blocks(drafts: &[(u32, Rec)], moved: &[u32], b: u32, capacity: usize) -> Vec<Bin> {
     let named_here = |o: u32| {
         drafts.iter().any(|(_, d)| match d {
             Rec::Draft(RecordDraft::Internal { children, .. }) => {
@@ -301,7 +326,7 @@ fn share_blocks(drafts: &[(u32, Rec)], moved: &[u32], b: u32, capacity: usize) -
             _ => false,
         })
     };
-    let mut bins: Vec<(usize, Vec<u32>)> = Vec::new();
+    let mut bins: Vec<Bin> = Vec::new();
     for &o in moved {
         let Some((_, d)) = drafts.iter().find(|(x, _)| *x == o) else { continue };
         let len = d.part().encoded_len();
@@ -317,6 +342,113 @@ fn share_blocks(drafts: &[(u32, Rec)], moved: &[u32], b: u32, capacity: usize) -
         }
     }
     bins
+}
+
+/// A new node block of moved records: its bytes used, and the records.
+type Bin = (usize, Vec<u32>);
+
+/// Records that move out of a block together, to a block of their own.
+struct Piece {
+    /// Their bytes.
+    bytes: usize,
+    /// Those whose parents stay behind.
+    tops: Vec<u32>,
+    /// All of them, in block order.
+    records: Vec<u32>,
+}
+
+/// Whole subtrees of block `b`'s records (records and every record below
+/// them in the block) to move out, each piece to a block of its own, until
+/// the rest of `drafts` fits `capacity`. Every block keeps one parent
+/// block (format-spec/node.md, "Packing"): a piece takes in the subtree of
+/// every other record that names one of its child blocks, its tops hang
+/// from one block (this one, or its parent block), and no piece holds
+/// another's parent. Of the pieces that fit a block and make room enough,
+/// the one closest to half the records goes; else the largest, and again.
+/// `None`: none fits.
+fn pieces(drafts: &[(u32, Rec)], b: u32, capacity: usize) -> Option<Vec<Piece>> {
+    let n = drafts.len();
+    let index: HashMap<u32, usize> = drafts.iter().enumerate().map(|(i, (o, _))| (*o, i)).collect();
+    let len: Vec<usize> = drafts.iter().map(|(_, d)| d.part().encoded_len()).collect();
+    let mut kids: Vec<Vec<usize>> = vec![Vec::new(); n];
+    let mut parent: Vec<Option<usize>> = vec![None; n];
+    // The records naming each other block.
+    let mut namers: HashMap<u32, Vec<usize>> = HashMap::default();
+    for (i, (_, d)) in drafts.iter().enumerate() {
+        let Rec::Draft(RecordDraft::Internal { children, .. }) = d else { continue };
+        for c in children {
+            match index.get(&c.at.offset) {
+                Some(&j) if c.at.block == 0 || c.at.block == b => {
+                    kids[i].push(j);
+                    parent[j] = Some(i);
+                }
+                _ => namers.entry(c.at.block).or_default().push(i),
+            }
+        }
+    }
+    let names: Vec<Vec<u32>> =
+        (0..n).map(|i| namers.iter().filter(|(_, v)| v.contains(&i)).map(|(&x, _)| x).collect()).collect();
+    // The piece from `top`: its subtree, grown by the subtree of each other
+    // namer of a block it names, until none is left out.
+    let piece = |top: usize| {
+        let mut member = vec![false; n];
+        let mut stack = vec![top];
+        while let Some(i) = stack.pop() {
+            if std::mem::replace(&mut member[i], true) {
+                continue;
+            }
+            stack.extend(&kids[i]);
+            stack.extend(names[i].iter().flat_map(|x| &namers[x]));
+        }
+        (0..n).filter(|&i| member[i]).collect::<Vec<usize>>()
+    };
+    let mut total: usize = len.iter().sum();
+    // In a piece taken, or above one.
+    let mut taken = vec![false; n];
+    let mut out = Vec::new();
+    while total > capacity {
+        let need = total - capacity;
+        // (makes room enough, then nearest half or largest; tops; records)
+        type Choice = ((bool, usize), Vec<usize>, Vec<usize>);
+        let mut best: Option<Choice> = None;
+        for top in (0..n).filter(|&i| !taken[i]) {
+            let members = piece(top);
+            let size: usize = members.iter().map(|&m| len[m]).sum();
+            if size > capacity || members.iter().any(|&m| taken[m]) {
+                continue;
+            }
+            let tops: Vec<usize> = members
+                .iter()
+                .copied()
+                .filter(|&m| parent[m].is_none_or(|p| !members.contains(&p)))
+                .collect();
+            let hung_here = tops.iter().filter(|&&t| parent[t].is_some()).count();
+            if hung_here != 0 && hung_here != tops.len() {
+                continue;
+            }
+            let score =
+                if size >= need { (true, usize::MAX - size.abs_diff(total / 2)) } else { (false, size) };
+            if best.as_ref().is_none_or(|(s, _, _)| score > *s) {
+                best = Some((score, tops, members));
+            }
+        }
+        let (_, tops, members) = best?;
+        for &t in &tops {
+            let mut up = Some(t);
+            while let Some(i) = up {
+                taken[i] = true;
+                up = parent[i];
+            }
+        }
+        let size: usize = members.iter().map(|&m| len[m]).sum();
+        for &m in &members {
+            taken[m] = true;
+        }
+        total -= size;
+        let offsets = |v: &[usize]| v.iter().map(|&m| drafts[m].0).collect::<Vec<u32>>();
+        out.push(Piece { bytes: size, tops: offsets(&tops), records: offsets(&members) });
+    }
+    Some(out)
 }
 
 /// The offsets of the records `drafts` in block `b` written anew, and
