@@ -52,11 +52,12 @@ pub const COLOUR_A: [u8; 3] = [214, 64, 56];
 /// The colour of B objects in a snapshot (RGB).
 pub const COLOUR_B: [u8; 3] = [72, 110, 190];
 
-/// The BCF 3.0 archive of `clashes` grouped by `groups`, with their
-/// `statuses` (all New when `None`), read from `txn` for the snapshots.
-pub fn export_bcf(
+/// The BCF 3.0 archive of `clashes` (clashes, or a recorded run's tracked
+/// clashes) grouped by `groups`, with their `statuses` (all New when
+/// `None`), read from `txn` for the snapshots.
+pub fn export_bcf<C: AsRef<Clash>>(
     txn: &ReadTransaction,
-    clashes: &[Clash],
+    clashes: &[C],
     statuses: Option<&[Status]>,
     groups: &[Group],
     opts: &BcfOptions,
@@ -83,7 +84,8 @@ pub fn export_bcf(
     let id_of =
         |k: &Key| entries.binary_search_by(|e| e.key.cmp(k)).ok().map(|i| ObjectId(entries[i].object_id));
     for g in groups {
-        let members: Vec<&Clash> = g.members.iter().filter_map(|&i| clashes.get(i)).collect();
+        let members: Vec<&Clash> =
+            g.members.iter().filter_map(|&i| clashes.get(i)).map(AsRef::as_ref).collect();
         let Some(first) = members.first() else { continue };
         let status = statuses.and_then(|s| g.members.first().map(|&i| s[i])).unwrap_or(Status::New);
         let a_keys: BTreeSet<&Key> = members.iter().map(|c| &c.a).collect();

@@ -86,19 +86,21 @@ fn point_array<S: serde::Serializer>(p: &Point, s: S) -> Result<S::Ok, S::Error>
     serde::Serialize::serialize(&[p.x, p.y, p.z], s)
 }
 
-/// Groups `clashes` by `by`.
-pub fn group(clashes: &[Clash], by: GroupBy) -> Vec<Group> {
+/// Groups `clashes` (clashes, or a recorded run's tracked clashes) by `by`.
+pub fn group<C: AsRef<Clash>>(clashes: &[C], by: GroupBy) -> Vec<Group> {
     let label: Vec<usize> = match by {
         GroupBy::None => (0..clashes.len()).collect(),
-        GroupBy::ObjectA => first_of(clashes.iter().map(|c| key_text(&c.a))),
-        GroupBy::KeyPrefix(n) => first_of(clashes.iter().map(|c| key_text(&c.a).chars().take(n).collect())),
+        GroupBy::ObjectA => first_of(clashes.iter().map(|c| key_text(&c.as_ref().a))),
+        GroupBy::KeyPrefix(n) => {
+            first_of(clashes.iter().map(|c| key_text(&c.as_ref().a).chars().take(n).collect()))
+        }
         GroupBy::Proximity(g) => proximity(clashes, g),
     };
     let mut groups: Vec<Group> = Vec::new();
     // Every label is a clash's index, so a group's place is found by
     // indexing, not hashing (1.5 million groups for a run on 10^6 objects).
     let mut at = vec![usize::MAX; clashes.len()];
-    for (i, c) in clashes.iter().enumerate() {
+    for (i, c) in clashes.iter().map(AsRef::as_ref).enumerate() {
         if at[label[i]] == usize::MAX {
             at[label[i]] = groups.len();
             groups.push(Group {
@@ -114,9 +116,10 @@ pub fn group(clashes: &[Clash], by: GroupBy) -> Vec<Group> {
         g.aabb = g.aabb.including(&c.point).union(&c.overlap.unwrap_or(Aabb::new(c.point, c.point)));
     }
     for g in &mut groups {
-        let sum = g.members.iter().fold(nalgebra::Vector3::zeros(), |s, &i| s + clashes[i].point.coords);
+        let sum =
+            g.members.iter().fold(nalgebra::Vector3::zeros(), |s, &i| s + clashes[i].as_ref().point.coords);
         g.point = Point::from(sum / g.members.len() as f64);
-        let first = &clashes[g.members[0]];
+        let first = clashes[g.members[0]].as_ref();
         g.name = match by {
             GroupBy::ObjectA => key_text(&first.a),
             GroupBy::KeyPrefix(n) => format!("{}*", key_text(&first.a).chars().take(n).collect::<String>()),
@@ -144,7 +147,7 @@ fn first_of(labels: impl Iterator<Item = String>) -> Vec<usize> {
 /// Single linkage of contact points within `g`: for each clash, the least
 /// index in its chain. Points are hashed to cells of side g, so each is
 /// compared with the points of its 27 neighbouring cells.
-fn proximity(clashes: &[Clash], g: f64) -> Vec<usize> {
+fn proximity<C: AsRef<Clash>>(clashes: &[C], g: f64) -> Vec<usize> {
     let mut parent: Vec<usize> = (0..clashes.len()).collect();
     fn root(p: &mut [usize], mut i: usize) -> usize {
         while p[i] != i {
@@ -158,17 +161,17 @@ fn proximity(clashes: &[Clash], g: f64) -> Vec<usize> {
         [p.x, p.y, p.z].map(|x| (x / s).floor().clamp(-1e15, 1e15) as i64)
     };
     let mut cells: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
-    for (i, c) in clashes.iter().enumerate() {
+    for (i, c) in clashes.iter().map(AsRef::as_ref).enumerate() {
         cells.entry(cell(&c.point)).or_default().push(i);
     }
-    for (i, c) in clashes.iter().enumerate() {
+    for (i, c) in clashes.iter().map(AsRef::as_ref).enumerate() {
         let k = cell(&c.point);
         for dx in -1..=1 {
             for dy in -1..=1 {
                 for dz in -1..=1 {
                     let Some(near) = cells.get(&[k[0] + dx, k[1] + dy, k[2] + dz]) else { continue };
                     for &j in near {
-                        if j < i && (clashes[j].point - c.point).norm() <= g {
+                        if j < i && (clashes[j].as_ref().point - c.point).norm() <= g {
                             let (ri, rj) = (root(&mut parent, i), root(&mut parent, j));
                             let (lo, hi) = (ri.min(rj), ri.max(rj));
                             parent[hi] = lo;

@@ -22,8 +22,8 @@ use serde::Serialize;
 
 use super::ClashError;
 use super::group::GroupBy;
-use super::run::{ClashRun, run_on, sort};
-use super::status::{Status, update};
+use super::run::{RunStats, run_on, sort};
+use super::status::{Status, Tracked, merge};
 use super::store::{ClashStore, Fingerprint, RecordedRun, SavedTest};
 use super::test::ClashTest;
 use crate::db::ReadTransaction;
@@ -50,14 +50,17 @@ pub enum RunMode {
     },
 }
 
-/// A run, recorded: its clashes and how it was made. Their statuses, with
-/// every clash recorded so far (resolved ones too), stay in the store's
-/// record of the run ([`ClashStore::runs`]), not copied here: a run on
-/// 10^6 objects tracks over a million.
+/// A run, recorded: what it did and how it was made. Its clashes, with
+/// their statuses and every clash recorded so far (resolved ones too), are
+/// the store's record of the run ([`ClashStore::runs`],
+/// [`RecordedRun::clashes`]), not copied here: a run on 10^6 objects
+/// tracks over a million.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Recorded {
-    /// The run.
-    pub run: ClashRun,
+    /// The commit the run read ([`ReadTransaction::txn`]).
+    pub txn: u64,
+    /// What the run did.
+    pub stats: RunStats,
     /// Full or incremental.
     pub mode: RunMode,
 }
@@ -101,7 +104,8 @@ pub fn rerun(
     test.validate()?;
     let entries = txn.key_entries(&mut crate::db::Reads::new(Some(txn.cache())))?;
     let why = if incremental { why_full(txn, test, previous) } else { Some("asked for a full run".into()) };
-    let (clashes, mut stats, mode) = match (why, previous) {
+    let txn_now = txn.txn();
+    let (tracked, mut stats, mode) = match (why, previous) {
         (None, Some(p)) => {
             // Keys whose (id, box) differ, are new, or are gone.
             let mut changed = vec![false; entries.len()];
@@ -139,35 +143,35 @@ pub fn rerun(
             let n_changed = changed.iter().filter(|&&c| c).count();
             let removed = touched.len() - n_changed;
             let (mut fresh, stats) = run_on(txn, test, &entries, Some(&changed), started)?;
-            let before = fresh.len();
-            fresh.extend(
-                p.tracked
-                    .iter()
-                    .filter(|t| t.status != Status::Resolved && t.last_txn == p.txn)
-                    .filter(|t| !touched.contains(&t.clash.a) && !touched.contains(&t.clash.b))
-                    .map(|t| t.clash.clone()),
-            );
-            let kept = fresh.len() - before;
             sort(&mut fresh);
-            (fresh, stats, RunMode::Incremental { changed: n_changed, removed, kept })
+            // The recorded clashes between unchanged objects stand: found
+            // again as they were, in place in the merge, not copied out.
+            let kept = |t: &Tracked| {
+                t.status != Status::Resolved
+                    && t.last_txn == p.txn
+                    && !touched.contains(&t.clash.a)
+                    && !touched.contains(&t.clash.b)
+            };
+            let n_kept = p.tracked.iter().filter(|t| kept(t)).count();
+            let tracked = merge(&p.tracked, fresh, kept, txn_now);
+            (tracked, stats, RunMode::Incremental { changed: n_changed, removed, kept: n_kept })
         }
         (why, _) => {
             let (c, s) = run_on(txn, test, &entries, None, started)?;
-            (c, s, RunMode::Full { why: why.unwrap_or_default() })
+            let tracked = merge(previous.map_or(&[][..], |p| &p.tracked), c, |_| false, txn_now);
+            (tracked, s, RunMode::Full { why: why.unwrap_or_default() })
         }
     };
     stats.seconds = started.elapsed().as_secs_f64();
-    let tracked = update(previous.map_or(&[][..], |p| &p.tracked), &clashes, txn.txn());
     let record = RecordedRun {
-        txn: txn.txn(),
+        txn: txn_now,
         test: test.clone(),
         tracked,
         object_ids: txn.object_ids(),
         build: txn.info().map_or(0, |i| i.build_seconds.to_bits()),
         objects: fingerprints(&entries),
     };
-    let run = ClashRun { txn: txn.txn(), clashes, stats };
-    Ok((Recorded { run, mode }, record))
+    Ok((Recorded { txn: txn_now, stats, mode }, record))
 }
 
 /// Runs the test `name` of `store` (saved, or `test` when given: it is

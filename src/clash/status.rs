@@ -79,6 +79,12 @@ pub struct Tracked {
     pub last_txn: u64,
 }
 
+impl AsRef<Clash> for Tracked {
+    fn as_ref(&self) -> &Clash {
+        &self.clash
+    }
+}
+
 /// The statuses after a run on commit `txn` found `clashes` (sorted), given
 /// those recorded before (`previous`). Resolved clashes stay listed.
 ///
@@ -87,6 +93,20 @@ pub struct Tracked {
 /// the answer comes out in that order. A `previous` out of order (a store
 /// written by something else) is sorted first.
 pub fn update(previous: &[Tracked], clashes: &[Clash], txn: u64) -> Vec<Tracked> {
+    merge(previous, clashes.iter().cloned(), |_| false, txn)
+}
+
+/// [`update`] with the run's clashes given in two parts: `found` (sorted),
+/// and the records of `previous` that `kept` holds, each found again as it
+/// was (a re-run's clashes between unchanged objects, which it does not
+/// copy out and sort in again). `kept` must hold no record whose clash
+/// `found` has.
+pub(crate) fn merge(
+    previous: &[Tracked],
+    found: impl IntoIterator<Item = Clash>,
+    kept: impl Fn(&Tracked) -> bool,
+    txn: u64,
+) -> Vec<Tracked> {
     let order = |x: &Clash, y: &Clash| (&x.a, &x.b, x.kind).cmp(&(&y.a, &y.b, y.kind));
     let previous: Cow<[Tracked]> = if previous.is_sorted_by(|x, y| order(&x.clash, &y.clash).is_le()) {
         Cow::Borrowed(previous)
@@ -95,17 +115,8 @@ pub fn update(previous: &[Tracked], clashes: &[Clash], txn: u64) -> Vec<Tracked>
         v.sort_by(|x, y| order(&x.clash, &y.clash));
         Cow::Owned(v)
     };
-    let mut out = Vec::with_capacity(clashes.len() + previous.len());
-    let mut old = previous.iter().peekable();
-    for c in clashes {
-        // Records before this clash are gone from the run: resolved.
-        while let Some(t) = old.next_if(|t| order(&t.clash, c).is_lt()) {
-            out.push(Tracked { status: Status::Resolved, ..t.clone() });
-        }
-        let mut seen = None;
-        while let Some(t) = old.next_if(|t| order(&t.clash, c).is_eq()) {
-            seen = Some(t);
-        }
+    // A record found again: its status carried, its commit this one.
+    let again = |clash: Clash, seen: Option<&Tracked>| {
         let (status, first_txn) = match seen {
             None => (Status::New, txn),
             Some(t) => match t.status {
@@ -114,9 +125,29 @@ pub fn update(previous: &[Tracked], clashes: &[Clash], txn: u64) -> Vec<Tracked>
                 Status::New | Status::Active => (Status::Active, t.first_txn),
             },
         };
-        out.push(Tracked { clash: c.clone(), status, first_txn, last_txn: txn });
+        Tracked { clash, status, first_txn, last_txn: txn }
+    };
+    // A record before the next clash found: kept, or gone from the run.
+    let unmatched = |t: &Tracked| {
+        if kept(t) {
+            again(t.clash.clone(), Some(t))
+        } else {
+            Tracked { status: Status::Resolved, ..t.clone() }
+        }
+    };
+    let mut out = Vec::with_capacity(previous.len());
+    let mut old = previous.iter().peekable();
+    for c in found {
+        while let Some(t) = old.next_if(|t| order(&t.clash, &c).is_lt()) {
+            out.push(unmatched(t));
+        }
+        let mut seen = None;
+        while let Some(t) = old.next_if(|t| order(&t.clash, &c).is_eq()) {
+            seen = Some(t);
+        }
+        out.push(again(c, seen));
     }
-    out.extend(old.map(|t| Tracked { status: Status::Resolved, ..t.clone() }));
+    out.extend(old.map(unmatched));
     out
 }
 

@@ -154,6 +154,12 @@ pub struct Clash {
     pub b_box: Aabb,
 }
 
+impl AsRef<Clash> for Clash {
+    fn as_ref(&self) -> &Clash {
+        self
+    }
+}
+
 impl Clash {
     /// A hard clash of depth 1 between integer keys `a` and `b` at point
     /// `p`, for the grouping and status tests.

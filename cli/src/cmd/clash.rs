@@ -10,8 +10,8 @@ use std::path::Path;
 use anyhow::{Result, bail};
 use mktree::clash::key_json::write_key_text;
 use mktree::clash::{
-    BcfOptions, Clash, ClashKind, ClashRun, ClashTest, DEFAULT_TOLERANCE, GroupBy, RunMode, SavedTest,
-    Selector, Status, TestKind, export_bcf, group, run_recorded, run_test, store_path,
+    BcfOptions, Clash, ClashKind, ClashTest, DEFAULT_TOLERANCE, GroupBy, RunMode, SavedTest, Selector,
+    Status, TestKind, export_bcf, group, run_recorded, run_test, store_path,
 };
 use mktree::query::{ClashOptions, clash};
 use serde_json::json;
@@ -103,7 +103,7 @@ pub fn typed(file: &Path, args: &ClashArgs, as_json: bool) -> Result<()> {
         let run = run_test(&r, &test)?;
         let groups = group(&run.clashes, group_by.unwrap_or_default());
         bcf(&r, args, &run.clashes, None, &groups, None)?;
-        return print(&run.clashes, None, &run, None, &groups, as_json);
+        return print(&run.clashes, None, run.txn, &run.stats, None, &groups, as_json);
     };
     let path = args.store.clone().unwrap_or_else(|| store_path(file));
     // Held from the load to the save: a status another process sets
@@ -122,18 +122,17 @@ pub fn typed(file: &Path, args: &ClashArgs, as_json: bool) -> Result<()> {
     drop(lock);
     let tracked = store.runs.remove(name).map(|run| run.tracked).unwrap_or_default();
     drop(store);
-    let (clashes, statuses): (Vec<Clash>, Vec<Status>) =
-        tracked.into_iter().map(|t| (t.clash, t.status)).unzip();
-    let groups = group(&clashes, group_by.unwrap_or_default());
-    bcf(&r, args, &clashes, Some(&statuses), &groups, Some(name))?;
-    print(&clashes, Some(&statuses), &rec.run, Some(&rec.mode), &groups, as_json)
+    let statuses: Vec<Status> = tracked.iter().map(|t| t.status).collect();
+    let groups = group(&tracked, group_by.unwrap_or_default());
+    bcf(&r, args, &tracked, Some(&statuses), &groups, Some(name))?;
+    print(&tracked, Some(&statuses), rec.txn, &rec.stats, Some(&rec.mode), &groups, as_json)
 }
 
 /// Writes the BCF export --bcf asks for.
-fn bcf(
+fn bcf<C: AsRef<Clash>>(
     r: &mktree::ReadTransaction,
     args: &ClashArgs,
-    clashes: &[Clash],
+    clashes: &[C],
     statuses: Option<&[Status]>,
     groups: &[mktree::clash::Group],
     label: Option<&str>,
@@ -145,12 +144,15 @@ fn bcf(
     Ok(())
 }
 
-/// Prints clashes (with their statuses, when recorded) grouped by `by`:
-/// JSON lines then a summary line, or a table then counts by type and status.
-fn print(
-    clashes: &[Clash],
+/// Prints clashes (with their statuses, when recorded) of the run on
+/// commit `txn` grouped by `by`: JSON lines then a summary line, or a
+/// table then counts by type and status.
+#[allow(clippy::too_many_arguments)]
+fn print<C: AsRef<Clash>>(
+    clashes: &[C],
     statuses: Option<&[Status]>,
-    run: &ClashRun,
+    txn: u64,
+    stats: &mktree::clash::RunStats,
     mode: Option<&RunMode>,
     groups: &[mktree::clash::Group],
     as_json: bool,
@@ -163,7 +165,7 @@ fn print(
     }
     let status = |i: usize| statuses.map(|s| s[i].name());
     let mut counts: BTreeMap<(&str, &str), usize> = BTreeMap::new();
-    for (i, c) in clashes.iter().enumerate() {
+    for (i, c) in clashes.iter().map(AsRef::as_ref).enumerate() {
         *counts.entry((c.kind.name(), status(i).unwrap_or("-"))).or_default() += 1;
     }
     let out = std::io::stdout();
@@ -178,7 +180,7 @@ fn print(
             group: usize,
             status: Option<&'a str>,
         }
-        for (i, clash) in clashes.iter().enumerate() {
+        for (i, clash) in clashes.iter().map(AsRef::as_ref).enumerate() {
             serde_json::to_writer(&mut out, &Row { clash, group: group_of[i], status: status(i) })?;
             out.write_all(b"\n")?;
         }
@@ -206,7 +208,7 @@ fn print(
             stats: &'a mktree::clash::RunStats,
         }
         let summary = Summary {
-            txn: run.txn,
+            txn,
             clashes: clashes.len(),
             groups: groups
                 .iter()
@@ -222,7 +224,7 @@ fn print(
                 .map(|(&(kind, status), &clashes)| Count { kind, status, clashes })
                 .collect(),
             mode,
-            stats: &run.stats,
+            stats,
         };
         #[derive(serde::Serialize)]
         struct Line<'a> {
@@ -236,7 +238,7 @@ fn print(
     // 10^6 objects has over a million rows.
     let mut cells = String::new();
     let mut ends: Vec<usize> = Vec::with_capacity(clashes.len() * 7);
-    for (i, c) in clashes.iter().enumerate() {
+    for (i, c) in clashes.iter().map(AsRef::as_ref).enumerate() {
         let measure = if c.kind == ClashKind::Clearance { c.distance } else { c.depth };
         write!(cells, "{}", group_of[i])?;
         ends.push(cells.len());
@@ -261,7 +263,7 @@ fn print(
     let rows: Vec<Vec<String>> =
         counts.iter().map(|((t, s), n)| vec![t.to_string(), s.to_string(), n.to_string()]).collect();
     output::table(&["type", "status", "clashes"], &rows);
-    let s = &run.stats;
+    let s = stats;
     let how = match mode {
         Some(RunMode::Incremental { changed, removed, kept }) => {
             format!("; incremental: {changed} changed, {removed} removed, {kept} clashes kept")
@@ -274,7 +276,7 @@ fn print(
          {:.1} ms (list {:.1}, read {:.1}, measure {:.1}){how}",
         clashes.len(),
         groups.len(),
-        run.txn,
+        txn,
         s.in_a,
         s.in_b,
         s.objects,

@@ -33,7 +33,29 @@ pub(super) fn encode_after(store: &ClashStore, mut head: Vec<u8>) -> Result<Vec<
     // Reserved up front: a run of 10^5 clashes is tens of megabytes.
     let records: usize = store.runs.values().map(|r| r.objects.len() * 64 + r.tracked.len() * 256).sum();
     head.reserve(records + 4096);
-    let mut w = Writer(head);
+    encode_into(store, &mut |chunk| {
+        head.extend_from_slice(chunk);
+        Ok(())
+    })?;
+    Ok(head)
+}
+
+/// The body of `store`, given to `sink` a chunk of about a megabyte at a
+/// time: a store of 10^6 clashes is written to its file without the
+/// hundreds of megabytes of a body in memory.
+pub(super) fn encode_into(
+    store: &ClashStore,
+    sink: &mut dyn FnMut(&[u8]) -> Result<(), String>,
+) -> Result<(), String> {
+    const CHUNK: usize = 1 << 20;
+    let mut w = Writer(Vec::with_capacity(CHUNK + 4096));
+    let mut flush = |w: &mut Writer, at_least: usize| {
+        if w.0.len() >= at_least {
+            sink(&w.0)?;
+            w.0.clear();
+        }
+        Ok::<(), String>(())
+    };
     w.json(&store.tests)?;
     w.u32(count(store.runs.len())?);
     for (name, run) in &store.runs {
@@ -48,6 +70,7 @@ pub(super) fn encode_after(store: &ClashStore, mut head: Vec<u8>) -> Result<Vec<
             w.key(&f.key);
             w.u32(f.id);
             w.f64s(&f.aabb);
+            flush(&mut w, CHUNK)?;
         }
         w.u32(count(run.tracked.len())?);
         for t in &run.tracked {
@@ -55,9 +78,10 @@ pub(super) fn encode_after(store: &ClashStore, mut head: Vec<u8>) -> Result<Vec<
             w.u8(status_code(t.status));
             w.u64(t.first_txn);
             w.u64(t.last_txn);
+            flush(&mut w, CHUNK)?;
         }
     }
-    Ok(w.0)
+    flush(&mut w, 1)
 }
 
 /// The store a body holds; the store's own checks (names, tests, key

@@ -11,14 +11,15 @@ mod body;
 mod lock;
 
 use std::collections::BTreeMap;
-use std::io::Write;
+use std::io::{Seek, Write};
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
 use super::ClashError;
 use super::group::GroupBy;
-use super::status::Tracked;
+use super::status::{Status, Tracked};
+use super::test::Clash;
 use super::test::{ClashTest, MAX_NAME};
 use crate::geom::Aabb;
 use crate::scene::Key;
@@ -83,6 +84,17 @@ pub struct RecordedRun {
     pub build: u64,
     /// Every object of the file then, in key order.
     pub objects: Vec<Fingerprint>,
+}
+
+impl RecordedRun {
+    /// The run's clashes, in (a, b, type) order: its tracked clashes that
+    /// it found (the resolved ones left out).
+    pub fn clashes(&self) -> impl Iterator<Item = &Clash> {
+        self.tracked
+            .iter()
+            .filter(|t| t.last_txn == self.txn && t.status != Status::Resolved)
+            .map(|t| &t.clash)
+    }
 }
 
 /// Saved tests and recorded runs, by test name.
@@ -193,12 +205,29 @@ impl ClashStore {
     /// one). Only through a [`StoreLock`], so that no other writer's
     /// changes are written over.
     fn write_to(&self, path: &Path) -> Result<(), ClashError> {
-        let bytes = self.to_bytes()?;
         let mut tmp = path.as_os_str().to_owned();
         tmp.push(".new");
         let tmp = PathBuf::from(tmp);
         let mut f = std::fs::File::create(&tmp).map_err(|e| ClashError::io(&tmp, e))?;
-        f.write_all(&bytes).map_err(|e| ClashError::io(&tmp, e))?;
+        // The body streams to the file behind a blank header, which is
+        // written once the body's length and checksum are known.
+        f.write_all(&[0; HEADER_LEN]).map_err(|e| ClashError::io(&tmp, e))?;
+        let (mut crc, mut len, mut failed) = (crc32fast::Hasher::new(), 0u64, None);
+        let encoded = body::encode_into(self, &mut |chunk| {
+            crc.update(chunk);
+            len += chunk.len() as u64;
+            f.write_all(chunk).map_err(|e| {
+                let why = e.to_string();
+                failed = Some(e);
+                why
+            })
+        });
+        if let Some(e) = failed {
+            return Err(ClashError::io(&tmp, e));
+        }
+        encoded.map_err(|e| ClashError::Test(format!("the store: {e}")))?;
+        f.seek(std::io::SeekFrom::Start(0)).map_err(|e| ClashError::io(&tmp, e))?;
+        f.write_all(&header_of(VERSION, len, crc.finalize())).map_err(|e| ClashError::io(&tmp, e))?;
         f.sync_all().map_err(|e| ClashError::io(&tmp, e))?;
         drop(f);
         std::fs::rename(&tmp, path).map_err(|e| ClashError::io(path, e))?;
@@ -222,15 +251,18 @@ pub fn envelope(version: u32, body: &[u8]) -> Vec<u8> {
 
 /// The header of a store of `version` whose body is `body`.
 fn header(version: u32, body: &[u8]) -> [u8; HEADER_LEN] {
+    header_of(version, body.len() as u64, crc32fast::hash(body))
+}
+
+fn header_of(version: u32, body_len: u64, body_crc: u32) -> [u8; HEADER_LEN] {
     let mut h = [0u8; HEADER_LEN];
     h[..8].copy_from_slice(&MAGIC);
     h[8..12].copy_from_slice(&version.to_le_bytes());
-    h[16..24].copy_from_slice(&(body.len() as u64).to_le_bytes());
-    h[24..28].copy_from_slice(&crc32fast::hash(body).to_le_bytes());
+    h[16..24].copy_from_slice(&body_len.to_le_bytes());
+    h[24..28].copy_from_slice(&body_crc.to_le_bytes());
     h
 }
 
-/// A grouping as its text.
 mod group_text {
     use super::GroupBy;
     use serde::{Deserialize, Deserializer, Serializer};
@@ -260,6 +292,34 @@ mod tests {
         };
         s.tests.insert("pipes-walls".into(), SavedTest { test, group: GroupBy::Proximity(500.0) });
         s
+    }
+
+    #[test]
+    fn a_store_streamed_to_its_file_is_the_bytes_of_to_bytes() {
+        // Megabytes of records, so that the body reaches the file in chunks.
+        let mut s = sample();
+        let tracked = (0..12_000u64)
+            .map(|i| Tracked {
+                clash: Clash::hard_at(i, i + 1, crate::geom::Point::new(i as f64, 0.5, -2.0)),
+                status: Status::Active,
+                first_txn: 2,
+                last_txn: 3,
+            })
+            .collect();
+        let objects =
+            (0..5_000u64).map(|i| Fingerprint { key: Key::Int(i), id: i as u32, aabb: [0.0; 6] }).collect();
+        let test = s.tests["pipes-walls"].test.clone();
+        s.runs.insert(
+            "pipes-walls".into(),
+            RecordedRun { txn: 3, test, tracked, object_ids: 9, build: 7, objects },
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.mkt.clash");
+        s.write_to(&path).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert!(bytes.len() > 2 << 20, "{} bytes", bytes.len());
+        assert_eq!(bytes, s.to_bytes().unwrap());
+        assert_eq!(ClashStore::load(&path).unwrap(), s);
     }
 
     #[test]
