@@ -533,3 +533,162 @@ fn parent_record(
 fn old_used(block: &Block) -> i64 {
     node::used_bytes(&block.bytes) as i64
 }
+
+#[cfg(test)]
+mod tests {
+    use std::collections::{BTreeMap, BTreeSet};
+
+    use proptest::prelude::*;
+
+    use super::*;
+    use crate::geom::Axis;
+    use crate::store::format::node::{ChildEntry, SplitInfo};
+
+    static BYTES: [u8; 4096] = [0; 4096];
+    /// The block the records are in.
+    const B: u32 = 9_999;
+
+    /// A child entry naming `block` (0: this block) at `offset`.
+    fn child(block: u32, offset: u32) -> ChildEntry {
+        ChildEntry {
+            qbox: [0; 6],
+            at: RecordRef { block, checksum: 0, offset },
+            node_blocks: 0,
+            geometry_blocks: 0,
+        }
+    }
+
+    /// A block's records, built bottom up from `seed`: a leaf of up to
+    /// `leaf_max` bytes, or an internal record whose two children are
+    /// records made before it and not yet named, or any of `blocks` other
+    /// blocks (shared between records). Those left unnamed are named from
+    /// the parent block.
+    fn block(seed: u64, records: usize, blocks: u32, leaf_max: usize) -> Vec<(u32, Rec<'static>)> {
+        let mut s = seed | 1;
+        let mut next = move |n: u64| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s % n.max(1)
+        };
+        let mut made: Vec<(u32, Rec<'static>)> = Vec::new();
+        let mut unnamed: Vec<u32> = Vec::new();
+        for i in 0..records {
+            let offset = 64 + 16 * i as u32;
+            let rec = if next(3) == 0 {
+                Rec::Stored(&BYTES[..16 + next(leaf_max as u64) as usize])
+            } else {
+                let mut pick = || {
+                    if !unnamed.is_empty() && next(3) != 0 {
+                        child(0, unnamed.swap_remove(next(unnamed.len() as u64) as usize))
+                    } else {
+                        child(1 + next(u64::from(blocks)) as u32, 64)
+                    }
+                };
+                let children = [pick(), pick()];
+                Rec::Draft(RecordDraft::Internal {
+                    node_id: i as u32,
+                    object_count: 2,
+                    split: SplitInfo { axis: Axis::X, order: 0, overlap: 0.0, gap: 0.0 },
+                    children,
+                    frame: None,
+                })
+            };
+            made.push((offset, rec));
+            unnamed.push(offset);
+        }
+        made.reverse();
+        made
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 512, ..ProptestConfig::default() })]
+
+        /// Whatever pieces a block moves out, the rest fits, each fits a
+        /// block, and every block, old or new, keeps one parent block.
+        #[test]
+        fn pieces_leave_the_rest_fitting_and_every_block_one_parent_block(
+            seed in any::<u64>(),
+            records in 2usize..40,
+            blocks in 1u32..8,
+            leaf_max in 1usize..600,
+            share in 0.2f64..1.0,
+        ) {
+            let drafts = block(seed, records, blocks, leaf_max);
+            let len: BTreeMap<u32, usize> = drafts.iter().map(|(o, d)| (*o, d.part().encoded_len())).collect();
+            let total: usize = len.values().sum();
+            let capacity = ((total as f64 * share) as usize).max(1);
+            let Some(pieces) = pieces(&drafts, B, capacity) else { return Ok(()) };
+            // Where each record ends: 0 stays, k + 1 in piece k.
+            let mut home: BTreeMap<u32, usize> = drafts.iter().map(|(o, _)| (*o, 0)).collect();
+            for (k, p) in pieces.iter().enumerate() {
+                prop_assert!(p.bytes <= capacity);
+                prop_assert_eq!(p.bytes, p.records.iter().map(|o| len[o]).sum::<usize>());
+                for o in &p.records {
+                    prop_assert_eq!(home.insert(*o, k + 1), Some(0), "record {} in two pieces", o);
+                }
+            }
+            let kept: usize = home.iter().filter(|(_, h)| **h == 0).map(|(o, _)| len[o]).sum();
+            prop_assert!(kept <= capacity, "{} bytes left in a block of {}", kept, capacity);
+            // Each block's namers, by where they end: the parent block is usize::MAX.
+            let mut namers: BTreeMap<(u32, u32), BTreeSet<usize>> = BTreeMap::new();
+            let mut named: BTreeSet<u32> = BTreeSet::new();
+            for (o, d) in &drafts {
+                let Rec::Draft(RecordDraft::Internal { children, .. }) = d else { continue };
+                for c in children {
+                    // A record of this block names a new block where its child went.
+                    let target = if c.at.block == 0 {
+                        named.insert(c.at.offset);
+                        if home[&c.at.offset] == home[o] {
+                            continue;
+                        }
+                        (0, home[&c.at.offset] as u32)
+                    } else {
+                        (c.at.block, 0)
+                    };
+                    namers.entry(target).or_default().insert(home[o]);
+                }
+            }
+            for (o, h) in &home {
+                if !named.contains(o) && *h != 0 {
+                    namers.entry((0, *h as u32)).or_default().insert(usize::MAX);
+                }
+            }
+            for ((block, piece), from) in &namers {
+                prop_assert!(from.len() == 1, "block {} / piece {} named from {:?}", block, piece, from);
+            }
+        }
+    }
+
+    #[test]
+    fn an_upper_block_of_internal_records_moves_a_subtree_out() {
+        // A record over two, each over two other blocks: one of the two goes.
+        let internal = |children| {
+            Rec::Draft(RecordDraft::Internal {
+                node_id: 0,
+                object_count: 2,
+                split: SplitInfo { axis: Axis::X, order: 0, overlap: 0.0, gap: 0.0 },
+                children,
+                frame: None,
+            })
+        };
+        let drafts = vec![
+            (64, internal([child(0, 200), child(0, 300)])),
+            (200, internal([child(1, 64), child(2, 64)])),
+            (300, internal([child(3, 64), child(4, 64)])),
+        ];
+        let total: usize = drafts.iter().map(|(_, d)| d.part().encoded_len()).sum();
+        let moved = pieces(&drafts, B, total - 1).expect("a piece moves out");
+        assert_eq!(moved.len(), 1);
+        assert!(moved[0].records == [200] || moved[0].records == [300], "{:?}", moved[0].records);
+        // Blocks 1 and 2 named from a record each of two: none can move alone.
+        let drafts = vec![
+            (64, internal([child(0, 200), child(0, 300)])),
+            (200, internal([child(1, 64), child(2, 64)])),
+            (300, internal([child(1, 64), child(2, 64)])),
+        ];
+        let moved = pieces(&drafts, B, total - 1).expect("both go together");
+        assert_eq!(moved[0].records, [200, 300]);
+        assert_eq!(moved[0].tops, [200, 300]);
+    }
+}
