@@ -25,6 +25,23 @@ pub fn opt(x: Option<f64>) -> String {
     x.map_or_else(|| "-".to_string(), |v| format!("{v:.6}"))
 }
 
+/// Writes `x` as `{:.0}` formats it (ties to even, `-0` for a negative
+/// that rounds to zero) through integer formatting where `x` is within
+/// i64: the float formatter's exact digits were 8% of a clash re-run's
+/// table of 1.5 million rows.
+pub fn write_whole(out: &mut String, x: f64) {
+    use std::fmt::Write as _;
+    let r = x.round_ties_even();
+    // Writing to a String cannot fail.
+    let _ = if r.abs() >= 1e15 || r.is_nan() {
+        write!(out, "{x:.0}")
+    } else if r == 0.0 && x.is_sign_negative() {
+        write!(out, "-0")
+    } else {
+        write!(out, "{}", r as i64)
+    };
+}
+
 /// Prints rows as right-aligned columns under a header.
 pub fn table(header: &[&str], rows: &[Vec<String>]) {
     table_of(header, rows.len(), |r| rows[r].iter().map(String::as_str));
@@ -185,4 +202,36 @@ pub fn write_png(img: &Image, out: &Path) -> Result<()> {
     w.write_image_data(&img.rgb).with_context(|| format!("writing {}", out.display()))?;
     w.finish().with_context(|| format!("writing {}", out.display()))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn write_whole_writes_what_the_float_formatter_writes() {
+        let mut values =
+            vec![0.0, -0.0, 0.5, -0.5, 1.5, 2.5, -2.5, 0.49999999999999994, -0.3, 1e15, -1e15, 9.9e14];
+        values.extend([
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            4503599627370495.5,
+            1e300,
+            f64::MIN_POSITIVE,
+        ]);
+        let mut s = 0x9e37_79b9_7f4a_7c15u64;
+        for _ in 0..100_000 {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            let scale = 10f64.powi((s % 17) as i32 - 2);
+            let x = (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
+            values.push(x * scale);
+            values.push((x * scale * 2.0).round() / 2.0);
+        }
+        for x in values {
+            let mut got = String::new();
+            super::write_whole(&mut got, x);
+            assert_eq!(got, format!("{x:.0}"), "{x:e}");
+        }
+    }
 }

@@ -15,7 +15,7 @@
 //! reads every key block (O(N) small reads, no geometry); the measuring
 //! grows with the changed objects.
 
-use std::collections::HashSet;
+use rustc_hash::FxHashSet as HashSet;
 use std::time::Instant;
 
 use serde::Serialize;
@@ -109,7 +109,7 @@ pub fn rerun(
         (None, Some(p)) => {
             // Keys whose (id, box) differ, are new, or are gone.
             let mut changed = vec![false; entries.len()];
-            let mut touched: HashSet<&Key> = HashSet::new();
+            let mut touched: HashSet<&Key> = HashSet::default();
             let (mut i, mut j) = (0, 0);
             while i < entries.len() || j < p.objects.len() {
                 let e = entries.get(i);

@@ -252,7 +252,12 @@ fn print<C: AsRef<Clash>>(
         }
         write!(cells, "{measure:.3}")?;
         ends.push(cells.len());
-        write!(cells, "{:.0} {:.0} {:.0}", c.point.x, c.point.y, c.point.z)?;
+        for (k, x) in [c.point.x, c.point.y, c.point.z].into_iter().enumerate() {
+            if k > 0 {
+                cells.push(' ');
+            }
+            output::write_whole(&mut cells, x);
+        }
         ends.push(cells.len());
     }
     drop(out);
