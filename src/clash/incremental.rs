@@ -53,7 +53,7 @@ pub enum RunMode {
 /// A run, recorded: what it did and how it was made. Its clashes, with
 /// their statuses and every clash recorded so far (resolved ones too), are
 /// the store's record of the run ([`ClashStore::runs`],
-/// [`RecordedRun::clashes`]), not copied here: a run on 10^6 objects
+/// `RecordedRun::clashes`), not copied here: a run on 10^6 objects
 /// tracks over a million.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Recorded {
