@@ -160,9 +160,28 @@ pub fn moto() -> Option<Server> {
     Some(Server { child, port, dir })
 }
 
+/// A connection to 127.0.0.1:`port`, tried again for up to 5 s while it is
+/// refused: once (of many CI runs) a moto server that had answered the
+/// start-up check refused the test's first request a second later.
+fn connect(port: u16) -> TcpStream {
+    let start = Instant::now();
+    loop {
+        match TcpStream::connect(("127.0.0.1", port)) {
+            Ok(s) => return s,
+            Err(e)
+                if e.kind() == std::io::ErrorKind::ConnectionRefused
+                    && start.elapsed() < Duration::from_secs(5) =>
+            {
+                std::thread::sleep(Duration::from_millis(100));
+            }
+            Err(e) => panic!("connect to 127.0.0.1:{port}: {e}"),
+        }
+    }
+}
+
 /// One HTTP/1.1 request to 127.0.0.1:`port`; the status code.
 pub fn http(port: u16, method: &str, path: &str, body: &[u8]) -> u16 {
-    let mut s = TcpStream::connect(("127.0.0.1", port)).expect("connect");
+    let mut s = connect(port);
     let head = format!(
         "{method} {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
         body.len()
