@@ -152,13 +152,12 @@ pub fn rerun(
                     && !touched.contains(&t.clash.a)
                     && !touched.contains(&t.clash.b)
             };
-            let n_kept = p.tracked.iter().filter(|t| kept(t)).count();
-            let tracked = merge(&p.tracked, fresh, kept, txn_now);
+            let (tracked, n_kept) = merge(&p.tracked, fresh, kept, txn_now);
             (tracked, stats, RunMode::Incremental { changed: n_changed, removed, kept: n_kept })
         }
         (why, _) => {
             let (c, s) = run_on(txn, test, &entries, None, started)?;
-            let tracked = merge(previous.map_or(&[][..], |p| &p.tracked), c, |_| false, txn_now);
+            let (tracked, _) = merge(previous.map_or(&[][..], |p| &p.tracked), c, |_| false, txn_now);
             (tracked, s, RunMode::Full { why: why.unwrap_or_default() })
         }
     };

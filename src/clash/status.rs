@@ -93,20 +93,20 @@ impl AsRef<Clash> for Tracked {
 /// the answer comes out in that order. A `previous` out of order (a store
 /// written by something else) is sorted first.
 pub fn update(previous: &[Tracked], clashes: &[Clash], txn: u64) -> Vec<Tracked> {
-    merge(previous, clashes.iter().cloned(), |_| false, txn)
+    merge(previous, clashes.iter().cloned(), |_| false, txn).0
 }
 
 /// [`update`] with the run's clashes given in two parts: `found` (sorted),
 /// and the records of `previous` that `kept` holds, each found again as it
 /// was (a re-run's clashes between unchanged objects, which it does not
 /// copy out and sort in again). `kept` must hold no record whose clash
-/// `found` has.
+/// `found` has. Returns the records and how many `kept` held.
 pub(crate) fn merge(
     previous: &[Tracked],
     found: impl IntoIterator<Item = Clash>,
     kept: impl Fn(&Tracked) -> bool,
     txn: u64,
-) -> Vec<Tracked> {
+) -> (Vec<Tracked>, usize) {
     let order = |x: &Clash, y: &Clash| (&x.a, &x.b, x.kind).cmp(&(&y.a, &y.b, y.kind));
     let previous: Cow<[Tracked]> = if previous.is_sorted_by(|x, y| order(&x.clash, &y.clash).is_le()) {
         Cow::Borrowed(previous)
@@ -128,8 +128,10 @@ pub(crate) fn merge(
         Tracked { clash, status, first_txn, last_txn: txn }
     };
     // A record before the next clash found: kept, or gone from the run.
+    let held = std::cell::Cell::new(0);
     let unmatched = |t: &Tracked| {
         if kept(t) {
+            held.set(held.get() + 1);
             again(t.clash.clone(), Some(t))
         } else {
             Tracked { status: Status::Resolved, ..t.clone() }
@@ -148,7 +150,7 @@ pub(crate) fn merge(
         out.push(again(c, seen));
     }
     out.extend(old.map(unmatched));
-    out
+    (out, held.get())
 }
 
 /// Sets the status of the clashes of `tracked` between `a` and `b` (of

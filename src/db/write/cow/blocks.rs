@@ -315,7 +315,7 @@ impl Rewrite {
 /// stay in this block share new blocks, first fit, so that each new block
 /// is named from this one only (format-spec/node.md, "Packing"); a leaf
 /// named from another block moves alone. The counts of
-/// `Rewrite::leaves_to_move` took one block per leaf, which stays an
+/// `Rewrite::records_to_move` took one block per leaf, which stays an
 /// upper bound.
 fn share_blocks(drafts: &[(u32, Rec)], moved: &[u32], b: u32, capacity: usize) -> Vec<Bin> {
     let named_here = |o: u32| {
@@ -372,7 +372,8 @@ fn pieces(drafts: &[(u32, Rec)], b: u32, capacity: usize) -> Option<Vec<Piece>> 
     let len: Vec<usize> = drafts.iter().map(|(_, d)| d.part().encoded_len()).collect();
     let mut kids: Vec<Vec<usize>> = vec![Vec::new(); n];
     let mut parent: Vec<Option<usize>> = vec![None; n];
-    // The records naming each other block.
+    // The other blocks each record names, and the records naming each.
+    let mut names: Vec<Vec<u32>> = vec![Vec::new(); n];
     let mut namers: HashMap<u32, Vec<usize>> = HashMap::default();
     for (i, (_, d)) in drafts.iter().enumerate() {
         let Rec::Draft(RecordDraft::Internal { children, .. }) = d else { continue };
@@ -382,12 +383,13 @@ fn pieces(drafts: &[(u32, Rec)], b: u32, capacity: usize) -> Option<Vec<Piece>> 
                     kids[i].push(j);
                     parent[j] = Some(i);
                 }
-                _ => namers.entry(c.at.block).or_default().push(i),
+                _ => {
+                    names[i].push(c.at.block);
+                    namers.entry(c.at.block).or_default().push(i);
+                }
             }
         }
     }
-    let names: Vec<Vec<u32>> =
-        (0..n).map(|i| namers.iter().filter(|(_, v)| v.contains(&i)).map(|(&x, _)| x).collect()).collect();
     // The piece from `top`: its subtree, grown by the subtree of each other
     // namer of a block it names, until none is left out.
     let piece = |top: usize| {
