@@ -17,9 +17,9 @@
 //! - [`same_within`]: every vertex of each within a tolerance of the
 //!   other's surface (duplicates).
 
-use super::contact::{flat_axis, inside_2d, segment_meets_triangle, side3, strictly_one_side};
+use super::contact::{Facet, facets_meet, inside_2d, segment_meets_triangle, strictly_one_side};
 use super::parry::closest_points_triangle_triangle;
-use super::{Aabb, Point, SurfaceDistance, intersects_triangle_triangle};
+use super::{Aabb, Point, SurfaceDistance};
 
 /// How two meshes, as solids, overlap.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -62,24 +62,34 @@ fn inside(p: &Point, triangles: &[[Point; 3]]) -> bool {
     winding_number(p, triangles).abs() > 0.5
 }
 
-/// A triangle with its box.
-struct Boxed<'a> {
-    t: &'a [Point; 3],
+/// A triangle (`T`: its corners, or a [`Facet`]) with its box.
+struct Boxed<T> {
+    t: T,
     b: Aabb,
 }
 
-/// The triangles of `ts` whose boxes meet `window` grown by `d`, sorted by their boxes' lower x.
-fn near<'a>(ts: &'a [[Point; 3]], window: &Aabb, d: f64) -> Vec<Boxed<'a>> {
+/// The triangles of `ts` whose boxes meet `window` grown by `d`, each made
+/// into a `T` by `make`, sorted by their boxes' lower x.
+fn near<'a, T>(
+    ts: &'a [[Point; 3]],
+    window: &Aabb,
+    d: f64,
+    make: impl Fn(&'a [Point; 3]) -> T,
+) -> Vec<Boxed<T>> {
     let w = window.grown(d);
-    let mut v: Vec<Boxed> =
-        ts.iter().map(|t| Boxed { t, b: Aabb::from_points(t) }).filter(|x| x.b.intersects(&w)).collect();
+    let mut v: Vec<Boxed<T>> = ts
+        .iter()
+        .map(|t| (t, Aabb::from_points(t)))
+        .filter(|(_, b)| b.intersects(&w))
+        .map(|(t, b)| Boxed { t: make(t), b })
+        .collect();
     v.sort_by(|x, y| x.b.min.x.total_cmp(&y.b.min.x));
     v
 }
 
 /// Every pair (i, j) of `a` and `b` (each sorted by lower x) whose boxes
 /// lie within `d` of each other, by a sweep along x.
-fn pairs(a: &[Boxed], b: &[Boxed], d: f64, mut f: impl FnMut(&Boxed, &Boxed)) {
+fn pairs<T>(a: &[Boxed<T>], b: &[Boxed<T>], d: f64, mut f: impl FnMut(&Boxed<T>, &Boxed<T>)) {
     let mut start = 0;
     for x in a {
         // Probes come by increasing lower x: a triangle wholly left of this
@@ -98,10 +108,11 @@ fn pairs(a: &[Boxed], b: &[Boxed], d: f64, mut f: impl FnMut(&Boxed, &Boxed)) {
     }
 }
 
-/// Where closed segment `pq` crosses triangle `t` (which has area), added to `out`.
-fn crossings(p: &Point, q: &Point, t: &[Point; 3], out: &mut Aabb) {
-    let Some(along) = flat_axis(t) else { return };
-    let (sp, sq) = (side3(&t[0], &t[1], &t[2], p), side3(&t[0], &t[1], &t[2], q));
+/// Where closed segment `pq` crosses the facet (if it has area), added to `out`.
+fn crossings(p: &Point, q: &Point, f: &Facet, out: &mut Aabb) {
+    let Some(along) = f.flat() else { return };
+    let t = &f.t;
+    let (sp, sq) = (f.side(p), f.side(q));
     if strictly_one_side(&[sp, sq]) {
         return;
     }
@@ -168,17 +179,17 @@ pub fn overlap(a: &[[Point; 3]], b: &[[Point; 3]]) -> Overlap {
         return none;
     }
     let window = Aabb::new(ba.min.sup(&bb.min), ba.max.inf(&bb.max));
-    let (na, nb) = (near(a, &window, 0.0), near(b, &window, 0.0));
+    let (na, nb) = (near(a, &window, 0.0, Facet::new), near(b, &window, 0.0, Facet::new));
     let mut contact = false;
     let mut region = Aabb::EMPTY;
     pairs(&na, &nb, 0.0, |x, y| {
-        if !intersects_triangle_triangle(x.t, y.t) {
+        if !facets_meet(&x.t, &y.t) {
             return;
         }
         contact = true;
-        for (s, t) in [(x.t, y.t), (y.t, x.t)] {
+        for (s, f) in [(&x.t.t, &y.t), (&y.t.t, &x.t)] {
             for (p, q) in [(&s[0], &s[1]), (&s[1], &s[2]), (&s[2], &s[0])] {
-                crossings(p, q, t, &mut region);
+                crossings(p, q, f, &mut region);
             }
         }
     });
@@ -223,7 +234,7 @@ pub fn closest(a: &[[Point; 3]], b: &[[Point; 3]], limit: f64) -> Option<(f64, P
     if !ba.within(&bb, limit) {
         return None;
     }
-    let (na, nb) = (near(a, &bb, limit), near(b, &ba, limit));
+    let (na, nb) = (near(a, &bb, limit, |t| t), near(b, &ba, limit, |t| t));
     let mut best: Option<(f64, Point, Point)> = None;
     pairs(&na, &nb, limit, |x, y| {
         let bound = best.map_or(limit, |b| b.0);
