@@ -137,6 +137,8 @@ def main() -> int:
     ap.add_argument("--work", default=None, help="folder for the .mkt file (default: a temporary one)")
     ap.add_argument("--out", default=None, help="write the report here as JSON")
     ap.add_argument("--skip-ifcclash", action="store_true")
+    ap.add_argument("--lod-levels", type=int, default=4,
+                    help="M of mktree's file (1: no levels of detail, a file for clash tests alone)")
     ap.add_argument("--rerun-only", action="store_true",
                     help="reuse the .mkt file of an earlier run in --work: only the re-run after 100 moves")
     args = ap.parse_args()
@@ -144,14 +146,16 @@ def main() -> int:
     import mktree.ifc
 
     work = args.work or tempfile.mkdtemp()
+    os.makedirs(work, exist_ok=True)
     mkt = os.path.join(work, "model.mkt")
     for f in [mkt + ".clash"] + ([] if args.rerun_only else [mkt]):
         if os.path.exists(f):
             os.remove(f)
     started = time.perf_counter()
-    n = 0 if args.rerun_only else mktree.ifc.load(args.model, mkt)
+    n = 0 if args.rerun_only else mktree.ifc.load(args.model, mkt, lod_levels=args.lod_levels)
     import_s = time.perf_counter() - started
-    report: Dict[str, Any] = {"model": args.model, "elements": n, "mktree_import_s": import_s, "runs": []}
+    report: Dict[str, Any] = {"model": args.model, "elements": n, "lod_levels": args.lod_levels,
+                              "mktree_import_s": import_s, "runs": []}
     print(f"mktree import: {n} elements in {import_s:.2f} s", flush=True)
 
     everything, _, _ = ({}, None, None) if args.rerun_only else mktree_run(args.mktree, mkt, "--type", "clearance", "--distance", "50",

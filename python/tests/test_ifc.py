@@ -103,6 +103,33 @@ def test_a_model_without_shapes_loads_nothing(tmp_path: Path) -> None:
     assert list(mktree.ifc.shapes(model)) == []
 
 
+def test_a_file_for_clash_tests_alone_has_no_levels_and_the_same_answers(
+    plant: "tuple[Any, Path]", tmp_path: Path
+) -> None:
+    model, path = plant
+    out = tmp_path / "clash-only.mkt"
+    subprocess.run([sys.executable, "-m", "mktree.ifc", str(path), "-o", str(out), "--lod-levels", "1"],
+                   capture_output=True, text=True, check=True)
+    full = tmp_path / "full.mkt"
+    mktree.ifc.load(model, full)
+    with mktree.open(out, read_only=True) as one, mktree.open(full, read_only=True) as four:
+        assert (one.lod_levels, four.lod_levels) == (1, 4)
+        box = ((0.0, 0.0, -500.0), (20000.0, 20000.0, 3000.0))
+        assert sorted(one.read().box(*box).keys) == sorted(four.read().box(*box).keys)
+        assert one.check().ok
+
+
+def test_names_none_and_empty_stay_as_the_model_has_them(tmp_path: Path) -> None:
+    model = make_plant(1)
+    walls = model.by_type("IfcWall")
+    walls[0].Name = None
+    walls[1].Name = ""
+    objects = {o.key: o for o in mktree.ifc.shapes(model)}
+    assert objects[walls[0].GlobalId].payload == {"class": "IfcWall", "name": None}
+    assert objects[walls[1].GlobalId].payload == {"class": "IfcWall", "name": ""}
+    assert objects[walls[2].GlobalId].payload == {"class": "IfcWall", "name": walls[2].Name}
+
+
 def test_a_refused_model_leaves_no_file(tmp_path: Path) -> None:
     model = make_plant(1)
     model.by_type("IfcWall")[0].Name = "W" * 2000  # its payload would pass 1 KiB
