@@ -64,7 +64,7 @@ mod zip;
 #[cfg(feature = "bcf")]
 pub use bcf::{BcfOptions, COLOUR_A, COLOUR_B, MAX_TOPICS, export_bcf};
 pub use error::ClashError;
-pub use group::{Group, GroupBy, group};
+pub use group::{Group, GroupBy, group, group_ids};
 pub use incremental::{Recorded, RunMode, rerun, run_recorded};
 pub use run::{AT_D, ClashRun, RunStats, measure, run_test};
 pub use select::{Candidate, MAX_SELECTOR, Selector, glob, in_set};
