@@ -76,9 +76,14 @@ fn surface(grid: &Grid, planes: &[Vec<f64>; 3], tol: f64, sub: &Sub, t: &[Point;
     for z in r[2].0..=r[2].1 {
         for y in r[1].0..=r[1].1 {
             for x in r[0].0..=r[0].1 {
-                let hit = test.as_ref().is_none_or(|test| test.intersects(&cell(x, y, z)));
-                if hit && let Some(i) = sub.local([x, y, z]) {
-                    local[i / 64] |= 1 << (i % 64);
+                let Some(i) = sub.local([x, y, z]) else { continue };
+                // A cell an earlier triangle of the mesh set needs no test
+                // (neighbouring triangles share most of their cells).
+                let bit = 1 << (i % 64);
+                if local[i / 64] & bit == 0
+                    && test.as_ref().is_none_or(|test| test.intersects(&cell(x, y, z)))
+                {
+                    local[i / 64] |= bit;
                 }
             }
         }
