@@ -117,7 +117,7 @@ pub fn group<C: AsRef<Clash>>(clashes: &[C], by: GroupBy) -> Vec<Group> {
         g.name = match by {
             GroupBy::ObjectA => key_text(&first.a),
             GroupBy::KeyPrefix(n) => format!("{}*", key_text(&first.a).chars().take(n).collect::<String>()),
-            GroupBy::None => alone(g.id, first).name,
+            GroupBy::None => pair_name(first),
             GroupBy::Proximity(_) => {
                 format!(
                     "{} clashes near ({:.0}, {:.0}, {:.0})",
@@ -163,17 +163,22 @@ pub fn group_ids<C: AsRef<Clash>>(clashes: &[C], by: GroupBy) -> Vec<usize> {
 
 /// The group of clash `i` alone: what the general pass makes of it.
 fn alone(i: usize, c: &Clash) -> Group {
-    let mut name = String::new();
-    write_key_text(&mut name, &c.a);
-    name.push_str(" / ");
-    write_key_text(&mut name, &c.b);
     Group {
         id: i,
-        name,
+        name: pair_name(c),
         members: vec![i],
         aabb: Aabb::EMPTY.including(&c.point).union(&c.overlap.unwrap_or(Aabb::new(c.point, c.point))),
         point: c.point,
     }
+}
+
+/// A one-clash group's name: its two keys.
+fn pair_name(c: &Clash) -> String {
+    let mut name = String::new();
+    write_key_text(&mut name, &c.a);
+    name.push_str(" / ");
+    write_key_text(&mut name, &c.b);
+    name
 }
 
 /// For each item, the index of the first item with the same label.

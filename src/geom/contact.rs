@@ -199,18 +199,17 @@ pub fn intersects_triangle_triangle(a: &[Point; 3], b: &[Point; 3]) -> bool {
 /// [`intersects_triangle_triangle`] of two facets (their boxes not checked).
 pub(crate) fn facets_meet(fa: &Facet, fb: &Facet) -> bool {
     let (a, b) = (&fa.t, &fb.t);
-    let plane = |f: &Facet, x: &Point| f.side(x);
     match (fa.flat(), fb.flat()) {
         (None, None) => edges(a).iter().any(|(p, q)| edges(b).iter().any(|(r, s)| segments_meet(p, q, r, s))),
         (None, Some(_)) => {
-            edges(a).iter().any(|(p, q)| segment_meets_triangle(p, q, b, plane(fb, p), plane(fb, q)))
+            edges(a).iter().any(|(p, q)| segment_meets_triangle(p, q, b, fb.side(p), fb.side(q)))
         }
         (Some(_), None) => {
-            edges(b).iter().any(|(p, q)| segment_meets_triangle(p, q, a, plane(fa, p), plane(fa, q)))
+            edges(b).iter().any(|(p, q)| segment_meets_triangle(p, q, a, fa.side(p), fa.side(q)))
         }
         (Some(along), Some(_)) => {
-            let sb = b.each_ref().map(|x| plane(fa, x));
-            let sa = a.each_ref().map(|x| plane(fb, x));
+            let sb = b.each_ref().map(|x| fa.side(x));
+            let sa = a.each_ref().map(|x| fb.side(x));
             if strictly_one_side(&sb) || strictly_one_side(&sa) {
                 return false;
             }
