@@ -1,7 +1,8 @@
 //! Running a clash test on a snapshot (docs/clash.md, "How a run works"):
 //! the key index is read once for every object's key, name, payload and
 //! exact box; the sets are chosen by their selectors; candidate pairs are
-//! the boxes within the test's reach of one another (a sweep along x);
+//! the boxes within the test's reach of one another (a sweep along the axis
+//! where it checks the fewest pairs);
 //! the pairs are measured (`geom::solid`) a chunk at a time in the sweep's
 //! order, on every core, each object's mesh read through its key entry's
 //! path when a chunk first names it and dropped after the last chunk that
@@ -101,8 +102,36 @@ pub(crate) fn candidates(
     candidates_by(entries, in_a, in_b, reach, changed, FEW_CHANGES)
 }
 
+/// The test's objects sorted by their boxes' lower ends along the axis
+/// whose sweep checks the fewest pairs, with that axis. A sweep checks,
+/// for each box, the later ones that begin within reach of its upper end:
+/// along x in a building, every box after a slab that spans it in x, a
+/// handful along z. The count per axis is exact (a binary search per box
+/// in that axis's order), so the choice costs two more sorts, not a sweep.
+fn sweep_order(entries: &[KeyEntry], members: Vec<usize>, reach: f64) -> (usize, Vec<usize>) {
+    let mut best: Option<(u64, usize, Vec<usize>)> = None;
+    for axis in 0..3 {
+        let mut order = members.clone();
+        order.sort_by(|&x, &y| entries[x].aabb.min[axis].total_cmp(&entries[y].aabb.min[axis]));
+        let lows: Vec<f64> = order.iter().map(|&i| entries[i].aabb.min[axis]).collect();
+        let checks: u64 = order
+            .iter()
+            .enumerate()
+            .map(|(n, &i)| {
+                let end = entries[i].aabb.max[axis] + reach;
+                (lows.partition_point(|&l| l <= end).max(n + 1) - n - 1) as u64
+            })
+            .sum();
+        if best.as_ref().is_none_or(|b| checks < b.0) {
+            best = Some((checks, axis, order));
+        }
+    }
+    best.map_or((0, Vec::new()), |(_, axis, order)| (axis, order))
+}
+
 /// [`candidates`], sweeping from the changed objects alone when they are
-/// at most one in `few` of the test's objects.
+/// at most one in `few` of the test's objects (along x), else sweeping
+/// them all along [`sweep_order`]'s axis.
 fn candidates_by(
     entries: &[KeyEntry],
     in_a: &[bool],
@@ -111,8 +140,19 @@ fn candidates_by(
     changed: Option<&[bool]>,
     few: usize,
 ) -> Vec<(usize, usize)> {
-    let mut order: Vec<usize> = (0..entries.len()).filter(|&i| in_a[i] || in_b[i]).collect();
-    order.sort_by(|&x, &y| entries[x].aabb.min.x.total_cmp(&entries[y].aabb.min.x));
+    let members: Vec<usize> = (0..entries.len()).filter(|&i| in_a[i] || in_b[i]).collect();
+    let changes = changed.map(|c| members.iter().filter(|&&i| c[i]).count());
+    let few_changes = changed.filter(|_| changes.is_some_and(|n| n <= members.len() / few));
+    // From a few changed objects, the walks are short along any axis: the
+    // one sort along x; for the whole sweep, the axis of fewest checks.
+    let (axis, order) = match few_changes {
+        Some(_) => {
+            let mut order = members;
+            order.sort_by(|&x, &y| entries[x].aabb.min.x.total_cmp(&entries[y].aabb.min.x));
+            (0, order)
+        }
+        None => sweep_order(entries, members, reach),
+    };
     let pair = |i: usize, j: usize| -> Option<(usize, usize)> {
         if !entries[i].aabb.within(&entries[j].aabb, reach) {
             return None;
@@ -128,16 +168,15 @@ fn candidates_by(
     // boxes begin within reach of its end; with `only`, pairs with a change.
     let later = |n: usize, only: Option<&[bool]>, out: &mut Vec<(usize, usize)>| {
         let i = order[n];
-        let end = entries[i].aabb.max.x + reach;
-        for &j in order[n + 1..].iter().take_while(|&&j| entries[j].aabb.min.x <= end) {
+        let end = entries[i].aabb.max[axis] + reach;
+        for &j in order[n + 1..].iter().take_while(|&&j| entries[j].aabb.min[axis] <= end) {
             if only.is_none_or(|c| c[i] || c[j]) {
                 out.extend(pair(i, j));
             }
         }
     };
     let mut out = Vec::new();
-    let changes = changed.map(|c| order.iter().filter(|&&i| c[i]).count());
-    let Some(changed) = changed.filter(|_| changes.is_some_and(|n| n <= order.len() / few)) else {
+    let Some(changed) = few_changes else {
         // Everything, or so many changes that a walk back from each could
         // cost more than the sweep (a long box early in the order is
         // reached from every later one): the sweep.
@@ -369,7 +408,73 @@ mod tests {
         }
     }
 
+    /// Boxes long along x (slabs spanning a building), stacked along z:
+    /// the sweep takes z, where each box meets only its own storey.
+    #[test]
+    fn the_sweep_takes_the_axis_of_fewest_checks() {
+        let entries: Vec<KeyEntry> = (0..40)
+            .map(|n| {
+                let (x, z) = (f64::from(n % 4), f64::from(n / 4) * 10.0);
+                entry(n, Aabb::new(Point::new(x, 0.0, z), Point::new(x + 100.0, 100.0, z + 1.0)))
+            })
+            .collect();
+        let (axis, order) = sweep_order(&entries, (0..40).collect(), 0.5);
+        assert_eq!(axis, 2);
+        assert!(order.windows(2).all(|w| entries[w[0]].aabb.min.z <= entries[w[1]].aabb.min.z));
+    }
+
+    fn entry(n: u32, aabb: Aabb) -> KeyEntry {
+        KeyEntry {
+            key: Key::Int(u64::from(n) * 7 % 61),
+            payload: Vec::new(),
+            name: String::new(),
+            object_id: n,
+            path: Default::default(),
+            aabb,
+        }
+    }
+
     proptest! {
+        /// The sweep's pairs are every pair of boxes within reach, with A's
+        /// object first (the smaller key when both are in both sets), each
+        /// once, whichever axis the sweep takes: boxes long along any axis.
+        #[test]
+        fn the_sweep_finds_every_pair_within_reach(
+            boxes in proptest::collection::vec(
+                (proptest::array::uniform3(0.0..100.0f64), proptest::array::uniform3(0.0..8.0f64), 0usize..3, 0u8..4),
+                0..60,
+            ),
+            reach in 0.0..5.0f64,
+        ) {
+            let entries: Vec<KeyEntry> = boxes.iter().enumerate().map(|(n, &(lo, size, long, _))| {
+                let mut hi = [lo[0] + size[0], lo[1] + size[1], lo[2] + size[2]];
+                hi[long] += 60.0;
+                entry(n as u32, Aabb::new(Point::from(lo), Point::from(hi)))
+            }).collect();
+            let in_a: Vec<bool> = boxes.iter().map(|b| b.3 & 1 == 1).collect();
+            let in_b: Vec<bool> = boxes.iter().map(|b| b.3 & 2 == 2 || b.3 == 0).collect();
+            let mut brute = Vec::new();
+            for i in 0..entries.len() {
+                for j in i + 1..entries.len() {
+                    if !entries[i].aabb.within(&entries[j].aabb, reach) {
+                        continue;
+                    }
+                    let (ij, ji) = (in_a[i] && in_b[j], in_a[j] && in_b[i]);
+                    brute.extend(match (ij, ji) {
+                        (true, true) if entries[j].key < entries[i].key => Some((j, i)),
+                        (true, true) => Some((i, j)),
+                        (true, false) => Some((i, j)),
+                        (false, true) => Some((j, i)),
+                        (false, false) => None,
+                    });
+                }
+            }
+            brute.sort_unstable();
+            let mut swept = candidates(&entries, &in_a, &in_b, reach, None);
+            swept.sort_unstable();
+            prop_assert_eq!(swept, brute);
+        }
+
         /// Candidates from the changed objects only, or from the whole
         /// sweep kept to them, are exactly the full sweep's pairs that name
         /// a changed object, whatever the boxes
