@@ -103,6 +103,7 @@ pub use query::{
 };
 pub use scene::{Key, KeyError, Mesh, Object, ObjectId, Scene};
 pub use store::StorageError;
+pub use store::format::change_log::{ChangeKind, LoggedChange};
 
 /// The README's examples run as doctests.
 #[cfg(doctest)]

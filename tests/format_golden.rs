@@ -1,6 +1,6 @@
 //! Claim: the writer produces the spec's example file byte for byte
-//! (`tests/golden/tiny-v9.mkt`, whose dump `format-spec/example.md` shows),
-//! and a reader opens it; the golden files of versions 1 to 8 are refused
+//! (`tests/golden/tiny-v10.mkt`, whose dump `format-spec/example.md` shows),
+//! and a reader opens it; the golden files of versions 1 to 9 are refused
 //! with `UnsupportedVersion`, not misread. Set MKTREE_BLESS=1 to rewrite the
 //! golden file and the example's dump after a deliberate format change
 //! (with a new version: format-spec/versions.md).
@@ -18,8 +18,9 @@ use mktree::scene::{Key, Object, Scene};
 use mktree::store::device::MemDevice;
 use mktree::store::{BlockDevice, StorageError};
 
-const GOLDEN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v9.mkt");
-const GOLDEN_MOVED: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v9-moved.mkt");
+const GOLDEN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v10.mkt");
+const GOLDEN_MOVED: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v10-moved.mkt");
+const GOLDEN_V9: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v9.mkt");
 const GOLDEN_V8: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v8.mkt");
 const GOLDEN_V7: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v7.mkt");
 const GOLDEN_V6: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v6.mkt");
@@ -109,7 +110,7 @@ fn the_writer_reproduces_the_golden_file_and_the_spec_shows_it() {
         let end = start + md[start..].find("```").expect("its end");
         std::fs::write(EXAMPLE, format!("{}{}{}", &md[..start], hexdump(&bytes), &md[end..])).unwrap();
     }
-    let golden = std::fs::read(GOLDEN).expect("tests/golden/tiny-v9.mkt");
+    let golden = std::fs::read(GOLDEN).expect("tests/golden/tiny-v10.mkt");
     assert!(bytes == golden, "the writer no longer produces the golden file byte for byte");
     let md = std::fs::read_to_string(EXAMPLE).unwrap();
     assert_eq!(
@@ -129,7 +130,7 @@ fn a_change_commit_synced_once_is_written_as_the_spec_says() {
     if std::env::var_os("MKTREE_BLESS").is_some() {
         std::fs::write(GOLDEN_MOVED, &bytes).unwrap();
     }
-    let golden = std::fs::read(GOLDEN_MOVED).expect("tests/golden/tiny-v9-moved.mkt");
+    let golden = std::fs::read(GOLDEN_MOVED).expect("tests/golden/tiny-v10-moved.mkt");
     assert!(bytes == golden, "the writer no longer produces the moved golden file byte for byte");
     // Transaction 3 went to slot 0 (offsets 0x200 and 0x300), state 3:
     // committed with one sync, its meta block listing what it wrote.
@@ -147,14 +148,14 @@ fn a_change_commit_synced_once_is_written_as_the_spec_says() {
 #[test]
 fn an_unknown_version_is_refused_not_guessed() {
     let mut bytes = std::fs::read(GOLDEN).unwrap();
-    bytes[8] = 10;
+    bytes[8] = 11;
     let err = Database::open_on(Arc::new(MemDevice::from_bytes(bytes)) as Arc<dyn BlockDevice>).unwrap_err();
-    assert!(matches!(err, StorageError::UnsupportedVersion { found: 10, supported: 9 }), "{err}");
-    assert!(err.to_string().contains("unsupported format version 10"), "{err}");
+    assert!(matches!(err, StorageError::UnsupportedVersion { found: 11, supported: 10 }), "{err}");
+    assert!(err.to_string().contains("unsupported format version 11"), "{err}");
 }
 
 #[test]
-fn version_1_to_8_files_are_refused_with_their_version() {
+fn version_1_to_9_files_are_refused_with_their_version() {
     for (path, found) in [
         (GOLDEN_V1, 1),
         (GOLDEN_V2, 2),
@@ -164,18 +165,19 @@ fn version_1_to_8_files_are_refused_with_their_version() {
         (GOLDEN_V6, 6),
         (GOLDEN_V7, 7),
         (GOLDEN_V8, 8),
+        (GOLDEN_V9, 9),
     ] {
         let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{path}: {e}"));
         assert_eq!(bytes[8], found as u8, "{path} is a version {found} file");
         let err =
             Database::open_on(Arc::new(MemDevice::from_bytes(bytes)) as Arc<dyn BlockDevice>).unwrap_err();
         assert!(
-            matches!(err, StorageError::UnsupportedVersion { found: f, supported: 9 } if f == found),
+            matches!(err, StorageError::UnsupportedVersion { found: f, supported: 10 } if f == found),
             "{err}"
         );
         assert!(
             err.to_string()
-                .contains(&format!("unsupported format version {found} (this build reads version 9)")),
+                .contains(&format!("unsupported format version {found} (this build reads version 10)")),
             "{err}"
         );
     }

@@ -6,7 +6,7 @@
 //! mutating them reaches version 3 code: the files open and `check` clean
 //! (the traversal, inline bounds and geometry are read), the node blocks
 //! validate and hold inline bounds, the blobs decode. The old seeds stay
-//! beside them. Set MKTREE_BLESS=1 to rewrite the v9 seeds from the writer.
+//! beside them. Set MKTREE_BLESS=1 to rewrite the v10 seeds from the writer.
 
 mod common;
 
@@ -154,31 +154,31 @@ fn blob(dense: bool) -> Vec<u8> {
     encode(&v)
 }
 
-/// The v9 seeds: (target, file name, bytes).
-fn v9_seeds() -> Vec<(&'static str, &'static str, Vec<u8>)> {
-    let golden = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v9.mkt")).unwrap();
+/// The v10 seeds: (target, file name, bytes).
+fn v10_seeds() -> Vec<(&'static str, &'static str, Vec<u8>)> {
+    let golden = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v10.mkt")).unwrap();
     let moved =
-        std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v9-moved.mkt")).unwrap();
+        std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v10-moved.mkt")).unwrap();
     let all = store_all_file();
     // decode_block's first byte chooses M (its value mod 16, plus 1).
     let with_m = |m: u8, bytes: &[u8]| [&[m - 1], bytes].concat();
     vec![
-        ("decode_block", "v9-node-block-store-all", with_m(4, node_block_with_bounds(&all, 4))),
-        ("decode_block", "v9-node-block-golden", with_m(3, node_block_with_bounds(&golden, 3))),
-        ("decode_block", "v9-group-block", with_m(4, group_block(&all))),
-        ("decode_block", "v9-blob-bitmap", with_m(1, &blob(true))),
-        ("decode_block", "v9-blob-boxes", with_m(1, &blob(false))),
-        ("open_and_query", "tiny-v9", golden),
-        ("open_and_query", "v9-store-all", all),
+        ("decode_block", "v10-node-block-store-all", with_m(4, node_block_with_bounds(&all, 4))),
+        ("decode_block", "v10-node-block-golden", with_m(3, node_block_with_bounds(&golden, 3))),
+        ("decode_block", "v10-group-block", with_m(4, group_block(&all))),
+        ("decode_block", "v10-blob-bitmap", with_m(1, &blob(true))),
+        ("decode_block", "v10-blob-boxes", with_m(1, &blob(false))),
+        ("open_and_query", "tiny-v10", golden),
+        ("open_and_query", "v10-store-all", all),
         // A change commit synced once: its meta block lists what it wrote.
-        ("open_and_query", "tiny-v9-moved", moved),
+        ("open_and_query", "tiny-v10-moved", moved),
     ]
 }
 
 #[test]
-fn the_v9_seeds_are_current_files_blocks_and_blobs() {
+fn the_v10_seeds_are_current_files_blocks_and_blobs() {
     let bless = std::env::var_os("MKTREE_BLESS").is_some();
-    for (target, name, bytes) in v9_seeds() {
+    for (target, name, bytes) in v10_seeds() {
         let path = corpus(target).join(name);
         if bless {
             std::fs::write(&path, &bytes).unwrap();
@@ -195,18 +195,18 @@ fn the_v9_seeds_are_current_files_blocks_and_blobs() {
                     info.stored[1..usize::from(info.levels) - 1].iter().sum::<u64>() > 0,
                     "{name} has bounds"
                 );
-                if name == "v9-store-all" {
+                if name == "v10-store-all" {
                     let img = forge::Image { bytes: std::fs::read(&path).unwrap(), bs: BS };
                     assert!(img.blocks_of(BlockType::Node).len() > 1, "{name} has several node blocks");
                     assert!(info.stored[1] > 0 && info.stored[2] > 0, "{name} has bounds of levels 2 and 3");
                 }
             }
-            (_, "v9-group-block") => {
+            (_, "v10-group-block") => {
                 let entries = mktree::store::format::group::validate(7, &seed[1..], seed[0] % 16 + 1)
                     .unwrap_or_else(|e| panic!("{name}: {e}"));
                 assert!(entries.len() > 1, "{name} holds several group bounds");
             }
-            (_, n) if n.starts_with("v9-node-block") => {
+            (_, n) if n.starts_with("v10-node-block") => {
                 let m = seed[0] % 16 + 1;
                 assert_eq!(seed.len(), 1 + BS, "{name}: a selector byte and a block");
                 assert!(bound_count(&seed[1..], m) > 0, "{name} holds inline bounds");
@@ -222,13 +222,13 @@ fn the_v9_seeds_are_current_files_blocks_and_blobs() {
     }
 }
 
-/// The v9 seeds as checked in: (target, name, bytes). While blessing, the
+/// The v10 seeds as checked in: (target, name, bytes). While blessing, the
 /// seeds as written (another test is rewriting the files).
-fn checked_in_v9_seeds() -> &'static [(&'static str, &'static str, Vec<u8>)] {
+fn checked_in_v10_seeds() -> &'static [(&'static str, &'static str, Vec<u8>)] {
     static SEEDS: OnceLock<Vec<(&'static str, &'static str, Vec<u8>)>> = OnceLock::new();
     SEEDS.get_or_init(|| {
         let bless = std::env::var_os("MKTREE_BLESS").is_some();
-        v9_seeds()
+        v10_seeds()
             .into_iter()
             .map(|(target, name, bytes)| {
                 let bytes = if bless { bytes } else { std::fs::read(corpus(target).join(name)).unwrap() };
@@ -238,9 +238,9 @@ fn checked_in_v9_seeds() -> &'static [(&'static str, &'static str, Vec<u8>)] {
     })
 }
 
-/// The checked-in v9 seed `name`.
+/// The checked-in v10 seed `name`.
 fn seed(name: &str) -> Vec<u8> {
-    checked_in_v9_seeds().iter().find(|s| s.1 == name).expect("a v9 seed").2.clone()
+    checked_in_v10_seeds().iter().find(|s| s.1 == name).expect("a v10 seed").2.clone()
 }
 
 /// Runs `f` on its own thread for at most `secs` seconds: a hang fails the
@@ -262,15 +262,15 @@ fn finishes_within(secs: u64, f: impl FnOnce() + Send + 'static) -> Result<(), S
 proptest! {
     #![proptest_config(ProptestConfig { cases: 96, max_shrink_iters: 0, ..ProptestConfig::default() })]
 
-    /// Damaged v9 seeds (bytes flipped, a tail cut) go through the targets'
+    /// Damaged v10 seeds (bytes flipped, a tail cut) go through the targets'
     /// bodies without a panic, as libFuzzer's first mutations would.
     #[test]
-    fn mutated_v9_seeds_run_without_a_panic(
+    fn mutated_v10_seeds_run_without_a_panic(
         pick in any::<prop::sample::Index>(),
         flips in prop::collection::vec((any::<prop::sample::Index>(), 1u8..=255), 1..6),
         cut in prop::option::of(any::<prop::sample::Index>()),
     ) {
-        let all = checked_in_v9_seeds();
+        let all = checked_in_v10_seeds();
         let (target, _, bytes) = &all[pick.index(all.len())];
         let (is_file, mut bytes) = (*target == "open_and_query", bytes.clone());
         for (i, x) in flips {
@@ -285,7 +285,7 @@ proptest! {
         prop_assert!(run.is_ok(), "{:?}", run);
     }
 
-    /// A v9 file with bytes of one node, geometry, names or meta block
+    /// A v10 file with bytes of one node, geometry, names or meta block
     /// changed and every checksum up the chain made to match again (so the
     /// reader gets past the checksums to the forged content) opens, queries,
     /// walks and checks without a panic or a hang.
@@ -295,7 +295,7 @@ proptest! {
         pick in any::<prop::sample::Index>(),
         flips in prop::collection::vec((any::<prop::sample::Index>(), 1u8..=255), 1..4),
     ) {
-        let name = if file { "v9-store-all" } else { "tiny-v9" };
+        let name = if file { "v10-store-all" } else { "tiny-v10" };
         let mut img = forge::Image { bytes: seed(name), bs: BS };
         let blocks: Vec<(usize, BlockType)> = (1..img.bytes.len() / BS)
             .map(|b| (b, BlockType::from_code(img.bytes[b * BS + 4]).unwrap()))
@@ -313,7 +313,7 @@ proptest! {
 
 /// The golden file with `forge` applied to its block `b` of type `t`, resealed.
 fn forged_golden(b: usize, t: BlockType, forge: impl FnOnce(&mut [u8])) -> Vec<u8> {
-    let bytes = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v9.mkt")).unwrap();
+    let bytes = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v10.mkt")).unwrap();
     let mut img = forge::Image { bytes, bs: BS };
     // A layout change must move the forgery, not make it test nothing.
     assert!(BlockType::from_code(img.bytes[b * BS + 4]).unwrap() == t, "block {b} is not a {t:?} block");
@@ -347,7 +347,7 @@ fn a_forged_far_vertex_is_a_fault_not_a_panic() {
 /// opening refuses the forgery as corrupt (what it should do with a count
 /// the file's bytes cannot hold).
 fn forged_store_all(edit: impl FnOnce(&mut Image, usize)) -> Option<Database> {
-    let mut img = Image { bytes: seed("v9-store-all"), bs: BS };
+    let mut img = Image { bytes: seed("v10-store-all"), bs: BS };
     let meta = img.meta().expect("a meta block");
     edit(&mut img, meta);
     img.reseal();

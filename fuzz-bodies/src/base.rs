@@ -188,8 +188,8 @@ fn base_file() -> Vec<u8> {
 
 /// Fields of the meta block (format-spec/meta.md) at `m`.
 fn meta_fields(c: &mut Catalog, m: usize) {
-    c.add(m, Width::U32, [16, 24, 28, 32, 36, 40, 44, 124, 144, 448, 452, 456, 460]);
-    c.add(m, Width::U64, [48, 56, 64, 136, 736, 744]);
+    c.add(m, Width::U32, [16, 24, 28, 32, 36, 40, 44, 124, 144, 448, 452, 456, 460, 928, 932]);
+    c.add(m, Width::U64, [48, 56, 64, 136, 736, 744, 920]);
     c.add(m, Width::U64, (0..32).map(|i| 480 + 8 * i));
     c.add(m, Width::F64, (0..6).map(|i| 72 + 8 * i));
     c.add(m, Width::F64, [128, 152, 416, 424, 432, 440, 752, 760, 768]);

@@ -160,6 +160,9 @@ pub fn open_and_query(data: &[u8]) {
         );
         let _ = read_hierarchy(&r);
         let _ = r.names();
+        // The change log (format-spec/meta.md): from the start and from the commit before.
+        let _ = r.changes_since(0);
+        let _ = r.changes_since(r.txn().saturating_sub(1));
         // Views read group bounds (format-spec/group.md), with and without a budget.
         let _ = r.group_summary();
         if let Some(b) = r.info().map(|i| Aabb::from_array(i.scene_box)) {

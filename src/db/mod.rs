@@ -3,6 +3,7 @@
 //! all processes sharing the file, and it alone repairs what a crash left.
 //! The protocol is format-spec/commit.md.
 
+mod changes;
 mod check;
 mod committed;
 mod drift;

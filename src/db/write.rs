@@ -14,11 +14,12 @@ use crate::lod::LodParams;
 use crate::scene::{Key, KeyError, Object, ObjectId, Scene};
 use crate::store::StorageError;
 use crate::store::alloc::{FreeSpace, label_freed};
+use crate::store::format::change_log::{ChangeKind, ChangeLog};
 use crate::store::format::frame::BlockType;
 use crate::store::format::freelist::{FreeListBlock, FreeRange, ranges_per_block};
 use crate::store::format::geometry;
 use crate::store::format::header::{self, Commit, Slot, SlotState};
-use crate::store::format::meta::{Meta, written_capacity};
+use crate::store::format::meta::{Meta, log_room, written_capacity};
 use crate::tree::Owner;
 
 mod cow;
@@ -68,6 +69,10 @@ pub struct WriteTransaction<'db> {
     oldest_reader: Option<u64>,
     /// Allocates past the file's end only (the first step of a compaction).
     append_only: bool,
+    /// A commit of changes: the committed change log and how this commit
+    /// changed each key, for the new meta block's log. `None` for a bulk
+    /// load, whose tree starts a new log.
+    logged: Option<(ChangeLog, Vec<(ChangeKind, Key)>)>,
     done: bool,
 }
 
@@ -191,6 +196,7 @@ impl<'db> WriteTransaction<'db> {
             change_stats: ChangeStats::default(),
             oldest_reader: b.oldest_reader,
             append_only: false,
+            logged: None,
             done: false,
         }
     }
@@ -228,6 +234,18 @@ impl<'db> WriteTransaction<'db> {
         let sum = self.inner.pager().write(id, block, t, self.txn)?;
         self.sums.insert(id, sum);
         Ok(sum)
+    }
+
+    /// The change log of the meta block this commit writes, which lists
+    /// `written`: the committed log with this commit's changes, or a new
+    /// log for a bulk-loaded tree (format-spec/meta.md, "The change log").
+    fn next_log(&mut self, written: &[(u32, u32)]) -> Result<ChangeLog, StorageError> {
+        match self.logged.take() {
+            Some((log, changes)) => {
+                log.after(self.txn, &changes, log_room(self.inner.pager().block_size(), written.len()))
+            }
+            None => Ok(ChangeLog::starting_at(self.txn)),
+        }
     }
 
     fn allocate(&mut self, count: u32) -> Result<u32, StorageError> {
@@ -486,17 +504,34 @@ impl<'db> WriteTransaction<'db> {
                 o.key.clone().ok_or_else(|| StorageError::Invalid("a stored object without a key".into()))?;
             objects.insert(key, o);
         }
+        // With no committed tree (its objects all removed), what commits before
+        // it changed is not known: the log starts after it.
+        let log = snapshot
+            .snapshot
+            .meta
+            .as_ref()
+            .map_or_else(|| ChangeLog::starting_at(self.base.txn), |m| m.log.clone());
         drop(snapshot);
+        let mut logged = Vec::new();
         for (key, change) in edits.ops {
             match change {
                 Change::Remove => {
-                    objects.remove(&key);
+                    if objects.remove(&key).is_some() {
+                        logged.push((ChangeKind::Removed, key));
+                    }
                 }
                 Change::Put(object) => {
-                    objects.insert(key, object);
+                    let kind = match objects.insert(key.clone(), object) {
+                        Some(_) => ChangeKind::Updated,
+                        None => ChangeKind::Inserted,
+                    };
+                    logged.push((kind, key));
                 }
             }
         }
+        // The objects are the committed ones changed as logged: a laid-out
+        // tree of them (optimize) changes no other key.
+        self.logged = Some((log, logged));
         self.change_stats = ChangeStats { changes: self.change_stats.changes, ..ChangeStats::default() };
         if objects.is_empty() {
             return Ok(true);
@@ -527,6 +562,7 @@ impl<'db> WriteTransaction<'db> {
             let load = Load { objects, tree, params, build_seconds, lod_params: &lod_params };
             load.write(Sink { pager: &pager, txn, allocate }, progress)?
         };
+        let meta = Meta { log: self.next_log(&[])?, ..meta };
         let mut block = vec![0u8; pager.block_size() as usize];
         meta.encode(&mut block);
         let sum = pager.write(meta_block, &mut block, BlockType::Meta, self.txn)?;
@@ -596,6 +632,7 @@ impl<'db> WriteTransaction<'db> {
             if listed {
                 m.written = self.sums.iter().map(|(&b, &s)| (b, s)).collect();
             }
+            m.log = self.next_log(&m.written)?;
             let mut block = vec![0u8; pager.block_size() as usize];
             m.encode(&mut block);
             meta_checksum = pager.write(meta_block, &mut block, BlockType::Meta, self.txn)?;

@@ -223,7 +223,7 @@ impl Image {
 /// root's first child pointed back at the root, and, if given, the meta
 /// block's `node_count` forged; every checksum resealed.
 pub fn golden_with_looping_root(node_count: Option<u32>) -> Vec<u8> {
-    let mut f = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v9.mkt")).unwrap();
+    let mut f = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny-v10.mkt")).unwrap();
     let block = |i: usize| i * 1024..(i + 1) * 1024;
     let of_type = |f: &[u8], t: BlockType| (1..f.len() / 1024).find(|&i| f[i * 1024 + 4] == t as u8).unwrap();
     let (node, meta) = (of_type(&f, BlockType::Node), of_type(&f, BlockType::Meta));

@@ -64,5 +64,7 @@ pub(super) fn assemble(load: &Load, written: &Written, stored: &StoredBounds, ke
         keys_height: keys.height,
         keys_blocks: keys.blocks,
         written: Vec::new(),
+        // The caller's: a bulk load starts the log, a tree written whole for changes continues it.
+        log: Default::default(),
     }
 }

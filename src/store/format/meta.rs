@@ -4,6 +4,7 @@ use zerocopy::byteorder::little_endian::{F32, F64, U32, U64};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
 use super::all_zero;
+use super::change_log::ChangeLog;
 use super::frame::FRAME_LEN;
 use super::keys;
 use crate::store::StorageError;
@@ -53,8 +54,10 @@ pub(crate) struct MetaRecord {
     pub(crate) keys_checksum: U32,
     pub(crate) keys_height: U32,
     pub(crate) keys_blocks: U32,
+    pub(crate) log_since: U64,
+    pub(crate) log_bytes: U32,
 }
-const _: () = assert!(FRAME_LEN + size_of::<MetaRecord>() == 920);
+const _: () = assert!(FRAME_LEN + size_of::<MetaRecord>() == 932);
 
 /// How the levels of detail below M were built (format-spec/meta.md).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -160,6 +163,9 @@ pub struct Meta {
     /// state 3, format-spec/commit.md): a reader verifies them before it
     /// takes the commit as whole. Empty otherwise.
     pub written: Vec<(u32, u32)>,
+    /// The keys the latest change commits changed, as many commits as the
+    /// block has room for after `written` (format-spec/meta.md, "The change log").
+    pub log: ChangeLog,
 }
 
 /// Where the list of written blocks starts: its count, then (block,
@@ -169,6 +175,12 @@ const WRITTEN_AT: usize = FRAME_LEN + size_of::<MetaRecord>();
 /// Blocks a meta block of `block_size` bytes can list as written.
 pub fn written_capacity(block_size: u32) -> usize {
     (block_size as usize).saturating_sub(WRITTEN_AT + 4) / 8
+}
+
+/// Bytes a meta block of `block_size` bytes has for its change log when it
+/// lists `written` blocks.
+pub fn log_room(block_size: u32, written: usize) -> usize {
+    (block_size as usize).saturating_sub(WRITTEN_AT + 4 + 8 * written)
 }
 
 /// The largest valid method code (6, refine).
@@ -222,18 +234,22 @@ impl Meta {
             keys_checksum: self.keys_checksum.into(),
             keys_height: self.keys_height.into(),
             keys_blocks: self.keys_blocks.into(),
+            log_since: self.log.since.into(),
+            log_bytes: (self.log.bytes.len() as u32).into(),
         };
         block[FRAME_LEN..WRITTEN_AT].copy_from_slice(r.as_bytes());
-        // The caller keeps the list within `written_capacity`.
+        // The caller keeps the list within `written_capacity` and the log
+        // within `log_room`.
         let mut at = WRITTEN_AT;
         block[at..at + 4].copy_from_slice(&(self.written.len() as u32).to_le_bytes());
+        at += 4;
         for &(b, sum) in &self.written {
-            at += 4;
             block[at..at + 4].copy_from_slice(&b.to_le_bytes());
-            at += 4;
-            block[at..at + 4].copy_from_slice(&sum.to_le_bytes());
+            block[at + 4..at + 8].copy_from_slice(&sum.to_le_bytes());
+            at += 8;
         }
-        block[at + 4..].fill(0);
+        block[at..at + self.log.bytes.len()].copy_from_slice(&self.log.bytes);
+        block[at + self.log.bytes.len()..].fill(0);
     }
 
     /// Reads the payload of meta block `id` (checksum already verified).
@@ -243,7 +259,19 @@ impl Meta {
             .and_then(|b| MetaRecord::read_from_bytes(b).ok())
             .ok_or_else(|| StorageError::corrupt(id, "meta", "block too small"))?;
         let (written, list_end) = decode_written(id, block)?;
-        if r.reserved1 != 0 || r.reserved2 != [0; 4] || !all_zero(block.get(list_end..).unwrap_or(&[])) {
+        let log_end = list_end.saturating_add(r.log_bytes.get() as usize);
+        let log = ChangeLog {
+            since: r.log_since.get(),
+            bytes: block
+                .get(list_end..log_end)
+                .ok_or_else(|| {
+                    StorageError::corrupt(id, "log_bytes", format!("a log of {} bytes past the block", r.log_bytes))
+                })?
+                .to_vec(),
+        };
+        let txn = block.get(8..16).and_then(|b| b.try_into().ok()).map_or(0, u64::from_le_bytes);
+        log.validate(id, txn)?;
+        if r.reserved1 != 0 || r.reserved2 != [0; 4] || !all_zero(block.get(log_end..).unwrap_or(&[])) {
             return Err(StorageError::corrupt(id, "reserved", "reserved bytes are not zero"));
         }
         let build = decode_build(id, &r)?;
@@ -307,6 +335,7 @@ impl Meta {
             keys_height,
             keys_blocks,
             written,
+            log,
         })
     }
 }
@@ -396,4 +425,65 @@ fn decode_lods(id: u32, r: &MetaRecord) -> Result<([[f64; 2]; LOD_TABLE_LEN], Lo
         predicted: r.lod_predicted.map(|p| p.map(|x| x.get())),
     };
     Ok((r.lod_table.map(|p| p.map(|x| x.get())), lods))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Key;
+    use crate::store::format::change_log::ChangeKind;
+    use crate::store::format::frame::{BlockType, seal};
+
+    /// A meta block of `bs` bytes for commit `txn`, listing `written` and `log`.
+    fn block(bs: usize, txn: u64, written: usize, log: &ChangeLog) -> (Meta, Vec<u8>) {
+        let meta = Meta {
+            object_count: 1,
+            node_count: 1,
+            leaf_count: 1,
+            object_ids: 1,
+            keys_block: 5,
+            keys_height: 1,
+            keys_blocks: 1,
+            written: (0..written as u32).map(|b| (b + 10, b)).collect(),
+            log: log.clone(),
+            ..Meta::default()
+        };
+        let mut bytes = vec![0u8; bs];
+        meta.encode(&mut bytes);
+        seal(1, &mut bytes, BlockType::Meta, txn);
+        (meta, bytes)
+    }
+
+    #[test]
+    fn the_log_follows_the_written_list_and_comes_back_as_written() {
+        let changes = [(ChangeKind::Inserted, Key::Int(4)), (ChangeKind::Removed, Key::Int(9))];
+        let log = ChangeLog::starting_at(2).after(3, &changes, log_room(1024, 3)).unwrap();
+        assert_eq!(log.bytes.len(), 32);
+        let (meta, bytes) = block(1024, 3, 3, &log);
+        assert_eq!(&bytes[920..928], &2u64.to_le_bytes(), "log_since");
+        assert_eq!(&bytes[936 + 24..936 + 24 + 8], &3u64.to_le_bytes(), "the record after the list");
+        assert_eq!(Meta::decode(1, &bytes).unwrap(), meta);
+        // The room left after the list bounds the log.
+        assert_eq!(log_room(1024, 11), 0);
+        assert_eq!(written_capacity(1024), 11);
+        let full = ChangeLog::starting_at(2).after(3, &changes, log_room(1024, 11)).unwrap();
+        assert_eq!(full, ChangeLog::starting_at(3));
+    }
+
+    #[test]
+    fn a_log_past_the_block_or_after_its_commit_is_refused() {
+        let log = ChangeLog::starting_at(2).after(3, &[(ChangeKind::Updated, Key::Int(1))], 100).unwrap();
+        let (_, bytes) = block(1024, 3, 0, &log);
+        let resealed = |f: &dyn Fn(&mut [u8]), txn: u64| {
+            let mut b = bytes.clone();
+            f(&mut b);
+            seal(1, &mut b, BlockType::Meta, txn);
+            Meta::decode(1, &b)
+        };
+        assert!(resealed(&|_| {}, 3).is_ok());
+        assert!(resealed(&|_| {}, 2).is_err(), "a record of a later commit than the block's");
+        assert!(resealed(&|b| b[928..932].copy_from_slice(&200u32.to_le_bytes()), 3).is_err(), "log_bytes past the block");
+        assert!(resealed(&|b| b[928..932].copy_from_slice(&21u32.to_le_bytes()), 3).is_err(), "a record cut short");
+        assert!(resealed(&|b| b[1000] = 1, 3).is_err(), "a byte after the log");
+    }
 }

@@ -1,8 +1,9 @@
-//! The on-disk format, version 9: one file per structure of `format-spec/`.
+//! The on-disk format, version 10: one file per structure of `format-spec/`.
 //! Records are zerocopy structs with unaligned little-endian fields; sizes are
 //! checked at compile time and offsets in `tests/format_spec.rs`.
 
 pub mod blob;
+pub mod change_log;
 pub mod frame;
 pub mod freelist;
 pub mod geometry;
@@ -21,7 +22,7 @@ mod spec_tests;
 compile_error!("geometry arrays are cast with bytemuck and assume a little-endian target");
 
 /// The format version this build writes and reads (format-spec/versions.md).
-pub const FORMAT_VERSION: u32 = 9;
+pub const FORMAT_VERSION: u32 = 10;
 /// Smallest block size (format-spec/README.md).
 pub const MIN_BLOCK_SIZE: u32 = 1024;
 /// Largest block size.

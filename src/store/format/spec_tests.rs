@@ -103,7 +103,9 @@ fn spec_tables_match_the_records() {
         keys_block,
         keys_checksum,
         keys_height,
-        keys_blocks
+        keys_blocks,
+        log_since,
+        log_bytes
     );
 
     let node = include_str!("../../../format-spec/node.md");

@@ -244,10 +244,11 @@ impl WriteTransaction<'_> {
         let mut reads = Reads::new(Some(r.cache()));
         let mut stats =
             ChangeStats { changes: edits.ops.len() as u64, in_place: true, ..ChangeStats::default() };
-        let plan = match plan_leaves(&r, &meta, edits, &mut reads)? {
+        let mut plan = match plan_leaves(&r, &meta, edits, &mut reads)? {
             Ok(p) => p,
             Err(Structural) => return Ok(None),
         };
+        let logged = std::mem::take(&mut plan.logged);
         let written_before = written_count(&self.written);
         let outcome = self.write_changes(&r, &meta, plan, &mut reads)?;
         // The caller takes back the blocks of an attempt that stops short.
@@ -255,6 +256,7 @@ impl WriteTransaction<'_> {
         // The meta block is written last, after the free list, so that it
         // can list every other block the commit wrote.
         let meta_block = self.allocate(1)?;
+        self.logged = Some((meta.log.clone(), logged));
         self.change_meta = Some((meta_block, new_meta));
         stats.blocks_written = written_count(&self.written) - written_before;
         // The committed tree stays but for what this commit replaced.
@@ -280,7 +282,7 @@ impl WriteTransaction<'_> {
         let pager = self.inner.pager().clone();
         let mut freed: Vec<u32> = Vec::new();
         let mut deltas = Deltas::new(r, meta, pager.lod_levels());
-        let Plan { mut mods, leaves, mut key_changes, next_id } = plan;
+        let Plan { mut mods, leaves, mut key_changes, next_id, logged: _ } = plan;
         // Leaves: their new records and geometry.
         for (at, edit) in &leaves {
             let leaf =

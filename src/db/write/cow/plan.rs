@@ -17,6 +17,7 @@ use crate::db::{ReadTransaction, Reads};
 use crate::geom::Aabb;
 use crate::scene::{Key, Object, ObjectId};
 use crate::store::StorageError;
+use crate::store::format::change_log::ChangeKind;
 use crate::store::format::frame::BlockType;
 use crate::store::format::geometry;
 use crate::store::format::keys::{KeyEntry, TreePath};
@@ -31,6 +32,8 @@ pub(super) struct Plan {
     pub(super) leaves: BTreeMap<(u32, u32), LeafEdit>,
     pub(super) key_changes: BTreeMap<Key, Option<KeyEntry>>,
     pub(super) next_id: u32,
+    /// How each key changed, in key order: the commit's change log record.
+    pub(super) logged: Vec<(ChangeKind, Key)>,
 }
 
 /// Finds each changed object's leaf (the key index's path for a committed
@@ -41,6 +44,7 @@ pub(super) fn plan_leaves(r: &ReadTransaction, meta: &Meta, edits: &Edits, reads
         leaves: BTreeMap::new(),
         key_changes: BTreeMap::new(),
         next_id: meta.object_ids,
+        logged: Vec::new(),
     };
     for (key, change) in &edits.ops {
         let old = r.key_entry(key, reads)?;
@@ -53,9 +57,12 @@ pub(super) fn plan_leaves(r: &ReadTransaction, meta: &Meta, edits: &Edits, reads
             Change::Remove => {
                 if old.is_some() {
                     plan.key_changes.insert(key.clone(), None);
+                    plan.logged.push((ChangeKind::Removed, key.clone()));
                 }
             }
             Change::Put(object) => {
+                let kind = if old.is_some() { ChangeKind::Updated } else { ChangeKind::Inserted };
+                plan.logged.push((kind, key.clone()));
                 let id = plan.next_id;
                 plan.next_id = id
                     .checked_add(1)
