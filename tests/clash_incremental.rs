@@ -1,14 +1,18 @@
 //! Claim: a recorded clash test re-run after any sequence of change
 //! commits (inserts, moves, updates, removals) gives exactly the clashes
 //! of a full run on the same commit, with the statuses a full run's would
-//! give them, and is incremental when only change commits came between.
+//! give them, and is incremental when only change commits came between:
+//! from the file's change log when it reaches back to the recorded run,
+//! else from the recorded fingerprints (1 KiB blocks hold little log).
 
 mod common;
 
 use std::sync::Arc;
 
 use common::{box_mesh, load_on};
-use mktree::clash::{Clash, ClashStore, ClashTest, RunMode, TestKind, run_recorded, run_test, update};
+use mktree::clash::{
+    Clash, ClashStore, ClashTest, FoundBy, RunMode, TestKind, run_recorded, run_test, update,
+};
 use mktree::geom::Vector;
 use mktree::scene::{Key, Object, Scene};
 use mktree::store::device::MemDevice;
@@ -68,9 +72,10 @@ proptest! {
     fn a_re_run_equals_a_full_run(
         start in prop::collection::vec((prop::array::uniform3(0u8..12), prop::array::uniform3(1u8..5)), 4..30),
         commits in prop::collection::vec(prop::collection::vec(arb_change(), 1..5), 1..5),
+        small in any::<bool>(),
     ) {
         let scene = Scene::new(start.iter().enumerate().map(|(i, &(a, s))| cell(i as u64, a, s)).collect());
-        let options = CreateOptions { block_size: 4096, ..Default::default() };
+        let options = CreateOptions { block_size: if small { 1024 } else { 4096 }, ..Default::default() };
         let db = load_on(Arc::new(MemDevice::new()), &scene, &BuildParams::default(), options);
         let mut store = ClashStore::default();
         for (n, t) in tests().iter().enumerate() {
@@ -112,13 +117,42 @@ proptest! {
                 let name = format!("t{n}");
                 let before = store.runs[&name].tracked.clone();
                 let rec = run_recorded(&r, &mut store, &name, None, true).unwrap();
-                let incremental = matches!(rec.mode, RunMode::Incremental { .. });
-                prop_assert!(incremental, "{:?}", rec.mode);
+                let RunMode::Incremental { by, .. } = rec.mode else {
+                    return Err(TestCaseError::fail(format!("{:?}", rec.mode)));
+                };
+                // 4 KiB meta blocks hold a few commits of a few changes each.
+                prop_assert!(small || by == FoundBy::Log, "{:?}", rec.mode);
                 let full = run_test(&r, t).unwrap();
                 let got: Vec<Clash> = store.runs[&name].clashes().cloned().collect();
                 prop_assert_eq!(&got, &full.clashes);
                 prop_assert_eq!(&store.runs[&name].tracked, &update(&before, &full.clashes, r.txn()));
             }
         }
+    }
+}
+
+/// A commit of more changes than a meta block's log has room for: the
+/// re-run after it learns what changed from the fingerprints, and the one
+/// after a small commit from the log; both equal a full run.
+#[test]
+fn a_re_run_past_the_logs_reach_compares_fingerprints() {
+    let scene =
+        Scene::new((0..40).map(|i| cell(i, [(i % 12) as u8, (i / 12) as u8, 0], [1, 1, 1])).collect());
+    let options = CreateOptions { block_size: 1024, ..Default::default() };
+    let db = load_on(Arc::new(MemDevice::new()), &scene, &BuildParams::for_blocks(1024), options);
+    let test = &tests()[0];
+    let mut store = ClashStore::default();
+    run_recorded(&db.begin_read().unwrap(), &mut store, "t", Some(test), true).unwrap();
+    for (moved, expect) in [(0..20, FoundBy::Fingerprints), (3..4, FoundBy::Log)] {
+        let mut w = db.begin_write().unwrap();
+        for k in moved {
+            assert!(w.move_by(&Key::Int(k), Vector::new(50.0, 0.0, 0.0)).unwrap());
+        }
+        w.commit().unwrap();
+        let r = db.begin_read().unwrap();
+        let rec = run_recorded(&r, &mut store, "t", None, true).unwrap();
+        assert!(matches!(rec.mode, RunMode::Incremental { by, .. } if by == expect), "{:?}", rec.mode);
+        let got: Vec<Clash> = store.runs["t"].clashes().cloned().collect();
+        assert_eq!(got, run_test(&r, test).unwrap().clashes);
     }
 }

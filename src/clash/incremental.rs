@@ -5,15 +5,18 @@
 //! the test (`run.rs`), and set membership of an unchanged object is
 //! unchanged (its key, name and payload are).
 //!
-//! What changed is, until the file carries a change log (format version
-//! 8), found by comparing the recorded run's fingerprints with the key
-//! index: every insert and update gives its object a new id (meta
-//! `object_ids` only grows under change commits), so a key with the same
-//! id and box holds the same object. A bulk load numbers ids from 0 again
-//! and writes a new build time; when the file's `object_ids` shrank or its
-//! build time differs, the run is a full one. Listing the key index still
-//! reads every key block (O(N) small reads, no geometry); the measuring
-//! grows with the changed objects.
+//! What changed comes from the file's change log (format-spec/meta.md,
+//! "The change log"): the keys each commit since the recorded run
+//! inserted, updated or removed. When the log does not reach back that
+//! far (more changes than a meta block holds, a bulk load since), the
+//! recorded run's fingerprints are compared with the key index instead:
+//! every insert and update gives its object a new id (meta `object_ids`
+//! only grows under change commits), so a key with the same id and box
+//! holds the same object. A bulk load numbers ids from 0 again and writes
+//! a new build time; when the file's `object_ids` shrank or its build
+//! time differs, the run is a full one. Listing the key index still reads
+//! every key block (O(N) small reads, no geometry); the measuring grows
+//! with the changed objects.
 
 use rustc_hash::FxHashSet as HashSet;
 use std::time::Instant;
@@ -41,6 +44,8 @@ pub enum RunMode {
     },
     /// Only pairs with a changed object measured.
     Incremental {
+        /// How the changed objects were found.
+        by: FoundBy,
         /// Objects inserted or changed since the recorded run.
         changed: usize,
         /// Objects removed since.
@@ -48,6 +53,16 @@ pub enum RunMode {
         /// Recorded clashes kept as they were.
         kept: usize,
     },
+}
+
+/// Where an incremental run learned what changed since the recorded run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FoundBy {
+    /// The file's change log.
+    Log,
+    /// The recorded run's fingerprints compared with the key index.
+    Fingerprints,
 }
 
 /// A run, recorded: what it did and how it was made. Its clashes, with
@@ -81,14 +96,72 @@ fn why_full(txn: &ReadTransaction, test: &ClashTest, previous: Option<&RecordedR
     if txn.txn() < p.txn {
         return Some(format!("the file's commit {} is older than the recorded run's {}", txn.txn(), p.txn));
     }
+    None
+}
+
+/// Why `p`'s fingerprints cannot tell what changed on `txn`, if they cannot.
+fn why_not_fingerprints(txn: &ReadTransaction, p: &RecordedRun) -> Option<String> {
     if txn.object_ids() < p.object_ids {
-        return Some("object ids were numbered anew (a bulk load, or optimize)".into());
+        return Some("object ids were numbered anew (a bulk load)".into());
     }
     let build = txn.info().map_or(0, |i| i.build_seconds.to_bits());
     if build != p.build {
         return Some("the tree was built anew (a bulk load)".into());
     }
     None
+}
+
+/// Per entry whether it changed, every key touched, and how they were found.
+type Changed = (Vec<bool>, HashSet<Key>, FoundBy);
+
+/// Which of `entries` changed since the recorded run `p`, and every key
+/// touched (changed, inserted or removed); `Err(why)` when neither the
+/// change log nor the fingerprints can tell.
+fn changed_since(
+    txn: &ReadTransaction,
+    entries: &[KeyEntry],
+    p: &RecordedRun,
+) -> Result<Result<Changed, String>, ClashError> {
+    if let Some(logged) = txn.changes_since(p.txn)? {
+        let touched: HashSet<Key> = logged.into_iter().map(|c| c.key).collect();
+        let changed = entries.iter().map(|e| touched.contains(&e.key)).collect();
+        return Ok(Ok((changed, touched, FoundBy::Log)));
+    }
+    if let Some(why) = why_not_fingerprints(txn, p) {
+        return Ok(Err(format!("{why}, and the change log does not reach back to commit {}", p.txn)));
+    }
+    // Keys whose (id, box) differ, are new, or are gone.
+    let mut changed = vec![false; entries.len()];
+    let mut touched: HashSet<Key> = HashSet::default();
+    let (mut i, mut j) = (0, 0);
+    while i < entries.len() || j < p.objects.len() {
+        match (entries.get(i), p.objects.get(j)) {
+            (Some(e), Some(f)) if e.key == f.key => {
+                if e.object_id != f.id || e.aabb.to_array() != f.aabb {
+                    changed[i] = true;
+                    touched.insert(e.key.clone());
+                }
+                i += 1;
+                j += 1;
+            }
+            (Some(e), Some(f)) if e.key < f.key => {
+                changed[i] = true;
+                touched.insert(e.key.clone());
+                i += 1;
+            }
+            (Some(e), None) => {
+                changed[i] = true;
+                touched.insert(e.key.clone());
+                i += 1;
+            }
+            (_, Some(f)) => {
+                touched.insert(f.key.clone());
+                j += 1;
+            }
+            (None, None) => break,
+        }
+    }
+    Ok(Ok((changed, touched, FoundBy::Fingerprints)))
 }
 
 /// Runs `test` on `txn` against `previous` (the recorded run of the same
@@ -105,43 +178,21 @@ pub fn rerun(
     let entries = txn.key_entries(&mut crate::db::Reads::new(Some(txn.cache())))?;
     let why = if incremental { why_full(txn, test, previous) } else { Some("asked for a full run".into()) };
     let txn_now = txn.txn();
-    let (tracked, mut stats, mode) = match (why, previous) {
-        (None, Some(p)) => {
-            // Keys whose (id, box) differ, are new, or are gone.
-            let mut changed = vec![false; entries.len()];
-            let mut touched: HashSet<&Key> = HashSet::default();
-            let (mut i, mut j) = (0, 0);
-            while i < entries.len() || j < p.objects.len() {
-                let e = entries.get(i);
-                let f = p.objects.get(j);
-                match (e, f) {
-                    (Some(e), Some(f)) if e.key == f.key => {
-                        if e.object_id != f.id || e.aabb.to_array() != f.aabb {
-                            changed[i] = true;
-                            touched.insert(&e.key);
-                        }
-                        i += 1;
-                        j += 1;
-                    }
-                    (Some(e), Some(f)) if e.key < f.key => {
-                        changed[i] = true;
-                        touched.insert(&e.key);
-                        i += 1;
-                    }
-                    (Some(e), None) => {
-                        changed[i] = true;
-                        touched.insert(&e.key);
-                        i += 1;
-                    }
-                    (_, Some(f)) => {
-                        touched.insert(&f.key);
-                        j += 1;
-                    }
-                    (None, None) => break,
-                }
-            }
+    let seed = match (why, previous) {
+        (None, Some(p)) => changed_since(txn, &entries, p)?.map(|c| (p, c)),
+        (why, _) => Err(why.unwrap_or_default()),
+    };
+    let (tracked, mut stats, mode) = match seed {
+        Ok((p, (changed, touched, by))) => {
             let n_changed = changed.iter().filter(|&&c| c).count();
-            let removed = touched.len() - n_changed;
+            // Keys the recorded run had and the file no longer has.
+            let removed = touched
+                .iter()
+                .filter(|&k| {
+                    p.objects.binary_search_by(|f| f.key.cmp(k)).is_ok()
+                        && entries.binary_search_by(|e| e.key.cmp(k)).is_err()
+                })
+                .count();
             let (mut fresh, stats) = run_on(txn, test, &entries, Some(&changed), started)?;
             sort(&mut fresh);
             // The recorded clashes between unchanged objects stand: found
@@ -153,12 +204,12 @@ pub fn rerun(
                     && !touched.contains(&t.clash.b)
             };
             let (tracked, n_kept) = merge(&p.tracked, fresh, kept, txn_now);
-            (tracked, stats, RunMode::Incremental { changed: n_changed, removed, kept: n_kept })
+            (tracked, stats, RunMode::Incremental { by, changed: n_changed, removed, kept: n_kept })
         }
-        (why, _) => {
+        Err(why) => {
             let (c, s) = run_on(txn, test, &entries, None, started)?;
             let (tracked, _) = merge(previous.map_or(&[][..], |p| &p.tracked), c, |_| false, txn_now);
-            (tracked, s, RunMode::Full { why: why.unwrap_or_default() })
+            (tracked, s, RunMode::Full { why })
         }
     };
     stats.seconds = started.elapsed().as_secs_f64();

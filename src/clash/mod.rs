@@ -65,7 +65,7 @@ mod zip;
 pub use bcf::{BcfOptions, COLOUR_A, COLOUR_B, MAX_TOPICS, export_bcf};
 pub use error::ClashError;
 pub use group::{Group, GroupBy, group, group_ids};
-pub use incremental::{Recorded, RunMode, rerun, run_recorded};
+pub use incremental::{FoundBy, Recorded, RunMode, rerun, run_recorded};
 pub use run::{AT_D, ClashRun, RunStats, measure, run_test};
 pub use select::{Candidate, MAX_SELECTOR, Selector, glob, in_set};
 pub use status::{Status, Tracked, set_status, update};

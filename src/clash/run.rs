@@ -107,12 +107,12 @@ pub(crate) fn candidates(
 /// for each box, the later ones that begin within reach of its upper end:
 /// along x in a building, every box after a slab that spans it in x, a
 /// handful along z. The count per axis is exact (a binary search per box
-/// in that axis's order), so the choice costs two more sorts, not a sweep.
+/// in that axis's order), so the choice costs two more sorts (on every core), not a sweep.
 fn sweep_order(entries: &[KeyEntry], members: Vec<usize>, reach: f64) -> (usize, Vec<usize>) {
     let mut best: Option<(u64, usize, Vec<usize>)> = None;
     for axis in 0..3 {
         let mut order = members.clone();
-        order.sort_by(|&x, &y| entries[x].aabb.min[axis].total_cmp(&entries[y].aabb.min[axis]));
+        order.par_sort_by(|&x, &y| entries[x].aabb.min[axis].total_cmp(&entries[y].aabb.min[axis]));
         let lows: Vec<f64> = order.iter().map(|&i| entries[i].aabb.min[axis]).collect();
         let checks: u64 = order
             .iter()
@@ -148,7 +148,7 @@ fn candidates_by(
     let (axis, order) = match few_changes {
         Some(_) => {
             let mut order = members;
-            order.sort_by(|&x, &y| entries[x].aabb.min.x.total_cmp(&entries[y].aabb.min.x));
+            order.par_sort_by(|&x, &y| entries[x].aabb.min.x.total_cmp(&entries[y].aabb.min.x));
             (0, order)
         }
         None => sweep_order(entries, members, reach),

@@ -10,8 +10,8 @@ use std::path::Path;
 use anyhow::{Result, bail};
 use mktree::clash::key_json::write_key_text;
 use mktree::clash::{
-    BcfOptions, Clash, ClashKind, ClashTest, DEFAULT_TOLERANCE, GroupBy, RunMode, SavedTest, Selector,
-    Status, TestKind, export_bcf, group, group_ids, run_recorded, run_test, store_path,
+    BcfOptions, Clash, ClashKind, ClashTest, DEFAULT_TOLERANCE, FoundBy, GroupBy, RunMode, SavedTest,
+    Selector, Status, TestKind, export_bcf, group, group_ids, run_recorded, run_test, store_path,
 };
 use mktree::query::{ClashOptions, clash};
 use serde_json::json;
@@ -294,8 +294,12 @@ fn print<C: AsRef<Clash>>(
     output::table(&["type", "status", "clashes"], &rows);
     let s = stats;
     let how = match mode {
-        Some(RunMode::Incremental { changed, removed, kept }) => {
-            format!("; incremental: {changed} changed, {removed} removed, {kept} clashes kept")
+        Some(RunMode::Incremental { by, changed, removed, kept }) => {
+            let by = match by {
+                FoundBy::Log => "the change log",
+                FoundBy::Fingerprints => "fingerprints",
+            };
+            format!("; incremental ({by}): {changed} changed, {removed} removed, {kept} clashes kept")
         }
         Some(RunMode::Full { why }) => format!("; full ({why})"),
         None => String::new(),
