@@ -17,6 +17,16 @@
 //! time differs, the run is a full one. Listing the key index still reads
 //! every key block (O(N) small reads, no geometry); the measuring grows
 //! with the changed objects.
+//!
+//! When the log tells, and the changed keys are few (at most one in
+//! [`FEW`] of the objects), the key index is not listed: each changed
+//! key's entry is looked up, and the objects whose boxes may lie within the
+//! test's reach of a changed one are found by a box query through the tree
+//! (level 1, the stored boxes, which contain the exact ones) and looked up
+//! in turn. Only those entries are read, so the run's reads grow with the
+//! changed objects and their neighbours, not with N.
+
+use std::collections::BTreeMap;
 
 use rustc_hash::FxHashSet as HashSet;
 use std::time::Instant;
@@ -29,8 +39,11 @@ use super::run::{RunStats, run_on, sort};
 use super::status::{Status, Tracked, merge};
 use super::store::{ClashStore, Fingerprint, RecordedRun, SavedTest};
 use super::test::ClashTest;
-use crate::db::ReadTransaction;
+use crate::db::{ReadTransaction, Reads};
+use crate::geom::{Aabb, Vector};
+use crate::query::{QueryOptions, Region, query_region};
 use crate::scene::Key;
+use crate::store::StorageError;
 use crate::store::format::keys::KeyEntry;
 
 /// How a run was made.
@@ -164,6 +177,61 @@ fn changed_since(
     Ok(Ok((changed, touched, FoundBy::Fingerprints)))
 }
 
+/// Changed keys, at most one in this many of the file's objects, are read
+/// with their neighbours through the tree rather than by listing the key
+/// index (see the module's notes).
+pub const FEW: usize = 64;
+
+/// The entries of the keys in `touched` the file still has and of every
+/// object whose stored box meets one of theirs grown by `reach` (a level-1
+/// box query each), sorted by key, with whether each is a touched one.
+fn near_changes(
+    txn: &ReadTransaction,
+    touched: &HashSet<Key>,
+    reach: f64,
+) -> Result<(Vec<KeyEntry>, Vec<bool>), ClashError> {
+    let mut reads = Reads::new(Some(txn.cache()));
+    let mut found: BTreeMap<Key, (KeyEntry, bool)> = BTreeMap::new();
+    for key in touched {
+        if let Some(e) = txn.key_entry(key, &mut reads)? {
+            found.insert(key.clone(), (e, true));
+        }
+    }
+    let grown: Vec<Aabb> = found
+        .values()
+        .map(|(e, _)| Aabb::new(e.aabb.min - Vector::repeat(reach), e.aabb.max + Vector::repeat(reach)))
+        .collect();
+    let boxes = QueryOptions { lod: Some(1), ..QueryOptions::default() };
+    for g in grown {
+        for key in query_region(txn, &Region::Box(g), &boxes, Some(txn.cache()))?.keys {
+            if found.contains_key(&key) {
+                continue;
+            }
+            // A key the tree holds and the index lacks is damage the lookup reports.
+            let e = txn.key_entry(&key, &mut reads)?.ok_or_else(|| {
+                StorageError::Invalid(format!("key {key} is in the tree and not in the key index"))
+            })?;
+            found.insert(key, (e, false));
+        }
+    }
+    Ok(found.into_values().unzip())
+}
+
+/// `p`'s fingerprints with those of `touched` replaced by `now`'s (the
+/// touched keys' entries the file still has), in key order.
+fn fingerprints_after(p: &RecordedRun, touched: &HashSet<Key>, now: &[KeyEntry]) -> Vec<Fingerprint> {
+    let mut fresh = fingerprints(now).into_iter().filter(|f| touched.contains(&f.key)).peekable();
+    let mut out = Vec::with_capacity(p.objects.len() + touched.len());
+    for f in p.objects.iter().filter(|f| !touched.contains(&f.key)) {
+        while let Some(n) = fresh.next_if(|n| n.key < f.key) {
+            out.push(n);
+        }
+        out.push(f.clone());
+    }
+    out.extend(fresh);
+    out
+}
+
 /// Runs `test` on `txn` against `previous` (the recorded run of the same
 /// test): incrementally when it can (see the module's notes), else in
 /// full. With `incremental` false, always in full. Statuses are updated.
@@ -173,16 +241,53 @@ pub fn rerun(
     previous: Option<&RecordedRun>,
     incremental: bool,
 ) -> Result<(Recorded, RecordedRun), ClashError> {
+    rerun_by(txn, test, previous, incremental, FEW)
+}
+
+/// [`rerun`], reading the changed objects' neighbours through the tree
+/// when the log's keys are at most one in `few` of the objects.
+fn rerun_by(
+    txn: &ReadTransaction,
+    test: &ClashTest,
+    previous: Option<&RecordedRun>,
+    incremental: bool,
+    few: usize,
+) -> Result<(Recorded, RecordedRun), ClashError> {
     let started = Instant::now();
     test.validate()?;
-    let entries = txn.key_entries(&mut crate::db::Reads::new(Some(txn.cache())))?;
     let why = if incremental { why_full(txn, test, previous) } else { Some("asked for a full run".into()) };
     let txn_now = txn.txn();
-    let seed = match (why, previous) {
-        (None, Some(p)) => changed_since(txn, &entries, p)?.map(|c| (p, c)),
-        (why, _) => Err(why.unwrap_or_default()),
+    let objects = txn.info().map_or(0, |i| i.objects as usize);
+    // What the log says changed, when this run may be incremental and the
+    // log reaches back to the recorded run.
+    let logged = match (&why, previous) {
+        (None, Some(p)) => txn.changes_since(p.txn)?.map(|c| (p, c)),
+        _ => None,
     };
-    let (tracked, mut stats, mode) = match seed {
+    let (entries, seed) = match logged {
+        Some((p, changes)) => {
+            let touched: HashSet<Key> = changes.into_iter().map(|c| c.key).collect();
+            let (entries, changed) = if touched.len() <= objects / few {
+                near_changes(txn, &touched, test.reach())?
+            } else {
+                let entries = txn.key_entries(&mut Reads::new(Some(txn.cache())))?;
+                let changed = entries.iter().map(|e| touched.contains(&e.key)).collect();
+                (entries, changed)
+            };
+            (entries, Ok((p, (changed, touched, FoundBy::Log))))
+        }
+        None => {
+            let entries = txn.key_entries(&mut Reads::new(Some(txn.cache())))?;
+            let seed = match (why, previous) {
+                (None, Some(p)) => changed_since(txn, &entries, p)?.map(|c| (p, c)),
+                (why, _) => Err(why.unwrap_or_default()),
+            };
+            (entries, seed)
+        }
+    };
+    let listed_all = entries.len() == objects;
+    debug_assert!(entries.len() <= objects);
+    let (tracked, mut stats, mode, fingerprinted) = match seed {
         Ok((p, (changed, touched, by))) => {
             let n_changed = changed.iter().filter(|&&c| c).count();
             // Keys the recorded run had and the file no longer has.
@@ -204,14 +309,22 @@ pub fn rerun(
                     && !touched.contains(&t.clash.b)
             };
             let (tracked, n_kept) = merge(&p.tracked, fresh, kept, txn_now);
-            (tracked, stats, RunMode::Incremental { by, changed: n_changed, removed, kept: n_kept })
+            let fingerprinted =
+                if listed_all { fingerprints(&entries) } else { fingerprints_after(p, &touched, &entries) };
+            (
+                tracked,
+                stats,
+                RunMode::Incremental { by, changed: n_changed, removed, kept: n_kept },
+                fingerprinted,
+            )
         }
         Err(why) => {
             let (c, s) = run_on(txn, test, &entries, None, started)?;
             let (tracked, _) = merge(previous.map_or(&[][..], |p| &p.tracked), c, |_| false, txn_now);
-            (tracked, s, RunMode::Full { why })
+            (tracked, s, RunMode::Full { why }, fingerprints(&entries))
         }
     };
+    stats.objects = objects;
     stats.seconds = started.elapsed().as_secs_f64();
     let record = RecordedRun {
         txn: txn_now,
@@ -219,7 +332,7 @@ pub fn rerun(
         tracked,
         object_ids: txn.object_ids(),
         build: txn.info().map_or(0, |i| i.build_seconds.to_bits()),
-        objects: fingerprints(&entries),
+        objects: fingerprinted,
     };
     Ok((Recorded { txn: txn_now, stats, mode }, record))
 }
@@ -252,4 +365,82 @@ pub fn run_recorded(
     let (recorded, record) = rerun(txn, &test, store.runs.get(name), incremental)?;
     store.runs.insert(name.to_string(), record);
     Ok(recorded)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::clash::run_test;
+    use crate::clash::test::TestKind;
+    use crate::db::Database;
+    use crate::scene::{Mesh, Object, Scene};
+    use crate::store::device::MemDevice;
+    use proptest::prelude::*;
+
+    /// A box on a 50 mm grid, 30 mm past its cells (so boxes overlap, touch
+    /// or lie 20 mm apart), named so that half are pipes.
+    fn cell(k: u64, at: [u8; 3], size: u8) -> Object {
+        let lo = at.map(|x| f64::from(x) * 50.0);
+        let hi = lo.map(|x| x + f64::from(size) * 50.0 + 30.0);
+        let mesh = Mesh::of_box(&Aabb::new(lo.into(), hi.into())).unwrap();
+        Object::new(if k.is_multiple_of(2) { "PIPE" } else { "WALL" }, mesh).with_key(Key::Int(k))
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 32, ..ProptestConfig::default() })]
+
+        /// A re-run after logged changes gives a full run's clashes and
+        /// the fingerprints a listing would, whether it reads the changed
+        /// objects' neighbours through the tree (`few` 1) or lists the
+        /// index (`few` past any count of objects).
+        #[test]
+        fn neighbours_through_the_tree_give_a_full_runs_clashes(
+            start in prop::collection::vec((prop::array::uniform3(0u8..10), 1u8..4), 8..40),
+            moves in prop::collection::vec((any::<prop::sample::Index>(), prop::array::uniform3(0u8..10), 1u8..4, any::<bool>()), 1..6),
+            through_tree in any::<bool>(),
+            pipes_against_walls in any::<bool>(),
+        ) {
+            let scene = Scene::new(start.iter().enumerate().map(|(k, &(at, s))| cell(k as u64, at, s)).collect());
+            let db = Database::create_on(Arc::new(MemDevice::new()), Default::default()).unwrap();
+            let mut w = db.begin_write().unwrap();
+            w.bulk_load(&scene, &Default::default(), &|_| {}).unwrap();
+            w.commit().unwrap();
+            let test = if pipes_against_walls {
+                ClashTest {
+                    a: vec!["name:PIPE".parse().unwrap()],
+                    b: Some(vec!["name:WALL".parse().unwrap()]),
+                    kind: TestKind::Hard,
+                    touch: true,
+                    ..Default::default()
+                }
+            } else {
+                ClashTest { kind: TestKind::Clearance, distance: 30.0, touch: true, ..Default::default() }
+            };
+            let few = if through_tree { 1 } else { usize::MAX };
+            let (_, record) = rerun_by(&db.begin_read().unwrap(), &test, None, true, few).unwrap();
+            let mut w = db.begin_write().unwrap();
+            for (i, at, s, remove) in moves {
+                let k = i.index(start.len()) as u64;
+                if remove {
+                    w.remove(&Key::Int(k)).unwrap();
+                } else if w.object(&Key::Int(k)).unwrap().is_some() {
+                    w.update(cell(k, at, s)).unwrap();
+                } else {
+                    w.insert(cell(k, at, s)).unwrap();
+                }
+            }
+            w.commit().unwrap();
+            let r = db.begin_read().unwrap();
+            let (rec, next) = rerun_by(&r, &test, Some(&record), true, few).unwrap();
+            prop_assert!(matches!(rec.mode, RunMode::Incremental { by: FoundBy::Log, .. }), "{:?}", rec.mode);
+            prop_assert!(through_tree || rec.stats.listed == rec.stats.objects);
+            let got: Vec<_> = next.clashes().cloned().collect();
+            prop_assert_eq!(got, run_test(&r, &test).unwrap().clashes);
+            let listed = r.key_entries(&mut Reads::new(None)).unwrap();
+            prop_assert_eq!(&next.objects, &fingerprints(&listed));
+            prop_assert_eq!(next.txn, r.txn());
+        }
+    }
 }

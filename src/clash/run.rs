@@ -30,9 +30,12 @@ use crate::store::format::keys::KeyEntry;
 pub struct RunStats {
     /// Objects in the file.
     pub objects: usize,
-    /// Objects in set A.
+    /// Key entries the run read: every object's, or for a re-run after a
+    /// few logged changes, the changed objects' and their neighbours'.
+    pub listed: usize,
+    /// Objects in set A, of those listed.
     pub in_a: usize,
-    /// Objects in set B (A's when the test has no B).
+    /// Objects in set B (A's when the test has no B), of those listed.
     pub in_b: usize,
     /// Pairs whose boxes lie within the test's reach.
     pub candidates: usize,
@@ -237,6 +240,7 @@ fn run_chunked(
     let pairs = candidates(entries, &in_a, &in_b, test.reach(), changed);
     let mut stats = RunStats {
         objects: entries.len(),
+        listed: entries.len(),
         in_a: in_a.iter().filter(|&&x| x).count(),
         in_b: in_b.iter().filter(|&&x| x).count(),
         candidates: pairs.len(),

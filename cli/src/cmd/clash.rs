@@ -305,14 +305,18 @@ fn print<C: AsRef<Clash>>(
         None => String::new(),
     };
     println!(
-        "{} clashes in {} groups on commit {}; A {} and B {} of {} objects, {} candidate pairs, {} meshes read ({} held at most); \
+        "{} clashes in {} groups on commit {}; A {} and B {} of {}, {} candidate pairs, {} meshes read ({} held at most); \
          {:.1} ms (list {:.1}, read {:.1}, measure {:.1}){how}",
         clashes.len(),
         grouped.count,
         txn,
         s.in_a,
         s.in_b,
-        s.objects,
+        if s.listed == s.objects {
+            format!("{} objects", s.objects)
+        } else {
+            format!("the {} objects near a change (of {})", s.listed, s.objects)
+        },
         s.candidates,
         s.meshes_read,
         s.peak_meshes,
