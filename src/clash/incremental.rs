@@ -128,20 +128,15 @@ fn why_not_fingerprints(txn: &ReadTransaction, p: &RecordedRun) -> Option<String
 type Changed = (Vec<bool>, HashSet<Key>, FoundBy);
 
 /// Which of `entries` changed since the recorded run `p`, and every key
-/// touched (changed, inserted or removed); `Err(why)` when neither the
-/// change log nor the fingerprints can tell.
-fn changed_since(
+/// touched (changed, inserted or removed), by `p`'s fingerprints (the
+/// change log does not reach back to it); `Err(why)` when they cannot tell.
+fn changed_by_fingerprints(
     txn: &ReadTransaction,
     entries: &[KeyEntry],
     p: &RecordedRun,
-) -> Result<Result<Changed, String>, ClashError> {
-    if let Some(logged) = txn.changes_since(p.txn)? {
-        let touched: HashSet<Key> = logged.into_iter().map(|c| c.key).collect();
-        let changed = entries.iter().map(|e| touched.contains(&e.key)).collect();
-        return Ok(Ok((changed, touched, FoundBy::Log)));
-    }
+) -> Result<Changed, String> {
     if let Some(why) = why_not_fingerprints(txn, p) {
-        return Ok(Err(format!("{why}, and the change log does not reach back to commit {}", p.txn)));
+        return Err(format!("{why}, and the change log does not reach back to commit {}", p.txn));
     }
     // Keys whose (id, box) differ, are new, or are gone.
     let mut changed = vec![false; entries.len()];
@@ -174,7 +169,7 @@ fn changed_since(
             (None, None) => break,
         }
     }
-    Ok(Ok((changed, touched, FoundBy::Fingerprints)))
+    Ok((changed, touched, FoundBy::Fingerprints))
 }
 
 /// Changed keys, at most one in this many of the file's objects, are read
@@ -279,14 +274,13 @@ fn rerun_by(
         None => {
             let entries = txn.key_entries(&mut Reads::new(Some(txn.cache())))?;
             let seed = match (why, previous) {
-                (None, Some(p)) => changed_since(txn, &entries, p)?.map(|c| (p, c)),
+                (None, Some(p)) => changed_by_fingerprints(txn, &entries, p).map(|c| (p, c)),
                 (why, _) => Err(why.unwrap_or_default()),
             };
             (entries, seed)
         }
     };
     let listed_all = entries.len() == objects;
-    debug_assert!(entries.len() <= objects);
     let (tracked, mut stats, mode, fingerprinted) = match seed {
         Ok((p, (changed, touched, by))) => {
             let n_changed = changed.iter().filter(|&&c| c).count();
