@@ -12,14 +12,14 @@ use super::{Inner, ReadTransaction, Recovery, SeatGuard, Snapshot, WriterLock, i
 use crate::bulk::{BuildParams, BuildProgress, Hierarchy, LoadProgress, Stage, build_owned, check_range};
 use crate::lod::LodParams;
 use crate::scene::{Key, KeyError, Object, ObjectId, Scene};
-use crate::store::StorageError;
-use crate::store::alloc::{FreeSpace, label_freed};
+use crate::store::alloc::{FreeSpace, free_keeping, label_freed};
 use crate::store::format::change_log::{ChangeKind, ChangeLog};
 use crate::store::format::frame::BlockType;
 use crate::store::format::freelist::{FreeListBlock, FreeRange, ranges_per_block};
 use crate::store::format::geometry;
 use crate::store::format::header::{self, Commit, Slot, SlotState};
 use crate::store::format::meta::{Meta, log_room, written_capacity};
+use crate::store::{Block, StorageError};
 use crate::tree::Owner;
 
 mod cow;
@@ -59,6 +59,19 @@ pub struct WriteTransaction<'db> {
     /// The checksum of each block this transaction's changes wrote, for
     /// the meta block's list (the last write of a block counts).
     sums: BTreeMap<u32, u32>,
+    /// Blocks this commit wrote that the next one reads again (node blocks
+    /// and key branches, as verified blocks): the shared cache takes them
+    /// once the commit is installed, so that the next commit does not read
+    /// and validate its path again.
+    rewritten: Vec<Arc<Block>>,
+    /// While a change commit is tried in place: the blocks it allocated,
+    /// given back if it stops short.
+    taken: Option<Vec<(u32, u32)>>,
+    /// Set when the commit keeps the committed tree: the committed blocks
+    /// it frees (the committed free list's, and what the new tree no longer
+    /// reaches). The new free list is then the committed one less what the
+    /// commit wrote, plus these.
+    kept: Option<Vec<(u32, u32)>>,
     /// How the levels of detail below M are built.
     lod_params: LodParams,
     /// Objects inserted, updated and deleted, by key, once the first change began.
@@ -191,6 +204,9 @@ impl<'db> WriteTransaction<'db> {
             meta: None,
             change_meta: None,
             sums: BTreeMap::new(),
+            rewritten: Vec::new(),
+            taken: None,
+            kept: None,
             lod_params: LodParams::default(),
             edits: None,
             change_stats: ChangeStats::default(),
@@ -252,6 +268,9 @@ impl<'db> WriteTransaction<'db> {
         let first =
             if self.append_only { self.avail.allocate_at_end(count)? } else { self.avail.allocate(count)? };
         self.written.release(first, count);
+        if let Some(t) = self.taken.as_mut() {
+            t.push((first, count));
+        }
         // Readers of older snapshots no longer reach these blocks: drop any cached copy.
         self.inner.cache().forget(first, count);
         Ok(first)
@@ -453,15 +472,20 @@ impl<'db> WriteTransaction<'db> {
         }
         if self.inner.host.is_none() {
             // An attempt that stops short leaves nothing reachable: its blocks go back.
-            let (avail, written) = (self.avail.clone(), self.written.clone());
-            match self.commit_in_place(&edits)? {
+            let end = self.avail.end();
+            self.taken = Some(Vec::new());
+            let tried = self.commit_in_place(&edits);
+            let taken = self.taken.take().unwrap_or_default();
+            match tried? {
                 Some(stats) => {
                     self.change_stats = stats;
                     return Ok(false);
                 }
                 None => {
-                    (self.avail, self.written) = (avail, written);
+                    self.avail.give_back(&taken, end);
+                    self.written.remove_all(&taken);
                     (self.change_meta, self.sums) = (None, BTreeMap::new());
+                    self.rewritten.clear();
                 }
             }
         }
@@ -615,7 +639,7 @@ impl<'db> WriteTransaction<'db> {
                     return Ok(self.change_stats);
                 }
                 // The same tree, and a shorter file.
-                self.keep_base(&chain);
+                self.keep_base(chain.iter().map(|&b| (b, 1)).collect());
                 old_chain = chain;
                 let meta = self.inner.lock_state().snapshot.meta.clone();
                 (self.base.meta_block, self.base.meta_checksum, meta)
@@ -666,16 +690,31 @@ impl<'db> WriteTransaction<'db> {
         let per = ranges_per_block(pager.block_size());
         let mut list_blocks: Vec<u32> = Vec::new();
         let (free, end) = loop {
-            let mut free = label_freed(
-                &FreeSpace::complement(self.avail.end(), &self.written),
-                &self.base_free,
-                self.txn,
-            );
+            let mut free = match &self.kept {
+                Some(freed) => free_keeping(
+                    &self.base_free,
+                    self.base.block_count,
+                    self.avail.end(),
+                    &self.written,
+                    freed,
+                    self.txn,
+                ),
+                None => label_freed(
+                    &FreeSpace::complement(self.avail.end(), &self.written),
+                    &self.base_free,
+                    self.txn,
+                ),
+            };
             let end = self.trim_tail(&mut free, self.avail.end(), old_chain);
-            if free.len().div_ceil(per) <= list_blocks.len() {
+            let need = free.len().div_ceil(per);
+            if need <= list_blocks.len() {
                 break (free, end);
             }
-            list_blocks.push(self.allocate(1)?);
+            // The list's own blocks change it by a few ranges at most: the
+            // next pass mostly finds it fits.
+            while list_blocks.len() < need {
+                list_blocks.push(self.allocate(1)?);
+            }
         };
         let (mut next, mut next_sum) = (0u32, 0u32);
         let chunks: Vec<&[FreeRange]> = free.chunks(per).collect();
@@ -715,13 +754,11 @@ impl<'db> WriteTransaction<'db> {
         r.freed < self.txn && self.oldest_reader.is_none_or(|o| r.freed <= o)
     }
 
-    /// Keeps the committed tree: its blocks count as this transaction's,
-    /// except the free list's (`chain`), which the new list replaces.
-    fn keep_base(&mut self, chain: &[u32]) {
-        let free = FreeSpace::new(self.base.block_count, self.base_free.iter().map(|r| (r.first, r.count)));
-        self.written.union(&FreeSpace::complement(self.base.block_count, &free));
-        let chain: Vec<(u32, u32)> = chain.iter().map(|&b| (b, 1)).collect();
-        self.written.remove_all(&chain);
+    /// Keeps the committed tree but for the blocks `freed` (the committed
+    /// free list's, which the new list replaces, and what the new tree no
+    /// longer reaches).
+    fn keep_base(&mut self, freed: Vec<(u32, u32)>) {
+        self.kept = Some(freed);
     }
 
     fn finish(&mut self, c: Commit, new: Option<NewState>) -> Result<(), StorageError> {
@@ -753,6 +790,9 @@ impl<'db> WriteTransaction<'db> {
     /// Makes `c` (with its meta and free ranges, or the base's) the state readers begin on.
     fn install(&mut self, c: Commit, new: Option<NewState>) {
         self.done = true;
+        for b in self.rewritten.drain(..) {
+            self.inner.cache().put(b);
+        }
         let mut s = self.inner.lock_state();
         let (meta, free) = match new {
             Some(n) => {

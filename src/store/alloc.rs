@@ -77,6 +77,16 @@ impl FreeSpace {
         Ok(first)
     }
 
+    /// Gives back the blocks `taken` (as allocated) since the file had `end`
+    /// blocks: those below `end` are free again, and the file ends at `end`.
+    pub fn give_back(&mut self, taken: &[(u32, u32)], end: u32) {
+        for &(first, count) in taken {
+            let count = count.min(end.saturating_sub(first));
+            self.release(first, count);
+        }
+        self.end = self.end.min(end);
+    }
+
     /// Marks `count` blocks from `first` free, merging with neighbours.
     pub fn release(&mut self, first: u32, count: u32) {
         if count == 0 {
@@ -191,9 +201,180 @@ pub fn label_freed(free: &[(u32, u32)], before: &[FreeRange], now: u64) -> Vec<F
     out
 }
 
+/// The free ranges after a commit that keeps the committed tree, in one
+/// pass over the committed ones: the committed free ranges `before` (their
+/// labels kept) and the blocks from `base_end` (the committed file's end)
+/// to `end`, less the blocks `written`, plus the committed blocks `freed`
+/// now, labelled `now`; neighbours with one label merged. It is what
+/// labelling the complement of every block the new state uses gives
+/// ([`label_freed`]), without building that set, whose size is the
+/// file's.
+pub fn free_keeping(
+    before: &[FreeRange],
+    base_end: u32,
+    end: u32,
+    written: &FreeSpace,
+    freed: &[(u32, u32)],
+    now: u64,
+) -> Vec<FreeRange> {
+    let mut freed: Vec<(u32, u32)> = freed.iter().copied().filter(|&(_, c)| c > 0).collect();
+    freed.sort_unstable();
+    let mut pass = Pass { written: written.ranges(), wi: 0, freed, fi: 0, now, out: Vec::with_capacity(before.len() + 8) };
+    // A committed list's ranges lie in the committed file, past block 0.
+    for r in before {
+        let stop = (u64::from(r.first) + u64::from(r.count)).min(u64::from(base_end));
+        pass.free(u64::from(r.first.max(1)), stop, r.freed);
+    }
+    pass.free(u64::from(base_end.max(1)), u64::from(end), now);
+    pass.finish()
+}
+
+/// [`free_keeping`]'s one pass: free ranges come in order of first block.
+struct Pass {
+    /// The blocks the commit wrote (sorted, few) and the next that may
+    /// meet a range.
+    written: Vec<(u32, u32)>,
+    wi: usize,
+    /// The committed blocks freed now (sorted, few) and the next to place.
+    freed: Vec<(u32, u32)>,
+    fi: usize,
+    now: u64,
+    out: Vec<FreeRange>,
+}
+
+impl Pass {
+    /// The list, with the freed blocks past every free range.
+    fn finish(mut self) -> Vec<FreeRange> {
+        for &(f, c) in &self.freed[self.fi..] {
+            push_merged(&mut self.out, u64::from(f), u64::from(f) + u64::from(c), self.now);
+        }
+        self.out
+    }
+
+    /// Blocks `first .. stop`, free with label `label`, less those written;
+    /// after the freed blocks that come before them.
+    fn free(&mut self, first: u64, stop: u64, label: u64) {
+        while let Some(&(f, c)) = self.freed.get(self.fi).filter(|&&(f, _)| u64::from(f) < first) {
+            push_merged(&mut self.out, u64::from(f), u64::from(f) + u64::from(c), self.now);
+            self.fi += 1;
+        }
+        let end_of = |(f, c): (u32, u32)| u64::from(f) + u64::from(c);
+        while self.written.get(self.wi).is_some_and(|&r| end_of(r) <= first) {
+            self.wi += 1;
+        }
+        let (mut at, mut k) = (first, self.wi);
+        while at < stop {
+            match self.written.get(k) {
+                Some(&(f, c)) if u64::from(f) < stop => {
+                    if u64::from(f) > at {
+                        push_merged(&mut self.out, at, u64::from(f), label);
+                    }
+                    at = at.max(end_of((f, c)));
+                    k += 1;
+                }
+                _ => {
+                    push_merged(&mut self.out, at, stop, label);
+                    at = stop;
+                }
+            }
+        }
+    }
+}
+
+/// Appends the blocks `first .. stop` labelled `freed` to `out` (in order of
+/// first block): merged with the last range when they touch and share the
+/// label. Blocks the last range holds already are left out, so that the
+/// list stays disjoint even when a hostile file's list names blocks its
+/// tree uses.
+fn push_merged(out: &mut Vec<FreeRange>, first: u64, stop: u64, freed: u64) {
+    let first = match out.last_mut() {
+        Some(l) => {
+            let l_stop = u64::from(l.first) + u64::from(l.count);
+            if stop <= l_stop {
+                return;
+            }
+            let first = first.max(l_stop);
+            if first == l_stop && l.freed == freed {
+                l.count = (stop - u64::from(l.first)) as u32;
+                return;
+            }
+            first
+        }
+        None => first,
+    };
+    if first < stop {
+        out.push(FreeRange { first: first as u32, count: (stop - first) as u32, freed });
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    /// The free list a commit that keeps the committed tree wrote before
+    /// `free_keeping`: every block the new state uses as a set, then its
+    /// complement, labelled.
+    fn free_by_complement(
+        before: &[FreeRange],
+        base_end: u32,
+        end: u32,
+        written: &FreeSpace,
+        freed: &[(u32, u32)],
+        now: u64,
+    ) -> Vec<FreeRange> {
+        let mut used = written.clone();
+        let free = FreeSpace::new(base_end, before.iter().map(|r| (r.first, r.count)));
+        used.union(&FreeSpace::complement(base_end, &free));
+        used.remove_all(freed);
+        label_freed(&FreeSpace::complement(end, &used), before, now)
+    }
+
+    proptest! {
+        /// The one-pass free list equals the complement of every used
+        /// block, for any committed list, blocks taken from it or past its
+        /// end, and committed blocks freed.
+        #[test]
+        fn the_free_list_after_a_kept_tree_is_the_complement_of_what_is_used(
+            cells in prop::collection::vec(0u8..4, 1..120),
+            grow in 0u32..6,
+            taken in prop::collection::vec(any::<prop::sample::Index>(), 0..12),
+        ) {
+            // Each block of the committed file: 0 used, 1 free (freed by
+            // commit 3), 2 free (by commit 5), 3 used and freed now.
+            let base_end = cells.len() as u32 + 1;
+            let end = base_end + grow;
+            let mut before: Vec<FreeRange> = Vec::new();
+            let mut freed = Vec::new();
+            for (i, &c) in cells.iter().enumerate() {
+                let b = i as u32 + 1;
+                match c {
+                    1 | 2 => {
+                        let label = if c == 1 { 3 } else { 5 };
+                        match before.last_mut() {
+                            Some(l) if l.first + l.count == b && l.freed == label => l.count += 1,
+                            _ => before.push(FreeRange { first: b, count: 1, freed: label }),
+                        }
+                    }
+                    3 => freed.push((b, 1)),
+                    _ => {}
+                }
+            }
+            // The commit writes blocks free before it, or past the committed end.
+            let mut open: Vec<u32> = before.iter().flat_map(|r| r.first..r.first + r.count).collect();
+            open.extend(base_end..end);
+            let mut written = FreeSpace::new(end, []);
+            for ix in &taken {
+                if !open.is_empty() {
+                    written.release(open.remove(ix.index(open.len())), 1);
+                }
+            }
+            prop_assert_eq!(
+                free_keeping(&before, base_end, end, &written, &freed, 9),
+                free_by_complement(&before, base_end, end, &written, &freed, 9)
+            );
+        }
+    }
 
     #[test]
     fn allocation_is_first_fit_then_appends() {
@@ -203,6 +384,16 @@ mod tests {
         assert_eq!(f.allocate(3).unwrap(), 20);
         assert_eq!(f.end(), 23);
         assert_eq!(f.ranges(), vec![(13, 2)]);
+    }
+
+    #[test]
+    fn blocks_given_back_are_free_again_and_the_end_returns() {
+        let before = FreeSpace::new(20, [(3, 2), (10, 5)]);
+        let mut f = before.clone();
+        let taken: Vec<(u32, u32)> = [1, 3, 4, 2].iter().map(|&n| (f.allocate(n).unwrap(), n)).collect();
+        assert_eq!(f.end(), 24, "the four blocks grew the file");
+        f.give_back(&taken, 20);
+        assert_eq!(f, before);
     }
 
     #[test]

@@ -4,14 +4,15 @@
 //! leaf keeps are copied as they lie.
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 use crate::db::write::WriteTransaction;
 use crate::db::{ReadTransaction, Reads};
 use crate::scene::{Key, KeyError, ObjectId};
-use crate::store::StorageError;
 use crate::store::format::frame::BlockType;
 use crate::store::format::keys::{self, ChildRef, KeyBlock, KeyEntry};
 use crate::store::format::meta::Meta;
+use crate::store::{Block, StorageError};
 use crate::tree::Owner;
 
 /// The key index as a change commit leaves it.
@@ -213,6 +214,15 @@ impl WriteTransaction<'_> {
             keys::encode_branch(part, &mut block).map_err(StorageError::Invalid)?;
             let id = self.allocate(1)?;
             let checksum = self.put(id, &mut block, BlockType::KeyBranch)?;
+            // Every change reads the branches again: cached, as a read would.
+            let records = keys::validate(id, &block, false)?;
+            self.rewritten.push(Arc::new(Block {
+                id,
+                checksum,
+                bytes: block.into(),
+                records,
+                groups: Vec::new(),
+            }));
             *blocks += 1;
             out.push(ChildRef { first_key: part[0].first_key.clone(), block: id, checksum });
         }

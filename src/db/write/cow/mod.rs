@@ -259,13 +259,13 @@ impl WriteTransaction<'_> {
         self.logged = Some((meta.log.clone(), logged));
         self.change_meta = Some((meta_block, new_meta));
         stats.blocks_written = written_count(&self.written) - written_before;
-        // The committed tree stays but for what this commit replaced.
-        let chain = self.base_chain.clone();
-        self.keep_base(&chain);
+        // The committed tree stays but for what this commit replaced, and
+        // the committed free list, which the new one replaces.
         let mut gone: Vec<(u32, u32)> = freed.iter().map(|&b| (b, 1)).collect();
         gone.push((self.base.meta_block, 1));
-        self.written.remove_all(&gone);
         stats.blocks_freed = gone.len() as u64;
+        gone.extend(self.base_chain.iter().map(|&b| (b, 1)));
+        self.keep_base(gone);
         stats.blocks_read = reads.stats.total();
         Ok(Some(stats))
     }

@@ -347,6 +347,17 @@ mod tests {
     use crate::store::format::node::{NodeView, group_ref, relocate_block, validate_block};
 
     #[test]
+    fn parts_give_the_offsets_validation_finds() {
+        // A writer caches the blocks it wrote with these offsets as verified.
+        let drafts = drafts();
+        let parts: Vec<RecordPart> = drafts.iter().map(RecordPart::Draft).collect();
+        let mut block = vec![0u8; 1024];
+        let offsets = encode_block_parts(&parts, &mut block).unwrap();
+        assert_eq!(validate_block(3, &block, &limits()).unwrap(), offsets);
+        assert_eq!(offsets.len(), drafts.len());
+    }
+
+    #[test]
     fn group_levels_and_the_group_block_round_trip_and_move() {
         let mut block = vec![0u8; 1024];
         let group = GroupRef { block: 9, checksum: 77, levels: vec![0b110, 0b010] };
