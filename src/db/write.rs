@@ -1,7 +1,7 @@
 //! The write transaction: bulk-loads a scene into new blocks (copy on write)
 //! and commits it with the protocol of format-spec/commit.md.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -62,8 +62,9 @@ pub struct WriteTransaction<'db> {
     /// Blocks this commit wrote that the next one reads again (node blocks
     /// and key branches, as verified blocks): the shared cache takes them
     /// once the commit is installed, so that the next commit does not read
-    /// and validate its path again.
-    rewritten: Vec<Arc<Block>>,
+    /// and validate its path again. At most the cache's capacity, the last
+    /// written (parents come after their children).
+    rewritten: VecDeque<Arc<Block>>,
     /// While a change commit is tried in place: the blocks it allocated,
     /// given back if it stops short.
     taken: Option<Vec<(u32, u32)>>,
@@ -204,7 +205,7 @@ impl<'db> WriteTransaction<'db> {
             meta: None,
             change_meta: None,
             sums: BTreeMap::new(),
-            rewritten: Vec::new(),
+            rewritten: VecDeque::new(),
             taken: None,
             kept: None,
             lod_params: LodParams::default(),
@@ -250,6 +251,19 @@ impl<'db> WriteTransaction<'db> {
         let sum = self.inner.pager().write(id, block, t, self.txn)?;
         self.sums.insert(id, sum);
         Ok(sum)
+    }
+
+    /// Keeps block `b`, just written and verified, for the shared cache
+    /// at install; past the cache's capacity the earliest kept goes.
+    fn keep_for_cache(&mut self, b: Block) {
+        let capacity = self.inner.cache().capacity();
+        if capacity == 0 {
+            return;
+        }
+        if self.rewritten.len() >= capacity {
+            self.rewritten.pop_front();
+        }
+        self.rewritten.push_back(Arc::new(b));
     }
 
     /// The change log of the meta block this commit writes, which lists

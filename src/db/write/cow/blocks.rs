@@ -125,14 +125,13 @@ impl WriteTransaction<'_> {
         let checksum = self.put(id, &mut bytes, BlockType::Node)?;
         // The offsets are the ones validation finds (a test in the node
         // format holds them so), so the block is cached as verified.
-        let records = offsets.clone();
-        self.rewritten.push(Arc::new(Block {
+        self.keep_for_cache(Block {
             id,
             checksum,
             bytes: bytes.into(),
-            records,
+            records: offsets.clone(),
             groups: Vec::new(),
-        }));
+        });
         Ok((id, checksum, offsets))
     }
 }

@@ -4,7 +4,6 @@
 //! leaf keeps are copied as they lie.
 
 use std::collections::BTreeMap;
-use std::sync::Arc;
 
 use crate::db::write::WriteTransaction;
 use crate::db::{ReadTransaction, Reads};
@@ -216,13 +215,7 @@ impl WriteTransaction<'_> {
             let checksum = self.put(id, &mut block, BlockType::KeyBranch)?;
             // Every change reads the branches again: cached, as a read would.
             let records = keys::validate(id, &block, false)?;
-            self.rewritten.push(Arc::new(Block {
-                id,
-                checksum,
-                bytes: block.into(),
-                records,
-                groups: Vec::new(),
-            }));
+            self.keep_for_cache(Block { id, checksum, bytes: block.into(), records, groups: Vec::new() });
             *blocks += 1;
             out.push(ChildRef { first_key: part[0].first_key.clone(), block: id, checksum });
         }
