@@ -428,3 +428,24 @@ fn a_reader_held_through_twenty_commits_keeps_only_what_it_reads() {
         m
     });
 }
+
+#[test]
+fn the_next_commit_finds_the_path_the_last_one_wrote_in_the_cache() {
+    let (db, dev, model) = tanker2();
+    let key = Key::Int(1234);
+    let depth = path_blocks(&db, &key);
+    // Device reads of the lookup a change of `key` makes, shifted by `d`.
+    let change_reads = |d: [f64; 3]| {
+        let mut w = db.begin_write().unwrap();
+        let before = dev.counts().reads;
+        w.update(shifted(&model[&key], d).with_key(key.clone())).unwrap();
+        let reads = dev.counts().reads - before;
+        assert!(w.commit_with_stats().unwrap().in_place);
+        reads
+    };
+    let first = change_reads([5.0, 0.0, 0.0]);
+    // The node blocks on the path were written by the commit before, and
+    // the cache holds them: the device reads at least the path fewer.
+    let second = change_reads([10.0, 0.0, 0.0]);
+    assert!(second + depth <= first, "{second} reads after {first}, a path of {depth} node blocks");
+}
