@@ -182,12 +182,18 @@ impl Grid {
     /// The cell k along `axis` with plane(k) <= x < plane(k + 1), clamped to the grid.
     pub(crate) fn cell_of(&self, axis: usize, x: f64) -> u32 {
         let d = self.dims[axis];
-        let s = self.side;
-        // Far coordinates saturate (as i64 does from f64), and the offset is
-        // taken in i128, so no coordinate overflows: clamping puts it at an end.
-        let est = ((x - self.lattice.origin[axis]) / s).floor();
-        let est = if est.is_finite() { i128::from(est as i64) - i128::from(self.first[axis]) + 1 } else { 0 };
-        let est = est.clamp(0, i128::from(d) - 1) as i64;
+        // Only a first guess: the loops below settle the cell from any
+        // start, so the guess truncates (floor is a library call on
+        // baseline x86-64, and this runs per triangle corner) and saturates
+        // at far coordinates; NaN stays at cell 0.
+        let est = if x.is_nan() {
+            0
+        } else {
+            (((x - self.lattice.origin[axis]) / self.side) as i64)
+                .saturating_sub(self.first[axis])
+                .saturating_add(1)
+                .clamp(0, i64::from(d) - 1)
+        };
         let mut k = est as u32;
         while k > 0 && self.plane(axis, k) > x {
             k -= 1;
@@ -273,6 +279,36 @@ mod tests {
         let finer = Grid::new(&lat(), g.level() - 1, &b).unwrap();
         assert!(finer.cells() > 4096);
         assert!(Grid::coarsest_within(&lat(), &b, 0, 0).is_err());
+    }
+
+    proptest::proptest! {
+        /// The cell of a coordinate is the one whose planes hold it (clamped
+        /// to the grid), wherever the guess starts: below the lattice's
+        /// origin, far outside the bounds, at infinities and NaN.
+        #[test]
+        fn the_cell_of_a_coordinate_is_the_one_its_planes_hold(
+            origin in -50.0f64..50.0,
+            cell in 0.5f64..4.0,
+            level in 0u8..3,
+            lo in -100.0f64..100.0,
+            size in 0.5f64..60.0,
+            x in proptest::prop_oneof![
+                -300.0f64..300.0,
+                proptest::prelude::Just(f64::INFINITY),
+                proptest::prelude::Just(f64::NEG_INFINITY),
+                proptest::prelude::Just(f64::NAN),
+                proptest::prelude::Just(1e300),
+                proptest::prelude::Just(-1e300),
+            ],
+        ) {
+            let l = Lattice { origin: Point::new(origin, origin, origin), cell };
+            let g = Grid::new(&l, level, &Aabb::from_array([lo, lo, lo, lo + size, lo + size, lo + size]));
+            // Grids past MAX_CELLS are refused (tested above).
+            let Ok(g) = g else { return Ok(()) };
+            let d = g.dims()[0];
+            let want = (0..d).rev().find(|&k| g.plane(0, k) <= x).unwrap_or(0);
+            proptest::prop_assert_eq!(g.cell_of(0, x), want);
+        }
     }
 
     #[test]

@@ -109,24 +109,8 @@ impl Voxels {
     }
 
     /// Linear indices of the set cells within `range`, in increasing order.
-    fn set_cells_in(&self, range: std::ops::Range<usize>) -> impl Iterator<Item = usize> + '_ {
-        let words = range.start / 64..range.end.div_ceil(64);
-        words.flat_map(move |wi| {
-            let lo = range.start.max(wi * 64) - wi * 64;
-            let hi = range.end.min(wi * 64 + 64) - wi * 64;
-            // Bits lo..hi of word wi: none for an empty range, where the
-            // shift by 64 has no value.
-            let mask = u64::MAX.checked_shr((64 - (hi - lo)) as u32).unwrap_or(0) << lo;
-            let mut w = self.bits[wi] & mask;
-            std::iter::from_fn(move || {
-                if w == 0 {
-                    return None;
-                }
-                let b = w.trailing_zeros() as usize;
-                w &= w - 1;
-                Some(wi * 64 + b)
-            })
-        })
+    fn set_cells_in(&self, range: std::ops::Range<usize>) -> SetCells<'_> {
+        SetCells::new(&self.bits, range)
     }
 
     /// True when every cell of this set, lifted into `other`'s grid, is set there.
@@ -194,6 +178,58 @@ impl Voxels {
         self.grid.box_range(&b).is_some_and(|r| {
             self.any_in(r, |_, c| intersects_triangle_box(t, &self.grid.cell_box(c).grown(tol)))
         })
+    }
+}
+
+/// The set bits of a bitmap within a range, in increasing order: a word
+/// at a time, each set bit its word's next, so that a sparse row costs a
+/// load per word and a set cell a few instructions (this walk is most of
+/// lifting a level into the next).
+pub(crate) struct SetCells<'a> {
+    bits: &'a [u64],
+    /// The word being read, and its bits in range not yet returned.
+    word: usize,
+    rest: u64,
+    /// The word past the range's last, and the range's bits of that last word.
+    end: usize,
+    last_mask: u64,
+}
+
+impl<'a> SetCells<'a> {
+    fn new(bits: &'a [u64], range: std::ops::Range<usize>) -> SetCells<'a> {
+        if range.start >= range.end {
+            return SetCells { bits, word: 0, rest: 0, end: 0, last_mask: 0 };
+        }
+        let (first, end) = (range.start / 64, (range.end - 1) / 64 + 1);
+        let last_mask = match range.end % 64 {
+            0 => u64::MAX,
+            hi => (1u64 << hi) - 1,
+        };
+        let mut rest = bits[first] & (u64::MAX << (range.start % 64));
+        if first + 1 == end {
+            rest &= last_mask;
+        }
+        SetCells { bits, word: first, rest, end, last_mask }
+    }
+}
+
+impl Iterator for SetCells<'_> {
+    type Item = usize;
+
+    fn next(&mut self) -> Option<usize> {
+        while self.rest == 0 {
+            if self.word + 1 >= self.end {
+                return None;
+            }
+            self.word += 1;
+            self.rest = self.bits[self.word];
+            if self.word + 1 == self.end {
+                self.rest &= self.last_mask;
+            }
+        }
+        let b = self.rest.trailing_zeros() as usize;
+        self.rest &= self.rest - 1;
+        Some(self.word * 64 + b)
     }
 }
 
@@ -265,6 +301,21 @@ mod tests {
                 want.set_cell([0, 1, 2].map(|a| coarse.grid.cell_of(a, centre(a))));
             }
             proptest::prop_assert_eq!(coarse, want);
+        }
+
+        /// The word-at-a-time walk finds exactly the set bits of any range,
+        /// whichever words its ends fall in.
+        #[test]
+        fn set_cells_of_a_range_are_its_set_bits(
+            bits in proptest::collection::vec(proptest::num::u64::ANY, 1..5),
+            a in 0usize..320,
+            b in 0usize..320,
+        ) {
+            let n = bits.len() * 64;
+            let range = a.min(b) % (n + 1)..a.max(b) % (n + 1);
+            let got: Vec<usize> = SetCells::new(&bits, range.clone()).collect();
+            let want: Vec<usize> = range.filter(|&i| bits[i / 64] >> (i % 64) & 1 == 1).collect();
+            proptest::prop_assert_eq!(got, want);
         }
     }
 
