@@ -62,7 +62,7 @@ impl Voxels {
 
     /// Linear indices of the set cells, in increasing order.
     pub(crate) fn set_cells(&self) -> impl Iterator<Item = usize> + '_ {
-        self.set_cells_in(0..self.bits.len() * 64)
+        SetCells::new(&self.bits, 0..self.bits.len() * 64)
     }
 
     /// ORs every set cell into the cell of `target`'s grid that contains it.
@@ -92,25 +92,21 @@ impl Voxels {
                 m.push(t);
             }
         }
-        // Row by row (x fastest): a row's target row is found once, and
-        // each set cell is its word's next bit, with no division per cell.
-        let [dx, dy, dz] = from.dims().map(|d| d as usize);
+        // One pass over the set cells (x fastest): a row's target row is
+        // found when its first set cell comes, so empty rows cost nothing
+        // and a cell no division.
+        let [dx, dy, _] = from.dims().map(|d| d as usize);
         let to_grid = to.clone();
-        for z in 0..dz {
-            for y in 0..dy {
-                let row = dx * (y + dy * z);
-                let base = to_grid.index([0, map[1][y], map[2][z]]);
-                for i in self.set_cells_in(row..row + dx) {
-                    target.set(base + map[0][i - row] as usize);
-                }
+        let (mut row, mut row_end, mut base) = (0, 0, 0);
+        for i in self.set_cells() {
+            if i >= row_end {
+                let r = i / dx;
+                (row, row_end) = (r * dx, r * dx + dx);
+                base = to_grid.index([0, map[1][r % dy], map[2][r / dy]]);
             }
+            target.set(base + map[0][i - row] as usize);
         }
         Ok(())
-    }
-
-    /// Linear indices of the set cells within `range`, in increasing order.
-    fn set_cells_in(&self, range: std::ops::Range<usize>) -> SetCells<'_> {
-        SetCells::new(&self.bits, range)
     }
 
     /// True when every cell of this set, lifted into `other`'s grid, is set there.
@@ -326,8 +322,8 @@ mod tests {
             v.set(i);
         }
         for start in [0, 5, 63, 64, 70] {
-            assert_eq!(v.set_cells_in(start..start).count(), 0, "at {start}");
-            assert_eq!(v.set_cells_in(start..start + 1).collect::<Vec<_>>(), [start]);
+            assert_eq!(SetCells::new(&v.bits, start..start).count(), 0, "at {start}");
+            assert_eq!(SetCells::new(&v.bits, start..start + 1).collect::<Vec<_>>(), [start]);
         }
     }
 }
