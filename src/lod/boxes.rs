@@ -23,34 +23,41 @@ impl Voxels {
             })
         };
         let mut out = Vec::new();
-        for i in self.set_cells() {
-            if !free(&covered, i) {
-                continue;
-            }
-            let [x0, y0, z0] = g.coords(i);
-            let mut x1 = x0 + 1;
-            while x1 < dx && free(&covered, i + (x1 - x0) as usize) {
-                x1 += 1;
-            }
-            let mut y1 = y0 + 1;
-            while y1 < dy && all_free(&covered, [x0, x1], [y1, y1 + 1], [z0, z0 + 1]) {
-                y1 += 1;
-            }
-            let mut z1 = z0 + 1;
-            while z1 < dz && all_free(&covered, [x0, x1], [y0, y1], [z1, z1 + 1]) {
-                z1 += 1;
-            }
-            for z in z0..z1 {
-                for y in y0..y1 {
-                    let row = g.index([0, y, z]);
-                    for x in x0..x1 {
-                        let j = row + x as usize;
-                        covered[j / 64] |= 1 << (j % 64);
+        for wi in 0..self.bits.len() {
+            // The least set cell not yet covered, a word at a time:
+            // covered cells are skipped without a test each, and a box
+            // grown from one cell may cover later cells of its word.
+            loop {
+                let w = self.bits[wi] & !covered[wi];
+                if w == 0 {
+                    break;
+                }
+                let i = wi * 64 + w.trailing_zeros() as usize;
+                let [x0, y0, z0] = g.coords(i);
+                let mut x1 = x0 + 1;
+                while x1 < dx && free(&covered, i + (x1 - x0) as usize) {
+                    x1 += 1;
+                }
+                let mut y1 = y0 + 1;
+                while y1 < dy && all_free(&covered, [x0, x1], [y1, y1 + 1], [z0, z0 + 1]) {
+                    y1 += 1;
+                }
+                let mut z1 = z0 + 1;
+                while z1 < dz && all_free(&covered, [x0, x1], [y0, y1], [z1, z1 + 1]) {
+                    z1 += 1;
+                }
+                for z in z0..z1 {
+                    for y in y0..y1 {
+                        let row = g.index([0, y, z]);
+                        for x in x0..x1 {
+                            let j = row + x as usize;
+                            covered[j / 64] |= 1 << (j % 64);
+                        }
                     }
                 }
+                // Dims are at most MAX_DIM = 65535, so every corner fits a u16.
+                out.push([x0, y0, z0, x1, y1, z1].map(|c| c as u16));
             }
-            // Dims are at most MAX_DIM = 65535, so every corner fits a u16.
-            out.push([x0, y0, z0, x1, y1, z1].map(|c| c as u16));
         }
         out
     }
