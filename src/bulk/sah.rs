@@ -97,17 +97,18 @@ impl Binning {
         (extent > 0.0).then(|| Binning { axis, low, scale: BINS as f64 / extent })
     }
 
-    /// The bin of box `b`'s centroid (the last bin takes the upper end).
-    fn bin(&self, b: &Aabb) -> usize {
-        self.bin_at(centroid(b, self.axis))
-    }
-
     /// The bin of centroid coordinate `c`.
     fn bin_at(&self, c: f64) -> usize {
-        // `as` saturates, and the ratio is in [0, BINS]; to i32, it takes
-        // fewer instructions than to usize.
-        (((c - self.low) * self.scale) as i32).clamp(0, BINS as i32 - 1) as usize
+        bin_of(c, self.low, self.scale)
     }
+}
+
+/// The bin of centroid coordinate `c` in bins from `low`, `scale` bins a
+/// unit (the last bin takes the upper end).
+fn bin_of(c: f64, low: f64, scale: f64) -> usize {
+    // `as` saturates, and the ratio is in [0, BINS]; to i32, it takes
+    // fewer instructions than to usize.
+    (((c - low) * scale) as i32).clamp(0, BINS as i32 - 1) as usize
 }
 
 /// The least and greatest centroid coordinates of a set of boxes, per axis:
@@ -131,8 +132,15 @@ impl Spread {
     }
 
     fn add(&mut self, c: &[f64; 3]) {
+        // Comparisons rather than `f64::min`, which pays for NaN (meshes
+        // hold none): the same on ties, and run per object per level.
         for ((low, high), &c) in self.low.iter_mut().zip(&mut self.high).zip(c) {
-            (*low, *high) = (low.min(c), high.max(c));
+            if c < *low {
+                *low = c;
+            }
+            if c > *high {
+                *high = c;
+            }
         }
     }
 }
@@ -195,13 +203,20 @@ impl Sah<'_> {
         let parent = measure.of(aabb);
         let binnings: [Option<Binning>; 3] =
             std::array::from_fn(|a| Binning::new(a, spread.low[a], spread.high[a]));
+        // Plain arrays, the axis's bin found inline: this loop runs for
+        // every object at every level of every trial subtree (a fifth of a
+        // build's instructions on ship 30,000).
+        let lows = binnings.each_ref().map(|b| b.as_ref().map_or(0.0, |b| b.low));
+        let scales = binnings.each_ref().map(|b| b.as_ref().map_or(0.0, |b| b.scale));
+        let active = binnings.each_ref().map(Option::is_some);
         let mut bins = [[(0usize, Aabb::EMPTY); BINS]; 3];
         for &j in set {
             let b = &boxes[j as usize];
-            for (binning, bins) in binnings.iter().zip(&mut bins) {
-                if let Some(binning) = binning {
-                    let slot = &mut bins[binning.bin(b)];
-                    *slot = (slot.0 + 1, slot.1.union(b));
+            for axis in 0..3 {
+                if active[axis] {
+                    let slot = &mut bins[axis][bin_of(centroid(b, axis), lows[axis], scales[axis])];
+                    slot.0 += 1;
+                    slot.1 = slot.1.union(b);
                 }
             }
         }
