@@ -24,16 +24,28 @@ impl Sub {
         self.dims.iter().product()
     }
 
-    /// The local index of global cell `c`, if inside.
-    pub(crate) fn local(&self, c: [u32; 3]) -> Option<usize> {
-        let mut l = [0usize; 3];
-        for a in 0..3 {
-            l[a] = c[a].checked_sub(self.lo[a])? as usize;
-            if l[a] >= self.dims[a] {
+    /// The local index of global cell `c`, which is inside.
+    pub(crate) fn index_inside(&self, c: [u32; 3]) -> usize {
+        let l = [0, 1, 2].map(|a| (c[a] - self.lo[a]) as usize);
+        l[0] + self.dims[0] * (l[1] + self.dims[1] * l[2])
+    }
+
+    /// How far the local index moves for a step along each axis.
+    pub(crate) fn strides(&self) -> [usize; 3] {
+        [1, self.dims[0], self.dims[0] * self.dims[1]]
+    }
+
+    /// The part of cell range `r` (inclusive, per axis) inside, if any.
+    pub(crate) fn clip(&self, r: [(u32, u32); 3]) -> Option<[(u32, u32); 3]> {
+        let mut out = r;
+        for (a, (lo, hi)) in out.iter_mut().enumerate() {
+            let last = self.lo[a] + (self.dims[a] - 1) as u32;
+            (*lo, *hi) = ((*lo).max(self.lo[a]), (*hi).min(last));
+            if lo > hi {
                 return None;
             }
         }
-        Some(l[0] + self.dims[0] * (l[1] + self.dims[1] * l[2]))
+        Some(out)
     }
 
     fn coords(&self, i: usize) -> [usize; 3] {
@@ -154,4 +166,43 @@ fn flood(sub: &Sub, visited: &mut [u64], queue: &mut Vec<u32>, mut component: Op
         }
     }
     queue.clear();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn range() -> impl Strategy<Value = [(u32, u32); 3]> {
+        prop::array::uniform3((0u32..12, 0u32..6)).prop_map(|a| a.map(|(lo, n)| (lo, lo + n)))
+    }
+
+    proptest! {
+        #[test]
+        fn a_clipped_range_holds_the_cells_of_the_range_inside_at_their_local_index(sub in range(), r in range()) {
+            let s = Sub::new(sub);
+            let inside = |c: [u32; 3]| (0..3).all(|a| sub[a].0 <= c[a] && c[a] <= sub[a].1);
+            let cells = |r: [(u32, u32); 3]| {
+                let mut v = Vec::new();
+                for z in r[2].0..=r[2].1 {
+                    for y in r[1].0..=r[1].1 {
+                        for x in r[0].0..=r[0].1 {
+                            v.push([x, y, z]);
+                        }
+                    }
+                }
+                v
+            };
+            let expected: Vec<[u32; 3]> = cells(r).into_iter().filter(|&c| inside(c)).collect();
+            let clipped = s.clip(r).map_or_else(Vec::new, cells);
+            prop_assert_eq!(&clipped, &expected);
+            for c in clipped {
+                let i = s.index_inside(c);
+                prop_assert_eq!(s.global(i), c);
+                let [sx, sy, sz] = s.strides();
+                let l = [0, 1, 2].map(|a| (c[a] - sub[a].0) as usize);
+                prop_assert_eq!(i, l[0] * sx + l[1] * sy + l[2] * sz);
+            }
+        }
+    }
 }

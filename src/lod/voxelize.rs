@@ -73,10 +73,17 @@ fn surface(grid: &Grid, planes: &[Vec<f64>; 3], tol: f64, sub: &Sub, t: &[Point;
     };
     let test = (!single)
         .then(|| TriangleBoxTest::new(t, &cell(r[0].0, r[1].0, r[2].0).union(&cell(r[0].1, r[1].1, r[2].1))));
-    for z in r[2].0..=r[2].1 {
-        for y in r[1].0..=r[1].1 {
-            for x in r[0].0..=r[0].1 {
-                let Some(i) = sub.local([x, y, z]) else { continue };
+    // The triangle's cells lie in the mesh's sub-grid (both ranges are of
+    // boxes grown alike, one inside the other); clipping to it once keeps
+    // the loops free of a check per cell.
+    let Some([(x0, x1), (y0, y1), (z0, z1)]) = sub.clip(r) else { return };
+    let [_, row_stride, layer_stride] = sub.strides();
+    let mut layer = sub.index_inside([x0, y0, z0]);
+    for z in z0..z1 + 1 {
+        let mut row = layer;
+        for y in y0..y1 + 1 {
+            for x in x0..x1 + 1 {
+                let i = row + (x - x0) as usize;
                 // A cell an earlier triangle of the mesh set needs no test
                 // (neighbouring triangles share most of their cells).
                 let bit = 1 << (i % 64);
@@ -86,7 +93,9 @@ fn surface(grid: &Grid, planes: &[Vec<f64>; 3], tol: f64, sub: &Sub, t: &[Point;
                     local[i / 64] |= bit;
                 }
             }
+            row += row_stride;
         }
+        layer += layer_stride;
     }
 }
 
