@@ -48,6 +48,15 @@ use crate::rng::Rng;
 /// Below this many objects a node's options are scored on one thread.
 const PAR_OPTIONS_MIN: usize = 512;
 
+/// A trial keeps no [`Known`] of its nodes of fewer objects: their own
+/// trials cost little, and each record is an allocation.
+const KNOWN_MIN: usize = 64;
+
+/// How many levels below its root a trial keeps [`Known`] of: each node's
+/// cost is added to the sum of each open node above it, so this bounds the
+/// work per node where a tree is as deep as it has objects.
+const KNOWN_DEPTH: usize = 48;
+
 /// The refining splitter.
 pub(crate) struct Refine<'a> {
     ctx: &'a Ctx<'a>,
@@ -63,17 +72,17 @@ impl<'a> Refine<'a> {
 
     /// The expected cost of the `vsah` subtree of `set`, whose box is
     /// `aabb` and centroid spread `spread`.
-    fn score(&self, set: &[u32], aabb: Aabb, spread: Spread) -> TrialOut {
+    fn score(&self, set: &[u32], aabb: Aabb, spread: Spread) -> Scored {
         walk(&Trial { ctx: self.ctx, vsah: &self.vsah, model: &self.model }, (set.to_vec(), aabb, spread), 0)
+            .finish()
     }
 }
 
 /// What a trial learnt of a node it grew, for the node's own refinement:
 /// the score of its `vsah` option (the sum of its `vsah` halves' trials,
 /// as [`Refine::split`] would add them, bit for bit), and the same of those
-/// halves. Known only where the trial walked the halves apart, as `walk`
-/// does for halves of at least `PAR_MIN` objects each, so that each half's
-/// trial is a sum of its own.
+/// halves. Known for the trial's nodes of at least [`KNOWN_MIN`] objects
+/// down to [`KNOWN_DEPTH`] levels below its root.
 pub(crate) struct Known {
     vsah_score: f64,
     halves: [Option<Box<Known>>; 2],
@@ -128,7 +137,7 @@ impl Splitter for Refine<'_> {
         let repeats = repeats(self.keys, &set[0], &options);
         // Each option's score and its sides' trials; none for a repeat, or
         // for the vsah option when the parent's trial already scored it.
-        let score = |o: usize| -> (f64, Option<[TrialOut; 2]>) {
+        let score = |o: usize| -> (f64, Option<[Scored; 2]>) {
             if repeats[o].is_some() {
                 return (f64::NAN, None);
             }
@@ -144,7 +153,7 @@ impl Splitter for Refine<'_> {
             let (a, b) = (self.score(a, l, sl), self.score(b, r, sr));
             (a.total + b.total, Some([a, b]))
         };
-        let mut scored: Vec<(f64, Option<[TrialOut; 2]>)> = if n >= PAR_OPTIONS_MIN {
+        let mut scored: Vec<(f64, Option<[Scored; 2]>)> = if n >= PAR_OPTIONS_MIN {
             (0..options.len()).into_par_iter().map(score).collect()
         } else {
             (0..options.len()).map(score).collect()
@@ -184,20 +193,79 @@ struct Trial<'a> {
 /// A trial node: its objects, their box and their centroids' spread.
 type TrialSet = (Vec<u32>, Aabb, Spread);
 
-/// What one call of `walk` on a trial gives.
-struct TrialOut {
-    /// The expected cost of the subtree.
+/// A trial scored: the expected cost of its subtree, as a walk adds it,
+/// and what it learnt of its root.
+struct Scored {
     total: f64,
-    /// The walk has visited its first node, the subtree's root.
-    begun: bool,
-    /// What the walk learnt of the root ([`Known`]).
     known: Option<Box<Known>>,
+}
+
+/// A node of a trial whose subtree the walk is in.
+struct Open {
+    depth: u32,
+    /// Its objects.
+    len: usize,
+    /// Its subtree's cost so far, added in the order a walk from it would
+    /// add it (its own walk's total, bit for bit, once finished).
+    sum: f64,
+    /// Its halves, scored, as they finish.
+    halves: [Option<Scored>; 2],
+}
+
+impl Open {
+    /// The node's subtree scored, its own walk finished.
+    fn finish(self) -> Scored {
+        let known = match self.halves {
+            [Some(l), Some(r)] if self.len >= KNOWN_MIN => {
+                Some(Box::new(Known { vsah_score: l.total + r.total, halves: [l.known, r.known] }))
+            }
+            _ => None,
+        };
+        Scored { total: self.sum, known }
+    }
+}
+
+/// A trial walk in progress: the open nodes from its root down to the node
+/// visited last, [`KNOWN_DEPTH`] levels at most. Each node's cost is added
+/// to the sum of every open node above it, so that each subtree's sum is
+/// the total its own walk would give (a walk's order depends on sizes
+/// only): what [`Known`] records.
+struct TrialOut {
+    path: Vec<Open>,
+}
+
+impl TrialOut {
+    /// Adds `cost` to the sums of the open nodes.
+    fn add(&mut self, cost: f64) {
+        for open in &mut self.path {
+            open.sum += cost;
+        }
+    }
+
+    /// Closes the open nodes at `depth` or deeper, the root excepted: their
+    /// subtrees are walked, and each hands its score to its parent.
+    fn close_to(&mut self, depth: u32) {
+        while self.path.len() > 1 && self.path.last().is_some_and(|o| o.depth >= depth) {
+            let Some(open) = self.path.pop() else { break };
+            let scored = open.finish();
+            if let Some(parent) = self.path.last_mut() {
+                let halves = &mut parent.halves;
+                halves[usize::from(halves[0].is_some())] = Some(scored);
+            }
+        }
+    }
+
+    /// The walk's root scored, its walk done.
+    fn finish(mut self) -> Scored {
+        self.close_to(0);
+        self.path.pop().map_or(Scored { total: 0.0, known: None }, Open::finish)
+    }
 }
 
 impl Walk for Trial<'_> {
     type Set = TrialSet;
     type Out = TrialOut;
-    /// The node is the root of the walk's subtree.
+    /// The node is open (not deeper than [`KNOWN_DEPTH`] below the root).
     type Mark = bool;
 
     fn len(&self, set: &TrialSet) -> usize {
@@ -205,35 +273,41 @@ impl Walk for Trial<'_> {
     }
 
     fn start(&self) -> TrialOut {
-        TrialOut { total: 0.0, begun: false, known: None }
+        TrialOut { path: Vec::new() }
     }
 
     fn visit(
         &self,
         (set, aabb, spread): TrialSet,
-        _depth: u32,
+        depth: u32,
         out: &mut TrialOut,
     ) -> Option<(TrialSet, TrialSet, bool)> {
-        let root = !out.begun;
-        out.begun = true;
+        out.close_to(depth);
+        // A sum starts at 0 and takes the node's own cost first, as a walk's
+        // total does. Deeper nodes are not known, but add to the sums above.
+        let open = out.path.len() <= KNOWN_DEPTH;
+        if open {
+            out.path.push(Open { depth, len: set.len(), sum: 0.0, halves: [None, None] });
+        }
         let leaf = self.ctx.leaf.fits(&set);
-        out.total += self.model.node_cost(&aabb, leaf);
+        out.add(self.model.node_cost(&aabb, leaf));
         if leaf {
             return None;
         }
         self.ctx.meter.worked(set.len());
         let h = self.vsah.halves_within(set, &aabb, &spread);
         let ([l, r], [sl, sr]) = (h.boxes, h.spreads);
-        Some(((h.left, l, sl), (h.right, r, sr), root))
+        Some(((h.left, l, sl), (h.right, r, sr), open))
     }
 
-    fn right_begins(&self, _out: &mut TrialOut, _root: bool) {}
+    fn right_begins(&self, _out: &mut TrialOut, _open: bool) {}
 
-    fn splice(&self, out: &mut TrialOut, root: bool, left: TrialOut, right: TrialOut) {
-        let halves = left.total + right.total;
-        out.total += halves;
-        if root {
-            out.known = Some(Box::new(Known { vsah_score: halves, halves: [left.known, right.known] }));
+    fn splice(&self, out: &mut TrialOut, open: bool, left: TrialOut, right: TrialOut) {
+        let (left, right) = (left.finish(), right.finish());
+        out.add(left.total + right.total);
+        // The node just visited, whose halves were walked apart.
+        if let Some(node) = out.path.last_mut().filter(|_| open) {
+            node.halves = [Some(left), Some(right)];
         }
     }
 }
@@ -246,10 +320,65 @@ mod tests {
     use crate::bulk::progress::Meter;
     use crate::bulk::walk::PAR_MIN;
 
+    /// The trial of all of `boxes`, checked: its total against a plain
+    /// preorder sum of the `vsah` tree's node costs (when no halves are big
+    /// enough to be walked apart), and every [`Known`] it holds, at any
+    /// depth, against fresh trials of that node's halves, bit for bit.
+    /// Returns how many were checked, and the `vsah` tree's depth.
+    fn check_trial(boxes: &[Aabb]) -> (usize, usize) {
+        let n = boxes.len();
+        let ids: Vec<u32> = (0..n as u32).collect();
+        let ctx = Ctx {
+            boxes,
+            ids: &ids,
+            leaf: Leaf::Objects(4),
+            rate: 0.2,
+            tie: TieBreak::FirstFound,
+            meter: Meter::new(&|_| {}, n, 0.0),
+        };
+        let keys = Keys::new(boxes, &ids);
+        let refine = Refine::new(&ctx, &keys, CostModel::of_boxes(boxes, crate::bulk::QueryExtent::Auto));
+        let all = ids.clone();
+        let trial = refine.score(&all, ctx.aabb_of(&all), Spread::of(boxes, &all));
+        // The plain sum, and the depth, by an explicit stack.
+        let (mut sum, mut depth) = (0.0, 0);
+        let mut stack = vec![(all.clone(), 1)];
+        while let Some((set, d)) = stack.pop() {
+            let aabb = ctx.aabb_of(&set);
+            let leaf = ctx.leaf.fits(&set);
+            sum += refine.model.node_cost(&aabb, leaf);
+            depth = depth.max(d);
+            if !leaf {
+                let h = refine.vsah.halves(set, &aabb);
+                stack.push((h.right, d + 1));
+                stack.push((h.left, d + 1));
+            }
+        }
+        if n < 2 * PAR_MIN {
+            assert_eq!(trial.total.to_bits(), sum.to_bits());
+        }
+        let mut checked = 0;
+        let mut pending = vec![(all, trial.known)];
+        while let Some((set, known)) = pending.pop() {
+            let Some(k) = known else { continue };
+            let h = refine.vsah.halves(set.clone(), &ctx.aabb_of(&set));
+            let [l, r] = h.boxes;
+            let [sl, sr] = h.spreads;
+            let fresh = refine.score(&h.left, l, sl).total + refine.score(&h.right, r, sr).total;
+            assert_eq!(k.vsah_score.to_bits(), fresh.to_bits(), "a node of {} objects", set.len());
+            checked += 1;
+            let [kl, kr] = k.halves;
+            pending.push((h.left, kl));
+            pending.push((h.right, kr));
+        }
+        (checked, depth)
+    }
+
     #[test]
-    fn what_a_trial_learns_of_a_node_is_its_vsah_score_bit_for_bit() {
+    fn what_a_trial_learns_of_its_nodes_is_their_vsah_scores_bit_for_bit() {
         // A grid of small boxes jittered by a fixed hash: big enough that the
-        // trial walks the root's halves, and their halves, apart.
+        // trial walks the root's halves, and theirs, apart, and below
+        // that in one sum.
         let n = 6 * PAR_MIN;
         let boxes: Vec<Aabb> = (0..n)
             .map(|i| {
@@ -259,38 +388,24 @@ mod tests {
                 Aabb::from_array([x + d, y, z + d, x + d + 0.7, y + 0.3 + d, z + 0.9])
             })
             .collect();
-        let ids: Vec<u32> = (0..n as u32).collect();
-        let ctx = Ctx {
-            boxes: &boxes,
-            ids: &ids,
-            leaf: Leaf::Objects(4),
-            rate: 0.2,
-            tie: TieBreak::FirstFound,
-            meter: Meter::new(&|_| {}, n, 0.0),
-        };
-        let keys = Keys::new(&boxes, &ids);
-        let refine = Refine::new(&ctx, &keys, CostModel::of_boxes(&boxes, crate::bulk::QueryExtent::Auto));
-        let fresh = |set: &[u32], aabb: &Aabb| {
-            let h = refine.vsah.halves(set.to_vec(), aabb);
-            let [l, r] = h.boxes;
-            let [sl, sr] = h.spreads;
-            (refine.score(&h.left, l, sl).total + refine.score(&h.right, r, sr).total, h)
-        };
-        let all: Vec<u32> = ids.clone();
-        let aabb = ctx.aabb_of(&all);
-        let trial = refine.score(&all, aabb, Spread::of(&boxes, &all));
-        let known = trial.known.expect("the root's halves are walked apart");
-        let (score, h) = fresh(&all, &aabb);
-        assert_eq!(known.vsah_score.to_bits(), score.to_bits());
-        let mut checked = 0;
-        for (side, k) in [(&h.left, &known.halves[0]), (&h.right, &known.halves[1])] {
-            if let Some(k) = k {
-                let (score, _) = fresh(side, &ctx.aabb_of(side));
-                assert_eq!(k.vsah_score.to_bits(), score.to_bits());
-                checked += 1;
-            }
-        }
-        assert!(checked > 0, "no half was walked apart");
+        let (checked, _) = check_trial(&boxes);
+        // Every node of at least KNOWN_MIN objects: about 2 n / KNOWN_MIN.
+        assert!(checked > n / KNOWN_MIN, "{checked} nodes known");
+    }
+
+    #[test]
+    fn a_trial_deeper_than_it_keeps_sums_for_still_adds_up_and_knows_its_top() {
+        // Boxes ever further apart: each cut peels the farthest few off, so
+        // the tree is far deeper than KNOWN_DEPTH.
+        let boxes: Vec<Aabb> = (0..400)
+            .map(|i| {
+                let x = 3f64.powi(i);
+                Aabb::from_array([x, 0.0, 0.0, x + 1.0, 1.0, 1.0])
+            })
+            .collect();
+        let (checked, depth) = check_trial(&boxes);
+        assert!(depth > 2 * KNOWN_DEPTH, "depth {depth}");
+        assert!(checked >= KNOWN_DEPTH - 1, "{checked} nodes known");
     }
 
     #[test]
