@@ -27,6 +27,8 @@
 //! number of threads. Options that divide the node alike (the two orders
 //! of an axis often pick the same cut, and a cut can match the `vsah`
 //! one) are scored once: a score depends only on the two sides' objects.
+//! Nor is the `vsah` option scored at a node that its parent's trial grew:
+//! that trial summed it already ([`Known`]).
 //!
 //! Measured and not kept (docs/build-methods.md, "Tried and dropped"): a
 //! cost mixing several query sizes, page-aligned cuts as extra options for
