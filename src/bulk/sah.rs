@@ -97,18 +97,12 @@ impl Binning {
         (extent > 0.0).then(|| Binning { axis, low, scale: BINS as f64 / extent })
     }
 
-    /// The bin of centroid coordinate `c`.
+    /// The bin of centroid coordinate `c` (the last bin takes the upper end).
     fn bin_at(&self, c: f64) -> usize {
-        bin_of(c, self.low, self.scale)
+        // `as` saturates, and the ratio is in [0, BINS]; to i32, it takes
+        // fewer instructions than to usize.
+        (((c - self.low) * self.scale) as i32).clamp(0, BINS as i32 - 1) as usize
     }
-}
-
-/// The bin of centroid coordinate `c` in bins from `low`, `scale` bins a
-/// unit (the last bin takes the upper end).
-fn bin_of(c: f64, low: f64, scale: f64) -> usize {
-    // `as` saturates, and the ratio is in [0, BINS]; to i32, it takes
-    // fewer instructions than to usize.
-    (((c - low) * scale) as i32).clamp(0, BINS as i32 - 1) as usize
 }
 
 /// The least and greatest centroid coordinates of a set of boxes, per axis:
@@ -203,18 +197,15 @@ impl Sah<'_> {
         let parent = measure.of(aabb);
         let binnings: [Option<Binning>; 3] =
             std::array::from_fn(|a| Binning::new(a, spread.low[a], spread.high[a]));
-        // Plain arrays, the axis's bin found inline: this loop runs for
-        // every object at every level of every trial subtree (a fifth of a
-        // build's instructions on ship 30,000).
-        let lows = binnings.each_ref().map(|b| b.as_ref().map_or(0.0, |b| b.low));
-        let scales = binnings.each_ref().map(|b| b.as_ref().map_or(0.0, |b| b.scale));
-        let active = binnings.each_ref().map(Option::is_some);
         let mut bins = [[(0usize, Aabb::EMPTY); BINS]; 3];
+        // Indexed by axis rather than zipped with the bins: this loop runs
+        // for every object at every level of every trial subtree (a fifth
+        // of a build's instructions on ship 30,000).
         for &j in set {
             let b = &boxes[j as usize];
-            for axis in 0..3 {
-                if active[axis] {
-                    let slot = &mut bins[axis][bin_of(centroid(b, axis), lows[axis], scales[axis])];
+            for (axis, binning) in binnings.iter().enumerate() {
+                if let Some(binning) = binning {
+                    let slot = &mut bins[axis][binning.bin_at(centroid(b, axis))];
                     slot.0 += 1;
                     slot.1 = slot.1.union(b);
                 }
