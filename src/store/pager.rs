@@ -172,6 +172,24 @@ impl Pager {
         Ok(sum)
     }
 
+    /// Seals the consecutive blocks `blocks` holds, the first `first`, and
+    /// writes them in one device write (a bulk load's geometry: one call,
+    /// not one per block); returns their checksums in order. `blocks` is
+    /// whole blocks.
+    pub fn write_run(
+        &self,
+        first: u32,
+        blocks: &mut [u8],
+        block_type: BlockType,
+        txn: u64,
+    ) -> Result<Vec<u32>, StorageError> {
+        let bs = self.block_size as usize;
+        debug_assert_eq!(blocks.len() % bs, 0, "a run of whole blocks");
+        let sums = (first..).zip(blocks.chunks_exact_mut(bs)).map(|(id, b)| frame::seal(id, b, block_type, txn)).collect();
+        self.device.write_at(self.offset(first), blocks)?;
+        Ok(sums)
+    }
+
     /// Writes block 0 or a slot at a byte offset of block 0.
     pub fn write_header_bytes(&self, offset: u64, bytes: &[u8]) -> Result<(), StorageError> {
         Ok(self.device.write_at(offset, bytes)?)

@@ -3,6 +3,10 @@
 //! boxes in the chosen packing, each child entry's counts of the blocks
 //! below it, and the group bounds' blocks.
 
+use std::ops::Range;
+
+use rayon::prelude::*;
+
 use super::Sink;
 use super::plan::{Plan, object_ids};
 use super::read_model::choose_packing;
@@ -137,8 +141,16 @@ struct GeometryWritten {
     vertices: u64,
 }
 
+/// Blocks a worker encodes, seals and writes as one run, in one write: a
+/// run's records are many, and each worker holds one run's buffer (1 MiB
+/// of 16 KiB blocks) at a time.
+const RUN_BLOCKS: u64 = 64;
+
 /// Writes every leaf entry's geometry record where `plan` placed it, in
-/// consecutive blocks.
+/// consecutive blocks. Each leaf's records start a block of their own
+/// (format-spec/geometry.md), so runs of whole leaves share no block: the
+/// runs are encoded, sealed and written in parallel, each block as the
+/// stream places it.
 fn write_geometry(
     Sink { pager, txn, allocate }: Sink,
     objects: &dyn ObjectSource,
@@ -149,48 +161,61 @@ fn write_geometry(
     let blocks = plan.stream_end.div_ceil(p);
     let count = u32::try_from(blocks).map_err(|_| StorageError::FileTooLarge)?;
     let first = allocate(count)?;
-    let mut sums = Vec::with_capacity(count as usize);
-    let mut block = vec![0u8; pager.block_size() as usize];
-    let mut filled = 0u64; // stream bytes of blocks already written
-    let mut record = Vec::new();
-    let (mut bytes, mut vertices) = (0u64, 0u64);
     let meter = StageMeter::new(progress, Stage::Geometry, blocks);
-    let flush = |block: &mut Vec<u8>, index: u64, sums: &mut Vec<u32>| -> Result<(), StorageError> {
-        let id = first + index as u32;
-        sums.push(pager.write(id, block, BlockType::Geometry, txn)?);
-        block.fill(0);
-        meter.add(1);
-        Ok(())
-    };
-    for e in plan.entries.iter().flatten() {
-        record.clear();
-        vertices += match &e.part {
-            Some(part) => {
-                geometry::encode_object(e.id, &part.0, &mut record);
-                part.0.vertex_count() as u64
-            }
-            None => objects.encode_record(e.id, &mut record)?,
-        };
-        bytes += record.len() as u64;
-        let mut at = e.pos;
-        let mut rest = &record[..];
-        while !rest.is_empty() {
-            while at >= filled + p {
-                flush(&mut block, filled / p, &mut sums)?;
-                filled += p;
-            }
-            let off = (at - filled) as usize;
-            let take = rest.len().min(p as usize - off);
-            block[FRAME_LEN + off..FRAME_LEN + off + take].copy_from_slice(&rest[..take]);
-            rest = &rest[take..];
-            at += take as u64;
+    // Each run starts at a leaf's first block (the first at block 0) and
+    // ends where the next starts (the last at the stream's end).
+    let mut starts: Vec<(u64, usize)> = Vec::new();
+    for (leaf, entries) in plan.entries.iter().enumerate() {
+        let Some(e) = entries.first() else { continue };
+        let block = e.pos / p;
+        if starts.last().is_none_or(|&(run, _)| block >= run + RUN_BLOCKS) {
+            starts.push((if starts.is_empty() { 0 } else { block }, leaf));
         }
     }
-    while filled < plan.stream_end {
-        flush(&mut block, filled / p, &mut sums)?;
-        filled += p;
+    let ends = starts.iter().skip(1).copied().chain([(blocks, plan.entries.len())]);
+    let runs: Vec<(Range<u64>, Range<usize>)> =
+        starts.iter().zip(ends).map(|(&(b0, l0), (b1, l1))| (b0..b1, l0..l1)).collect();
+    let bs = pager.block_size() as usize;
+    let written = runs
+        .into_par_iter()
+        .map(|(run, leaves)| {
+            let mut buf = vec![0u8; (run.end - run.start) as usize * bs];
+            let mut record = Vec::new();
+            let (mut bytes, mut vertices) = (0u64, 0u64);
+            for e in plan.entries[leaves].iter().flatten() {
+                record.clear();
+                vertices += match &e.part {
+                    Some(part) => {
+                        geometry::encode_object(e.id, &part.0, &mut record);
+                        part.0.vertex_count() as u64
+                    }
+                    None => objects.encode_record(e.id, &mut record)?,
+                };
+                bytes += record.len() as u64;
+                let mut at = e.pos - run.start * p;
+                let mut rest = &record[..];
+                while !rest.is_empty() {
+                    let (block, off) = ((at / p) as usize, (at % p) as usize);
+                    let take = rest.len().min(p as usize - off);
+                    let to = block * bs + FRAME_LEN + off;
+                    buf[to..to + take].copy_from_slice(&rest[..take]);
+                    rest = &rest[take..];
+                    at += take as u64;
+                }
+            }
+            // `run.start` < `blocks`, which fits a u32 (`count`).
+            let sums = pager.write_run(first + run.start as u32, &mut buf, BlockType::Geometry, txn)?;
+            meter.add(run.end - run.start);
+            Ok((sums, bytes, vertices))
+        })
+        .collect::<Result<Vec<_>, StorageError>>()?;
+    let mut out = GeometryWritten { first, sums: Vec::with_capacity(count as usize), blocks, bytes: 0, vertices: 0 };
+    for (sums, bytes, vertices) in written {
+        out.sums.extend(sums);
+        out.bytes += bytes;
+        out.vertices += vertices;
     }
-    Ok(GeometryWritten { first, sums, blocks, bytes, vertices })
+    Ok(out)
 }
 
 /// Writes the non-empty group blocks of `entries` (per node block); returns
