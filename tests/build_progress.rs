@@ -99,7 +99,15 @@ fn a_bulk_load_reports_each_stage_in_order_from_none_done_to_all_done() {
     let seen = seen.into_inner().unwrap();
     let mut stages: Vec<Stage> = seen.iter().map(|p| p.stage).collect();
     stages.dedup();
-    let order = [Stage::Tree, Stage::Layout, Stage::Levels, Stage::Choose, Stage::Geometry, Stage::Nodes];
+    let order = [
+        Stage::Tree,
+        Stage::Layout,
+        Stage::Levels,
+        Stage::Choose,
+        Stage::Geometry,
+        Stage::Groups,
+        Stage::Nodes,
+    ];
     assert_eq!(stages, order, "each stage once, in order");
     for stage in order {
         let of: Vec<&LoadProgress> = seen.iter().filter(|p| p.stage == stage).collect();

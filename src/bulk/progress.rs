@@ -133,9 +133,11 @@ impl<'a> Meter<'a> {
     }
 }
 
-/// A stage of a bulk load, in the order they run.
+/// A stage of a bulk load, in the order they run. A later version may add
+/// stages.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
+#[non_exhaustive]
 pub enum Stage {
     /// Clustering objects into the hierarchy (units: objects placed in leaves).
     Tree,
@@ -148,6 +150,10 @@ pub enum Stage {
     Choose,
     /// Writing geometry blocks (units: blocks).
     Geometry,
+    /// Building the group bounds b(S_n,k) of every node, under the finer
+    /// group grid and, when its bounds do not fit, the coarser one (units:
+    /// nodes built, counted for both).
+    Groups,
     /// Writing node blocks and the key index (units: node blocks).
     Nodes,
 }
@@ -161,6 +167,7 @@ impl Stage {
             Stage::Levels => "levels",
             Stage::Choose => "choose",
             Stage::Geometry => "geometry",
+            Stage::Groups => "groups",
             Stage::Nodes => "nodes",
         }
     }

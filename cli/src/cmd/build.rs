@@ -70,7 +70,7 @@ fn show(pb: &ProgressBar, stages: &Stages, p: LoadProgress) {
 /// The static name of a stage the progress bar shows.
 fn stage_name(prefix: &str) -> &'static str {
     use Stage::*;
-    [Tree, Layout, Levels, Choose, Geometry, Nodes]
+    [Tree, Layout, Levels, Choose, Geometry, Groups, Nodes]
         .into_iter()
         .map(Stage::name)
         .chain(["read", "commit"])

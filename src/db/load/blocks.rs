@@ -97,10 +97,23 @@ pub(crate) fn write(
     // The group bounds, each node block's in a group block of its own.
     let (group_entries, group_cuberille_bits) = match groups {
         Some((rule, shells)) => {
-            let e = super::groups::group_entries((rule, shells), objects, tree, plan, &packing, &offset, bs)?;
+            let e = super::groups::group_entries(
+                (rule, shells),
+                objects,
+                tree,
+                plan,
+                &packing,
+                &offset,
+                bs,
+                progress,
+            )?;
             (e.per_block, Some(e.cuberille_bits))
         }
-        None => (vec![Vec::new(); packing.blocks.len()], None),
+        None => {
+            // No group levels: the stage reports that it has nothing to do.
+            StageMeter::new(progress, Stage::Groups, 0);
+            (vec![Vec::new(); packing.blocks.len()], None)
+        }
     };
     let group_refs = write_groups(Sink { pager, txn, allocate }, &group_entries, &packing)?;
     let nodes = NodeBlocks {
@@ -209,7 +222,8 @@ fn write_geometry(
             Ok((sums, bytes, vertices))
         })
         .collect::<Result<Vec<_>, StorageError>>()?;
-    let mut out = GeometryWritten { first, sums: Vec::with_capacity(count as usize), blocks, bytes: 0, vertices: 0 };
+    let mut out =
+        GeometryWritten { first, sums: Vec::with_capacity(count as usize), blocks, bytes: 0, vertices: 0 };
     for (sums, bytes, vertices) in written {
         out.sums.extend(sums);
         out.bytes += bytes;
