@@ -205,3 +205,29 @@ impl Pager {
         Ok(self.device.len()? / u64::from(self.block_size))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::store::device::MemDevice;
+
+    /// A run of blocks is sealed and stored as the same blocks written one
+    /// by one would be, with the same checksums.
+    #[test]
+    fn a_run_is_written_as_its_blocks_one_by_one_are() {
+        let bs = 1024u32;
+        let (one, run) = (Pager::new(Arc::new(MemDevice::new()), bs, 2), Pager::new(Arc::new(MemDevice::new()), bs, 2));
+        let bytes: Vec<u8> = (0..3 * bs).map(|i| (i * 7 % 251) as u8).collect();
+        let mut a = bytes.clone();
+        let sums: Vec<u32> = (5..)
+            .zip(a.chunks_exact_mut(bs as usize))
+            .map(|(id, b)| one.write(id, b, BlockType::Geometry, 9).unwrap())
+            .collect();
+        let mut b = bytes;
+        assert_eq!(run.write_run(5, &mut b, BlockType::Geometry, 9).unwrap(), sums);
+        assert_eq!(a, b);
+        for id in 5..8 {
+            assert_eq!(run.read_raw(id).unwrap(), one.read_raw(id).unwrap(), "block {id}");
+        }
+    }
+}
