@@ -102,8 +102,7 @@ pub(crate) fn write(
                 objects,
                 tree,
                 plan,
-                &packing,
-                &offset,
+                (&packing, &offset),
                 bs,
                 progress,
             )?;

@@ -57,8 +57,7 @@ pub(super) fn group_entries(
     objects: &dyn ObjectSource,
     tree: &Hierarchy,
     plan: &Plan,
-    packing: &Packing,
-    offset: &[u32],
+    (packing, offset): (&Packing, &[u32]),
     block_size: u32,
     progress: &(dyn Fn(LoadProgress) + Sync),
 ) -> Result<GroupEntries, crate::Error> {
