@@ -150,9 +150,9 @@ pub enum Stage {
     Choose,
     /// Writing geometry blocks (units: blocks).
     Geometry,
-    /// Building the group bounds b(S_n,k) of every node, under the finer
-    /// group grid and, when its bounds do not fit, the coarser one (units:
-    /// nodes built, counted for both).
+    /// Building the group bounds b(S_n,k) of every node: level 2 under the
+    /// finer group grid, to learn whether its bounds fit, then every level
+    /// under the grid chosen (units: nodes built, counted in both passes).
     Groups,
     /// Writing node blocks and the key index (units: node blocks).
     Nodes,

@@ -77,8 +77,9 @@ pub fn is_remote_url(name: &str) -> bool {
 }
 
 /// Positioned byte storage with a durability barrier. The pager only ever
-/// reads and writes whole blocks (and the header's slots); implementations
-/// need not know the block size.
+/// reads and writes whole blocks (and the header's slots): it reads one
+/// block at a time and writes one or several consecutive ones (a bulk
+/// load's geometry in runs); implementations need not know the block size.
 pub trait BlockDevice: Send + Sync {
     /// Fills `buf` from `offset`; reading past the end is `UnexpectedEof`.
     fn read_at(&self, offset: u64, buf: &mut [u8]) -> io::Result<()>;
