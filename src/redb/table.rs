@@ -43,14 +43,28 @@ pub(crate) fn redb_error(e: impl Into<redb::Error>) -> StorageError {
 
 /// The block id a whole-block access at `offset` names.
 fn block_id(offset: u64, len: usize, block_size: u32) -> io::Result<u32> {
+    block_ids(offset, len, block_size).and_then(|ids| match ids.len() {
+        1 => Ok(ids.start),
+        _ => Err(not_whole_blocks(offset, len)),
+    })
+}
+
+/// The ids of the consecutive whole blocks (at least one) an access of
+/// `len` bytes at `offset` names.
+fn block_ids(offset: u64, len: usize, block_size: u32) -> io::Result<std::ops::Range<u32>> {
     let bs = u64::from(block_size);
-    match u32::try_from(offset / bs) {
-        Ok(id) if id != STATE_KEY && offset.is_multiple_of(bs) && len as u64 == bs => Ok(id),
-        _ => Err(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            format!("a table holds whole blocks: {len} bytes at offset {offset}"),
-        )),
+    let whole = len > 0 && offset.is_multiple_of(bs) && (len as u64).is_multiple_of(bs);
+    match (u32::try_from(offset / bs), u32::try_from(offset.saturating_add(len as u64) / bs)) {
+        (Ok(first), Ok(end)) if whole && first != STATE_KEY => Ok(first..end),
+        _ => Err(not_whole_blocks(offset, len)),
     }
+}
+
+fn not_whole_blocks(offset: u64, len: usize) -> io::Error {
+    io::Error::new(
+        io::ErrorKind::InvalidInput,
+        format!("a table holds whole blocks: {len} bytes at offset {offset}"),
+    )
 }
 
 /// Copies block `id`'s value into `buf`: a missing block reads as the end
@@ -218,13 +232,8 @@ impl BlockDevice for TableClient {
     }
     /// One or several consecutive whole blocks, each its own value.
     fn write_at(&self, offset: u64, data: &[u8]) -> io::Result<()> {
-        let bs = self.block_size as usize;
-        if data.is_empty() || !data.len().is_multiple_of(bs) {
-            // Not whole blocks: refused as a single block's access is.
-            block_id(offset, data.len(), self.block_size)?;
-        }
-        for (k, block) in (0u64..).zip(data.chunks_exact(bs)) {
-            let id = block_id(offset + k * bs as u64, bs, self.block_size)?;
+        let ids = block_ids(offset, data.len(), self.block_size)?;
+        for (id, block) in ids.zip(data.chunks_exact(self.block_size as usize)) {
             self.done(Request::Write(id, block.to_vec()))?;
         }
         Ok(())
@@ -260,5 +269,22 @@ impl Host for TableClient {
     }
     fn discard(&self, written: &[(u32, u32)]) -> Result<(), StorageError> {
         Ok(self.done(Request::Commit { remove: written.to_vec(), state: None })?)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A table's access names whole blocks after the state record: one for
+    /// a read, one or more for a write; anything else is refused.
+    #[test]
+    fn an_access_names_whole_blocks_past_the_state_record() {
+        assert_eq!(block_ids(4 * 64, 3 * 64, 64).unwrap(), 4..7);
+        assert_eq!(block_id(4 * 64, 64, 64).unwrap(), 4);
+        assert!(block_id(4 * 64, 2 * 64, 64).is_err(), "a read is one block");
+        for (offset, len) in [(4 * 64, 0), (4 * 64 + 1, 64), (4 * 64, 65), (0, 64), (0, 2 * 64)] {
+            assert!(block_ids(offset, len, 64).is_err(), "{len} bytes at {offset}");
+        }
     }
 }
