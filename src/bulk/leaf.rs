@@ -99,7 +99,20 @@ impl<'a> Leaf<'a> {
 
     /// `InPage(S_n)`: the objects fit one page, or there is only one.
     pub(crate) fn fits(&self, objects: &[u32]) -> bool {
-        objects.len() <= 1 || self.measure(objects) <= self.limit()
+        if objects.len() <= 1 {
+            return true;
+        }
+        match *self {
+            Leaf::Objects(mem_page) => objects.len() <= mem_page,
+            // Stops at the first object past the capacity: asked of every
+            // node of every trial, most of them far bigger than a page.
+            Leaf::Bytes { capacity, sizes } => objects
+                .iter()
+                .try_fold(0u64, |sum, &j| {
+                    Some(sum.saturating_add(sizes[j as usize])).filter(|&s| s <= capacity)
+                })
+                .is_some(),
+        }
     }
 
     /// What the rule counts: objects, or their total bytes (saturating).
@@ -135,6 +148,20 @@ mod tests {
         assert!(leaf.fits(&[1, 2]));
         assert!(Leaf::Objects(1).fits(&[7]));
         assert!(!Leaf::Objects(1).fits(&[7, 8]));
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn a_set_fits_when_its_measure_is_within_the_limit(
+            sizes in proptest::collection::vec(0u64..u64::MAX / 2, 1..40),
+            capacity in 0u64..u64::MAX,
+            pick in proptest::collection::vec(0usize..40, 0..12),
+        ) {
+            let leaf = Leaf::Bytes { capacity, sizes: &sizes };
+            let objects: Vec<u32> = pick.iter().map(|&i| (i % sizes.len()) as u32).collect();
+            let expected = objects.len() <= 1 || leaf.measure(&objects) <= leaf.limit();
+            proptest::prop_assert_eq!(leaf.fits(&objects), expected);
+        }
     }
 
     #[test]
