@@ -128,7 +128,7 @@ fn grow_all(
             let lists = keys.sorted_lists();
             match (params.method, local.model) {
                 (Method::Laa, _) => grow(&ctx, &Laa::new(&ctx, &keys, params.look_ahead), lists),
-                (Method::Refine, Some(model)) => grow(&ctx, &Refine::new(&ctx, &keys, model), (lists, None)),
+                (Method::Refine, Some(model)) => grow(&ctx, &Refine::new(&ctx, &keys, model), lists),
                 _ => grow(&ctx, &Moa::new(&ctx, &keys), lists),
             }
         }

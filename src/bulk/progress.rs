@@ -47,12 +47,12 @@ pub fn estimate_work(objects: usize, sizes: Option<&[u64]>, params: &BuildParams
     let internal_levels = (n / per_leaf).log2().ceil().max(1.0) as u32;
     // LAA: six candidates' trials down `look_ahead_level` levels; refine:
     // its options' trials down to the leaves. Of refine's seven options,
-    // those that divide a node alike are grown once, and the vsah option
-    // not at all where the parent's trial knows it: about five per node on
-    // the ship scenes (the test below).
+    // those that divide a node alike are grown once, and no trial regrows
+    // a set of 64 objects or more that an earlier one grew: about four per
+    // node on the ship scenes (the test below).
     let (options, look) = match params.method {
         Method::Laa => (6.0, params.look_ahead.levels()),
-        Method::Refine => (5.0, u32::MAX),
+        Method::Refine => (4.0, u32::MAX),
         _ => (0.0, 0),
     };
     (0..internal_levels).map(|l| n * (1.0 + options * f64::from(look.min(internal_levels - 1 - l)))).sum()
@@ -256,7 +256,8 @@ mod tests {
 
     /// The estimate is what a progress message promises: 0.7 to 1.2 times
     /// the work each method does on a ship scene (refine's was 1.25 times
-    /// when it counted all seven options).
+    /// when it counted all seven options, and again when its trials began
+    /// to share the sets they grow).
     #[test]
     fn the_estimate_is_near_the_work_done() {
         use crate::bulk::build;

@@ -23,18 +23,25 @@
 //! that was scored (up to the rounding of the sums).
 //!
 //! The seven options are scored in parallel, and every score is a sum in an
-//! order fixed by the subtrees' sizes, so the tree is the same on any
-//! number of threads. Options that divide the node alike (the two orders
-//! of an axis often pick the same cut, and a cut can match the `vsah`
-//! one) are scored once: a score depends only on the two sides' objects.
-//! Nor is the `vsah` option scored at a node that its parent's trial grew:
-//! that trial summed it already ([`Known`]).
+//! order fixed by the subtrees alone (a node's cost plus the sum of its
+//! halves' scores), so the tree is the same on any number of threads.
+//! Options that divide the node alike (the two orders of an axis often
+//! pick the same cut, and a cut can match the `vsah` one) are scored once:
+//! a score depends only on the two sides' objects. For the same reason no
+//! trial regrows a set of [`MEMO_MIN`] objects or more that an earlier
+//! trial grew: the [`Memo`] keeps their scores. That covers a node's own
+//! `vsah` option, whose halves its parent's trial grew, and beyond it a
+//! third of what the trials grew on ship 10^5 and 10^6 (objects in nodes
+//! divided, counted) were sets grown before.
 //!
 //! Measured and not kept (docs/build-methods.md, "Tried and dropped"): a
 //! cost mixing several query sizes, page-aligned cuts as extra options for
 //! fuller leaves, one level of look-ahead below each option, and scoring a
 //! large node's options on a sample of its objects, which misses how full
 //! the leaves come out.
+
+use std::collections::HashMap;
+use std::sync::{Mutex, PoisonError};
 
 use rayon::prelude::*;
 
@@ -43,21 +50,20 @@ use super::cost::CostModel;
 use super::cut::{Keys, SixLists, candidates, partition, partition_by, same_objects};
 use super::sah::{Heuristic, Sah, Spread};
 use super::splitter::{Ctx, Splitter};
-use super::walk::{Walk, walk};
+use super::walk::PAR_MIN;
 use crate::geom::Aabb;
 use crate::rng::Rng;
 
 /// Below this many objects a node's options are scored on one thread.
 const PAR_OPTIONS_MIN: usize = 512;
 
-/// A trial keeps no [`Known`] of its nodes of fewer objects: their own
-/// trials cost little, and each record is an allocation.
-const KNOWN_MIN: usize = 64;
+/// The [`Memo`] keeps the trial nodes of at least this many objects: a
+/// smaller subtree costs about what its key does to look up, and the memo
+/// stays small (73,000 sets on ship 10^5).
+const MEMO_MIN: usize = 64;
 
-/// How many levels below its root a trial keeps [`Known`] of: each node's
-/// cost is added to the sum of each open node above it, so this bounds the
-/// work per node where a tree is as deep as it has objects.
-const KNOWN_DEPTH: usize = 48;
+/// Shards of the [`Memo`].
+const MEMO_SHARDS: usize = 16;
 
 /// The refining splitter.
 pub(crate) struct Refine<'a> {
@@ -65,33 +71,17 @@ pub(crate) struct Refine<'a> {
     keys: &'a Keys<'a>,
     vsah: Sah<'a>,
     model: CostModel,
+    memo: Memo,
 }
 
 impl<'a> Refine<'a> {
     pub(crate) fn new(ctx: &'a Ctx<'a>, keys: &'a Keys<'a>, model: CostModel) -> Refine<'a> {
-        Refine { ctx, keys, vsah: Sah::new(ctx, Heuristic::Volume), model }
-    }
-
-    /// The expected cost of the `vsah` subtree of `set`, whose box is
-    /// `aabb` and centroid spread `spread`.
-    fn score(&self, set: &[u32], aabb: Aabb, spread: Spread) -> Scored {
-        walk(&Trial { ctx: self.ctx, vsah: &self.vsah, model: &self.model }, (set.to_vec(), aabb, spread), 0)
-            .finish()
+        Refine { ctx, keys, vsah: Sah::new(ctx, Heuristic::Volume), model, memo: Memo::new() }
     }
 }
 
-/// What a trial learnt of a node it grew, for the node's own refinement:
-/// the score of its `vsah` option (the sum of its `vsah` halves' trials,
-/// as [`Refine::split`] would add them, bit for bit), and the same of those
-/// halves. Known for the trial's nodes of at least [`KNOWN_MIN`] objects
-/// down to [`KNOWN_DEPTH`] levels below its root.
-pub(crate) struct Known {
-    vsah_score: f64,
-    halves: [Option<Box<Known>>; 2],
-}
-
-/// A node being refined: its lists, and what its parent's trial learnt of it.
-pub(crate) type Pending = (SixLists, Option<Box<Known>>);
+/// A refined node's lists.
+pub(crate) type Pending = SixLists;
 
 /// For each of `options` (two parts of the node of objects `node`), the
 /// first earlier option with the same parts, in either order: its score is
@@ -117,18 +107,31 @@ fn digest(objects: &[u32]) -> (usize, u64) {
     (objects.len(), objects.iter().fold(0u64, |h, &j| h.wrapping_add(mix(j))))
 }
 
+/// The set a trial node holds, as the [`Memo`] knows it: its size and two
+/// independent order-free 64-bit digests. Two different sets of one size
+/// share a key with a chance of about 2^-128 per pair; a shared key could
+/// only lend one set the other's score, which makes a worse tree, never a
+/// wrong file.
+type SetKey = (usize, u64, u64);
+
+fn set_key(objects: &[u32]) -> SetKey {
+    let (n, a) = digest(objects);
+    let mix = |j: u32| Rng::new(u64::from(j) ^ 0x9E37_79B9_7F4A_7C15).next_u64();
+    (n, a, objects.iter().fold(0u64, |h, &j| h.wrapping_add(mix(j))))
+}
+
 impl Splitter for Refine<'_> {
     type Set = Pending;
 
     fn objects<'s>(&self, set: &'s Pending) -> &'s [u32] {
-        &set.0[0]
+        &set[0]
     }
 
     fn aabb(&self, _ctx: &Ctx<'_>, set: &Pending) -> Aabb {
-        self.keys.aabb(&set.0)
+        self.keys.aabb(set)
     }
 
-    fn split(&self, (set, known): Pending, aabb: &Aabb) -> (Pending, Pending, Split) {
+    fn split(&self, set: Pending, aabb: &Aabb) -> (Pending, Pending, Split) {
         let ctx = self.ctx;
         let n = set[0].len();
         let cands = candidates(self.keys, &set, ctx.rate, ctx.tie);
@@ -137,14 +140,10 @@ impl Splitter for Refine<'_> {
         let mut options: Vec<(&[u32], &[u32])> = vec![(&vsah.left, &vsah.right)];
         options.extend(cands.iter().map(|c| set[c.order].split_at(c.cut_index + 1)));
         let repeats = repeats(self.keys, &set[0], &options);
-        // Each option's score and its sides' trials; none for a repeat, or
-        // for the vsah option when the parent's trial already scored it.
-        let score = |o: usize| -> (f64, Option<[Scored; 2]>) {
+        // Each option's score; none for a repeat.
+        let score = |o: usize| -> f64 {
             if repeats[o].is_some() {
-                return (f64::NAN, None);
-            }
-            if let (0, Some(k)) = (o, &known) {
-                return (k.vsah_score, None);
+                return f64::NAN;
             }
             let (a, b) = options[o];
             let ([l, r], [sl, sr]) = if o == 0 {
@@ -152,15 +151,13 @@ impl Splitter for Refine<'_> {
             } else {
                 ([ctx.aabb_of(a), ctx.aabb_of(b)], [Spread::of(ctx.boxes, a), Spread::of(ctx.boxes, b)])
             };
-            let (a, b) = (self.score(a, l, sl), self.score(b, r, sr));
-            (a.total + b.total, Some([a, b]))
+            self.score(a, l, sl) + self.score(b, r, sr)
         };
-        let mut scored: Vec<(f64, Option<[Scored; 2]>)> = if n >= PAR_OPTIONS_MIN {
+        let mut scores: Vec<f64> = if n >= PAR_OPTIONS_MIN {
             (0..options.len()).into_par_iter().map(score).collect()
         } else {
             (0..options.len()).map(score).collect()
         };
-        let mut scores: Vec<f64> = scored.iter().map(|s| s.0).collect();
         for o in 0..scores.len() {
             if let Some(e) = repeats[o] {
                 scores[o] = scores[e];
@@ -168,149 +165,117 @@ impl Splitter for Refine<'_> {
         }
         // A repeat ties the option it repeats, and so never wins.
         let best = (1..scores.len()).fold(0, |best, i| if scores[i] < scores[best] { i } else { best });
-        let [kl, kr] = match (best, known) {
-            (0, Some(k)) => k.halves,
-            _ => scored.swap_remove(best).1.map_or([None, None], |sides| sides.map(|s| s.known)),
-        };
         match best.checked_sub(1) {
             None => {
                 let (left, right) = partition_by(self.keys, &set, &vsah.left);
-                ((left, kl), (right, kr), vsah.split(ctx))
+                (left, right, vsah.split(ctx))
             }
             Some(c) => {
                 let (left, right) = partition(self.keys, &set, &cands[c]);
-                ((left, kl), (right, kr), cands[c].split())
+                (left, right, cands[c].split())
             }
         }
     }
 }
 
-/// A `vsah` subtree that only adds up its nodes' expected costs.
-struct Trial<'a> {
-    ctx: &'a Ctx<'a>,
-    vsah: &'a Sah<'a>,
-    model: &'a CostModel,
+/// The scores of the trial nodes of at least [`MEMO_MIN`] objects, by set:
+/// a score depends on the set alone, and a third of the trials' work at
+/// 10^5 and 10^6 objects (ship) regrows sets grown before, mostly where the
+/// options of a node cut again what its parent's trials had cut. Split in
+/// shards so that threads seldom wait on each other.
+struct Memo {
+    shards: Vec<Mutex<HashMap<SetKey, f64>>>,
+}
+
+impl Memo {
+    fn new() -> Memo {
+        Memo { shards: (0..MEMO_SHARDS).map(|_| Mutex::new(HashMap::new())).collect() }
+    }
+
+    fn shard(&self, key: &SetKey) -> &Mutex<HashMap<SetKey, f64>> {
+        &self.shards[(key.1 % MEMO_SHARDS as u64) as usize]
+    }
+
+    fn get(&self, key: &SetKey) -> Option<f64> {
+        // A poisoned shard only means a thread panicked while inserting a
+        // plain number: the map is still whole.
+        self.shard(key).lock().unwrap_or_else(PoisonError::into_inner).get(key).copied()
+    }
+
+    fn insert(&self, key: SetKey, score: f64) {
+        self.shard(&key).lock().unwrap_or_else(PoisonError::into_inner).insert(key, score);
+    }
 }
 
 /// A trial node: its objects, their box and their centroids' spread.
 type TrialSet = (Vec<u32>, Aabb, Spread);
 
-/// A trial scored: the expected cost of its subtree, as a walk adds it,
-/// and what it learnt of its root.
-struct Scored {
-    total: f64,
-    known: Option<Box<Known>>,
+/// A step of a trial: grow a node, or add a divided node's cost to its
+/// halves' scores (the last two on the stack of scores).
+enum Step {
+    Grow(TrialSet),
+    Sum { cost: f64, key: Option<SetKey> },
 }
 
-/// A node of a trial whose subtree the walk is in.
-struct Open {
-    depth: u32,
-    /// Its objects.
-    len: usize,
-    /// Its subtree's cost so far, added in the order a walk from it would
-    /// add it (its own walk's total, bit for bit, once finished).
-    sum: f64,
-    /// Its halves, scored, as they finish.
-    halves: [Option<Scored>; 2],
-}
+impl Refine<'_> {
+    /// The expected cost of the `vsah` subtree of `set`, whose box is
+    /// `aabb` and centroid spread `spread`: a node's cost plus the sum of
+    /// its halves' scores, `cost + (left + right)`, so that a subtree's
+    /// score is the same wherever it is grown, and the [`Memo`] can keep it.
+    fn score(&self, set: &[u32], aabb: Aabb, spread: Spread) -> f64 {
+        self.trial((set.to_vec(), aabb, spread))
+    }
 
-impl Open {
-    /// The node's subtree scored, its own walk finished.
-    fn finish(self) -> Scored {
-        let known = match self.halves {
-            [Some(l), Some(r)] if self.len >= KNOWN_MIN => {
-                Some(Box::new(Known { vsah_score: l.total + r.total, halves: [l.known, r.known] }))
+    /// [`Refine::score`] of a trial node. The steps wait on a heap stack,
+    /// since a `vsah` subtree can be as deep as it has objects; halves of
+    /// at least [`PAR_MIN`] objects each are scored on rayon.
+    fn trial(&self, root: TrialSet) -> f64 {
+        let (ctx, model) = (self.ctx, &self.model);
+        let mut steps = vec![Step::Grow(root)];
+        let mut scores: Vec<f64> = Vec::new();
+        while let Some(step) = steps.pop() {
+            let (set, aabb, spread) = match step {
+                Step::Grow(node) => node,
+                Step::Sum { cost, key } => {
+                    let right = scores.pop().unwrap_or(0.0);
+                    let left = scores.pop().unwrap_or(0.0);
+                    let score = cost + (left + right);
+                    if let Some(key) = key {
+                        self.memo.insert(key, score);
+                    }
+                    scores.push(score);
+                    continue;
+                }
+            };
+            let leaf = ctx.leaf.fits(&set);
+            let cost = model.node_cost(&aabb, leaf);
+            if leaf {
+                scores.push(cost);
+                continue;
             }
-            _ => None,
-        };
-        Scored { total: self.sum, known }
-    }
-}
-
-/// A trial walk in progress: the open nodes from its root down to the node
-/// visited last, [`KNOWN_DEPTH`] levels at most. Each node's cost is added
-/// to the sum of every open node above it, so that each subtree's sum is
-/// the total its own walk would give (a walk's order depends on sizes
-/// only): what [`Known`] records.
-struct TrialOut {
-    path: Vec<Open>,
-}
-
-impl TrialOut {
-    /// Adds `cost` to the sums of the open nodes.
-    fn add(&mut self, cost: f64) {
-        for open in &mut self.path {
-            open.sum += cost;
-        }
-    }
-
-    /// Closes the open nodes at `depth` or deeper, the root excepted: their
-    /// subtrees are walked, and each hands its score to its parent.
-    fn close_to(&mut self, depth: u32) {
-        while self.path.len() > 1 && self.path.last().is_some_and(|o| o.depth >= depth) {
-            let Some(open) = self.path.pop() else { break };
-            let scored = open.finish();
-            if let Some(parent) = self.path.last_mut() {
-                let halves = &mut parent.halves;
-                halves[usize::from(halves[0].is_some())] = Some(scored);
+            let key = (set.len() >= MEMO_MIN).then(|| set_key(&set));
+            if let Some(known) = key.as_ref().and_then(|k| self.memo.get(k)) {
+                scores.push(known);
+                continue;
+            }
+            ctx.meter.worked(set.len());
+            let h = self.vsah.halves_within(set, &aabb, &spread);
+            let ([l, r], [sl, sr]) = (h.boxes, h.spreads);
+            if h.left.len().min(h.right.len()) >= PAR_MIN {
+                let (left, right) =
+                    rayon::join(|| self.trial((h.left, l, sl)), || self.trial((h.right, r, sr)));
+                let score = cost + (left + right);
+                if let Some(key) = key {
+                    self.memo.insert(key, score);
+                }
+                scores.push(score);
+            } else {
+                steps.push(Step::Sum { cost, key });
+                steps.push(Step::Grow((h.right, r, sr)));
+                steps.push(Step::Grow((h.left, l, sl)));
             }
         }
-    }
-
-    /// The walk's root scored, its walk done.
-    fn finish(mut self) -> Scored {
-        self.close_to(0);
-        self.path.pop().map_or(Scored { total: 0.0, known: None }, Open::finish)
-    }
-}
-
-impl Walk for Trial<'_> {
-    type Set = TrialSet;
-    type Out = TrialOut;
-    /// The node is open (not deeper than [`KNOWN_DEPTH`] below the root).
-    type Mark = bool;
-
-    fn len(&self, set: &TrialSet) -> usize {
-        set.0.len()
-    }
-
-    fn start(&self) -> TrialOut {
-        TrialOut { path: Vec::new() }
-    }
-
-    fn visit(
-        &self,
-        (set, aabb, spread): TrialSet,
-        depth: u32,
-        out: &mut TrialOut,
-    ) -> Option<(TrialSet, TrialSet, bool)> {
-        out.close_to(depth);
-        // A sum starts at 0 and takes the node's own cost first, as a walk's
-        // total does. Deeper nodes are not known, but add to the sums above.
-        let open = out.path.len() <= KNOWN_DEPTH;
-        if open {
-            out.path.push(Open { depth, len: set.len(), sum: 0.0, halves: [None, None] });
-        }
-        let leaf = self.ctx.leaf.fits(&set);
-        out.add(self.model.node_cost(&aabb, leaf));
-        if leaf {
-            return None;
-        }
-        self.ctx.meter.worked(set.len());
-        let h = self.vsah.halves_within(set, &aabb, &spread);
-        let ([l, r], [sl, sr]) = (h.boxes, h.spreads);
-        Some(((h.left, l, sl), (h.right, r, sr), open))
-    }
-
-    fn right_begins(&self, _out: &mut TrialOut, _open: bool) {}
-
-    fn splice(&self, out: &mut TrialOut, open: bool, left: TrialOut, right: TrialOut) {
-        let (left, right) = (left.finish(), right.finish());
-        out.add(left.total + right.total);
-        // The node just visited, whose halves were walked apart.
-        if let Some(node) = out.path.last_mut().filter(|_| open) {
-            node.halves = [Some(left), Some(right)];
-        }
+        scores.pop().unwrap_or(0.0)
     }
 }
 
@@ -320,67 +285,66 @@ mod tests {
     use crate::bulk::TieBreak;
     use crate::bulk::leaf::Leaf;
     use crate::bulk::progress::Meter;
-    use crate::bulk::walk::PAR_MIN;
 
-    /// The trial of all of `boxes`, checked: its total against a plain
-    /// preorder sum of the `vsah` tree's node costs (when no halves are big
-    /// enough to be walked apart), and every [`Known`] it holds, at any
-    /// depth, against fresh trials of that node's halves, bit for bit.
-    /// Returns how many were checked, and the `vsah` tree's depth.
-    fn check_trial(boxes: &[Aabb]) -> (usize, usize) {
-        let n = boxes.len();
-        let ids: Vec<u32> = (0..n as u32).collect();
-        let ctx = Ctx {
+    fn ctx_of<'a>(boxes: &'a [Aabb], ids: &'a [u32]) -> Ctx<'a> {
+        Ctx {
             boxes,
-            ids: &ids,
+            ids,
             leaf: Leaf::Objects(4),
             rate: 0.2,
             tie: TieBreak::FirstFound,
-            meter: Meter::new(&|_| {}, n, 0.0),
-        };
+            meter: Meter::new(&|_| {}, boxes.len(), 0.0),
+        }
+    }
+
+    /// The score of the `vsah` subtree of `set` by plain recursion, with no
+    /// memo: a node's cost plus the sum of its halves'. Also returns every
+    /// node of at least [`MEMO_MIN`] objects, with its score.
+    fn plain(refine: &Refine<'_>, set: Vec<u32>, found: &mut Vec<(Vec<u32>, f64)>) -> f64 {
+        let ctx = refine.ctx;
+        let aabb = ctx.aabb_of(&set);
+        let leaf = ctx.leaf.fits(&set);
+        let cost = refine.model.node_cost(&aabb, leaf);
+        if leaf {
+            return cost;
+        }
+        let h = refine.vsah.halves(set.clone(), &aabb);
+        let score = cost + (plain(refine, h.left, found) + plain(refine, h.right, found));
+        if set.len() >= MEMO_MIN {
+            found.push((set, score));
+        }
+        score
+    }
+
+    /// A trial of all of `boxes` against [`plain`], bit for bit; then the
+    /// memo holds every node [`plain`] met, with the same score, and a
+    /// second trial is the same. Returns how many nodes were checked.
+    fn check_trial(boxes: &[Aabb]) -> usize {
+        let ids: Vec<u32> = (0..boxes.len() as u32).collect();
+        let ctx = ctx_of(boxes, &ids);
         let keys = Keys::new(boxes, &ids);
         let refine = Refine::new(&ctx, &keys, CostModel::of_boxes(boxes, crate::bulk::QueryExtent::Auto));
-        let all = ids.clone();
-        let trial = refine.score(&all, ctx.aabb_of(&all), Spread::of(boxes, &all));
-        // The plain sum, and the depth, by an explicit stack.
-        let (mut sum, mut depth) = (0.0, 0);
-        let mut stack = vec![(all.clone(), 1)];
-        while let Some((set, d)) = stack.pop() {
-            let aabb = ctx.aabb_of(&set);
-            let leaf = ctx.leaf.fits(&set);
-            sum += refine.model.node_cost(&aabb, leaf);
-            depth = depth.max(d);
-            if !leaf {
-                let h = refine.vsah.halves(set, &aabb);
-                stack.push((h.right, d + 1));
-                stack.push((h.left, d + 1));
-            }
+        let mut found = Vec::new();
+        let expected = plain(&refine, ids.clone(), &mut found);
+        let trial = refine.score(&ids, ctx.aabb_of(&ids), Spread::of(boxes, &ids));
+        assert_eq!(trial.to_bits(), expected.to_bits());
+        for (set, score) in &found {
+            assert_eq!(
+                refine.memo.get(&set_key(set)).map(f64::to_bits),
+                Some(score.to_bits()),
+                "{} objects",
+                set.len()
+            );
         }
-        if n < 2 * PAR_MIN {
-            assert_eq!(trial.total.to_bits(), sum.to_bits());
-        }
-        let mut checked = 0;
-        let mut pending = vec![(all, trial.known)];
-        while let Some((set, known)) = pending.pop() {
-            let Some(k) = known else { continue };
-            let h = refine.vsah.halves(set.clone(), &ctx.aabb_of(&set));
-            let [l, r] = h.boxes;
-            let [sl, sr] = h.spreads;
-            let fresh = refine.score(&h.left, l, sl).total + refine.score(&h.right, r, sr).total;
-            assert_eq!(k.vsah_score.to_bits(), fresh.to_bits(), "a node of {} objects", set.len());
-            checked += 1;
-            let [kl, kr] = k.halves;
-            pending.push((h.left, kl));
-            pending.push((h.right, kr));
-        }
-        (checked, depth)
+        let again = refine.score(&ids, ctx.aabb_of(&ids), Spread::of(boxes, &ids));
+        assert_eq!(again.to_bits(), expected.to_bits());
+        found.len()
     }
 
     #[test]
-    fn what_a_trial_learns_of_its_nodes_is_their_vsah_scores_bit_for_bit() {
+    fn a_trial_scores_a_node_as_its_cost_plus_its_halves_and_the_memo_keeps_them() {
         // A grid of small boxes jittered by a fixed hash: big enough that the
-        // trial walks the root's halves, and theirs, apart, and below
-        // that in one sum.
+        // trial scores the root's halves, and theirs, on rayon.
         let n = 6 * PAR_MIN;
         let boxes: Vec<Aabb> = (0..n)
             .map(|i| {
@@ -390,24 +354,32 @@ mod tests {
                 Aabb::from_array([x + d, y, z + d, x + d + 0.7, y + 0.3 + d, z + 0.9])
             })
             .collect();
-        let (checked, _) = check_trial(&boxes);
-        // Every node of at least KNOWN_MIN objects: about 2 n / KNOWN_MIN.
-        assert!(checked > n / KNOWN_MIN, "{checked} nodes known");
+        // Every node of at least MEMO_MIN objects: about 2 n / MEMO_MIN.
+        let checked = check_trial(&boxes);
+        assert!(checked > n / MEMO_MIN, "{checked} nodes checked");
     }
 
     #[test]
-    fn a_trial_deeper_than_it_keeps_sums_for_still_adds_up_and_knows_its_top() {
-        // Boxes ever further apart: each cut peels the farthest few off, so
-        // the tree is far deeper than KNOWN_DEPTH.
+    fn a_trial_as_deep_as_it_has_objects_adds_up() {
+        // Boxes ever further apart: each cut peels the farthest four off (a
+        // leaf), so the tree is a quarter as deep as it has objects, and a
+        // recursive trial would need a frame per level.
         let boxes: Vec<Aabb> = (0..400)
             .map(|i| {
                 let x = 3f64.powi(i);
                 Aabb::from_array([x, 0.0, 0.0, x + 1.0, 1.0, 1.0])
             })
             .collect();
-        let (checked, depth) = check_trial(&boxes);
-        assert!(depth > 2 * KNOWN_DEPTH, "depth {depth}");
-        assert!(checked >= KNOWN_DEPTH - 1, "{checked} nodes known");
+        let checked = check_trial(&boxes);
+        // The nodes of at least MEMO_MIN objects: one per level down to them.
+        assert!(checked >= (400 - MEMO_MIN) / 4, "{checked}");
+    }
+
+    #[test]
+    fn the_memo_keys_a_set_in_any_order_and_tells_sets_apart() {
+        assert_eq!(set_key(&[3, 1, 2]), set_key(&[1, 2, 3]));
+        assert_ne!(set_key(&[1, 2, 3]), set_key(&[1, 2, 4]));
+        assert_ne!(set_key(&[1, 2]), set_key(&[1, 2, 0]));
     }
 
     #[test]
