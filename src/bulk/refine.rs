@@ -76,7 +76,7 @@ pub(crate) struct Refine<'a> {
 
 impl<'a> Refine<'a> {
     pub(crate) fn new(ctx: &'a Ctx<'a>, keys: &'a Keys<'a>, model: CostModel) -> Refine<'a> {
-        Refine { ctx, keys, vsah: Sah::new(ctx, Heuristic::Volume), model, memo: Memo::new() }
+        Refine { ctx, keys, vsah: Sah::new(ctx, Heuristic::Volume), model, memo: Memo::new(ctx.boxes.len()) }
     }
 }
 
@@ -108,16 +108,25 @@ fn digest(objects: &[u32]) -> (usize, u64) {
 }
 
 /// The set a trial node holds, as the [`Memo`] knows it: its size and two
-/// independent order-free 64-bit digests. Two different sets of one size
-/// share a key with a chance of about 2^-128 per pair; a shared key could
-/// only lend one set the other's score, which makes a worse tree, never a
-/// wrong file.
-type SetKey = (usize, u64, u64);
+/// order-free sums of 64-bit digests of its objects. Two different sets of
+/// one size share a key with a chance of about 2^-128 per pair; a shared
+/// key could only lend one set the other's score, which makes a worse
+/// tree, never a wrong file. Sums, so that a half's key is its parent's
+/// less its sibling's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+struct SetKey {
+    len: usize,
+    sums: [u64; 2],
+}
 
-fn set_key(objects: &[u32]) -> SetKey {
-    let (n, a) = digest(objects);
-    let mix = |j: u32| Rng::new(u64::from(j) ^ 0x9E37_79B9_7F4A_7C15).next_u64();
-    (n, a, objects.iter().fold(0u64, |h, &j| h.wrapping_add(mix(j))))
+impl SetKey {
+    /// The key of what is left of `self`'s set when `part`'s is taken out.
+    fn less(self, part: SetKey) -> SetKey {
+        SetKey {
+            len: self.len - part.len,
+            sums: [self.sums[0].wrapping_sub(part.sums[0]), self.sums[1].wrapping_sub(part.sums[1])],
+        }
+    }
 }
 
 impl Splitter for Refine<'_> {
@@ -178,22 +187,36 @@ impl Splitter for Refine<'_> {
     }
 }
 
-/// The scores of the trial nodes of at least [`MEMO_MIN`] objects, by set:
-/// a score depends on the set alone, and a third of the trials' work at
-/// 10^5 and 10^6 objects (ship) regrows sets grown before, mostly where the
-/// options of a node cut again what its parent's trials had cut. Split in
-/// shards so that threads seldom wait on each other.
+/// The scores of the trial nodes of at least [`MEMO_MIN`] objects, by set
+/// (a score depends on the set alone), and each object's digest for their
+/// keys. Split in shards so that threads seldom wait on each other.
 struct Memo {
     shards: Vec<Mutex<HashMap<SetKey, f64>>>,
+    /// Object j's SplitMix64 output for seed j.
+    digests: Vec<u64>,
 }
 
 impl Memo {
-    fn new() -> Memo {
-        Memo { shards: (0..MEMO_SHARDS).map(|_| Mutex::new(HashMap::new())).collect() }
+    fn new(objects: usize) -> Memo {
+        Memo {
+            shards: (0..MEMO_SHARDS).map(|_| Mutex::new(HashMap::new())).collect(),
+            digests: (0..objects as u64).map(|j| Rng::new(j).next_u64()).collect(),
+        }
+    }
+
+    /// The key of `objects`: the sums of their digests and of the digests
+    /// mixed once more (SplitMix64's finaliser), so the two are independent.
+    fn key(&self, objects: &[u32]) -> SetKey {
+        let sums = objects.iter().fold([0u64; 2], |[a, b], &j| {
+            let d = self.digests[j as usize];
+            let e = (d ^ (d >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            [a.wrapping_add(d), b.wrapping_add(e ^ (e >> 31))]
+        });
+        SetKey { len: objects.len(), sums }
     }
 
     fn shard(&self, key: &SetKey) -> &Mutex<HashMap<SetKey, f64>> {
-        &self.shards[(key.1 % MEMO_SHARDS as u64) as usize]
+        &self.shards[(key.sums[0] % MEMO_SHARDS as u64) as usize]
     }
 
     fn get(&self, key: &SetKey) -> Option<f64> {
@@ -207,8 +230,9 @@ impl Memo {
     }
 }
 
-/// A trial node: its objects, their box and their centroids' spread.
-type TrialSet = (Vec<u32>, Aabb, Spread);
+/// A trial node: its objects, their box, their centroids' spread, and its
+/// key when it has at least [`MEMO_MIN`] objects.
+type TrialSet = (Vec<u32>, Aabb, Spread, Option<SetKey>);
 
 /// A step of a trial: grow a node, or add a divided node's cost to its
 /// halves' scores (the last two on the stack of scores).
@@ -223,7 +247,8 @@ impl Refine<'_> {
     /// its halves' scores, `cost + (left + right)`, so that a subtree's
     /// score is the same wherever it is grown, and the [`Memo`] can keep it.
     fn score(&self, set: &[u32], aabb: Aabb, spread: Spread) -> f64 {
-        self.trial((set.to_vec(), aabb, spread))
+        let key = (set.len() >= MEMO_MIN).then(|| self.memo.key(set));
+        self.trial((set.to_vec(), aabb, spread, key))
     }
 
     /// [`Refine::score`] of a trial node. The steps wait on a heap stack,
@@ -234,7 +259,7 @@ impl Refine<'_> {
         let mut steps = vec![Step::Grow(root)];
         let mut scores: Vec<f64> = Vec::new();
         while let Some(step) = steps.pop() {
-            let (set, aabb, spread) = match step {
+            let (set, aabb, spread, key) = match step {
                 Step::Grow(node) => node,
                 Step::Sum { cost, key } => {
                     let right = scores.pop().unwrap_or(0.0);
@@ -253,7 +278,6 @@ impl Refine<'_> {
                 scores.push(cost);
                 continue;
             }
-            let key = (set.len() >= MEMO_MIN).then(|| set_key(&set));
             if let Some(known) = key.as_ref().and_then(|k| self.memo.get(k)) {
                 scores.push(known);
                 continue;
@@ -261,9 +285,18 @@ impl Refine<'_> {
             ctx.meter.worked(set.len());
             let h = self.vsah.halves_within(set, &aabb, &spread);
             let ([l, r], [sl, sr]) = (h.boxes, h.spreads);
+            // The halves' keys: the left's summed, the right's the rest.
+            let (kl, kr) = match key {
+                Some(key) if h.left.len().max(h.right.len()) >= MEMO_MIN => {
+                    let kl = self.memo.key(&h.left);
+                    let kr = key.less(kl);
+                    ((kl.len >= MEMO_MIN).then_some(kl), (kr.len >= MEMO_MIN).then_some(kr))
+                }
+                _ => (None, None),
+            };
             if h.left.len().min(h.right.len()) >= PAR_MIN {
                 let (left, right) =
-                    rayon::join(|| self.trial((h.left, l, sl)), || self.trial((h.right, r, sr)));
+                    rayon::join(|| self.trial((h.left, l, sl, kl)), || self.trial((h.right, r, sr, kr)));
                 let score = cost + (left + right);
                 if let Some(key) = key {
                     self.memo.insert(key, score);
@@ -271,8 +304,8 @@ impl Refine<'_> {
                 scores.push(score);
             } else {
                 steps.push(Step::Sum { cost, key });
-                steps.push(Step::Grow((h.right, r, sr)));
-                steps.push(Step::Grow((h.left, l, sl)));
+                steps.push(Step::Grow((h.right, r, sr, kr)));
+                steps.push(Step::Grow((h.left, l, sl, kl)));
             }
         }
         scores.pop().unwrap_or(0.0)
@@ -330,7 +363,7 @@ mod tests {
         assert_eq!(trial.to_bits(), expected.to_bits());
         for (set, score) in &found {
             assert_eq!(
-                refine.memo.get(&set_key(set)).map(f64::to_bits),
+                refine.memo.get(&refine.memo.key(set)).map(f64::to_bits),
                 Some(score.to_bits()),
                 "{} objects",
                 set.len()
@@ -376,10 +409,13 @@ mod tests {
     }
 
     #[test]
-    fn the_memo_keys_a_set_in_any_order_and_tells_sets_apart() {
-        assert_eq!(set_key(&[3, 1, 2]), set_key(&[1, 2, 3]));
-        assert_ne!(set_key(&[1, 2, 3]), set_key(&[1, 2, 4]));
-        assert_ne!(set_key(&[1, 2]), set_key(&[1, 2, 0]));
+    fn the_memo_keys_a_set_in_any_order_tells_sets_apart_and_takes_a_part_out() {
+        let memo = Memo::new(8);
+        let key = |objects: &[u32]| memo.key(objects);
+        assert_eq!(key(&[3, 1, 2]), key(&[1, 2, 3]));
+        assert_ne!(key(&[1, 2, 3]), key(&[1, 2, 4]));
+        assert_ne!(key(&[1, 2]), key(&[1, 2, 0]));
+        assert_eq!(key(&[7, 1, 4, 2]).less(key(&[4, 7])), key(&[1, 2]));
     }
 
     #[test]
