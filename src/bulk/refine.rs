@@ -80,14 +80,12 @@ impl<'a> Refine<'a> {
     }
 }
 
-/// A refined node's lists.
-pub(crate) type Pending = SixLists;
-
 /// For each of `options` (two parts of the node of objects `node`), the
 /// first earlier option with the same parts, in either order: its score is
-/// the same (a sum of two scores is the same either way round).
-fn repeats(keys: &Keys<'_>, node: &[u32], options: &[(&[u32], &[u32])]) -> Vec<Option<usize>> {
-    let digests: Vec<_> = options.iter().map(|(a, b)| (digest(a), digest(b))).collect();
+/// the same (a sum of two scores is the same either way round). Parts are
+/// compared where their [`Memo`] keys match.
+fn repeats(keys: &Keys<'_>, memo: &Memo, node: &[u32], options: &[(&[u32], &[u32])]) -> Vec<Option<usize>> {
+    let digests: Vec<_> = options.iter().map(|(a, b)| (memo.key(a), memo.key(b))).collect();
     (0..options.len())
         .map(|o| {
             let (a, _) = options[o];
@@ -98,13 +96,6 @@ fn repeats(keys: &Keys<'_>, node: &[u32], options: &[(&[u32], &[u32])]) -> Vec<O
             })
         })
         .collect()
-}
-
-/// A cheap digest of a set of objects, equal for equal sets in any order.
-fn digest(objects: &[u32]) -> (usize, u64) {
-    // Each object's first SplitMix64 output, summed: order does not count.
-    let mix = |j: u32| Rng::new(u64::from(j)).next_u64();
-    (objects.len(), objects.iter().fold(0u64, |h, &j| h.wrapping_add(mix(j))))
 }
 
 /// The set a trial node holds, as the [`Memo`] knows it: its size and two
@@ -130,17 +121,17 @@ impl SetKey {
 }
 
 impl Splitter for Refine<'_> {
-    type Set = Pending;
+    type Set = SixLists;
 
-    fn objects<'s>(&self, set: &'s Pending) -> &'s [u32] {
+    fn objects<'s>(&self, set: &'s SixLists) -> &'s [u32] {
         &set[0]
     }
 
-    fn aabb(&self, _ctx: &Ctx<'_>, set: &Pending) -> Aabb {
+    fn aabb(&self, _ctx: &Ctx<'_>, set: &SixLists) -> Aabb {
         self.keys.aabb(set)
     }
 
-    fn split(&self, set: Pending, aabb: &Aabb) -> (Pending, Pending, Split) {
+    fn split(&self, set: SixLists, aabb: &Aabb) -> (SixLists, SixLists, Split) {
         let ctx = self.ctx;
         let n = set[0].len();
         let cands = candidates(self.keys, &set, ctx.rate, ctx.tie);
@@ -148,7 +139,7 @@ impl Splitter for Refine<'_> {
         // Option 0 is the vsah cut, options 1..=6 the candidates.
         let mut options: Vec<(&[u32], &[u32])> = vec![(&vsah.left, &vsah.right)];
         options.extend(cands.iter().map(|c| set[c.order].split_at(c.cut_index + 1)));
-        let repeats = repeats(self.keys, &set[0], &options);
+        let repeats = repeats(self.keys, &self.memo, &set[0], &options);
         // Each option's score; none for a repeat.
         let score = |o: usize| -> f64 {
             if repeats[o].is_some() {
@@ -381,7 +372,7 @@ mod tests {
         let n = 6 * PAR_MIN;
         let boxes: Vec<Aabb> = (0..n)
             .map(|i| {
-                let h = digest(&[i as u32]).1;
+                let h = Rng::new(i as u64).next_u64();
                 let (x, y, z) = ((i % 40) as f64, (i / 40 % 40) as f64, (i / 1600) as f64);
                 let d = (h % 1000) as f64 / 2000.0;
                 Aabb::from_array([x + d, y, z + d, x + d + 0.7, y + 0.3 + d, z + 0.9])
@@ -431,6 +422,6 @@ mod tests {
             (&[4, 5, 3], &[1, 2, 0]), // option 0 mirrored
             (&[0, 1], &[2, 3, 4, 5]),
         ];
-        assert_eq!(repeats(&keys, &node, &options), [None, Some(0), None, Some(0), None]);
+        assert_eq!(repeats(&keys, &Memo::new(6), &node, &options), [None, Some(0), None, Some(0), None]);
     }
 }
