@@ -85,14 +85,14 @@ impl<'a> Refine<'a> {
 /// the same (a sum of two scores is the same either way round). Parts are
 /// compared where their [`Memo`] keys match.
 fn repeats(keys: &Keys<'_>, memo: &Memo, node: &[u32], options: &[(&[u32], &[u32])]) -> Vec<Option<usize>> {
-    let digests: Vec<_> = options.iter().map(|(a, b)| (memo.key(a), memo.key(b))).collect();
+    let part_keys: Vec<_> = options.iter().map(|(a, b)| (memo.key(a), memo.key(b))).collect();
     (0..options.len())
         .map(|o| {
             let (a, _) = options[o];
             (0..o).find(|&e| {
                 let (c, d) = options[e];
-                (digests[e].0 == digests[o].0 && same_objects(keys, node, c, a))
-                    || (digests[e].1 == digests[o].0 && same_objects(keys, node, d, a))
+                (part_keys[e].0 == part_keys[o].0 && same_objects(keys, node, c, a))
+                    || (part_keys[e].1 == part_keys[o].0 && same_objects(keys, node, d, a))
             })
         })
         .collect()
@@ -195,13 +195,12 @@ impl Memo {
         }
     }
 
-    /// The key of `objects`: the sums of their digests and of the digests
-    /// mixed once more (SplitMix64's finaliser), so the two are independent.
+    /// The key of `objects`: the sums of their digests and of SplitMix64's
+    /// output for each digest as seed, so the two sums are independent.
     fn key(&self, objects: &[u32]) -> SetKey {
         let sums = objects.iter().fold([0u64; 2], |[a, b], &j| {
             let d = self.digests[j as usize];
-            let e = (d ^ (d >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            [a.wrapping_add(d), b.wrapping_add(e ^ (e >> 31))]
+            [a.wrapping_add(d), b.wrapping_add(Rng::new(d).next_u64())]
         });
         SetKey { len: objects.len(), sums }
     }
@@ -255,11 +254,7 @@ impl Refine<'_> {
                 Step::Sum { cost, key } => {
                     let right = scores.pop().unwrap_or(0.0);
                     let left = scores.pop().unwrap_or(0.0);
-                    let score = cost + (left + right);
-                    if let Some(key) = key {
-                        self.memo.insert(key, score);
-                    }
-                    scores.push(score);
+                    scores.push(self.summed(cost, key, left, right));
                     continue;
                 }
             };
@@ -288,11 +283,7 @@ impl Refine<'_> {
             if h.left.len().min(h.right.len()) >= PAR_MIN {
                 let (left, right) =
                     rayon::join(|| self.trial((h.left, l, sl, kl)), || self.trial((h.right, r, sr, kr)));
-                let score = cost + (left + right);
-                if let Some(key) = key {
-                    self.memo.insert(key, score);
-                }
-                scores.push(score);
+                scores.push(self.summed(cost, key, left, right));
             } else {
                 steps.push(Step::Sum { cost, key });
                 steps.push(Step::Grow((h.right, r, sr, kr)));
@@ -300,6 +291,16 @@ impl Refine<'_> {
             }
         }
         scores.pop().unwrap_or(0.0)
+    }
+
+    /// A divided node's score from its cost and its halves' scores, kept
+    /// in the memo when the node has a key.
+    fn summed(&self, cost: f64, key: Option<SetKey>, left: f64, right: f64) -> f64 {
+        let score = cost + (left + right);
+        if let Some(key) = key {
+            self.memo.insert(key, score);
+        }
+        score
     }
 }
 
