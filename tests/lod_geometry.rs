@@ -315,6 +315,17 @@ proptest! {
         let fine = Voxels::of_surfaces(gf, &meshes);
         let coarse = Voxels::of_surfaces(gc, &meshes);
         prop_assert!(fine.is_subset_of(&coarse).unwrap(), "a finer surface set leaves the coarser one");
+        // The build takes a coarser bound as the finer one lifted: inside the
+        // direct set, and still holding every point of every surface.
+        let mut lifted = Voxels::empty(coarse.grid().clone());
+        fine.lift_into(&mut lifted).unwrap();
+        prop_assert!(lifted.is_subset_of(&coarse).unwrap());
+        for t in meshes.iter().flat_map(|m| m.triangle_points()) {
+            for w in [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0 / 3.0; 3], [0.5, 0.25, 0.25]] {
+                let p = Point::from(t[0].coords * w[0] + t[1].coords * w[1] + t[2].coords * w[2]);
+                prop_assert!(lifted.contains_point(&p), "a surface point {p:?} outside the lifted set");
+            }
+        }
     }
 
     #[test]

@@ -388,38 +388,58 @@ impl Ctx<'_, '_> {
     /// its grid is too large or its blob too long for an inline bound. A
     /// level on the same grid as the level before is the same bound: it is
     /// voxelized once and stands for both (`Candidate::top`), except with
-    /// `store_all`, which stores every level.
+    /// `store_all`, which stores every level. Only the finest grid is
+    /// voxelized from the mesh; each coarser level is the finer one lifted
+    /// (as `shell` does), since a triangle's cost is paid per grid while a
+    /// lift costs only the set cells.
     fn candidates(&self, m: u8, i: usize, j: usize) -> Result<Vec<Candidate>, LodError> {
         let frame = &self.layout.frames[i];
         let Some(e) = self.layout.entries[i].get(j) else { return Ok(Vec::new()) };
         let Some(qbox) = QuantBox::decode(frame, e.qbox) else {
             return Ok(Vec::new());
         };
-        let mut mesh: Option<Cow<Mesh>> = None;
-        let mut out: Vec<Candidate> = Vec::new();
+        // (level, top, grid) per distinct grid, coarsest first.
+        let mut grids: Vec<(u8, u8, Grid)> = Vec::new();
         let mut previous: Option<Grid> = None;
         for k in 2..m {
             // The grid over the box the reader holds: the decoded quantized box.
             let grid = bound_grid(self.plan, self.params, k, &qbox.outer)?
                 .filter(|g| g.cells() <= u64::from(u16::MAX));
             if grid.is_some() && grid == previous && !self.params.store_all {
-                if let Some(last) = out.last_mut().filter(|c| c.top == k - 1) {
-                    last.top = k;
+                if let Some(last) = grids.last_mut().filter(|g| g.1 == k - 1) {
+                    last.1 = k;
                 }
                 continue;
             }
             previous.clone_from(&grid);
-            let Some(grid) = grid else { continue };
-            let mesh = match &mut mesh {
-                Some(m) => m,
-                none => none.insert((self.layout.mesh)(i, j)?),
-            };
-            let voxels = Voxels::of_surfaces(grid, [&**mesh]);
-            let blob = encode(&voxels);
-            if blob.len() <= MAX_BOUND_BYTES {
-                out.push(Candidate { level: k, top: k, blob, voxels });
+            if let Some(grid) = grid {
+                grids.push((k, k, grid));
             }
         }
+        if grids.is_empty() {
+            return Ok(Vec::new());
+        }
+        let mesh = (self.layout.mesh)(i, j)?;
+        let mut out: Vec<Candidate> = Vec::with_capacity(grids.len());
+        // The next finer level's set when its blob was too long to keep.
+        let mut dropped: Option<Voxels> = None;
+        for (level, top, grid) in grids.into_iter().rev() {
+            let finer = dropped.as_ref().or_else(|| out.last().map(|c| &c.voxels));
+            let lifted = finer.and_then(|f| {
+                let mut v = Voxels::empty(grid.clone());
+                // `lift_into` checks the nesting before it sets a cell.
+                f.lift_into(&mut v).ok().map(|()| v)
+            });
+            let voxels = lifted.unwrap_or_else(|| Voxels::of_surfaces(grid, [&*mesh]));
+            let blob = encode(&voxels);
+            if blob.len() <= MAX_BOUND_BYTES {
+                out.push(Candidate { level, top, blob, voxels });
+                dropped = None;
+            } else {
+                dropped = Some(voxels);
+            }
+        }
+        out.reverse();
         Ok(out)
     }
 }
