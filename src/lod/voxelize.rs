@@ -71,8 +71,10 @@ fn surface(grid: &Grid, planes: &[Vec<f64>; 3], tol: f64, sub: &Sub, t: &[Point;
             planes[2][z as usize + 1] + tol,
         ])
     };
-    let test = (!single)
-        .then(|| TriangleBoxTest::new(t, &cell(r[0].0, r[1].0, r[2].0).union(&cell(r[0].1, r[1].1, r[2].1))));
+    // Prepared at the first cell no earlier triangle set: a triangle among
+    // neighbours that set all its cells needs none.
+    let mut test: Option<TriangleBoxTest> = None;
+    let region = || cell(r[0].0, r[1].0, r[2].0).union(&cell(r[0].1, r[1].1, r[2].1));
     // The triangle's cells lie in the mesh's sub-grid (both ranges are of
     // boxes grown alike, one inside the other); clipping to it once keeps
     // the loops free of a check per cell.
@@ -88,7 +90,10 @@ fn surface(grid: &Grid, planes: &[Vec<f64>; 3], tol: f64, sub: &Sub, t: &[Point;
                 // (neighbouring triangles share most of their cells).
                 let bit = 1 << (i % 64);
                 if local[i / 64] & bit == 0
-                    && test.as_ref().is_none_or(|test| test.intersects(&cell(x, y, z)))
+                    && (single
+                        || test
+                            .get_or_insert_with(|| TriangleBoxTest::new(t, &region()))
+                            .intersects(&cell(x, y, z)))
                 {
                     local[i / 64] |= bit;
                 }
