@@ -249,6 +249,34 @@ impl Grid {
     }
 }
 
+/// [`Grid::box_range`] on a grid's planes read once (`Grid::planes` per
+/// axis): a binary search per bound instead of lattice planes computed on a
+/// walk, for loops that locate many boxes (a voxelizer's triangles).
+pub(crate) fn box_range_on(planes: &[Vec<f64>; 3], b: &Aabb) -> Option<[(u32, u32); 3]> {
+    Some([
+        range_on(&planes[0], b.min.x, b.max.x)?,
+        range_on(&planes[1], b.min.y, b.max.y)?,
+        range_on(&planes[2], b.min.z, b.max.z)?,
+    ])
+}
+
+/// [`Grid::range`] on one axis's planes.
+fn range_on(planes: &[f64], lo: f64, hi: f64) -> Option<(u32, u32)> {
+    let (&min, &max) = (planes.first()?, planes.last()?);
+    if lo.is_nan() || hi.is_nan() || lo > hi || hi < min || lo > max {
+        return None;
+    }
+    // Planes rise strictly (a flat axis has one cell), so the cell holding x
+    // is one less than the number of planes at or below it, clamped.
+    let last = planes.len().saturating_sub(2);
+    let cell_of = |x: f64| planes.partition_point(|&p| p <= x).saturating_sub(1).min(last);
+    let mut a = cell_of(lo);
+    if a > 0 && planes[a] == lo {
+        a -= 1;
+    }
+    Some((a as u32, cell_of(hi) as u32))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -317,5 +345,27 @@ mod tests {
         let l = Lattice { origin: Point::origin(), cell: 0.0 };
         let b = Aabb::from_array([0.0; 6]);
         assert!(matches!(Grid::new(&l, 0, &b), Err(LodError::BadLattice { .. })));
+    }
+
+    proptest::proptest! {
+        /// The binary search on planes read once answers as the grid does,
+        /// for boxes inside, across and outside clipped grids.
+        #[test]
+        fn box_range_on_planes_is_the_grids_box_range(
+            lo in proptest::array::uniform3(-8.0f64..8.0),
+            size in proptest::array::uniform3(0.0f64..12.0),
+            level in 0u8..3,
+            q in proptest::array::uniform3(-12.0f64..12.0),
+            q_size in proptest::array::uniform3(0.0f64..6.0),
+            on_plane in proptest::bool::ANY,
+        ) {
+            let b = Aabb::from_array([lo[0], lo[1], lo[2], lo[0] + size[0], lo[1] + size[1], lo[2] + size[2]]);
+            let g = Grid::new(&lat(), level, &b).unwrap();
+            let planes: [Vec<f64>; 3] = std::array::from_fn(|a| g.planes(a));
+            // Corners on lattice planes, where the closed-extent rule matters.
+            let q = if on_plane { q.map(f64::round) } else { q };
+            let qb = Aabb::from_array([q[0], q[1], q[2], q[0] + q_size[0], q[1] + q_size[1], q[2] + q_size[2]]);
+            proptest::prop_assert_eq!(box_range_on(&planes, &qb), g.box_range(&qb));
+        }
     }
 }

@@ -2,6 +2,7 @@
 //! triangle touches it (exact SAT on the cell grown by the grid's tolerance),
 //! plus the interior of each closed mesh, found per mesh (`interior.rs`).
 
+use super::grid::box_range_on;
 use super::interior::{Sub, fill_interior};
 use super::{Grid, Voxels, is_closed};
 use crate::geom::{Aabb, Point, TriangleBoxTest};
@@ -58,7 +59,7 @@ impl Voxels {
 /// Sets, in the mesh's sub-grid bitmap, every cell the triangle touches.
 fn surface(grid: &Grid, planes: &[Vec<f64>; 3], tol: f64, sub: &Sub, t: &[Point; 3], local: &mut [u64]) {
     let tb = Aabb::from_points(t.iter());
-    let Some(r) = grid.box_range(&tb.grown(2.0 * tol)) else { return };
+    let Some(r) = box_range_on(planes, &tb.grown(2.0 * tol)) else { return };
     // A triangle inside the grid whose range is one cell touches that cell.
     let single = r.iter().all(|&(a, b)| a == b) && grid.bounds().contains(&tb);
     let cell = |x: u32, y: u32, z: u32| {
