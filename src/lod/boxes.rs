@@ -10,6 +10,13 @@ impl Voxels {
     /// exactly the set cells. Each is grown from its first uncovered cell
     /// along x, then y, then z, as far as every cell it takes is set and free.
     pub fn boxes(&self) -> Vec<[u16; 6]> {
+        self.boxes_within(usize::MAX).unwrap_or_default()
+    }
+
+    /// [`boxes`](Voxels::boxes) when there are at most `most` of them; `None`
+    /// as soon as the cover passes `most`, so a caller that only needs
+    /// fewer (a blob choosing boxes over a bitmap) stops early.
+    pub(crate) fn boxes_within(&self, most: usize) -> Option<Vec<[u16; 6]>> {
         let g = &self.grid;
         let [dx, dy, dz] = g.dims();
         let mut covered = vec![0u64; self.bits.len()];
@@ -56,10 +63,13 @@ impl Voxels {
                     }
                 }
                 // Dims are at most MAX_DIM = 65535, so every corner fits a u16.
+                if out.len() == most {
+                    return None;
+                }
                 out.push([x0, y0, z0, x1, y1, z1].map(|c| c as u16));
             }
         }
-        out
+        Some(out)
     }
 
     /// [`boxes`](Voxels::boxes) in world coordinates: closed boxes whose

@@ -65,27 +65,28 @@ pub fn aligned_grid(lattice: &Lattice, level: u8, b: &Aabb) -> Result<Grid, LodE
     Grid::new(lattice, level, &Aabb::from_array([lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]]))
 }
 
-/// The form and payload bytes `v` encodes to: a bitmap or boxes, the smaller.
-fn form_of(v: &Voxels, boxes: usize) -> (u8, usize) {
+/// The form `v` encodes to, its payload bytes and, in a box form, the
+/// boxes: a bitmap or boxes, the smaller (a tie to the bitmap). The box
+/// cover stops once it would be no smaller than the bitmap.
+fn form_of(v: &Voxels) -> (u8, usize, Vec<[u16; 6]>) {
     let small = v.grid().dims().iter().all(|&d| d <= 255);
-    let box_bytes = boxes * if small { 6 } else { 12 };
+    let per_box = if small { 6 } else { 12 };
     let bitmap_bytes = (v.grid().cells() as usize).div_ceil(8);
-    if bitmap_bytes <= box_bytes {
-        (FORM_BITMAP, bitmap_bytes)
-    } else {
-        (if small { FORM_BOXES8 } else { FORM_BOXES16 }, box_bytes)
+    // Boxes win only with fewer than bitmap_bytes / per_box of them.
+    match v.boxes_within(bitmap_bytes.div_ceil(per_box).saturating_sub(1)) {
+        Some(boxes) => (if small { FORM_BOXES8 } else { FORM_BOXES16 }, boxes.len() * per_box, boxes),
+        None => (FORM_BITMAP, bitmap_bytes, Vec::new()),
     }
 }
 
 /// Bytes `v` encodes to.
 pub fn encoded_len(v: &Voxels) -> usize {
-    HEAD_LEN + form_of(v, v.boxes().len()).1
+    HEAD_LEN + form_of(v).1
 }
 
 /// Encodes `v`, a set on the [`aligned_grid`] over the box its reader holds.
 pub fn encode(v: &Voxels) -> Vec<u8> {
-    let boxes = v.boxes();
-    let (form, payload) = form_of(v, boxes.len());
+    let (form, payload, boxes) = form_of(v);
     let mut out = Vec::with_capacity(HEAD_LEN + payload);
     out.extend_from_slice(BlobHead { level: v.grid().level(), form }.as_bytes());
     match form {
@@ -214,5 +215,45 @@ mod tests {
         let lattice = Lattice { origin: Point::origin(), cell: 1e-3 };
         let huge = Aabb::from_array([0.0, 0.0, 0.0, 1e6, 1e6, 1e6]);
         assert!(decode(&[0, FORM_BITMAP], &lattice, &huge).is_err());
+    }
+
+    proptest::proptest! {
+        /// The cover cut short picks what the whole cover would: a bitmap
+        /// unless the boxes take fewer bytes, and then those very boxes.
+        #[test]
+        fn a_blob_is_the_smaller_form_of_the_whole_cover(
+            size in proptest::array::uniform3(1u8..12),
+            seeds in proptest::collection::vec(proptest::num::u64::ANY, 0..60),
+            blocks in proptest::collection::vec(proptest::array::uniform3(0u8..12), 0..4),
+        ) {
+            let lattice = Lattice { origin: Point::origin(), cell: 1.0 };
+            let b = Aabb::from_array([0.0, 0.0, 0.0, f64::from(size[0]), f64::from(size[1]), f64::from(size[2])]);
+            let grid = aligned_grid(&lattice, 0, &b).unwrap();
+            let mut v = Voxels::empty(grid.clone());
+            let cells = grid.cells();
+            for s in &seeds {
+                v.set((s % cells) as usize);
+            }
+            // Solid blocks, where a few boxes beat the bitmap.
+            for c in &blocks {
+                let lo = [0, 1, 2].map(|a| u32::from(c[a]) % grid.dims()[a]);
+                for z in lo[2]..grid.dims()[2] {
+                    for y in lo[1]..grid.dims()[1] {
+                        for x in lo[0]..grid.dims()[0] {
+                            v.set_cell([x, y, z]);
+                        }
+                    }
+                }
+            }
+            let boxes = v.boxes();
+            let bitmap = (cells as usize).div_ceil(8);
+            let want = if bitmap <= boxes.len() * 6 { (FORM_BITMAP, bitmap) } else { (FORM_BOXES8, boxes.len() * 6) };
+            let (form, payload, got) = form_of(&v);
+            proptest::prop_assert_eq!((form, payload), want);
+            if form == FORM_BOXES8 {
+                proptest::prop_assert_eq!(got, boxes);
+            }
+            proptest::prop_assert_eq!(decode(&encode(&v), &lattice, &b).unwrap(), v);
+        }
     }
 }
