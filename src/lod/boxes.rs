@@ -19,53 +19,40 @@ impl Voxels {
     pub(crate) fn boxes_within(&self, most: usize) -> Option<Vec<[u16; 6]>> {
         let g = &self.grid;
         let [dx, dy, dz] = g.dims();
-        let mut covered = vec![0u64; self.bits.len()];
-        let free = |covered: &[u64], i: usize| self.get(i) && covered[i / 64] >> (i % 64) & 1 == 0;
-        let all_free = |covered: &[u64], x: [u32; 2], y: [u32; 2], z: [u32; 2]| {
-            (z[0]..z[1]).all(|z| {
-                (y[0]..y[1]).all(|y| {
-                    let row = g.index([0, y, z]);
-                    (x[0]..x[1]).all(|x| free(covered, row + x as usize))
-                })
-            })
-        };
+        // The set cells no box covers yet; a box's rows are runs of bits,
+        // tested and cleared a word at a time.
+        let mut free = self.bits.clone();
+        let row_of = |y: u32, z: u32| g.index([0, y, z]);
         let mut out = Vec::new();
-        for wi in 0..self.bits.len() {
-            // The least set cell not yet covered, a word at a time:
-            // covered cells are skipped without a test each, and a box
-            // grown from one cell may cover later cells of its word.
+        for wi in 0..free.len() {
+            // The least free cell, a word at a time: a box grown from one
+            // cell may cover later cells of its word.
             loop {
-                let w = self.bits[wi] & !covered[wi];
+                let w = free[wi];
                 if w == 0 {
                     break;
                 }
                 let i = wi * 64 + w.trailing_zeros() as usize;
                 let [x0, y0, z0] = g.coords(i);
-                let mut x1 = x0 + 1;
-                while x1 < dx && free(&covered, i + (x1 - x0) as usize) {
-                    x1 += 1;
-                }
+                let x1 = x0 + 1 + ones_from(&free, i + 1, (dx - x0 - 1) as usize) as u32;
+                let len = (x1 - x0) as usize;
                 let mut y1 = y0 + 1;
-                while y1 < dy && all_free(&covered, [x0, x1], [y1, y1 + 1], [z0, z0 + 1]) {
+                while y1 < dy && all_ones(&free, row_of(y1, z0) + x0 as usize, len) {
                     y1 += 1;
                 }
                 let mut z1 = z0 + 1;
-                while z1 < dz && all_free(&covered, [x0, x1], [y0, y1], [z1, z1 + 1]) {
+                while z1 < dz && (y0..y1).all(|y| all_ones(&free, row_of(y, z1) + x0 as usize, len)) {
                     z1 += 1;
                 }
                 for z in z0..z1 {
                     for y in y0..y1 {
-                        let row = g.index([0, y, z]);
-                        for x in x0..x1 {
-                            let j = row + x as usize;
-                            covered[j / 64] |= 1 << (j % 64);
-                        }
+                        clear(&mut free, row_of(y, z) + x0 as usize, len);
                     }
                 }
-                // Dims are at most MAX_DIM = 65535, so every corner fits a u16.
                 if out.len() == most {
                     return None;
                 }
+                // Dims are at most MAX_DIM = 65535, so every corner fits a u16.
                 out.push([x0, y0, z0, x1, y1, z1].map(|c| c as u16));
             }
         }
@@ -115,6 +102,53 @@ impl Voxels {
     }
 }
 
+/// Bits `lo .. hi` of a word (lo < hi <= 64).
+fn span(lo: usize, hi: usize) -> u64 {
+    (u64::MAX >> (64 - (hi - lo))) << lo
+}
+
+/// The words (word index, mask) that bits `start .. start + len` fall in.
+fn spans(start: usize, len: usize) -> impl Iterator<Item = (usize, u64)> {
+    let end = start + len;
+    let mut i = start;
+    std::iter::from_fn(move || {
+        (i < end).then(|| {
+            let w = i / 64;
+            let hi = (end - w * 64).min(64);
+            let m = span(i % 64, hi);
+            i = w * 64 + hi;
+            (w, m)
+        })
+    })
+}
+
+/// True when bits `start .. start + len` are all set.
+fn all_ones(words: &[u64], start: usize, len: usize) -> bool {
+    spans(start, len).all(|(w, m)| words[w] & m == m)
+}
+
+/// Clears bits `start .. start + len`.
+fn clear(words: &mut [u64], start: usize, len: usize) {
+    for (w, m) in spans(start, len) {
+        words[w] &= !m;
+    }
+}
+
+/// How many bits from `start` on are set in a row, at most `most`.
+fn ones_from(words: &[u64], start: usize, most: usize) -> usize {
+    let mut n = 0;
+    while n < most {
+        let (w, b) = ((start + n) / 64, (start + n) % 64);
+        // The shift brings in zeros, so a run to the word's end stops there.
+        let run = ((!(words[w] >> b)).trailing_zeros() as usize).min(64 - b);
+        n += run;
+        if run < 64 - b {
+            break;
+        }
+    }
+    n.min(most)
+}
+
 #[cfg(test)]
 mod tests {
     use crate::geom::{Aabb, Point};
@@ -133,5 +167,72 @@ mod tests {
         assert!(l.fill_box([0, 1, 0, 1, 2, 1]));
         assert!(!l.fill_box([0, 0, 0, 1, 1, 1]), "overlap");
         assert_eq!(l.boxes(), vec![[0, 0, 0, 2, 1, 1], [0, 1, 0, 1, 2, 1]]);
+    }
+
+    /// The cover cell by cell: what the word-at-a-time cover must give.
+    fn boxes_cell_by_cell(v: &Voxels) -> Vec<[u16; 6]> {
+        let g = v.grid();
+        let [dx, dy, dz] = g.dims();
+        let mut covered = Voxels::empty(g.clone());
+        let free = |c: &Voxels, x: u32, y: u32, z: u32| v.is_set([x, y, z]) && !c.is_set([x, y, z]);
+        let mut out = Vec::new();
+        for i in 0..g.cells() as usize {
+            let [x0, y0, z0] = g.coords(i);
+            if !free(&covered, x0, y0, z0) {
+                continue;
+            }
+            let mut x1 = x0 + 1;
+            while x1 < dx && free(&covered, x1, y0, z0) {
+                x1 += 1;
+            }
+            let mut y1 = y0 + 1;
+            while y1 < dy && (x0..x1).all(|x| free(&covered, x, y1, z0)) {
+                y1 += 1;
+            }
+            let mut z1 = z0 + 1;
+            while z1 < dz && (y0..y1).all(|y| (x0..x1).all(|x| free(&covered, x, y, z1))) {
+                z1 += 1;
+            }
+            let b = [x0, y0, z0, x1, y1, z1].map(|c| c as u16);
+            assert!(covered.fill_box(b));
+            out.push(b);
+        }
+        out
+    }
+
+    proptest::proptest! {
+        /// Rows tested and cleared a word at a time give the cell-by-cell
+        /// cover, on grids whose rows straddle words.
+        #[test]
+        fn the_cover_is_the_cell_by_cell_greedy_cover(
+            dims in proptest::array::uniform3(1u32..80),
+            seeds in proptest::collection::vec(proptest::num::u64::ANY, 0..200),
+            blocks in proptest::collection::vec(proptest::array::uniform3(0u32..80), 0..3),
+        ) {
+            let l = Lattice { origin: Point::origin(), cell: 1.0 };
+            let dims = [dims[0], dims[1], 1 + dims[2] % 6];
+            let b = Aabb::from_array([0.0, 0.0, 0.0, f64::from(dims[0]), f64::from(dims[1]), f64::from(dims[2])]);
+            let mut v = Voxels::empty(Grid::new(&l, 0, &b).unwrap());
+            let cells = v.grid().cells();
+            for s in &seeds {
+                v.set((s % cells) as usize);
+            }
+            for c in &blocks {
+                let lo = [0, 1, 2].map(|a| c[a] % dims[a]);
+                for z in lo[2]..dims[2] {
+                    for y in lo[1]..dims[1] {
+                        for x in lo[0]..dims[0] {
+                            v.set_cell([x, y, z]);
+                        }
+                    }
+                }
+            }
+            let want = boxes_cell_by_cell(&v);
+            proptest::prop_assert_eq!(v.boxes(), want.clone());
+            proptest::prop_assert_eq!(v.boxes_within(want.len()), Some(want.clone()));
+            if let Some(fewer) = want.len().checked_sub(1) {
+                proptest::prop_assert_eq!(v.boxes_within(fewer), None);
+            }
+        }
     }
 }
