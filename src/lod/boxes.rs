@@ -212,21 +212,7 @@ mod tests {
             let l = Lattice { origin: Point::origin(), cell: 1.0 };
             let dims = [dims[0], dims[1], 1 + dims[2] % 6];
             let b = Aabb::from_array([0.0, 0.0, 0.0, f64::from(dims[0]), f64::from(dims[1]), f64::from(dims[2])]);
-            let mut v = Voxels::empty(Grid::new(&l, 0, &b).unwrap());
-            let cells = v.grid().cells();
-            for s in &seeds {
-                v.set((s % cells) as usize);
-            }
-            for c in &blocks {
-                let lo = [0, 1, 2].map(|a| c[a] % dims[a]);
-                for z in lo[2]..dims[2] {
-                    for y in lo[1]..dims[1] {
-                        for x in lo[0]..dims[0] {
-                            v.set_cell([x, y, z]);
-                        }
-                    }
-                }
-            }
+            let v = Voxels::scattered_and_solid(Grid::new(&l, 0, &b).unwrap(), &seeds, &blocks);
             let want = boxes_cell_by_cell(&v);
             proptest::prop_assert_eq!(v.boxes(), want.clone());
             proptest::prop_assert_eq!(v.boxes_within(want.len()), Some(want.clone()));

@@ -229,22 +229,10 @@ mod tests {
             let lattice = Lattice { origin: Point::origin(), cell: 1.0 };
             let b = Aabb::from_array([0.0, 0.0, 0.0, f64::from(size[0]), f64::from(size[1]), f64::from(size[2])]);
             let grid = aligned_grid(&lattice, 0, &b).unwrap();
-            let mut v = Voxels::empty(grid.clone());
+            let corners: Vec<[u32; 3]> = blocks.iter().map(|c| c.map(u32::from)).collect();
+            // Solid parts, where a few boxes beat the bitmap.
+            let v = Voxels::scattered_and_solid(grid.clone(), &seeds, &corners);
             let cells = grid.cells();
-            for s in &seeds {
-                v.set((s % cells) as usize);
-            }
-            // Solid blocks, where a few boxes beat the bitmap.
-            for c in &blocks {
-                let lo = [0, 1, 2].map(|a| u32::from(c[a]) % grid.dims()[a]);
-                for z in lo[2]..grid.dims()[2] {
-                    for y in lo[1]..grid.dims()[1] {
-                        for x in lo[0]..grid.dims()[0] {
-                            v.set_cell([x, y, z]);
-                        }
-                    }
-                }
-            }
             let boxes = v.boxes();
             let bitmap = (cells as usize).div_ceil(8);
             let want = if bitmap <= boxes.len() * 6 { (FORM_BITMAP, bitmap) } else { (FORM_BOXES8, boxes.len() * 6) };

@@ -65,6 +65,28 @@ impl Voxels {
         SetCells::new(&self.bits, 0..self.bits.len() * 64)
     }
 
+    /// A test set on `grid`: the cells `seeds` pick (modulo the cells),
+    /// and, from each of `corners` (modulo the dims) to the grid's far
+    /// corner, every cell: scattered cells and solid parts.
+    #[cfg(test)]
+    pub(crate) fn scattered_and_solid(grid: Grid, seeds: &[u64], corners: &[[u32; 3]]) -> Voxels {
+        let mut v = Voxels::empty(grid);
+        let (cells, d) = (v.grid.cells(), v.grid.dims());
+        for s in seeds {
+            v.set((s % cells) as usize);
+        }
+        for c in corners {
+            for z in c[2] % d[2]..d[2] {
+                for y in c[1] % d[1]..d[1] {
+                    for x in c[0] % d[0]..d[0] {
+                        v.set_cell([x, y, z]);
+                    }
+                }
+            }
+        }
+        v
+    }
+
     /// ORs every set cell into the cell of `target`'s grid that contains it.
     /// Refuses (NotNested) a target on another lattice, at a finer level, or
     /// whose bounds do not contain this set's bounds.
