@@ -157,4 +157,36 @@ mod tests {
         let v = Voxels::of_meshes(g, &slabs);
         assert_eq!(v.count(), 512 - 216, "the walls only");
     }
+
+    proptest::proptest! {
+        /// The surface set is exactly the cells whose grown box a triangle
+        /// meets, found cell by cell: the walk of each triangle's range, its
+        /// skips of set cells and its one-cell shortcut lose none and add none.
+        #[test]
+        fn the_surface_set_is_every_cell_a_triangle_touches(
+            corners in proptest::collection::vec(proptest::array::uniform3(-5.0f64..5.0), 3..10),
+            level in 0u8..2,
+        ) {
+            let v: Vec<Point> = corners.iter().map(|c| Point::new(c[0], c[1], c[2])).collect();
+            let tris: Vec<[u32; 3]> = (0..v.len() as u32 - 2).map(|i| [i, i + 1, i + 2]).collect();
+            let Ok(mesh) = Mesh::from_world(&v, tris) else { return Ok(()) };
+            let fine = Lattice { origin: Point::origin(), cell: 0.5 };
+            let g = Grid::new(&fine, level, &mesh.aabb().grown(0.3)).unwrap();
+            let got = Voxels::of_surfaces(g.clone(), [&mesh]);
+            let tol = g.tolerance();
+            let mut want = Voxels::empty(g.clone());
+            let d = g.dims();
+            for z in 0..d[2] {
+                for y in 0..d[1] {
+                    for x in 0..d[0] {
+                        let cell = g.cell_box([x, y, z]).grown(tol);
+                        if mesh.triangle_points().any(|t| crate::geom::intersects_triangle_box(&t, &cell)) {
+                            want.set_cell([x, y, z]);
+                        }
+                    }
+                }
+            }
+            proptest::prop_assert_eq!(got, want);
+        }
+    }
 }
