@@ -32,6 +32,9 @@ impl Voxels {
                 if w == 0 {
                     break;
                 }
+                if out.len() == most {
+                    return None;
+                }
                 let i = wi * 64 + w.trailing_zeros() as usize;
                 let [x0, y0, z0] = g.coords(i);
                 let x1 = x0 + 1 + ones_from(&free, i + 1, (dx - x0 - 1) as usize) as u32;
@@ -48,9 +51,6 @@ impl Voxels {
                     for y in y0..y1 {
                         clear(&mut free, row_of(y, z) + x0 as usize, len);
                     }
-                }
-                if out.len() == most {
-                    return None;
                 }
                 // Dims are at most MAX_DIM = 65535, so every corner fits a u16.
                 out.push([x0, y0, z0, x1, y1, z1].map(|c| c as u16));

@@ -206,14 +206,8 @@ impl Grid {
 
     /// The cells along `axis` whose closed extent meets [lo, hi], if any.
     pub(crate) fn range(&self, axis: usize, lo: f64, hi: f64) -> Option<(u32, u32)> {
-        if lo.is_nan() || hi.is_nan() || lo > hi || hi < self.bounds.min[axis] || lo > self.bounds.max[axis] {
-            return None;
-        }
-        let mut a = self.cell_of(axis, lo);
-        if a > 0 && self.plane(axis, a) == lo {
-            a -= 1;
-        }
-        Some((a, self.cell_of(axis, hi)))
+        let extent = (self.bounds.min[axis], self.bounds.max[axis]);
+        closed_range(extent, lo, hi, |x| self.cell_of(axis, x), |k| self.plane(axis, k))
     }
 
     /// The cells whose closed boxes meet `b`, per axis.
@@ -262,19 +256,32 @@ pub(crate) fn box_range_on(planes: &[Vec<f64>; 3], b: &Aabb) -> Option<[(u32, u3
 
 /// [`Grid::range`] on one axis's planes.
 fn range_on(planes: &[f64], lo: f64, hi: f64) -> Option<(u32, u32)> {
-    let (&min, &max) = (planes.first()?, planes.last()?);
-    if lo.is_nan() || hi.is_nan() || lo > hi || hi < min || lo > max {
-        return None;
-    }
+    let extent = (*planes.first()?, *planes.last()?);
     // Planes rise strictly (a flat axis has one cell), so the cell holding x
     // is one less than the number of planes at or below it, clamped.
     let last = planes.len().saturating_sub(2);
-    let cell_of = |x: f64| planes.partition_point(|&p| p <= x).saturating_sub(1).min(last);
+    let cell_of = |x: f64| planes.partition_point(|&p| p <= x).saturating_sub(1).min(last) as u32;
+    closed_range(extent, lo, hi, cell_of, |k| planes[k as usize])
+}
+
+/// The cells along one axis whose closed extent meets [lo, hi], if any, on
+/// an axis spanning `extent`, given the cell holding a coordinate and the
+/// planes: a cell ending on lo meets it too.
+fn closed_range(
+    extent: (f64, f64),
+    lo: f64,
+    hi: f64,
+    cell_of: impl Fn(f64) -> u32,
+    plane: impl Fn(u32) -> f64,
+) -> Option<(u32, u32)> {
+    if lo.is_nan() || hi.is_nan() || lo > hi || hi < extent.0 || lo > extent.1 {
+        return None;
+    }
     let mut a = cell_of(lo);
-    if a > 0 && planes[a] == lo {
+    if a > 0 && plane(a) == lo {
         a -= 1;
     }
-    Some((a as u32, cell_of(hi) as u32))
+    Some((a, cell_of(hi)))
 }
 
 #[cfg(test)]

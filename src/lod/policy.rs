@@ -32,7 +32,7 @@ use std::collections::HashMap;
 use rayon::prelude::*;
 
 use super::compact::{aligned_grid, decode, encode};
-use super::{ErrorProbe, Grid, GroupRule, Lattice, LodError, LodParams, LodPlan, Voxels};
+use super::{ErrorProbe, Grid, GroupRule, Lattice, LodError, LodParams, LodPlan, Voxels, lift_group};
 use crate::bulk::{Hierarchy, LoadProgress, QueryMix, Stage, StageMeter};
 use crate::geom::Aabb;
 use crate::scene::Mesh;
@@ -425,11 +425,8 @@ impl Ctx<'_, '_> {
         let mut dropped: Option<Voxels> = None;
         for (level, top, grid) in grids.into_iter().rev() {
             let finer = dropped.as_ref().or_else(|| out.last().map(|c| &c.voxels));
-            let lifted = finer.and_then(|f| {
-                let mut v = Voxels::empty(grid.clone());
-                // `lift_into` checks the nesting before it sets a cell.
-                f.lift_into(&mut v).ok().map(|()| v)
-            });
+            // `lift_into` checks the nesting before it sets a cell.
+            let lifted = finer.and_then(|f| lift_group(grid.clone(), [f]).ok());
             let voxels = lifted.unwrap_or_else(|| Voxels::of_surfaces(grid, [&*mesh]));
             let blob = encode(&voxels);
             if blob.len() <= MAX_BOUND_BYTES {
