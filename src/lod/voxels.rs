@@ -154,16 +154,29 @@ impl Voxels {
         false
     }
 
+    /// True when a cell of the range `r` is set: a row at a time, and in a
+    /// row a word at a time (the read model and the queries ask this of
+    /// every bound a query leaves open).
+    fn any_set_in(&self, r: [(u32, u32); 3]) -> bool {
+        let len = (r[0].1 - r[0].0) as usize + 1;
+        (r[2].0..=r[2].1).any(|z| {
+            (r[1].0..=r[1].1).any(|y| {
+                let row = self.grid.index([r[0].0, y, z]);
+                SetCells::new(&self.bits, row..row + len).next().is_some()
+            })
+        })
+    }
+
     /// True when `p` lies in a set cell, grown by the voxelization tolerance
     /// (so rounding in a point computed on the geometry never loses it).
     pub fn contains_point(&self, p: &Point) -> bool {
         let b = Aabb::new(*p, *p).grown(self.grid.tolerance());
-        self.grid.box_range(&b).is_some_and(|r| self.any_in(r, |_, _| true))
+        self.grid.box_range(&b).is_some_and(|r| self.any_set_in(r))
     }
 
     /// True when the closed box `b` meets a set (closed) cell.
     pub fn intersects_aabb(&self, b: &Aabb) -> bool {
-        self.grid.box_range(b).is_some_and(|r| self.any_in(r, |_, _| true))
+        self.grid.box_range(b).is_some_and(|r| self.any_set_in(r))
     }
 
     /// True when `b` may meet the surface the set bounds: it meets a set
@@ -176,9 +189,19 @@ impl Voxels {
     /// set of surface cells (`of_surfaces`), `q` then meets the surface.
     pub fn holds_a_cell_in(&self, q: &Aabb) -> bool {
         let tol = self.grid.tolerance();
-        self.grid
-            .box_range(q)
-            .is_some_and(|r| self.any_in(r, |_, c| q.contains(&self.grid.cell_box(c).grown(tol))))
+        let Some(mut r) = self.grid.box_range(q) else { return false };
+        // A grown cell lies in `q` when it does on each axis, and on an axis
+        // the cells that do are a run (planes increase): the cells held
+        // are a box range, tested a word at a time instead of cell by cell.
+        for (a, (lo, hi)) in r.iter_mut().enumerate() {
+            let held = |k: u32| {
+                q.min[a] <= self.grid.plane(a, k) - tol && self.grid.plane(a, k + 1) + tol <= q.max[a]
+            };
+            let Some(first) = (*lo..=*hi).find(|&k| held(k)) else { return false };
+            let last = (first..=*hi).take_while(|&k| held(k)).last().unwrap_or(first);
+            (*lo, *hi) = (first, last);
+        }
+        self.any_set_in(r)
     }
 
     /// Every set cell's box, grown by the voxelization tolerance: each holds
@@ -319,6 +342,31 @@ mod tests {
                 want.set_cell([0, 1, 2].map(|a| coarse.grid.cell_of(a, centre(a))));
             }
             proptest::prop_assert_eq!(coarse, want);
+        }
+
+        /// The box tests a row and a word at a time answer as testing every
+        /// cell of the range would: `intersects_aabb` as any set cell there,
+        /// `holds_a_cell_in` as any set cell whose grown box `q` contains.
+        #[test]
+        fn box_tests_answer_as_cell_by_cell_tests(
+            lo in proptest::array::uniform3(0u8..8),
+            size in proptest::array::uniform3(1u8..12),
+            level in 0u8..2,
+            seeds in proptest::collection::vec(proptest::num::u64::ANY, 0..12),
+            corners in proptest::collection::vec(proptest::array::uniform3(0u32..24), 0..2),
+            q in proptest::array::uniform6(-2.0f64..22.0),
+            on_planes in proptest::bool::ANY,
+        ) {
+            let b = [lo[0], lo[1], lo[2], lo[0] + size[0], lo[1] + size[1], lo[2] + size[2]].map(f64::from);
+            let v = Voxels::scattered_and_solid(grid(level, b), &seeds, &corners);
+            // Corners on lattice planes, or not: where a grown cell's side
+            // meets the query's, the tolerance decides.
+            let q = if on_planes { q.map(f64::round) } else { q };
+            let q = Aabb::from_array([q[0].min(q[3]), q[1].min(q[4]), q[2].min(q[5]), q[0].max(q[3]), q[1].max(q[4]), q[2].max(q[5])]);
+            let tol = v.grid.tolerance();
+            let cells = |f: &dyn Fn([u32; 3]) -> bool| v.grid.box_range(&q).is_some_and(|r| v.any_in(r, |_, c| f(c)));
+            proptest::prop_assert_eq!(v.intersects_aabb(&q), cells(&|_| true));
+            proptest::prop_assert_eq!(v.holds_a_cell_in(&q), cells(&|c| q.contains(&v.grid.cell_box(c).grown(tol))));
         }
 
         /// The word-at-a-time walk finds exactly the set bits of any range,
