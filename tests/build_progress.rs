@@ -107,6 +107,7 @@ fn a_bulk_load_reports_each_stage_in_order_from_none_done_to_all_done() {
         Stage::Geometry,
         Stage::Groups,
         Stage::Nodes,
+        Stage::Keys,
     ];
     assert_eq!(stages, order, "each stage once, in order");
     for stage in order {
@@ -114,9 +115,13 @@ fn a_bulk_load_reports_each_stage_in_order_from_none_done_to_all_done() {
         let (first, last) = (of[0], of[of.len() - 1]);
         assert_eq!(first.done, 0, "{stage:?} starts at 0");
         assert!(last.total > 0 && last.done == last.total, "{stage:?} ends done: {last:?}");
-        // Reports from several threads may arrive out of order, never past the total.
-        assert!(of.iter().all(|p| p.done <= p.total && p.total == last.total), "{stage:?}: {of:?}");
+        // Reports from several threads may arrive out of order, never past
+        // the total, which only the tree stage's estimate lets move.
+        let fixed = |p: &LoadProgress| stage == Stage::Tree || p.total == last.total;
+        assert!(of.iter().all(|p| p.done <= p.total && fixed(p)), "{stage:?}: {of:?}");
     }
-    let tree_total = seen[0].total;
-    assert_eq!(tree_total, scene.len() as u64, "the tree stage counts objects");
+    // The tree stage counts object visits, trials included: every object is
+    // visited at every level above its leaf, and refine's trials add more.
+    let tree_last = seen.iter().rfind(|p| p.stage == Stage::Tree).unwrap();
+    assert!(tree_last.total > 2 * scene.len() as u64, "{tree_last:?}");
 }

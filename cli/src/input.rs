@@ -3,9 +3,10 @@
 //! built in memory.
 
 use std::path::Path;
+use std::sync::{Mutex, PoisonError};
 
 use anyhow::{Context, Result};
-use mktree::bulk::{BuildProgress, Hierarchy, build};
+use mktree::bulk::{BuildProgress, Hierarchy, TimeLeft, build};
 use mktree::db::{Database, LayoutDrift, TreeInfo, read_hierarchy, read_tree_and_drift};
 use mktree::scene::Scene;
 use mktree::scene::generate::{GenOptions, Preset, generate_scene};
@@ -166,9 +167,11 @@ pub enum Source {
 /// Builds the tree of `scene` in memory, with a progress bar.
 pub fn build_in_memory(scene: &Scene, args: &BuildArgs) -> Result<Hierarchy> {
     let sizes: Vec<u64> = scene.objects().iter().map(|o| mktree::bulk::object_bytes(&o.mesh)).collect();
-    let pb = crate::output::progress_bar(scene.len(), &args.params());
+    let pb = crate::output::progress_bar();
+    let clock = Mutex::new(TimeLeft::new());
     let tree = build(&scene.object_boxes(), Some(&sizes), &args.params(), &|p: BuildProgress| {
-        pb.set_position(p.objects_placed)
+        let mut clock = clock.lock().unwrap_or_else(PoisonError::into_inner);
+        crate::output::show_progress(&pb, &mut clock, &p.as_stage())
     })?;
     pb.finish_and_clear();
     Ok(tree)

@@ -4,10 +4,11 @@
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::Path;
+use std::time::Instant;
 
 use anyhow::{Context, Result};
-use indicatif::{ProgressBar, ProgressStyle};
-use mktree::bulk::{BuildParams, Stage, estimate_work};
+use indicatif::{HumanDuration, ProgressBar, ProgressStyle};
+use mktree::bulk::{LoadProgress, Stage, TimeLeft};
 use mktree::query::{QueryAnswer, ViewCut};
 use mktree::render::Image;
 use mktree::store::TransferCounts;
@@ -81,20 +82,25 @@ pub fn table_of<'a, I: Iterator<Item = &'a str>>(header: &[&str], count: usize, 
 }
 
 /// A progress bar per stage, with the time left (on stderr, hidden when
-/// not a terminal): objects placed while the tree is built, then the units
+/// not a terminal): object visits while the tree is built, then the units
 /// of each later stage of the bulk load.
-pub fn progress_bar(objects: usize, params: &BuildParams) -> ProgressBar {
-    let pb = ProgressBar::new(objects as u64);
+pub fn progress_bar() -> ProgressBar {
+    let pb = ProgressBar::new(0);
     pb.set_style(
-        ProgressStyle::with_template(
-            "{spinner} {prefix:>8} [{bar:40}] {pos}/{len} {msg} ({elapsed}, {eta} left)",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        ProgressStyle::with_template("{spinner} {prefix:>8} [{bar:40}] {pos}/{len} ({elapsed}) {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     pb.set_prefix(Stage::Tree.name());
-    let work = estimate_work(objects, None, params);
-    pb.set_message(format!("objects placed, ~{work:.2e} object visits estimated"));
     pb
+}
+
+/// Shows report `p` of the bar's stage on `pb`, with the time left that
+/// `clock` tells.
+pub fn show_progress(pb: &ProgressBar, clock: &mut TimeLeft, p: &LoadProgress) {
+    let left = clock.observe(p, Instant::now());
+    pb.set_length(p.total);
+    pb.set_position(p.done);
+    pb.set_message(left.map(|t| format!("{:#} left", HumanDuration(t))).unwrap_or_default());
 }
 
 /// An answer's JSON: the CLI contract's keys, then the traversal's statistics.

@@ -39,7 +39,7 @@ internal_use!(hilbert::curve_order);
 pub use leaf::{LeafRule, object_bytes};
 pub use params::{BuildParams, LookAhead, Method, ParseParamError, QueryExtent, TieBreak};
 pub(crate) use progress::StageMeter;
-pub use progress::{BuildProgress, LoadProgress, Stage};
+pub use progress::{BuildProgress, LoadProgress, Stage, TIME_LEFT_CHECKS, TimeLeft, TimeLeftCheck};
 internal_use!(progress::estimate_work);
 pub use report::{LevelRow, Report, TreeShape};
 pub(crate) use validate::check_object_range;

@@ -5,9 +5,11 @@
 //! Work is counted in object visits: dividing a node of n objects, real or
 //! trial, is n units (six order scans and six list partitions of n each).
 //! [`estimate_work`] predicts that count before a build; the build reports
-//! the running count.
+//! the running count. [`TimeLeft`] turns a bulk load's reports into the
+//! time left in each stage, and checks afterwards how well it told it.
 
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
+use std::time::{Duration, Instant};
 
 use super::{BuildParams, Method};
 
@@ -26,6 +28,27 @@ pub struct BuildProgress {
     /// children (the look level actually reached; at most the
     /// `look_ahead_level` asked for). 0 for the other methods.
     pub look_level_reached: u32,
+}
+
+impl BuildProgress {
+    /// This report as a bulk load's [`Stage::Tree`] progress: object
+    /// visits, not objects placed, since a `refine` build places none
+    /// until its first leaf, after its costliest trials. The total is the
+    /// estimate, or, once objects are placed, the work done scaled by the
+    /// share placed when that is less (an object placed needs no more
+    /// visits, and the estimate can be a third too high: plant 200,000),
+    /// and never less than the work done.
+    pub fn as_stage(&self) -> LoadProgress {
+        let done = self.work_done;
+        let total = if self.objects_placed >= self.objects_total {
+            done
+        } else {
+            let placed = self.objects_placed as f64 / self.objects_total as f64;
+            let by_placed = if placed > 0.0 { done as f64 / placed } else { f64::INFINITY };
+            (self.work_estimate.min(by_placed) as u64).max(done)
+        };
+        LoadProgress { stage: Stage::Tree, done, total }
+    }
 }
 
 /// Estimated object visits of a build of `objects` objects (see the module
@@ -139,7 +162,10 @@ impl<'a> Meter<'a> {
 #[serde(rename_all = "lowercase")]
 #[non_exhaustive]
 pub enum Stage {
-    /// Clustering objects into the hierarchy (units: objects placed in leaves).
+    /// Clustering objects into the hierarchy (units: object visits, trial
+    /// subtrees included, as [`BuildProgress::work_done`] counts them, of a
+    /// total from [`BuildProgress::work_estimate`]: see
+    /// [`BuildProgress::as_stage`]).
     Tree,
     /// Placing records in geometry and node blocks (one unit).
     Layout,
@@ -152,10 +178,12 @@ pub enum Stage {
     Geometry,
     /// Building the group bounds b(S_n,k) of every node: level 2 under the
     /// finer group grid, to learn whether its bounds fit, then every level
-    /// under the grid chosen (units: nodes built, counted in both passes).
+    /// under the grid chosen (units: a node's levels built, in both passes).
     Groups,
-    /// Writing node blocks and the key index (units: node blocks).
+    /// Writing node blocks (units: node blocks).
     Nodes,
+    /// Writing the key index (units: objects, as their entries are made).
+    Keys,
 }
 
 impl Stage {
@@ -169,6 +197,7 @@ impl Stage {
             Stage::Geometry => "geometry",
             Stage::Groups => "groups",
             Stage::Nodes => "nodes",
+            Stage::Keys => "keys",
         }
     }
 }
@@ -201,6 +230,15 @@ impl<'a> StageMeter<'a> {
         StageMeter { report, stage, total, done: AtomicU64::new(0), tick: AtomicU64::new(0) }
     }
 
+    /// Counts up to `done` units, when fewer are done: work a stage found
+    /// it did not need.
+    pub(crate) fn catch_up(&self, done: u64) {
+        let now = self.done.load(Relaxed);
+        if now < done {
+            self.add(done - now);
+        }
+    }
+
     /// `n` more units are done.
     pub(crate) fn add(&self, n: u64) {
         let done = self.done.fetch_add(n, Relaxed) + n;
@@ -218,10 +256,157 @@ impl Drop for StageMeter<'_> {
     }
 }
 
+/// Shares of a stage's wall time at which [`TimeLeft::end`] checks what
+/// was told.
+pub const TIME_LEFT_CHECKS: [f64; 5] = [0.1, 0.25, 0.5, 0.75, 0.9];
+
+/// The time left in each stage of a bulk load, from its [`LoadProgress`]
+/// reports: the stage's time so far, times the units left over the units
+/// done. That is the mean rate since the stage began, not a recent one,
+/// which swings where units cost unevenly (a trial's large nodes, then its
+/// small ones). It keeps what it told, so that [`TimeLeft::end`] can say
+/// how close it came.
+#[derive(Debug, Default)]
+pub struct TimeLeft {
+    /// The stage reported last, and when its first report came.
+    current: Option<(Stage, Instant)>,
+    /// Per report of the current stage that told a time: (seconds into
+    /// the stage, seconds told left).
+    told: Vec<(f64, f64)>,
+}
+
+/// How the time left told at one point of a stage compared with the time
+/// the stage then took.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct TimeLeftCheck {
+    /// The share of the stage's wall time this check is at (one of
+    /// [`TIME_LEFT_CHECKS`]).
+    pub at: f64,
+    /// The time left told by the last report at or before that point, in
+    /// seconds; none when no report had told one yet.
+    pub told_seconds: Option<f64>,
+    /// The time the stage took from that report on, in seconds.
+    pub actual_seconds: f64,
+}
+
+impl TimeLeftCheck {
+    /// Told over actual, less one: 0.25 is a quarter too long, -0.25 a
+    /// quarter too short. None when nothing was told, or nothing was left.
+    pub fn error(&self) -> Option<f64> {
+        self.told_seconds.filter(|_| self.actual_seconds > 0.0).map(|t| t / self.actual_seconds - 1.0)
+    }
+}
+
+impl TimeLeft {
+    /// A clock with no stage begun.
+    pub fn new() -> TimeLeft {
+        TimeLeft::default()
+    }
+
+    /// Takes report `p`, made at `now`, and returns the time left in its
+    /// stage, once a hundredth of its units are done. A report of another
+    /// stage than the last begins that stage: call [`TimeLeft::end`] first
+    /// to check the one before.
+    pub fn observe(&mut self, p: &LoadProgress, now: Instant) -> Option<Duration> {
+        let began = match self.current {
+            Some((stage, began)) if stage == p.stage => began,
+            _ => {
+                self.current = Some((p.stage, now));
+                self.told.clear();
+                now
+            }
+        };
+        if p.done == 0 || p.done.saturating_mul(100) < p.total {
+            return None;
+        }
+        let elapsed = now.saturating_duration_since(began).as_secs_f64();
+        let left = elapsed * p.total.saturating_sub(p.done) as f64 / p.done as f64;
+        self.told.push((elapsed, left));
+        Some(Duration::from_secs_f64(left))
+    }
+
+    /// Ends the current stage at `now` and checks, at each share of its
+    /// wall time in [`TIME_LEFT_CHECKS`], the time left told then against
+    /// the time it took. Empty when no stage was begun.
+    pub fn end(&mut self, now: Instant) -> Vec<TimeLeftCheck> {
+        let Some((_, began)) = self.current.take() else { return Vec::new() };
+        let told = std::mem::take(&mut self.told);
+        let seconds = now.saturating_duration_since(began).as_secs_f64();
+        TIME_LEFT_CHECKS
+            .iter()
+            .map(|&at| {
+                // Reports come in time order: the last one at or before the point.
+                let last = told.partition_point(|&(t, _)| t <= at * seconds).checked_sub(1).map(|i| told[i]);
+                match last {
+                    Some((t, left)) => {
+                        TimeLeftCheck { at, told_seconds: Some(left), actual_seconds: seconds - t }
+                    }
+                    None => TimeLeftCheck { at, told_seconds: None, actual_seconds: seconds * (1.0 - at) },
+                }
+            })
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::bulk::{LeafRule, LookAhead};
+
+    #[test]
+    fn the_tree_stage_counts_visits_of_the_estimate_or_of_the_share_placed_and_ends_done() {
+        let at = |placed, done, estimate| {
+            let p = BuildProgress {
+                objects_placed: placed,
+                objects_total: 100,
+                work_done: done,
+                work_estimate: estimate,
+                look_level_reached: 0,
+            };
+            let s = p.as_stage();
+            assert_eq!((s.stage, s.done), (Stage::Tree, done));
+            s.total
+        };
+        // Nothing placed: the estimate, or the work done past it.
+        assert_eq!(at(0, 300, 1000.0), 1000);
+        assert_eq!(at(0, 1200, 1000.0), 1200);
+        // A quarter placed after 400 visits: 1600 is more than the estimate.
+        assert_eq!(at(25, 400, 1000.0), 1000);
+        // Half placed after 400 visits: 800, less than the estimate.
+        assert_eq!(at(50, 400, 1000.0), 800);
+        // Every object placed: the build is done, whatever the estimate.
+        assert_eq!(at(100, 700, 1000.0), 700);
+        assert_eq!(at(100, 1300, 1000.0), 1300);
+    }
+
+    #[test]
+    fn time_left_is_the_mean_rate_since_the_stage_began_and_is_checked_at_its_end() {
+        let t0 = Instant::now();
+        let at = |s: f64| t0 + Duration::from_secs_f64(s);
+        let report = |stage, done| LoadProgress { stage, done, total: 100 };
+        let mut clock = TimeLeft::new();
+        assert_eq!(clock.end(t0), []);
+        assert_eq!(clock.observe(&report(Stage::Levels, 0), at(0.0)), None);
+        // Under a hundredth done: nothing told.
+        assert_eq!(clock.observe(&report(Stage::Levels, 0), at(1.0)), None);
+        // 20 of 100 units in 2 s: 8 s left, whatever the rate just now.
+        assert_eq!(clock.observe(&report(Stage::Levels, 20), at(2.0)), Some(Duration::from_secs(8)));
+        assert_eq!(clock.observe(&report(Stage::Levels, 50), at(6.0)), Some(Duration::from_secs(6)));
+        let checks = clock.end(at(10.0));
+        let shares: Vec<f64> = checks.iter().map(|c| c.at).collect();
+        assert_eq!(shares, TIME_LEFT_CHECKS);
+        // At 1 s nothing had been told; at 2.5 s the 2 s report's 8 s
+        // against 8 s taken; at 7.5 s the 6 s report's 6 s against 4 s.
+        assert_eq!(checks[0], TimeLeftCheck { at: 0.1, told_seconds: None, actual_seconds: 9.0 });
+        assert_eq!(checks[0].error(), None);
+        assert_eq!(checks[1], TimeLeftCheck { at: 0.25, told_seconds: Some(8.0), actual_seconds: 8.0 });
+        assert_eq!(checks[1].error(), Some(0.0));
+        assert_eq!(checks[3], TimeLeftCheck { at: 0.75, told_seconds: Some(6.0), actual_seconds: 4.0 });
+        assert_eq!(checks[3].error(), Some(0.5));
+        // A new stage starts its own clock.
+        assert_eq!(clock.observe(&report(Stage::Groups, 10), at(20.0)), Some(Duration::ZERO));
+        assert_eq!(clock.observe(&report(Stage::Groups, 20), at(21.0)), Some(Duration::from_secs(4)));
+    }
 
     #[test]
     fn a_stage_reports_its_start_at_most_a_thousand_steps_and_its_end() {

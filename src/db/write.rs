@@ -9,7 +9,7 @@ use super::StagedScene;
 use super::load::{Load, Sink};
 use super::source::{self, ObjectSource};
 use super::{Inner, ReadTransaction, Recovery, SeatGuard, Snapshot, WriterLock, interrupted, recover};
-use crate::bulk::{BuildParams, BuildProgress, Hierarchy, LoadProgress, Stage, build_owned, check_range};
+use crate::bulk::{BuildParams, BuildProgress, Hierarchy, LoadProgress, build_owned, check_range};
 use crate::lod::LodParams;
 use crate::scene::{Key, KeyError, Object, ObjectId, Scene};
 use crate::store::alloc::{FreeSpace, free_keeping, label_freed};
@@ -330,7 +330,7 @@ impl<'db> WriteTransaction<'db> {
         let started = Instant::now();
         let tree =
             build_owned(objects.object_boxes(), Some(objects.record_lens()), params, &|p: BuildProgress| {
-                progress(LoadProgress { stage: Stage::Tree, done: p.objects_placed, total: p.objects_total })
+                progress(p.as_stage())
             })?;
         let build_seconds = started.elapsed().as_secs_f64();
         self.write(objects, &tree, params, build_seconds, progress)?;

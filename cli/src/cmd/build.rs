@@ -3,12 +3,12 @@
 //! empty or torn file that a crash left while creating one).
 
 use std::path::Path;
-use std::sync::Mutex;
+use std::sync::{Mutex, MutexGuard, PoisonError};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
-use mktree::bulk::{Hierarchy, LoadProgress, Report, Stage};
+use mktree::bulk::{Hierarchy, LoadProgress, Report, Stage, TimeLeft, TimeLeftCheck};
 use mktree::db::{CreateOptions, Database, StagedScene, WriterWait};
 use mktree::scene::Scene;
 use mktree::store::StorageError;
@@ -17,36 +17,45 @@ use serde_json::json;
 use crate::args::{BuildArgs, LodArgs};
 use crate::output;
 
-/// Each stage of a build as it ended: its wall seconds, and the process's
-/// peak resident memory by then (Linux; `null` elsewhere). `build --json`
-/// reports them, so that a long build shows which stage takes the time and
-/// which one sets the peak.
+/// Each stage of a build as it ended: its wall seconds, the process's
+/// peak resident memory by then (Linux; `null` elsewhere), and how the
+/// time left its progress bar told compared with the time it took (none
+/// for the read and commit, which tell none). `build --json` reports
+/// them, so that a long build shows which stage takes the time, which one
+/// sets the peak, and whether its bar could be believed.
 #[derive(Debug, Clone, serde::Serialize)]
 struct StageRow {
     stage: &'static str,
     seconds: f64,
     peak_rss_bytes: Option<u64>,
+    time_left: Vec<TimeLeftCheck>,
 }
 
-/// The stages ended so far, and when the current one began.
-struct Stages(Mutex<(Vec<StageRow>, Instant)>);
+/// The stages ended so far, when the current one began, and the clock
+/// that tells the time left in it.
+struct Stages(Mutex<(Vec<StageRow>, Instant, TimeLeft)>);
 
 impl Stages {
     fn new() -> Stages {
-        Stages(Mutex::new((Vec::new(), Instant::now())))
+        Stages(Mutex::new((Vec::new(), Instant::now(), TimeLeft::new())))
+    }
+
+    fn lock(&self) -> MutexGuard<'_, (Vec<StageRow>, Instant, TimeLeft)> {
+        self.0.lock().unwrap_or_else(PoisonError::into_inner)
     }
 
     /// Ends stage `stage`, which began when the one before ended.
     fn end(&self, stage: &'static str) {
-        let mut guard = self.0.lock().unwrap_or_else(|e| e.into_inner());
-        let (rows, began) = &mut *guard;
+        let mut guard = self.lock();
+        let (rows, began, clock) = &mut *guard;
         let seconds = began.elapsed().as_secs_f64();
-        rows.push(StageRow { stage, seconds, peak_rss_bytes: crate::memory::peak_rss_bytes() });
+        let time_left = clock.end(Instant::now());
+        rows.push(StageRow { stage, seconds, peak_rss_bytes: crate::memory::peak_rss_bytes(), time_left });
         *began = Instant::now();
     }
 
     fn rows(self) -> Vec<StageRow> {
-        self.0.into_inner().unwrap_or_else(|e| e.into_inner()).0
+        self.0.into_inner().unwrap_or_else(PoisonError::into_inner).0
     }
 }
 
@@ -60,17 +69,15 @@ fn show(pb: &ProgressBar, stages: &Stages, p: LoadProgress) {
         stages.end(stage_name(&pb.prefix()));
         crate::memory::release_freed_memory();
         pb.set_prefix(p.stage.name());
-        pb.set_message("");
         pb.reset();
     }
-    pb.set_length(p.total);
-    pb.set_position(p.done);
+    output::show_progress(pb, &mut stages.lock().2, &p);
 }
 
 /// The static name of a stage the progress bar shows.
 fn stage_name(prefix: &str) -> &'static str {
     use Stage::*;
-    [Tree, Layout, Levels, Choose, Geometry, Groups, Nodes]
+    [Tree, Layout, Levels, Choose, Geometry, Groups, Nodes, Keys]
         .into_iter()
         .map(Stage::name)
         .chain(["read", "commit"])
@@ -115,15 +122,6 @@ pub struct Write {
 enum Input {
     Whole(Scene),
     Staged(StagedScene),
-}
-
-impl Input {
-    fn len(&self) -> usize {
-        match self {
-            Input::Whole(scene) => scene.len(),
-            Input::Staged(staged) => staged.len(),
-        }
-    }
 }
 
 /// Reads the scene at `path`: an OBJ file larger than half of `memory` is
@@ -173,7 +171,7 @@ pub fn run(
     stages.end("read");
     let started = Instant::now();
     let (db, created) = open_output(out, args, lod)?;
-    let pb = output::progress_bar(input.len(), &args.params());
+    let pb = output::progress_bar();
     let written = (|| -> Result<Hierarchy> {
         let mut w = db.begin_write_with(if write.wait { WriterWait::Wait } else { WriterWait::Fail })?;
         w.set_lod_params(lod.params());

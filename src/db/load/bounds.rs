@@ -28,11 +28,13 @@ pub(super) fn choose_bounds(
     let layout =
         Layout { frames: &plan.frames, read_share: &plan.read_share, entries: &entries, mesh, block_size };
     let (mut stored, shells) = plan_bounds(lod_plan, tree, m, params, mix, &layout, group, progress)?;
-    let choose = StageMeter::new(progress, Stage::Choose, 2);
+    // Units: the read model's simulations, as many as there can be, then
+    // the error measured; simulations not needed are counted at once.
+    let choose = StageMeter::new(progress, Stage::Choose, SIMULATIONS + 1);
     if !params.store_all && !stored.is_empty() {
-        stored = worth_keeping(plan, tree, stored, block_size);
+        stored = worth_keeping(plan, tree, stored, block_size, &choose);
     }
-    choose.add(1);
+    choose.catch_up(SIMULATIONS);
     stored.measure_errors(&layout, params.error_samples)?;
     Ok((stored, shells))
 }
@@ -42,11 +44,19 @@ pub(super) fn choose_bounds(
 /// bounds, the most ([`longest_passing`]) with which the model's queries
 /// read no more at any scale than with none, and less in all; none if no
 /// count tried passes.
-fn worth_keeping(plan: &Plan, tree: &Hierarchy, stored: StoredBounds, block_size: u32) -> StoredBounds {
+fn worth_keeping(
+    plan: &Plan,
+    tree: &Hierarchy,
+    stored: StoredBounds,
+    block_size: u32,
+    meter: &StageMeter,
+) -> StoredBounds {
     let base = plan.expected_reads(tree, &stored, f64::INFINITY, block_size);
+    meter.add(1);
     let values = stored.values();
     let passes = |count: usize| {
         let reads = plan.expected_reads(tree, &stored, values[count - 1], block_size);
+        meter.add(1);
         reads.iter().zip(&base).all(|(x, y)| x <= y) && reads.iter().sum::<f64>() < base.iter().sum::<f64>()
     };
     match longest_passing(values.len(), passes) {
@@ -57,6 +67,10 @@ fn worth_keeping(plan: &Plan, tree: &Hierarchy, stored: StoredBounds, block_size
 
 /// Simulations [`longest_passing`] runs after the one of all bounds.
 const BISECTIONS: usize = 3;
+
+/// The most simulations [`worth_keeping`] runs: none stored, all, and the
+/// bisections.
+const SIMULATIONS: u64 = 2 + BISECTIONS as u64;
 
 /// The count of best-valued bounds to keep of `total`: `total` if it
 /// `passes`, else the longest count found passing by bisection between

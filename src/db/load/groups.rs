@@ -50,8 +50,10 @@ pub(super) struct GroupEntries {
 /// under `rule`'s finer rule ([`GroupRule::finer`]) when its level-2 bounds
 /// fit for [`KEPT_SHARE`] of the nodes, else under `rule`. The leaves'
 /// `shells` lie on the finer rule's grids (or coarser ones), so either
-/// rule lifts them. Progress counts the nodes built twice: at the finer
-/// rule's level 2, then at every level of the rule chosen.
+/// rule lifts them. Progress counts each node's levels built: one at the
+/// finer rule's level 2, then every level of the rule chosen (a node's
+/// levels cost about alike: the second pass took 2.2 times the first on
+/// ship 10^6, building two levels to its one).
 pub(super) fn group_entries(
     (rule, shells): (&GroupRule, &LeafShells),
     objects: &dyn ObjectSource,
@@ -62,7 +64,9 @@ pub(super) fn group_entries(
     progress: &(dyn Fn(LoadProgress) + Sync),
 ) -> Result<GroupEntries, crate::Error> {
     let nodes = tree.nodes.len() as u64;
-    let meter = StageMeter::new(progress, Stage::Groups, 2 * nodes);
+    // Both rules have the same levels (`GroupRule::finer`).
+    let levels = rule.group_levels().count() as u64;
+    let meter = StageMeter::new(progress, Stage::Groups, nodes * (1 + levels));
     let packed = Packed {
         shells,
         objects,
@@ -257,7 +261,7 @@ impl Build<'_> {
             .collect();
         // Each node is built once: by its own subtree's call.
         let _ = self.blobs[i].set(out);
-        self.meter.add(1);
+        self.meter.add(self.levels.len() as u64);
         Ok(mine)
     }
 

@@ -2,6 +2,7 @@
 //! (format-spec/keys.md).
 
 use super::{Sink, Written};
+use crate::bulk::{LoadProgress, Stage, StageMeter};
 use crate::db::source::ObjectSource;
 use crate::scene::{Key, KeyError, ObjectId};
 use crate::store::StorageError;
@@ -20,12 +21,14 @@ pub(super) struct WrittenKeys {
 /// Writes the key index of `objects`, whose leaf records and boxes
 /// `written` tells, into `sink`. Keys must be unique
 /// (`Scene::check_keys`). Only the keys in order are held for every
-/// object; entries are made a block at a time.
+/// object; entries are made a block at a time, and counted as they are.
 pub(super) fn write(
     Sink { pager, txn, allocate }: Sink,
     objects: &dyn ObjectSource,
     written: &Written,
+    progress: &(dyn Fn(LoadProgress) + Sync),
 ) -> Result<WrittenKeys, crate::Error> {
+    let meter = StageMeter::new(progress, Stage::Keys, objects.len() as u64);
     let bs = pager.block_size();
     let capacity = keys::capacity(bs);
     let mut order: Vec<(Key, ObjectId)> =
@@ -62,6 +65,7 @@ pub(super) fn write(
     let mut level: Vec<ChildRef> = Vec::new();
     for group in keys::pack(&sizes, capacity) {
         let first_key = order[group.start].0.clone();
+        meter.add(group.len() as u64);
         let part: Vec<KeyEntry> = order[group].iter().map(entry).collect();
         keys::encode_leaf(&part, &mut block).map_err(StorageError::Invalid)?;
         level.push(put(&mut block, BlockType::KeyLeaf, first_key)?);

@@ -103,7 +103,7 @@ impl Load<'_> {
         // Written: only the tables of the bounds are left to record.
         drop((plan, shells));
         stored.release_bounds();
-        let keys = keys::write(Sink { pager, txn, allocate }, objects, &written)?;
+        let keys = keys::write(Sink { pager, txn, allocate }, objects, &written, progress)?;
         Ok(meta::assemble(self, &written, &stored, &keys))
     }
 }
