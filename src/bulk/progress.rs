@@ -34,10 +34,11 @@ impl BuildProgress {
     /// This report as a bulk load's [`Stage::Tree`] progress: object
     /// visits, not objects placed, since a `refine` build places none
     /// until its first leaf, after its costliest trials. The total is the
-    /// estimate, or, once objects are placed, the work done scaled by the
-    /// share placed when that is less (an object placed needs no more
-    /// visits, and the estimate can be a third too high: plant 200,000),
-    /// and never less than the work done.
+    /// estimate until the work overruns it, or, once objects are placed,
+    /// the work done scaled by the share placed when that is less (an
+    /// object placed needs no more visits, and the estimate can be a third
+    /// off either way: plant 200,000 and 20,000); never less than the work
+    /// done.
     pub fn as_stage(&self) -> LoadProgress {
         let done = self.work_done;
         let total = if self.objects_placed >= self.objects_total {
@@ -45,7 +46,9 @@ impl BuildProgress {
         } else {
             let placed = self.objects_placed as f64 / self.objects_total as f64;
             let by_placed = if placed > 0.0 { done as f64 / placed } else { f64::INFINITY };
-            (self.work_estimate.min(by_placed) as u64).max(done)
+            let estimate = if self.work_estimate > done as f64 { self.work_estimate } else { f64::INFINITY };
+            let total = estimate.min(by_placed);
+            if total.is_finite() { (total as u64).max(done) } else { done }
         };
         LoadProgress { stage: Stage::Tree, done, total }
     }
@@ -370,6 +373,8 @@ mod tests {
         // Nothing placed: the estimate, or the work done past it.
         assert_eq!(at(0, 300, 1000.0), 1000);
         assert_eq!(at(0, 1200, 1000.0), 1200);
+        // Past the estimate with a quarter placed: by the share placed.
+        assert_eq!(at(25, 1200, 1000.0), 4800);
         // A quarter placed after 400 visits: 1600 is more than the estimate.
         assert_eq!(at(25, 400, 1000.0), 1000);
         // Half placed after 400 visits: 800, less than the estimate.

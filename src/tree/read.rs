@@ -55,7 +55,7 @@ pub struct TreeInfo {
     pub vertices: u64,
     /// The scene's box, x0 y0 z0 x1 y1 z1, mm.
     pub scene_box: [f64; 6],
-    /// Wall time of the bulk load, seconds.
+    /// Wall time of the bulk load's tree stage (building the hierarchy), seconds.
     pub build_seconds: f64,
     /// The parameters of the bulk load (the query extent is not stored: `Auto`);
     /// `None` when the stored codes do not decode.

@@ -100,7 +100,7 @@ pub struct BuildCodes {
     pub rate: f64,
     /// Objects or bytes per leaf, as `leaf_rule` says.
     pub leaf_capacity: u64,
-    /// Wall time of the bulk load, seconds.
+    /// Wall time of the bulk load's tree stage (building the hierarchy), seconds.
     pub build_seconds: f64,
 }
 
