@@ -39,6 +39,12 @@ fn build_json_checks_the_time_left_told_in_every_stage() {
             assert!((0.0..=seconds).contains(&actual), "{name}: {c} of {seconds} s");
             let told = &c["told_seconds"];
             assert!(told.is_null() || told.as_f64().is_some_and(|t| t >= 0.0), "{name}: {c}");
+            // The error is told over taken, less one, wherever both are.
+            match (told.as_f64(), c["error"].as_f64()) {
+                (Some(t), Some(e)) => assert!((t / actual - 1.0 - e).abs() < 1e-9, "{name}: {c}"),
+                (t, None) => assert!(t.is_none() || actual == 0.0, "{name}: {c}"),
+                (None, Some(_)) => panic!("{name}: an error with nothing told: {c}"),
+            }
         }
     }
 }

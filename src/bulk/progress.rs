@@ -290,13 +290,15 @@ pub struct TimeLeftCheck {
     pub told_seconds: Option<f64>,
     /// The time the stage took from that report on, in seconds.
     pub actual_seconds: f64,
+    /// Told over actual, less one: 0.25 is a quarter too long, -0.25 a
+    /// quarter too short. None when nothing was told, or nothing was left.
+    pub error: Option<f64>,
 }
 
 impl TimeLeftCheck {
-    /// Told over actual, less one: 0.25 is a quarter too long, -0.25 a
-    /// quarter too short. None when nothing was told, or nothing was left.
-    pub fn error(&self) -> Option<f64> {
-        self.told_seconds.filter(|_| self.actual_seconds > 0.0).map(|t| t / self.actual_seconds - 1.0)
+    fn new(at: f64, told_seconds: Option<f64>, actual_seconds: f64) -> TimeLeftCheck {
+        let error = told_seconds.filter(|_| actual_seconds > 0.0).map(|t| t / actual_seconds - 1.0);
+        TimeLeftCheck { at, told_seconds, actual_seconds, error }
     }
 }
 
@@ -341,10 +343,8 @@ impl TimeLeft {
                 // Reports come in time order: the last one at or before the point.
                 let last = told.partition_point(|&(t, _)| t <= at * seconds).checked_sub(1).map(|i| told[i]);
                 match last {
-                    Some((t, left)) => {
-                        TimeLeftCheck { at, told_seconds: Some(left), actual_seconds: seconds - t }
-                    }
-                    None => TimeLeftCheck { at, told_seconds: None, actual_seconds: seconds * (1.0 - at) },
+                    Some((t, left)) => TimeLeftCheck::new(at, Some(left), seconds - t),
+                    None => TimeLeftCheck::new(at, None, seconds * (1.0 - at)),
                 }
             })
             .collect()
@@ -402,12 +402,15 @@ mod tests {
         assert_eq!(shares, TIME_LEFT_CHECKS);
         // At 1 s nothing had been told; at 2.5 s the 2 s report's 8 s
         // against 8 s taken; at 7.5 s the 6 s report's 6 s against 4 s.
-        assert_eq!(checks[0], TimeLeftCheck { at: 0.1, told_seconds: None, actual_seconds: 9.0 });
-        assert_eq!(checks[0].error(), None);
-        assert_eq!(checks[1], TimeLeftCheck { at: 0.25, told_seconds: Some(8.0), actual_seconds: 8.0 });
-        assert_eq!(checks[1].error(), Some(0.0));
-        assert_eq!(checks[3], TimeLeftCheck { at: 0.75, told_seconds: Some(6.0), actual_seconds: 4.0 });
-        assert_eq!(checks[3].error(), Some(0.5));
+        let check = |at, told_seconds, actual_seconds, error| TimeLeftCheck {
+            at,
+            told_seconds,
+            actual_seconds,
+            error,
+        };
+        assert_eq!(checks[0], check(0.1, None, 9.0, None));
+        assert_eq!(checks[1], check(0.25, Some(8.0), 8.0, Some(0.0)));
+        assert_eq!(checks[3], check(0.75, Some(6.0), 4.0, Some(0.5)));
         // A new stage starts its own clock.
         assert_eq!(clock.observe(&report(Stage::Groups, 10), at(20.0)), Some(Duration::ZERO));
         assert_eq!(clock.observe(&report(Stage::Groups, 20), at(21.0)), Some(Duration::from_secs(4)));
