@@ -337,11 +337,7 @@ mod tests {
             seeds in proptest::collection::vec(proptest::num::u64::ANY, 1..40),
         ) {
             let b = [lo[0], lo[1], lo[2], lo[0] + size[0], lo[1] + size[1], lo[2] + size[2]].map(f64::from);
-            let mut fine = Voxels::empty(grid(0, b));
-            let cells = fine.grid.cells() as usize;
-            for s in &seeds {
-                fine.set((*s % cells as u64) as usize);
-            }
+            let fine = Voxels::scattered_and_solid(grid(0, b), &seeds, &[]);
             let mut coarse = Voxels::empty(grid(level, [0.0, 0.0, 0.0, 48.0, 48.0, 48.0]));
             fine.lift_into(&mut coarse).unwrap();
             let mut want = Voxels::empty(coarse.grid.clone());
