@@ -18,7 +18,7 @@ use super::leaf::Leaf;
 use super::median::Median;
 use super::moa::Moa;
 use super::progress::Meter;
-use super::refine::Refine;
+use super::refine::{Refine, Scoped};
 use super::sah::{Heuristic, Sah};
 use super::splitter::{Ctx, Splitter};
 use super::walk::{Walk, walk};
@@ -128,7 +128,9 @@ fn grow_all(
             let lists = keys.sorted_lists();
             match (params.method, local.model) {
                 (Method::Laa, _) => grow(&ctx, &Laa::new(&ctx, &keys, params.look_ahead), lists),
-                (Method::Refine, Some(model)) => grow(&ctx, &Refine::new(&ctx, &keys, model), lists),
+                (Method::Refine, Some(model)) => {
+                    grow(&ctx, &Refine::new(&ctx, &keys, model), Scoped::root(lists))
+                }
                 _ => grow(&ctx, &Moa::new(&ctx, &keys), lists),
             }
         }
@@ -171,7 +173,7 @@ pub(crate) fn check_input<'a>(
 }
 
 /// The tree grown by `splitter` from `set`, in preorder.
-fn grow<S: Splitter>(ctx: &Ctx<'_>, splitter: &S, set: S::Set) -> Vec<Node> {
+pub(super) fn grow<S: Splitter>(ctx: &Ctx<'_>, splitter: &S, set: S::Set) -> Vec<Node> {
     walk(&Grower { ctx, splitter }, set, 0)
 }
 
