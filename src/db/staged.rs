@@ -133,6 +133,17 @@ impl StagedScene {
         self.spill.len()
     }
 
+    /// Gives back the spare room of the per-object tables, which grew by
+    /// doubling: at 10^7 objects 430 MB of the objects' table alone, held
+    /// through the whole load.
+    pub(crate) fn shrink_to_fit(&mut self) {
+        self.objects.shrink_to_fit();
+        self.names.shrink_to_fit();
+        self.name_ends.shrink_to_fit();
+        self.keys.shrink_to_fit();
+        self.payloads.shrink_to_fit();
+    }
+
     /// Makes every pushed mesh readable.
     pub(crate) fn flush(&mut self) -> Result<(), StorageError> {
         self.spill.flush().map_err(|error| self.spill_error(error))
@@ -218,7 +229,7 @@ mod tests {
     }
 
     #[test]
-    fn meshes_names_keys_and_payloads_read_back() {
+    fn meshes_names_keys_and_payloads_read_back_from_tables_shrunk_to_fit() {
         let dir = std::env::temp_dir();
         let mut staged = StagedScene::create_in(&dir).expect("spill file");
         for i in 0..50 {
@@ -229,6 +240,10 @@ mod tests {
             assert_eq!(staged.push(o).expect("pushed"), ObjectId(i));
         }
         staged.flush().expect("flushed");
+        staged.shrink_to_fit();
+        assert_eq!(staged.objects.capacity(), 50);
+        assert_eq!(staged.name_ends.capacity(), 50);
+        assert_eq!(staged.names.capacity(), staged.names.len());
         for i in 0..50 {
             let id = ObjectId(i);
             let o = object(i);

@@ -316,6 +316,7 @@ impl<'db> WriteTransaction<'db> {
     ) -> Result<Hierarchy, crate::Error> {
         self.may_write_tree()?;
         staged.flush()?;
+        staged.shrink_to_fit();
         staged.check_unique_keys()?;
         self.load(staged, params, progress)
     }

@@ -96,8 +96,11 @@ impl Plan {
         let mut entries: Vec<Vec<Entry>> = vec![Vec::new(); n];
         for (i, node) in nodes.iter().enumerate() {
             let frame = &frames[i];
-            if node.objects().is_some() {
+            if let Some(objects) = node.objects() {
                 placement.start_block();
+                // Exact room for an entry per object (more only for parts):
+                // grown by doubling, the lists held a third more at 10^7.
+                entries[i].reserve_exact(objects.len());
             }
             for &id in node.objects().unwrap_or_default() {
                 if id.index() >= objects.len() {
