@@ -27,7 +27,6 @@
 //! stores every level of every entry, to measure them).
 
 use std::borrow::Cow;
-use std::collections::HashMap;
 
 use rayon::prelude::*;
 
@@ -322,25 +321,35 @@ pub fn plan_bounds(
             })
             .collect::<Result<_, LodError>>()?
     };
-    let mut chosen: Vec<(usize, Vec<(u16, Picked)>)> = Vec::new();
-    let mut by_leaf: HashMap<usize, Vec<(u16, Picked)>> = HashMap::new();
-    for (list, shell) in picked {
+    // Blocks hold runs of leaves in leaf order, so a block's picks sorted
+    // by leaf (stably) come leaf after leaf; each leaf's are stored by
+    // entry and level as they end, and each block's list goes as it is
+    // taken. Nothing holds every pick twice.
+    let mut leaf: Option<(usize, Vec<(u16, Picked)>)> = None;
+    let mut store = |(i, mut list): (usize, Vec<(u16, Picked)>)| {
+        list.sort_by_key(|(j, c)| (*j, c.level));
+        for (j, c) in list {
+            out.push(i, BoundEntry { target: j, level: c.level, blob: c.blob }, c.worth);
+        }
+    };
+    for (mut list, shell) in picked {
+        list.sort_by_key(|&(i, ..)| i);
         for (i, j, c) in list {
-            by_leaf.entry(i).or_default().push((j, c));
+            match &mut leaf {
+                Some((at, taken)) if *at == i => taken.push((j, c)),
+                _ => {
+                    if let Some(done) = leaf.replace((i, vec![(j, c)])) {
+                        store(done);
+                    }
+                }
+            }
         }
         if let Some((i, blob)) = shell {
             shells[i].push(blob);
         }
     }
-    for (i, mut list) in by_leaf {
-        list.sort_by_key(|(j, c)| (*j, c.level));
-        chosen.push((i, list));
-    }
-    chosen.sort_by_key(|(i, _)| *i);
-    for (i, picked) in chosen {
-        for (j, c) in picked {
-            out.push(i, BoundEntry { target: j, level: c.level, blob: c.blob }, c.worth);
-        }
+    if let Some(done) = leaf {
+        store(done);
     }
     Ok((out, shells))
 }
