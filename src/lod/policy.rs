@@ -238,6 +238,35 @@ struct Picked {
     worth: Worth,
 }
 
+/// One geometry block's entries: `len` of them in leaf order, from entry
+/// `entry` of leaf `leaf` on. Listed as (leaf, entry) pairs only while the
+/// block is judged: for every entry at once they were 16 bytes an entry
+/// more, held through the stage.
+struct Run {
+    leaf: usize,
+    entry: usize,
+    len: usize,
+}
+
+impl Run {
+    /// The run's entries as (leaf, entry) pairs, leaves without entries
+    /// passed over.
+    fn entries(&self, layout: &Layout) -> Vec<(usize, usize)> {
+        let mut out = Vec::with_capacity(self.len);
+        let (mut i, mut j) = (self.leaf, self.entry);
+        while out.len() < self.len {
+            let Some(entries) = layout.entries.get(i) else { break };
+            if j < entries.len() {
+                out.push((i, j));
+                j += 1;
+            } else {
+                (i, j) = (i + 1, 0);
+            }
+        }
+        out
+    }
+}
+
 /// Per node, for a leaf: its entries' surfaces on the grid of its finest
 /// group level (`GroupRule`), as encoded voxel blobs (lod.md), one per
 /// geometry block of the leaf, whose union is the leaf's; what its group
@@ -279,13 +308,13 @@ pub fn plan_bounds(
     out.lattice = Some(plan.lattice);
     let ctx = Ctx { plan, params, layout };
     // Entries by the geometry block they start in: runs in leaf order.
-    let mut groups: Vec<Vec<(usize, usize)>> = Vec::new();
+    let mut runs: Vec<Run> = Vec::new();
     let mut block = None;
     for (i, entries) in layout.entries.iter().enumerate() {
         for (j, e) in entries.iter().enumerate() {
-            match groups.last_mut() {
-                Some(group) if block == Some(e.block) => group.push((i, j)),
-                _ => groups.push(vec![(i, j)]),
+            match runs.last_mut() {
+                Some(run) if block == Some(e.block) => run.len += 1,
+                _ => runs.push(Run { leaf: i, entry: j, len: 1 }),
             }
             block = Some(e.block);
         }
@@ -295,11 +324,11 @@ pub fn plan_bounds(
     // together; only the chosen ones outlive their block.
     type Block = (Vec<(usize, u16, Picked)>, Option<(usize, Vec<u8>)>);
     let picked: Vec<Block> = {
-        let meter = StageMeter::new(progress, Stage::Levels, groups.len() as u64);
-        groups
-            .par_iter()
-            .map(|group| {
+        let meter = StageMeter::new(progress, Stage::Levels, runs.len() as u64);
+        runs.par_iter()
+            .map(|run| {
                 meter.add(1);
+                let group = &run.entries(layout)[..];
                 let mut cands: Vec<Vec<Candidate>> =
                     group.iter().map(|&(i, j)| ctx.candidates(m, i, j)).collect::<Result<_, LodError>>()?;
                 let shell = match group_rule {
@@ -575,5 +604,31 @@ pub(crate) fn bound_grid(
         Ok(g) => Ok(Some(g)),
         Err(LodError::TooLarge { .. }) => Ok(None),
         Err(e) => Err(e),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_run_lists_its_entries_in_leaf_order_past_leaves_without_any() {
+        let entry = |block| LeafEntry { qbox: [0; 6], block };
+        let entries = vec![vec![entry(0), entry(0)], Vec::new(), vec![entry(0), entry(1), entry(1)]];
+        let mesh = |_: usize, _: usize| -> Result<Cow<'_, Mesh>, LodError> {
+            Err(LodError::Mesh("not read".into()))
+        };
+        let layout = Layout {
+            frames: &[Aabb::EMPTY; 3],
+            read_share: &[0.0; 3],
+            entries: &entries,
+            mesh: &mesh,
+            block_size: 4096,
+        };
+        let run = |leaf, entry, len| Run { leaf, entry, len }.entries(&layout);
+        assert_eq!(run(0, 1, 3), [(0, 1), (2, 0), (2, 1)]);
+        assert_eq!(run(2, 1, 2), [(2, 1), (2, 2)]);
+        // A run longer than what is left ends with the entries.
+        assert_eq!(run(2, 2, 5), [(2, 2)]);
     }
 }
