@@ -106,12 +106,12 @@ fn repeats(keys: &Keys<'_>, memo: &Memo, node: &[u32], options: &[(&[u32], &[u32
 }
 
 /// The set a trial node holds, as the [`Memo`] knows it: its size and two
-/// order-free sums of 64-bit digests of its objects. Two different sets of
-/// one size share a key with a chance of about 2^-128 per pair; a shared
-/// key could only lend one set the other's score, which makes a worse
-/// tree, never a wrong file. Sums, so that a half's key is its parent's
-/// less its sibling's.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+/// order-free sums of 64-bit digests of its objects. The memo looks a set
+/// up by its sums alone: two different sets share them with a chance of
+/// about 2^-128 per pair, whatever their sizes, and a shared key could only
+/// lend one set the other's score, which makes a worse tree, never a wrong
+/// file. Sums, so that a half's key is its parent's less its sibling's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct SetKey {
     len: usize,
     sums: [u64; 2],
@@ -201,8 +201,8 @@ struct Memo {
     built: Arc<Built>,
     /// The next node's number.
     next_node: AtomicU32,
-    /// Entries inserted since the last sweep plus those it kept: an upper
-    /// bound on the entries held.
+    /// Entries inserted since the last sweep plus those it kept: about the
+    /// entries held (inserts while a sweep runs may be missed).
     held: AtomicUsize,
     /// The least `held` at which a sweep starts.
     sweep_min: usize,
