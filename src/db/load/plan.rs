@@ -96,11 +96,11 @@ impl Plan {
         let mut entries: Vec<Vec<Entry>> = vec![Vec::new(); n];
         for (i, node) in nodes.iter().enumerate() {
             let frame = &frames[i];
-            if let Some(objects) = node.objects() {
+            if let Some(ids) = node.objects() {
                 placement.start_block();
                 // Exact room for an entry per object (more only for parts):
                 // grown by doubling, the lists held a third more at 10^7.
-                entries[i].reserve_exact(objects.len());
+                entries[i].reserve_exact(ids.len());
             }
             for &id in node.objects().unwrap_or_default() {
                 if id.index() >= objects.len() {
