@@ -38,5 +38,5 @@ pub use lattice::Lattice;
 pub use plan::LodParams;
 internal_use!(plan::LodPlan);
 pub(crate) use policy::bound_grid;
-internal_use!(policy::{EntryMesh, Layout, LeafEntry, LeafShells, StoredBounds, plan_bounds});
+internal_use!(policy::{EntryMesh, Layout, LeafEntries, LeafEntry, LeafShells, StoredBounds, plan_bounds});
 pub use voxels::Voxels;

@@ -43,12 +43,24 @@ use crate::store::format::quant::QuantBox;
 /// in the leaf's frame, [`Layout::frames`]) and the geometry block its
 /// record starts in (entries in leaf order start in blocks that never
 /// decrease).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Copy)]
 pub struct LeafEntry {
     /// Its box (or the part's) in steps of the leaf's frame.
     pub qbox: [u16; 6],
     /// The geometry block its record starts in.
     pub block: u64,
+}
+
+/// Every leaf's entries, read in place from whatever laid them out: a copy
+/// of them all would be 24 bytes an entry more, held through the stage
+/// (240 MB at 10^7 objects).
+pub trait LeafEntries: Sync {
+    /// Nodes, in preorder (a leaf's entries are at its index).
+    fn nodes(&self) -> usize;
+    /// Entries of node `node`: 0 for an internal node or past the end.
+    fn count(&self, node: usize) -> usize;
+    /// Entry `j` of node `node`, if there is one.
+    fn entry(&self, node: usize, j: usize) -> Option<LeafEntry>;
 }
 
 /// The mesh of entry j of leaf i, read when its bounds are computed: a
@@ -62,7 +74,7 @@ pub struct Layout<'a> {
     /// Per node: the share of the model's queries that read its node block.
     pub read_share: &'a [f64],
     /// Per node: a leaf's entries, in record order (empty for internal nodes).
-    pub entries: &'a [Vec<LeafEntry>],
+    pub entries: &'a dyn LeafEntries,
     /// The entries' meshes.
     pub mesh: &'a EntryMesh<'a>,
     /// The file's block size in bytes (what a node block holds).
@@ -72,7 +84,7 @@ pub struct Layout<'a> {
 impl Layout<'_> {
     /// Entry `j` of leaf `i`'s box as the leaf stores it: what its bounds' grids cover.
     pub fn stored_box(&self, i: usize, j: usize) -> Option<Aabb> {
-        let e = self.entries.get(i)?.get(j)?;
+        let e = self.entries.entry(i, j)?;
         Some(QuantBox::decode(self.frames.get(i)?, e.qbox)?.outer)
     }
 }
@@ -153,17 +165,24 @@ impl StoredBounds {
     }
 
     /// The bounds judged worth at least `min_value` reads per query (with
-    /// the group they were chosen in).
-    pub fn keep(self, min_value: f64) -> StoredBounds {
-        let mut out = self.none();
-        for (i, (bounds, worth)) in self.bounds.into_iter().zip(self.worth).enumerate() {
+    /// the group they were chosen in). Filtered in place, node by node: a
+    /// second set of the per-node lists beside the first was what raised
+    /// the build's peak at 10^7 objects.
+    pub fn keep(mut self, min_value: f64) -> StoredBounds {
+        let levels = self.usage.len();
+        self.errors = vec![[0.0; 2]; levels];
+        self.usage = vec![[0; 2]; levels];
+        self.predicted = vec![[0.0; 2]; levels];
+        for node in 0..self.bounds.len() {
+            let bounds = std::mem::take(&mut self.bounds[node]);
+            let worth = self.worth.get_mut(node).map(std::mem::take).unwrap_or_default();
             for (b, w) in bounds.into_iter().zip(worth) {
                 if w.value >= min_value {
-                    out.push(i, b, w);
+                    self.push(node, b, w);
                 }
             }
         }
-        out
+        self
     }
 
     /// Record bytes of node `node`'s bounds worth at least `min_value`.
@@ -254,9 +273,9 @@ impl Run {
     fn entries(&self, layout: &Layout) -> Vec<(usize, usize)> {
         let mut out = Vec::with_capacity(self.len);
         let (mut i, mut j) = (self.leaf, self.entry);
-        while out.len() < self.len {
-            let Some(entries) = layout.entries.get(i) else { break };
-            if j < entries.len() {
+        let nodes = layout.entries.nodes();
+        while out.len() < self.len && i < nodes {
+            if j < layout.entries.count(i) {
                 out.push((i, j));
                 j += 1;
             } else {
@@ -310,8 +329,9 @@ pub fn plan_bounds(
     // Entries by the geometry block they start in: runs in leaf order.
     let mut runs: Vec<Run> = Vec::new();
     let mut block = None;
-    for (i, entries) in layout.entries.iter().enumerate() {
-        for (j, e) in entries.iter().enumerate() {
+    for i in 0..layout.entries.nodes() {
+        for j in 0..layout.entries.count(i) {
+            let Some(e) = layout.entries.entry(i, j) else { break };
             match runs.last_mut() {
                 Some(run) if block == Some(e.block) => run.len += 1,
                 _ => runs.push(Run { leaf: i, entry: j, len: 1 }),
@@ -432,7 +452,7 @@ impl Ctx<'_, '_> {
     /// lift costs only the set cells.
     fn candidates(&self, m: u8, i: usize, j: usize) -> Result<Vec<Candidate>, LodError> {
         let frame = &self.layout.frames[i];
-        let Some(e) = self.layout.entries[i].get(j) else { return Ok(Vec::new()) };
+        let Some(e) = self.layout.entries.entry(i, j) else { return Ok(Vec::new()) };
         let Some(qbox) = QuantBox::decode(frame, e.qbox) else {
             return Ok(Vec::new());
         };
@@ -503,10 +523,7 @@ fn judge(
     }
     let boxes: Vec<Option<QuantBox>> = group
         .iter()
-        .map(|&(i, j)| {
-            let f = &layout.frames[i];
-            QuantBox::decode(f, layout.entries[i][j].qbox)
-        })
+        .map(|&(i, j)| QuantBox::decode(&layout.frames[i], layout.entries.entry(i, j)?.qbox))
         .collect();
     let zone = boxes.iter().flatten().fold(Aabb::EMPTY, |z, b| z.union(&b.outer));
     if zone.is_empty() {
@@ -610,6 +627,52 @@ pub(crate) fn bound_grid(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    impl LeafEntries for Vec<Vec<LeafEntry>> {
+        fn nodes(&self) -> usize {
+            self.len()
+        }
+
+        fn count(&self, node: usize) -> usize {
+            self.get(node).map_or(0, Vec::len)
+        }
+
+        fn entry(&self, node: usize, j: usize) -> Option<LeafEntry> {
+            self.get(node)?.get(j).copied()
+        }
+    }
+
+    #[test]
+    fn keeping_filters_the_bounds_and_counts_again_what_the_meta_block_records() {
+        let mut all = StoredBounds {
+            bounds: vec![Vec::new(); 3],
+            errors: vec![[0.0; 2]; 2],
+            usage: vec![[0; 2]; 2],
+            grid_level: vec![0, 0],
+            lattice: None,
+            query_extent: [1.0; 3],
+            predicted: vec![[0.0; 2]; 2],
+            worth: vec![Vec::new(); 3],
+        };
+        let bound = |level, len| BoundEntry { target: 0, level, blob: vec![0; len] };
+        let worth = |value: f64, eps| Worth { value, saving: value + 1.0, cost: 1.0, eps };
+        all.push(0, bound(1, 10), worth(0.5, 2.0));
+        all.push(0, bound(2, 20), worth(0.125, 3.0));
+        all.push(2, bound(2, 30), worth(0.25, 1.0));
+        let kept = all.clone().keep(0.25);
+        assert_eq!(kept.usage, [[10, 1], [30, 1]]);
+        assert_eq!(kept.errors, [[2.0, 0.0], [1.0, 0.0]]);
+        assert_eq!(kept.predicted, [[1.5, 1.0], [1.25, 1.0]]);
+        assert_eq!(kept.bounds.iter().map(Vec::len).collect::<Vec<_>>(), [1, 0, 1]);
+        assert_eq!(kept.bounds[2][0].blob.len(), 30);
+        assert_eq!(kept.values(), [0.5, 0.25]);
+        let every = all.clone().keep(f64::NEG_INFINITY);
+        assert_eq!(
+            (&every.usage, &every.errors, &every.predicted),
+            (&all.usage, &all.errors, &all.predicted)
+        );
+        assert!(all.keep(f64::INFINITY).is_empty());
+    }
 
     #[test]
     fn a_run_lists_its_entries_in_leaf_order_past_leaves_without_any() {

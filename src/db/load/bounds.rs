@@ -23,10 +23,9 @@ pub(super) fn choose_bounds(
     progress: &(dyn Fn(LoadProgress) + Sync),
 ) -> Result<(StoredBounds, LeafShells), LodError> {
     let Load { objects, tree, lod_params: params, .. } = *load;
-    let entries = plan.leaf_entries();
     let mesh: &EntryMesh = &|i, j| plan.entry_mesh(objects, i, j).map_err(|e| LodError::Mesh(e.to_string()));
     let layout =
-        Layout { frames: &plan.frames, read_share: &plan.read_share, entries: &entries, mesh, block_size };
+        Layout { frames: &plan.frames, read_share: &plan.read_share, entries: plan, mesh, block_size };
     let (mut stored, shells) = plan_bounds(lod_plan, tree, m, params, mix, &layout, group, progress)?;
     // Units: the read model's simulations, as many as there can be, then
     // the error measured; simulations not needed are counted at once.

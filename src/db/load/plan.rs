@@ -10,7 +10,7 @@ use super::read_model::{BlockWalk, SAMPLES_PER_SCALE, choose_packing};
 use crate::bulk::{Hierarchy, QueryMix};
 use crate::db::source::ObjectSource;
 use crate::geom::Aabb;
-use crate::lod::LeafEntry;
+use crate::lod::{LeafEntries, LeafEntry};
 use crate::scene::{Key, Mesh, ObjectId};
 use crate::store::StorageError;
 use crate::store::format::geometry::{self, Placement};
@@ -172,21 +172,6 @@ impl Plan {
         pos / self.payload..=(pos + len.max(1) - 1) / self.payload
     }
 
-    /// Every leaf's entries as the levels of detail judge them: the object
-    /// (or part) with its box and its geometry blocks.
-    pub fn leaf_entries(&self) -> Vec<Vec<LeafEntry>> {
-        self.entries
-            .iter()
-            .enumerate()
-            .map(|(i, es)| {
-                es.iter()
-                    .enumerate()
-                    .map(|(j, e)| LeafEntry { qbox: e.qbox, block: *self.entry_blocks(i, j).start() })
-                    .collect()
-            })
-            .collect()
-    }
-
     /// The mesh of entry `j` of leaf `leaf`.
     pub fn entry_mesh<'a>(
         &'a self,
@@ -226,4 +211,22 @@ impl Plan {
 /// The distinct objects of a leaf's entries, in entry order (an object's parts are consecutive).
 pub(super) fn object_ids(entries: &[Entry]) -> impl Iterator<Item = ObjectId> + '_ {
     entries.iter().enumerate().filter(|(j, e)| *j == 0 || entries[j - 1].id != e.id).map(|(_, e)| e.id)
+}
+
+/// Every leaf's entries as the levels of detail judge them: the object (or
+/// part) with its box and the geometry block its record starts in, read
+/// from the plan's own entries.
+impl LeafEntries for Plan {
+    fn nodes(&self) -> usize {
+        self.entries.len()
+    }
+
+    fn count(&self, node: usize) -> usize {
+        self.entries.get(node).map_or(0, Vec::len)
+    }
+
+    fn entry(&self, node: usize, j: usize) -> Option<LeafEntry> {
+        let e = self.entries.get(node)?.get(j)?;
+        Some(LeafEntry { qbox: e.qbox, block: *self.entry_blocks(node, j).start() })
+    }
 }
