@@ -36,7 +36,7 @@ pub(crate) struct Written {
     /// Vertices as stored (a vertex two parts of an object share counts twice).
     pub vertices: u64,
     /// Per object (by id): the path from the root to its leaf.
-    pub paths: Vec<TreePath>,
+    pub paths: ObjectPaths,
     /// The objects stored in parts, by id, with the union of their parts'
     /// boxes (any other object's box as the tree holds it is its source's).
     pub split_boxes: Vec<(ObjectId, Aabb)>,
@@ -388,24 +388,44 @@ impl NodeBlocks<'_> {
     }
 }
 
+/// Every object's path from the root to its leaf, kept as each node's path
+/// and each object's leaf: 4 bytes an object, not a 16-byte path (160 MB
+/// at 10^7 objects, held while the key index is written).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct ObjectPaths {
+    /// Per node (preorder): its path.
+    node: Vec<TreePath>,
+    /// Per object (by id): its leaf.
+    leaf: Vec<u32>,
+}
+
+impl ObjectPaths {
+    /// The path of object `id`'s leaf (the root's, for an id not placed).
+    pub fn of(&self, id: ObjectId) -> TreePath {
+        let leaf = self.leaf.get(id.index()).map_or(0, |&l| l as usize);
+        self.node.get(leaf).copied().unwrap_or_default()
+    }
+}
+
 /// Per object (by id) the path from the root to its leaf, and the objects
 /// stored in parts with the union of their parts' boxes.
-fn object_paths(tree: &Hierarchy, plan: &Plan, objects: usize) -> (Vec<TreePath>, Vec<(ObjectId, Aabb)>) {
+fn object_paths(tree: &Hierarchy, plan: &Plan, objects: usize) -> (ObjectPaths, Vec<(ObjectId, Aabb)>) {
     let nodes = &tree.nodes;
     // Nodes are in preorder: a parent's path is known before its children's.
-    let mut node_paths = vec![TreePath::default(); nodes.len()];
+    let mut node = vec![TreePath::default(); nodes.len()];
     for i in 0..nodes.len() {
         for (c, kid) in nodes[i].children().into_iter().flatten().enumerate() {
-            node_paths[kid.index()] = node_paths[i].child(c);
+            node[kid.index()] = node[i].child(c);
         }
     }
-    let mut paths = vec![TreePath::default(); objects];
+    let mut leaf = vec![0u32; objects];
     let mut split_boxes: Vec<(ObjectId, Aabb)> = Vec::new();
     for (i, es) in plan.entries.iter().enumerate() {
         for (j, e) in es.iter().enumerate() {
             let first = j == 0 || es[j - 1].id != e.id;
             if first {
-                paths[e.id.index()] = node_paths[i];
+                // Node ids are u32 (`NodeId`).
+                leaf[e.id.index()] = i as u32;
             }
             if let Some((_, part_box)) = e.part.as_deref() {
                 match split_boxes.last_mut() {
@@ -416,7 +436,7 @@ fn object_paths(tree: &Hierarchy, plan: &Plan, objects: usize) -> (Vec<TreePath>
         }
     }
     split_boxes.sort_unstable_by_key(|&(id, _)| id);
-    (paths, split_boxes)
+    (ObjectPaths { node, leaf }, split_boxes)
 }
 
 /// A node's split as its record stores it.

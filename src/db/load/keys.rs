@@ -43,7 +43,7 @@ pub(super) fn write(
         payload: objects.payload(id).to_vec(),
         name: objects.name(id).to_string(),
         object_id: id.0,
-        path: written.paths[id.index()],
+        path: written.paths.of(id),
         aabb: written.aabb(objects, id),
     };
     let sizes: Vec<usize> = order
