@@ -34,10 +34,10 @@ use crate::store::format::freelist::{FreeListBlock, FreeRange};
 use crate::store::format::header::Commit;
 use crate::store::format::keys::TreePath;
 use crate::store::format::meta::Meta;
-use crate::store::format::node::{BoundView, LeafView, NodeView};
+use crate::store::format::node::{self, BoundView, LeafView, NodeView};
 use crate::store::format::quant::QuantBox;
 use crate::store::{Block, ReadStats, StorageError};
-use keys::KeyedObject;
+use keys::{KeyedObject, KeyedObjects};
 
 /// What `check` found.
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -251,7 +251,7 @@ struct Walker<'t> {
     triangles: u64,
     vertices: u64,
     /// Per object id: its key, where its first entry is, and the union of its parts' boxes.
-    keyed: HashMap<u32, KeyedObject>,
+    keyed: KeyedObjects,
 }
 
 impl Walker<'_> {
@@ -324,11 +324,7 @@ impl Walker<'_> {
             }
             previous = Some((id.0, mesh.anchor()));
             let path = self.path_of.get(&(block.id(), offset)).copied().unwrap_or_default();
-            let k = self.keyed.entry(id.0).or_insert_with(|| KeyedObject {
-                key: leaf.key(i),
-                path,
-                aabb: Aabb::EMPTY,
-            });
+            let k = self.keyed.entry(id.0, || KeyedObject { key: leaf.key(i), path, aabb: Aabb::EMPTY });
             k.aabb = k.aabb.union(&mesh.aabb());
             let Some(q) = QuantBox::decode(frame, o.qbox) else {
                 self.faults.push(format!("{here}: object {id}'s box is backwards"));
@@ -367,7 +363,7 @@ impl Visitor for Walker<'_> {
             children: None,
             geometry: Vec::new(),
             objects: rec.object_count(),
-            group: crate::store::format::node::group_ref(block.bytes()),
+            group: node::group_ref(block.bytes()),
             group_levels: 0,
         };
         // Each group bound the flags name is in the group block, on its grid (format-spec/group.md).
@@ -408,6 +404,7 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
     let Some(info) = txn.info() else { return Ok(()) };
     let Some(root) = txn.root() else { return Ok(()) };
     let meta = txn.snapshot.meta.clone().unwrap_or_default();
+    let objects = object_room(info.objects, c.owner.len(), txn.pager().block_size());
     let mut w = Walker {
         txn,
         reads: Reads::new(None),
@@ -416,13 +413,13 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
         at: HashMap::new(),
         depth_of: HashMap::new(),
         path_of: HashMap::new(),
-        seen: HashSet::new(),
+        seen: HashSet::with_capacity(objects),
         objects: meta.object_ids,
         rules: super::lod::bound_rules(txn),
         eps: txn.lod_info().map(|l| l.eps).unwrap_or_default(),
         triangles: 0,
         vertices: 0,
-        keyed: HashMap::new(),
+        keyed: KeyedObjects::with_capacity(objects),
     };
     walk_everything(txn, root, &mut Reads::new(None), &mut w)?;
     c.report.faults.append(&mut w.faults);
@@ -430,7 +427,17 @@ fn check_tree(c: &mut Checker, txn: &ReadTransaction) -> Result<(), StorageError
     check_group_blocks(c, txn, group_levels);
     check_child_counts(c, &w);
     check_totals(c, &info, &meta, &w, (node_blocks, geometry_blocks));
+    w.keyed.sort();
     keys::check_keys(c, txn, &meta, &w.keyed)
+}
+
+/// Room for the per-object tables: the objects the meta block counts, made
+/// at once, not grown by doubling (which holds the old table beside the
+/// new), and no more than the file's blocks can hold entries for, so that
+/// a hostile count sizes nothing.
+fn object_room(objects: u32, blocks: usize, block_size: u32) -> usize {
+    let entries = blocks.saturating_mul(block_size as usize / node::OBJECT_LEN);
+    (objects as usize).min(entries)
 }
 
 /// Claims each node, group and geometry block of the tree for `c`'s map
@@ -570,4 +577,17 @@ fn check_totals(
     }
     c.report.objects = u64::from(info.objects);
     c.report.nodes = n as u64;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_object_tables_take_room_for_no_more_entries_than_the_blocks_hold() {
+        assert_eq!(object_room(10_000_000, 725_437, 16_384), 10_000_000);
+        // A 16 KiB block holds at most 819 entries of 20 bytes.
+        assert_eq!(object_room(u32::MAX, 10, 16_384), 8_190);
+        assert_eq!(object_room(5, 0, 16_384), 0);
+    }
 }
