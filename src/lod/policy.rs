@@ -166,8 +166,8 @@ impl StoredBounds {
 
     /// The bounds judged worth at least `min_value` reads per query (with
     /// the group they were chosen in). Filtered in place, node by node: a
-    /// second set of the per-node lists beside the first was what raised
-    /// the build's peak at 10^7 objects.
+    /// second set of the per-node lists beside the first added to the
+    /// choose stage's peak at 10^7 objects.
     pub fn keep(mut self, min_value: f64) -> StoredBounds {
         let levels = self.usage.len();
         self.errors = vec![[0.0; 2]; levels];
